@@ -19,8 +19,9 @@ from tcamlab.errors import ConvergenceError
 
 XTOL = 1e-15
 """Default absolute tolerance on the root (here sin(alpha) or d/d0) [-]."""
-RTOL = 4 * np.finfo(float).eps
-"""Default relative tolerance on the root [-]."""
+RTOL = 1e-12
+"""Default relative tolerance on the root [-] (Newton then stops one step after
+the error reaches about 1e-12, where the residual is at round-off)."""
 MAXITER = 100
 """Default iteration limit (bisection alone halves the bracket 100 times)."""
 
@@ -38,7 +39,7 @@ class RootResult:
     converged : ndarray of bool
         Per-element convergence flag.
     residual : ndarray
-        Function value at the returned root.
+        Function value at the last iterate (within one tolerance of the root).
     """
 
     root: np.ndarray
@@ -63,9 +64,9 @@ def bracketed_newton(
     Parameters
     ----------
     func : callable
-        ``func(x, idx) -> (f, dfdx)``, where ``idx`` are the indices (into the
-        flattened problem) of the elements ``x`` belongs to, so the callable
-        can pick its per-element parameters.
+        ``func(x, idx) -> (f, dfdx)``, where ``idx`` indexes (an index array
+        or a slice) the elements of the flattened problem that ``x`` belongs
+        to, so the callable can pick its per-element parameters.
     lo, hi : ndarray
         Brackets; ``f(lo)`` and ``f(hi)`` must differ in sign (or be zero).
     x0 : ndarray, optional
@@ -110,24 +111,31 @@ def bracketed_newton(
     active = idx_all
     it = 0
     for it in range(1, maxiter + 1):
-        xa = x[active]
-        f, df = func(xa, active)
-        residual[active] = f
+        # While every element is still iterating, a slice avoids fancy-index copies.
+        sel = slice(None) if active.size == n else active
+        xa = x[sel].copy()
+        f, df = func(xa, sel)
+        residual[sel] = f
         done_exact = f == 0
         neg = f < 0
-        lo_a = np.where(neg, xa, lo[active])
-        hi_a = np.where(neg, hi[active], xa)
-        lo[active], hi[active] = lo_a, hi_a
+        lo_a = np.where(neg, xa, lo[sel])
+        hi_a = np.where(neg, hi[sel], xa)
+        lo[sel], hi[sel] = lo_a, hi_a
         with np.errstate(divide="ignore", invalid="ignore"):
             xn = xa - f / df
         mid = 0.5 * (lo_a + hi_a)
         a, b = np.minimum(lo_a, hi_a), np.maximum(lo_a, hi_a)
-        out = ~np.isfinite(xn) | (xn <= a) | (xn >= b)
+        tol = xtol + rtol * np.abs(xa)
+        # A Newton point just outside the bracket (by less than the tolerance)
+        # means an endpoint already is the root: take it rather than bisect.
+        clipped = np.clip(xn, a, b)
+        near = np.isfinite(xn) & (np.abs(xn - clipped) <= tol)
+        xn = np.where(near, clipped, xn)
+        out = ~np.isfinite(xn) | (xn < a) | (xn > b)
         xn = np.where(out, mid, xn)
         step = np.abs(xn - xa)
-        tol = xtol + rtol * np.abs(xn)
         conv = done_exact | (step <= tol) | (np.abs(b - a) <= tol)
-        x[active] = np.where(done_exact, xa, xn)
+        x[sel] = np.where(done_exact, xa, xn)
         converged[active[conv]] = True
         active = active[~conv]
         if active.size == 0:
@@ -137,5 +145,4 @@ def bracketed_newton(
             f"{what}: {active.size} of {n} points did not converge in {maxiter} iterations",
             hint="loosen xtol/rtol or check the inputs for extreme values",
         )
-    f, _ = func(x, idx_all)
-    return RootResult(root=x, iterations=it, converged=converged, residual=f)
+    return RootResult(root=x, iterations=it, converged=converged, residual=residual)

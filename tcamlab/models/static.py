@@ -268,6 +268,11 @@ def n_coils(fiber_length, coil_length, coil_diameter):
         np.pi * np.asarray(coil_diameter, float))
 
 
+def _take(arr, idx):
+    """``arr[idx]`` for per-point arrays; scalars pass through unchanged."""
+    return arr if arr.ndim == 0 else arr[idx]
+
+
 def _compliance_coefficients(fiber_diameter, fiber_length, n):
     """A, B, C with f11 = A c^4/G + B c^2/(2G) + 2A s^2 c^2/E + B s^2/(2E), f12 = C c^2/G."""
     d = np.asarray(fiber_diameter, float)
@@ -396,14 +401,16 @@ def displacement(
     ConvergenceError
         If the iteration limit is reached.
     """
-    args = np.broadcast_arrays(
-        *(np.asarray(v, float) for v in (
-            delta_T, force, fiber_diameter, fiber_length, coil_length, coil_diameter,
-            twists, youngs_modulus, thread_plies, max_volume_fraction, radial_cte,
-            shear_modulus_slope))
-    )
-    shape = args[0].shape
-    dT, F, d0, l, L, D, N, E, plies, vfmax, rho, slope = (a.ravel() for a in args)
+    raw = [np.asarray(v, float) for v in (
+        delta_T, force, fiber_diameter, fiber_length, coil_length, coil_diameter,
+        twists, youngs_modulus, thread_plies, max_volume_fraction, radial_cte,
+        shear_modulus_slope)]
+    shape = np.broadcast_shapes(*(a.shape for a in raw))
+    # Scalars stay scalars (the common case: one sample, arrays of dT and F),
+    # so the iteration indexes only what varies.
+    flat = [a.reshape(()) if a.size == 1 else np.broadcast_to(a, shape).ravel() for a in raw]
+    dT, F, d0, l, L, D, N, E, plies, vfmax, rho, slope = flat
+    size = int(np.prod(shape))
     g_t = sample_shear_modulus(d0, l, N, E, plies, vfmax)
     g_tau = shear_modulus_at(dT, g_t, slope)
     tau = torque(dT, g_tau, d0, N, l, rho)
@@ -413,15 +420,17 @@ def displacement(
     a, b, c = _compliance_coefficients(d, l, n)
 
     def h(s, i):
-        f11, df11, f12, df12 = _f11_f12(s, a[i], b[i], c[i], g_t[i], E[i])
-        return (l[i] * (s - s0[i]) - F[i] * f11 + tau[i] * f12,
-                l[i] - F[i] * df11 + tau[i] * df12)
+        f11, df11, f12, df12 = _f11_f12(s, _take(a, i), _take(b, i), _take(c, i),
+                                        _take(g_t, i), _take(E, i))
+        li, Fi, ti = _take(l, i), _take(F, i), _take(tau, i)
+        return (li * (s - _take(s0, i)) - Fi * f11 + ti * f12,
+                li - Fi * df11 + ti * df12)
 
     # Linearised first guess: delta ~ f11(s0) F - f12(s0) tau.
     f11_0, _, f12_0, _ = _f11_f12(s0, a, b, c, g_t, E)
-    guess = np.clip(s0 + (f11_0 * F - f12_0 * tau) / l, 0.0, 1.0)
+    guess = np.broadcast_to(np.clip(s0 + (f11_0 * F - f12_0 * tau) / l, 0.0, 1.0), (size,))
     try:
-        res = bracketed_newton(h, np.zeros_like(s0), np.ones_like(s0), guess,
+        res = bracketed_newton(h, np.zeros(size), np.ones(size), guess,
                                xtol=xtol, rtol=rtol, maxiter=maxiter, what="sin(alpha)")
     except ConvergenceError as exc:
         if "no sign change" in exc.message:
