@@ -1,0 +1,666 @@
+"""Experiment files: loading, validation and writing.
+
+An experiment file ``experiments/NAME.toml`` describes one experiment: its
+kind, the CSV runs (paths relative to the TOML file), the sample, the rig,
+how the CSV headers map to canonical columns and the acceptance thresholds::
+
+    kind = "dynamic"
+    title = "Voltage step, 50 g"
+    runs = ["../raw/step_50g_1.csv", "../raw/step_50g_2.csv"]
+    notes = "optional"
+
+    [synthetic]            # optional: marks simulated data
+    generator = "tcamlab.simulate"
+    seed = 42
+    command = "tcamlab simulate dynamic ..."
+
+    [sample]
+    preset = "thesis-tca"  # optional; other keys override the preset
+    coil_length_mm = 21.0
+
+    [rig]
+    load_g = 50
+    [rig.uncertainty]      # standard deviations, same units
+    damping_N_s_per_m = 0.12
+
+    [columns]
+    time_s = { from = "reltime", unit = "ms" }
+
+    [thresholds]
+    rmse_mm = 0.5
+
+The file is validated with pydantic models (unknown keys are errors) and
+every problem is reported as a one-line :class:`tcamlab.errors.ConfigError`
+naming the file and the key. Lab units in key names are converted to SI with
+the factors of :data:`tcamlab.params.SAMPLE_KEYS` and
+:data:`tcamlab.params.RIG_KEYS`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, Mapping, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+
+from tcamlab import io as tio
+from tcamlab.errors import ConfigError, InputError
+from tcamlab.params import PRESETS, RIG_KEYS, SAMPLE_KEYS, Rig, Sample, get_preset
+
+__all__ = [
+    "KINDS",
+    "Experiment",
+    "load_experiment",
+    "write_experiment",
+    "dumps_toml",
+]
+
+KINDS = tio.KINDS
+"""Experiment kinds."""
+
+EXPERIMENT_FILE = "experiment file"
+"""Provenance text of a value set in the experiment file."""
+
+RIG_DEFAULT = "tcamlab default (tcamlab.params.Rig; not set by the preset or the experiment file)"
+"""Provenance text of a rig value that neither the preset nor the file sets."""
+
+_LIST_KEYS = {"segment_lengths_mm"}
+
+# --- pydantic models ----------------------------------------------------------
+
+_STRICT = ConfigDict(extra="forbid", strict=True)
+
+
+class _Synthetic(BaseModel):
+    model_config = _STRICT
+    generator: str
+    seed: int
+    command: Optional[str] = None
+
+
+def _sample_field(key: str):
+    if key == "thread_plies":
+        return (Optional[int], None)
+    return (Optional[float], None)
+
+
+_SampleTable = create_model(
+    "_SampleTable",
+    __config__=_STRICT,
+    preset=(Optional[Literal[tuple(PRESETS)]], None),  # type: ignore[valid-type]
+    **{key: _sample_field(key) for key in SAMPLE_KEYS},
+)
+
+
+def _rig_fields() -> dict[str, Any]:
+    return {
+        key: ((Optional[list[float]], None) if key in _LIST_KEYS else (Optional[float], None))
+        for key in RIG_KEYS
+    }
+
+
+_RigUncertainty = create_model("_RigUncertainty", __config__=_STRICT, **_rig_fields())
+_RigTable = create_model(
+    "_RigTable",
+    __config__=_STRICT,
+    uncertainty=(Optional[_RigUncertainty], None),
+    **_rig_fields(),
+)
+
+
+class _ColumnTable(BaseModel):
+    """One inline table of ``[columns]``."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, populate_by_name=True)
+    from_: str = Field(alias="from")
+    unit: Optional[str] = None
+    scale: Optional[float] = None
+    offset: Optional[float] = None
+
+
+class _ExperimentFile(BaseModel):
+    model_config = _STRICT
+    kind: Literal["static", "dynamic", "sensing", "curvature"]
+    title: str
+    runs: list[str] = Field(min_length=1)
+    notes: Optional[str] = None
+    synthetic: Optional[_Synthetic] = None
+    sample: Optional[_SampleTable] = None  # type: ignore[valid-type]
+    rig: Optional[_RigTable] = None  # type: ignore[valid-type]
+    columns: dict[str, Any] = Field(default_factory=dict)
+    thresholds: dict[str, Any] = Field(default_factory=dict)
+
+
+def _model_keys(model: type[BaseModel]) -> list[str]:
+    return [f.alias or name for name, f in model.model_fields.items()]
+
+
+_ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
+    (): _model_keys(_ExperimentFile),
+    ("synthetic",): _model_keys(_Synthetic),
+    ("sample",): _model_keys(_SampleTable),
+    ("rig",): _model_keys(_RigTable),
+    ("rig", "uncertainty"): _model_keys(_RigUncertainty),
+}
+
+_EXPECTED = {
+    "float_type": "a number",
+    "float_parsing": "a number",
+    "finite_number": "a finite number",
+    "int_type": "an integer",
+    "int_parsing": "an integer",
+    "int_from_float": "an integer",
+    "string_type": "a string",
+    "list_type": "a list",
+    "dict_type": "a table",
+    "model_type": "a table",
+    "model_attributes_type": "a table",
+    "bool_type": "true or false",
+}
+
+# --- the result ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A loaded and validated experiment file.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The TOML file, resolved.
+    name : str
+        File stem (``experiments/step_50g.toml`` -> ``"step_50g"``).
+    kind : str
+        ``"static"``, ``"dynamic"``, ``"sensing"`` or ``"curvature"``.
+    title : str
+        Human-readable title.
+    notes : str or None
+        Free text.
+    runs : tuple of pathlib.Path
+        CSV files, absolute and resolved; all exist.
+    sample : tcamlab.params.Sample
+        The sample in SI (for kind curvature: the embedded sensor).
+    rig : tcamlab.params.Rig
+        Rig parameters in SI, with ``uncertainty`` (standard deviations, SI).
+    columns : dict
+        The ``[columns]`` table as written (canonical name -> header or
+        inline table), validated for this kind; pass it to
+        :func:`tcamlab.io.read_run`.
+    thresholds : dict of str to float
+        Metric name -> acceptance limit.
+    synthetic : dict or None
+        ``{"generator", "seed", "command"}`` when the runs are simulated.
+    provenance : dict of str to str
+        SI field name -> where its value comes from (the preset's provenance
+        text or ``"experiment file"``); uncertainties as ``"sd(field)"``.
+    raw : dict
+        The parsed TOML document.
+    """
+
+    path: Path
+    name: str
+    kind: str
+    title: str
+    notes: str | None
+    runs: tuple[Path, ...]
+    sample: Sample
+    rig: Rig
+    columns: dict = field(default_factory=dict)
+    thresholds: dict[str, float] = field(default_factory=dict)
+    synthetic: dict | None = None
+    provenance: dict[str, str] = field(default_factory=dict)
+    raw: dict = field(default_factory=dict)
+
+    @property
+    def preset(self) -> str | None:
+        """Name of the ``[sample]`` preset, or None."""
+        return (self.raw.get("sample") or {}).get("preset")
+
+    def read_runs(
+        self, *, drop_na: bool = False, max_bytes: int = tio.DEFAULT_MAX_BYTES
+    ) -> list[tio.RunData]:
+        """Read every run with this experiment's kind and ``[columns]``.
+
+        Parameters
+        ----------
+        drop_na : bool
+            Drop rows with blank cells instead of raising.
+        max_bytes : int
+            Largest file to read [bytes].
+
+        Returns
+        -------
+        list of tcamlab.io.RunData
+        """
+        return [
+            tio.read_run(p, self.kind, self.columns, drop_na=drop_na, max_bytes=max_bytes)
+            for p in self.runs
+        ]
+
+
+# --- loading --------------------------------------------------------------------
+
+
+def _loc_text(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _translate(err: ValidationError, shown: str, prefix: tuple = ()) -> ConfigError:
+    """One-line :class:`ConfigError` from the first pydantic error."""
+    errors = err.errors(include_url=False)
+    more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+    return _describe(errors[0], shown, prefix, more)
+
+
+def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = "") -> ConfigError:
+    loc = tuple(prefix) + tuple(e["loc"])
+    key = _loc_text(loc)
+    kind = e["type"]
+    if kind == "extra_forbidden":
+        parent = tuple(p for p in loc[:-1] if isinstance(p, str))
+        allowed = _ALLOWED_KEYS.get(parent)
+        if allowed is None and parent[:1] == ("columns",):
+            allowed = ["from", "unit", "scale", "offset"]
+        allowed = allowed or []
+        table = f"[{'.'.join(parent)}]" if parent else "the top level"
+        return ConfigError(
+            f"{shown}: unknown key {key!r} in {table}"
+            + tio._did_you_mean(str(loc[-1]), allowed)
+            + more,
+            "allowed keys: " + ", ".join(allowed) if allowed else None,
+        )
+    if kind == "missing":
+        return ConfigError(f"{shown}: missing required key {key!r}{more}", _hint_for(loc))
+    if kind == "literal_error":
+        expected = e.get("ctx", {}).get("expected", "")
+        return ConfigError(
+            f"{shown}: {key}: expected one of {expected}, got {_short(e['input'])}"
+            + (tio._did_you_mean(e["input"], _literal_choices(loc)) if isinstance(e["input"], str) else "")
+            + more
+        )
+    if kind == "too_short":
+        return ConfigError(f"{shown}: {key}: needs at least one entry{more}", _hint_for(loc))
+    if kind in _EXPECTED:
+        numeric = kind.startswith(("float", "int"))
+        return ConfigError(
+            f"{shown}: {key}: expected {_EXPECTED[kind]}, got {_short(e['input'])}{more}",
+            "numbers are written without quotes in TOML"
+            if numeric and isinstance(e["input"], str)
+            else None,
+        )
+    return ConfigError(f"{shown}: {key}: {e['msg']}{more}")
+
+
+def _literal_choices(loc: tuple) -> list[str]:
+    if loc and loc[0] == "kind":
+        return list(KINDS)
+    if loc[:2] == ("sample", "preset"):
+        return list(PRESETS)
+    return []
+
+
+def _hint_for(loc: tuple) -> str | None:
+    hints = {
+        "kind": 'kind = "static" (or dynamic, sensing, curvature)',
+        "title": 'title = "what this experiment is"',
+        "runs": 'runs = ["../raw/run1.csv"] (paths relative to the experiment file)',
+    }
+    return hints.get(loc[0]) if loc else None
+
+
+def _finite(shown: str, key: str, value: Any) -> float:
+    if not math.isfinite(value):
+        raise ConfigError(f"{shown}: {key}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+def load_experiment(path: str | os.PathLike, expected_kind: str | None = None) -> Experiment:
+    """Load, validate and convert an experiment file.
+
+    Parameters
+    ----------
+    path : path-like
+        The TOML file.
+    expected_kind : str, optional
+        Kind the caller handles; a file of another kind raises.
+
+    Returns
+    -------
+    Experiment
+        Sample and rig in SI, runs resolved and checked to exist.
+
+    Raises
+    ------
+    ConfigError
+        Missing file, TOML syntax error (with line and column), unknown or
+        missing key, wrong type, missing run file, impossible sample or rig,
+        or a kind other than ``expected_kind``.
+    """
+    p = Path(path)
+    shown = str(path)
+    if not p.is_file():
+        raise ConfigError(
+            f"{shown}: experiment file not found" if not p.exists() else f"{shown}: not a file",
+            "experiment files live in experiments/NAME.toml",
+        )
+    try:
+        with open(p, "rb") as fh:
+            raw = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(
+            f"{shown}: TOML syntax error: {' '.join(str(exc).split())}",
+            "see https://toml.io; strings need quotes, tables are [name]",
+        ) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{shown}: not UTF-8 text ({exc.reason} at byte {exc.start})", "save it as UTF-8") from None
+
+    try:
+        doc = _ExperimentFile.model_validate(raw)
+    except ValidationError as exc:
+        raise _translate(exc, shown) from None
+
+    kind = doc.kind
+    if expected_kind is not None and expected_kind != kind:
+        raise ConfigError(
+            f"{shown}: this is a {kind!r} experiment, not {expected_kind!r}",
+            f"run it with the '{kind}' subcommand",
+        )
+
+    # runs
+    base = p.resolve().parent
+    runs = []
+    for i, run in enumerate(doc.runs):
+        rp = Path(run)
+        rp = (rp if rp.is_absolute() else base / rp).resolve()
+        if not rp.is_file():
+            raise ConfigError(
+                f"{shown}: runs[{i}]: run file {run!r} not found (looked for {rp})",
+                "run paths are relative to the experiment file",
+            )
+        runs.append(rp)
+
+    # columns
+    columns: dict[str, Any] = {}
+    for canon, spec in doc.columns.items():
+        where = f"{shown}: columns"
+        if isinstance(spec, Mapping):
+            try:
+                _ColumnTable.model_validate(spec)
+            except ValidationError as exc:
+                raise _translate(exc, shown, prefix=("columns", canon)) from None
+        tio.column_spec(kind, canon, spec, where=where, error=ConfigError)
+        columns[canon] = dict(spec) if isinstance(spec, Mapping) else spec
+
+    # thresholds
+    thresholds: dict[str, float] = {}
+    for name, value in doc.thresholds.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{shown}: thresholds.{name}: expected a number, got {_short(value)}")
+        thresholds[name] = _finite(shown, f"thresholds.{name}", value)
+
+    sample, sample_prov = _build_sample(doc, shown)
+    rig, rig_prov = _build_rig(doc, shown)
+    provenance = {**sample_prov, **rig_prov}
+
+    return Experiment(
+        path=p.resolve(),
+        name=p.stem,
+        kind=kind,
+        title=doc.title,
+        notes=doc.notes,
+        runs=tuple(runs),
+        sample=sample,
+        rig=rig,
+        columns=columns,
+        thresholds=thresholds,
+        synthetic=doc.synthetic.model_dump() if doc.synthetic else None,
+        provenance=provenance,
+        raw=raw,
+    )
+
+
+def _build_sample(doc: _ExperimentFile, shown: str) -> tuple[Sample, dict[str, str]]:
+    table = doc.sample.model_dump(exclude_none=True) if doc.sample else {}
+    preset_name = table.pop("preset", None)
+    overrides: dict[str, Any] = {}
+    for key, value in table.items():
+        si_name, factor = SAMPLE_KEYS[key]
+        v = _finite(shown, f"sample.{key}", value)
+        overrides[si_name] = int(value) if key == "thread_plies" else v * factor
+    provenance = {name: EXPERIMENT_FILE for name in overrides}
+    try:
+        if preset_name is None:
+            missing = [k for k, (si, _) in SAMPLE_KEYS.items() if si not in overrides]
+            if missing:
+                raise ConfigError(
+                    f"{shown}: [sample] has no preset, so every sample key is required; "
+                    f"missing: {', '.join(missing)}",
+                    "add preset = \"thesis-tca\" (or another of " + ", ".join(sorted(PRESETS))
+                    + ") to [sample], or give the missing keys",
+                )
+            sample = Sample(**overrides)
+        else:
+            preset = get_preset(preset_name)
+            sample = preset.build_sample(**overrides)
+            provenance = {
+                k: (EXPERIMENT_FILE if k in overrides else v.provenance)
+                for k, v in preset.sample.items()
+            } | provenance
+    except ConfigError as exc:
+        if exc.message.startswith(shown):
+            raise
+        raise ConfigError(f"{shown}: {exc.message}", exc.hint) from None
+    return sample, provenance
+
+
+def _rig_values(table: Mapping[str, Any], shown: str, where: str, sd: bool) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        si_name, factor = RIG_KEYS[key]
+        if key in _LIST_KEYS:
+            values = [_finite(shown, f"{where}.{key}[{i}]", v) * factor for i, v in enumerate(value)]
+            if not values:
+                raise ConfigError(f"{shown}: {where}.{key}: needs at least one entry")
+            if sd:
+                out[si_name] = tuple(values)
+                bad = [v for v in values if v < 0]
+            else:
+                out[si_name] = tuple(values)
+                bad = [v for v in values if v <= 0]
+            if bad:
+                raise ConfigError(
+                    f"{shown}: {where}.{key}: every entry must be "
+                    + ("non-negative" if sd else "positive")
+                    + f", got {list(value)!r}"
+                )
+            continue
+        v = _finite(shown, f"{where}.{key}", value)
+        out[si_name] = v * factor
+    return out
+
+
+# Rig fields that must be positive / non-negative; ambient above absolute zero.
+_RIG_POSITIVE = ("resistance", "thermal_mass", "heat_loss", "initial_resistance", "spring_constant")
+_RIG_NONNEGATIVE = ("load", "pulse", "damping")
+_SI_TO_RIG_KEY = {si: key for key, (si, _) in RIG_KEYS.items()}
+
+
+def _build_rig(doc: _ExperimentFile, shown: str) -> tuple[Rig, dict[str, str]]:
+    table = doc.rig.model_dump(exclude_none=True) if doc.rig else {}
+    unc_table = table.pop("uncertainty", None) or {}
+    overrides = _rig_values(table, shown, "rig", sd=False)
+    unc = _rig_values(unc_table, shown, "rig.uncertainty", sd=True)
+    for name, value in overrides.items():
+        key = _SI_TO_RIG_KEY[name]
+        if name in _RIG_POSITIVE and value <= 0:
+            raise ConfigError(f"{shown}: rig.{key} = {table[key]!r} must be positive")
+        if name in _RIG_NONNEGATIVE and value < 0:
+            raise ConfigError(f"{shown}: rig.{key} = {table[key]!r} must not be negative")
+        if name == "ambient" and value < tio.ABSOLUTE_ZERO_C:
+            raise ConfigError(f"{shown}: rig.ambient_C = {value!r} is below absolute zero")
+    for name, value in unc.items():
+        if not isinstance(value, tuple) and value < 0:
+            key = _SI_TO_RIG_KEY[name]
+            raise ConfigError(
+                f"{shown}: rig.uncertainty.{key} = {unc_table[key]!r} must not be negative",
+                "uncertainties are standard deviations",
+            )
+
+    preset_name = doc.sample.preset if doc.sample else None
+    provenance: dict[str, str] = {}
+    for f in Rig.__dataclass_fields__:
+        if f != "uncertainty":
+            provenance[f] = RIG_DEFAULT
+    if preset_name is not None:
+        preset = get_preset(preset_name)
+        rig = preset.build_rig(uncertainty=unc, **overrides)
+        provenance.update({k: v.provenance for k, v in preset.rig.items()})
+        provenance.update({f"sd({k})": v.provenance for k, v in preset.uncertainty.items()})
+    else:
+        rig = Rig(uncertainty=dict(unc), **overrides)
+    provenance.update({k: EXPERIMENT_FILE for k in overrides})
+    provenance.update({f"sd({k})": EXPERIMENT_FILE for k in unc})
+    return rig, provenance
+
+
+# --- writing --------------------------------------------------------------------
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+_INLINE_TABLES_IN = {"columns"}
+
+
+def _key(k: str) -> str:
+    return k if _BARE_KEY.match(k) else _string(k)
+
+
+def _string(s: str) -> str:
+    out = ['"']
+    for ch in s:
+        if ch == '"':
+            out.append('\\"')
+        elif ch == "\\":
+            out.append("\\\\")
+        elif ch == "\n":
+            out.append("\\n")
+        elif ch == "\t":
+            out.append("\\t")
+        elif ch == "\r":
+            out.append("\\r")
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    out.append('"')
+    return "".join(out)
+
+
+def _value(v: Any, where: str) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(float(v))
+    if isinstance(v, (str, os.PathLike)):
+        return _string(os.fspath(v))
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x, f"{where}[]") for x in v) + "]"
+    if isinstance(v, Mapping):
+        items = [f"{_key(str(k))} = {_value(x, f'{where}.{k}')}" for k, x in v.items() if x is not None]
+        return "{ " + ", ".join(items) + " }" if items else "{}"
+    if hasattr(v, "item"):  # numpy scalar
+        return _value(v.item(), where)
+    raise TypeError(f"cannot write {where} = {v!r} ({type(v).__name__}) to TOML")
+
+
+def dumps_toml(data: Mapping[str, Any]) -> str:
+    """Serialise a mapping to a TOML document.
+
+    Supports str, int, float (including inf/nan), bool, path-like (as
+    string), lists/tuples of those, and nested mappings. Nested mappings are
+    written as ``[table]`` sections, except the values of ``[columns]``,
+    which become inline tables. Keys with value None are omitted (TOML has
+    no null).
+
+    Parameters
+    ----------
+    data : mapping
+        The document.
+
+    Returns
+    -------
+    str
+        TOML text ending with a newline.
+    """
+    lines: list[str] = []
+
+    def emit(table: Mapping[str, Any], path: tuple[str, ...]) -> None:
+        inline = bool(path) and path[-1] in _INLINE_TABLES_IN
+        scalars = [(k, v) for k, v in table.items() if v is not None and (inline or not isinstance(v, Mapping))]
+        tables = [(k, v) for k, v in table.items() if isinstance(v, Mapping) and not inline]
+        if path and (scalars or not tables):
+            if lines:
+                lines.append("")
+            lines.append("[" + ".".join(_key(p) for p in path) + "]")
+        for k, v in scalars:
+            lines.append(f"{_key(str(k))} = {_value(v, '.'.join(path + (str(k),)))}")
+        for k, v in tables:
+            emit(v, path + (str(k),))
+
+    emit(data, ())
+    return "\n".join(lines) + "\n"
+
+
+def write_experiment(
+    path: str | os.PathLike, data: Mapping[str, Any], *, comment: str | None = None
+) -> Path:
+    """Write an experiment (or any) TOML document.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination; parent directories are created. Written atomically
+        (temporary file, then rename).
+    data : mapping
+        The document, e.g. ``{"kind": "dynamic", "title": ..., "runs": [...],
+        "sample": {"preset": "thesis-tca"}, "rig": {"load_g": 50.0},
+        "columns": {"time_s": {"from": "t", "unit": "ms"}}}``.
+    comment : str, optional
+        Text written as ``#`` comment lines at the top.
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+    """
+    p = Path(path)
+    text = dumps_toml(data)
+    if comment:
+        text = "".join(f"# {line}".rstrip() + "\n" for line in comment.splitlines()) + "\n" + text
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_name(p.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, p)
+    return p

@@ -1,0 +1,907 @@
+"""Ingestion of rig CSV logs into validated SI data.
+
+One CSV file holds one run. Its columns carry lab units in their canonical
+names (``temperature_C``, ``displacement_mm``, ``time_s`` ...); inside
+tcamlab every column has a short internal name and SI units (``temperature``
+[degC], ``displacement`` [m], ``time`` [s] ...). :data:`VARIABLE_MAP` is the
+one place that links the two, in the spirit of pvlib's ``VARIABLE_MAP``;
+:func:`canonical_to_internal` and :func:`internal_to_canonical` apply it so
+that writers (the simulator, ``predictions.csv``) use the same mapping.
+
+Files whose headers are not canonical are described by the experiment
+file's ``[columns]`` table, for example::
+
+    [columns]
+    time_s = { from = "reltime", unit = "ms" }
+    temperature_C = { from = "Temp (F)", unit = "degF" }
+    displacement_mm = { from = "laser", scale = 0.01, offset = -2.5 }
+    force_N = "Fz"
+
+For each column the value stored inside tcamlab is::
+
+    value_SI = to_SI(raw * scale + offset, unit)
+
+that is, ``scale`` and ``offset`` act on the raw number in the file and give
+a value in ``unit`` (default: the canonical column's own unit, e.g. ``mm``
+for ``displacement_mm``), which is then converted with :data:`UNITS`.
+
+:func:`read_run` never modifies the raw file. It reads only the needed
+columns with the pandas C engine as float64, detects a UTF-8 byte-order mark,
+falls back to Latin-1 for non-UTF-8 headers, recognises ``;``-separated
+files with decimal commas, and skips full-line ``#`` comments and blank
+lines before the header (rigs write metadata there). Every problem it
+detects raises :class:`tcamlab.errors.InputError` with a one-line message
+naming the file and, where it applies, the line number (as an editor shows
+it, 1-based) and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import difflib
+import hashlib
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.errors import InputError
+
+__all__ = [
+    "ABSOLUTE_ZERO_C",
+    "DEFAULT_MAX_BYTES",
+    "KINDS",
+    "MIN_ROWS",
+    "OPTIONAL",
+    "REQUIRED",
+    "SI_UNITS",
+    "UNITS",
+    "VARIABLE_MAP",
+    "ColumnSpec",
+    "RunData",
+    "canonical_to_internal",
+    "column_spec",
+    "convert",
+    "internal_to_canonical",
+    "read_run",
+    "sha256_file",
+]
+
+# --- units ------------------------------------------------------------------
+
+UNITS: dict[str, tuple[str, float, float]] = {
+    # unit: (dimension, factor, offset) with value_SI = value * factor + offset
+    # time -> s
+    "s": ("time", 1.0, 0.0),
+    "ms": ("time", 1e-3, 0.0),
+    "us": ("time", 1e-6, 0.0),
+    "min": ("time", 60.0, 0.0),
+    "h": ("time", 3600.0, 0.0),
+    # temperature -> degC (absolute temperatures stay in degC inside tcamlab)
+    "degC": ("temperature", 1.0, 0.0),
+    "degF": ("temperature", 5.0 / 9.0, -32.0 * 5.0 / 9.0),
+    "K": ("temperature", 1.0, -273.15),
+    # length -> m
+    "m": ("length", 1.0, 0.0),
+    "cm": ("length", 1e-2, 0.0),
+    "mm": ("length", 1e-3, 0.0),
+    "um": ("length", 1e-6, 0.0),
+    "in": ("length", 0.0254, 0.0),
+    # force -> N
+    "N": ("force", 1.0, 0.0),
+    "mN": ("force", 1e-3, 0.0),
+    "kN": ("force", 1e3, 0.0),
+    "gf": ("force", 9.80665e-3, 0.0),
+    "kgf": ("force", 9.80665, 0.0),
+    "lbf": ("force", 4.4482216152605, 0.0),
+    # resistance -> ohm ("mohm" is milli-ohm, "Mohm" mega-ohm)
+    "ohm": ("resistance", 1.0, 0.0),
+    "mohm": ("resistance", 1e-3, 0.0),
+    "kohm": ("resistance", 1e3, 0.0),
+    "Mohm": ("resistance", 1e6, 0.0),
+    # voltage -> V
+    "V": ("voltage", 1.0, 0.0),
+    "mV": ("voltage", 1e-3, 0.0),
+    # current -> A
+    "A": ("current", 1.0, 0.0),
+    "mA": ("current", 1e-3, 0.0),
+    # curvature -> 1/m
+    "per_m": ("curvature", 1.0, 0.0),
+    "per_cm": ("curvature", 1e2, 0.0),
+    "per_mm": ("curvature", 1e3, 0.0),
+}
+"""Unit name -> (dimension, factor, offset); ``SI = value * factor + offset``."""
+
+SI_UNITS: dict[str, str] = {
+    "time": "s",
+    "temperature": "degC",
+    "length": "m",
+    "force": "N",
+    "resistance": "ohm",
+    "voltage": "V",
+    "current": "A",
+    "curvature": "per_m",
+}
+"""Dimension -> the unit used inside tcamlab."""
+
+VARIABLE_MAP: dict[str, tuple[str, str]] = {
+    "time_s": ("time", "s"),
+    "temperature_C": ("temperature", "degC"),
+    "displacement_mm": ("displacement", "mm"),
+    "voltage_V": ("voltage", "V"),
+    "current_A": ("current", "A"),
+    "resistance_ohm": ("resistance", "ohm"),
+    "force_N": ("force", "N"),
+    "cable_mm": ("cable", "mm"),
+    "r1_ohm": ("r1", "ohm"),
+    "r2_ohm": ("r2", "ohm"),
+    "kappa1_per_mm": ("kappa1", "per_mm"),
+    "kappa2_per_mm": ("kappa2", "per_mm"),
+}
+"""Canonical CSV column -> (internal column name, unit of the canonical column).
+
+Internal columns are in SI: time [s], temperature [degC], displacement [m],
+voltage [V], current [A], resistance [ohm], force [N], cable [m],
+r1/r2 [ohm], kappa1/kappa2 [1/m].
+"""
+
+INTERNAL_TO_CANONICAL: dict[str, str] = {v[0]: k for k, v in VARIABLE_MAP.items()}
+"""Internal column name -> canonical CSV column name."""
+
+KINDS: tuple[str, ...] = ("static", "dynamic", "sensing", "curvature")
+"""The kinds of run tcamlab knows."""
+
+REQUIRED: dict[str, tuple[str, ...]] = {
+    "static": ("temperature_C", "displacement_mm"),
+    "dynamic": ("time_s", "voltage_V", "displacement_mm"),
+    "sensing": ("displacement_mm", "force_N", "resistance_ohm"),
+    "curvature": ("cable_mm", "r1_ohm", "r2_ohm", "kappa1_per_mm", "kappa2_per_mm"),
+}
+"""Kind -> canonical columns a run of that kind must have."""
+
+OPTIONAL: dict[str, tuple[str, ...]] = {
+    "static": ("time_s",),
+    "dynamic": ("temperature_C", "current_A", "resistance_ohm"),
+    "sensing": ("time_s", "temperature_C"),
+    "curvature": ("time_s",),
+}
+"""Kind -> canonical columns a run of that kind may have."""
+
+MIN_ROWS: dict[str, int] = {"static": 3, "dynamic": 10, "sensing": 3, "curvature": 2}
+"""Kind -> fewest data rows a run needs to be fitted."""
+
+DEFAULT_MAX_BYTES: int = 2 * 1024**3
+"""Largest CSV file :func:`read_run` reads unless told otherwise [bytes] (2 GiB)."""
+
+ABSOLUTE_ZERO_C: float = -273.15
+"""Absolute zero [degC]."""
+
+_NONNEGATIVE = ("resistance", "r1", "r2")
+_MAX_PREAMBLE_LINES = 10_000
+_COLUMNS_HINT = (
+    "map the file's header to the canonical name in the experiment file's "
+    '[columns] table, e.g. time_s = { from = "reltime", unit = "ms" }'
+)
+
+
+def _dimension(unit: str) -> str:
+    return UNITS[unit][0]
+
+
+def convert(values: Any, from_unit: str, to_unit: str) -> Any:
+    """Convert numbers between two units of the same dimension.
+
+    Parameters
+    ----------
+    values : float, numpy.ndarray or pandas.Series
+        Values in ``from_unit``.
+    from_unit, to_unit : str
+        Keys of :data:`UNITS`.
+
+    Returns
+    -------
+    Same type as ``values``, in ``to_unit``.
+
+    Raises
+    ------
+    ValueError
+        If a unit is unknown or the dimensions differ.
+    """
+    for u in (from_unit, to_unit):
+        if u not in UNITS:
+            raise ValueError(f"unknown unit {u!r}")
+    dim_a, fa, oa = UNITS[from_unit]
+    dim_b, fb, ob = UNITS[to_unit]
+    if dim_a != dim_b:
+        raise ValueError(f"cannot convert {from_unit} ({dim_a}) to {to_unit} ({dim_b})")
+    if from_unit == to_unit:
+        return values
+    return ((values * fa + oa) - ob) / fb
+
+
+def canonical_to_internal(df: pd.DataFrame) -> pd.DataFrame:
+    """Rename canonical columns to internal names and convert them to SI.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Columns named as in :data:`VARIABLE_MAP` (``displacement_mm`` ...),
+        in their lab units. Other columns are passed through unchanged.
+
+    Returns
+    -------
+    pandas.DataFrame
+        A new frame with internal column names (``displacement`` ...) in SI.
+    """
+    out = {}
+    for col in df.columns:
+        if col in VARIABLE_MAP:
+            name, unit = VARIABLE_MAP[col]
+            out[name] = convert(df[col].to_numpy(dtype=np.float64), unit, SI_UNITS[_dimension(unit)])
+        else:
+            out[col] = df[col].to_numpy()
+    return pd.DataFrame(out, index=df.index)
+
+
+def internal_to_canonical(df: pd.DataFrame) -> pd.DataFrame:
+    """Rename internal SI columns to canonical names in lab units.
+
+    The inverse of :func:`canonical_to_internal`; columns that are not
+    internal names are passed through unchanged.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Internal columns (``time`` [s], ``displacement`` [m] ...).
+
+    Returns
+    -------
+    pandas.DataFrame
+        A new frame with canonical column names (``time_s``,
+        ``displacement_mm`` ...) in lab units.
+    """
+    out = {}
+    for col in df.columns:
+        if col in INTERNAL_TO_CANONICAL:
+            canon = INTERNAL_TO_CANONICAL[col]
+            unit = VARIABLE_MAP[canon][1]
+            out[canon] = convert(df[col].to_numpy(dtype=np.float64), SI_UNITS[_dimension(unit)], unit)
+        else:
+            out[col] = df[col].to_numpy()
+    return pd.DataFrame(out, index=df.index)
+
+
+# --- column specifications ----------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ColumnSpec:
+    """Where one canonical column comes from in a CSV file.
+
+    Attributes
+    ----------
+    canonical : str
+        Canonical column name (a key of :data:`VARIABLE_MAP`).
+    header : str
+        Header of the column in the file.
+    unit : str
+        Unit of ``raw * scale + offset`` (a key of :data:`UNITS`).
+    scale : float
+        Factor applied to the raw number [-].
+    offset : float
+        Added after scaling, in ``unit``.
+    explicit : bool
+        True when the experiment file named this column in ``[columns]``.
+    """
+
+    canonical: str
+    header: str
+    unit: str
+    scale: float = 1.0
+    offset: float = 0.0
+    explicit: bool = False
+
+    def to_si(self, raw: np.ndarray) -> np.ndarray:
+        """``to_SI(raw * scale + offset, unit)`` as float64 [SI]."""
+        values = raw
+        if self.scale != 1.0:
+            values = values * self.scale
+        if self.offset != 0.0:
+            values = values + self.offset
+        dim, factor, off = UNITS[self.unit]
+        if factor != 1.0:
+            values = values * factor
+        if off != 0.0:
+            values = values + off
+        return np.asarray(values, dtype=np.float64)
+
+
+def _did_you_mean(word: str, choices: list[str] | tuple[str, ...], n: int = 1) -> str:
+    matches = difflib.get_close_matches(word, list(choices), n=n, cutoff=0.6)
+    if not matches:
+        lowered = {c.lower(): c for c in choices}
+        matches = [lowered[m] for m in difflib.get_close_matches(word.lower(), list(lowered), n=n, cutoff=0.5)]
+    return "; did you mean " + " or ".join(repr(m) for m in matches) + "?" if matches else ""
+
+
+def column_spec(
+    kind: str,
+    canonical: str,
+    spec: Any = None,
+    *,
+    where: str = "[columns]",
+    error: type[Exception] = InputError,
+) -> ColumnSpec:
+    """Validate one ``[columns]`` entry and return it as a :class:`ColumnSpec`.
+
+    Parameters
+    ----------
+    kind : str
+        Run kind (one of :data:`KINDS`).
+    canonical : str
+        The key of the entry: a canonical column name for this kind.
+    spec : str, mapping or None
+        A header name, or a mapping with ``from`` (header), optional
+        ``unit``, ``scale`` [-] and ``offset`` [unit]; None means the header
+        is the canonical name itself.
+    where : str
+        Prefix for error messages (file name and table).
+    error : exception class
+        :class:`InputError` (default) or :class:`tcamlab.errors.ConfigError`.
+
+    Raises
+    ------
+    InputError or ConfigError
+        Unknown canonical name for the kind, unknown key, unknown unit, a
+        unit of the wrong dimension, or a non-finite scale/offset.
+    """
+    if kind not in REQUIRED:
+        raise error(f"{where}: unknown kind {kind!r}", "one of " + ", ".join(KINDS))
+    allowed = REQUIRED[kind] + OPTIONAL[kind]
+    if canonical not in allowed:
+        raise error(
+            f"{where}: {canonical!r} is not a column of a {kind} run{_did_you_mean(canonical, allowed)}",
+            "columns of a " + kind + " run: " + ", ".join(allowed),
+        )
+    canon_unit = VARIABLE_MAP[canonical][1]
+    if spec is None:
+        return ColumnSpec(canonical, canonical, canon_unit)
+    if isinstance(spec, str):
+        return ColumnSpec(canonical, spec, canon_unit, explicit=True)
+    if not isinstance(spec, Mapping):
+        raise error(
+            f"{where}.{canonical}: expected a header name or an inline table, got {spec!r}",
+            f'e.g. {canonical} = "Header in file" or {canonical} = {{ from = "Header", unit = "{canon_unit}" }}',
+        )
+    keys = ("from", "unit", "scale", "offset")
+    for key in spec:
+        if key not in keys:
+            raise error(
+                f"{where}.{canonical}: unknown key {key!r}{_did_you_mean(str(key), keys)}",
+                "allowed keys: from, unit, scale, offset",
+            )
+    header = spec.get("from", canonical)
+    if not isinstance(header, str) or not header.strip():
+        raise error(f"{where}.{canonical}.from: expected a header name, got {header!r}")
+    unit = spec.get("unit", canon_unit)
+    if not isinstance(unit, str) or unit not in UNITS:
+        raise error(
+            f"{where}.{canonical}.unit: unknown unit {unit!r}{_did_you_mean(str(unit), list(UNITS))}",
+            f"{_dimension(canon_unit)} units: "
+            + ", ".join(u for u, v in UNITS.items() if v[0] == _dimension(canon_unit)),
+        )
+    if _dimension(unit) != _dimension(canon_unit):
+        raise error(
+            f"{where}.{canonical}.unit: {unit!r} is a {_dimension(unit)} unit but {canonical} "
+            f"holds a {_dimension(canon_unit)}",
+            f"{_dimension(canon_unit)} units: "
+            + ", ".join(u for u, v in UNITS.items() if v[0] == _dimension(canon_unit)),
+        )
+    numbers = {}
+    for key, default in (("scale", 1.0), ("offset", 0.0)):
+        value = spec.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise error(f"{where}.{canonical}.{key}: expected a finite number, got {value!r}")
+        numbers[key] = float(value)
+    if numbers["scale"] == 0.0:
+        raise error(f"{where}.{canonical}.scale: must not be zero")
+    return ColumnSpec(canonical, header.strip(), unit, numbers["scale"], numbers["offset"], explicit=True)
+
+
+# --- reading ----------------------------------------------------------------
+
+
+@dataclass
+class RunData:
+    """One ingested run.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The CSV file.
+    kind : str
+        Run kind (one of :data:`KINDS`).
+    data : pandas.DataFrame
+        Internal SI columns (see :data:`VARIABLE_MAP`), float64, RangeIndex.
+        ``displacement`` [m] is relative to the first kept row.
+    sha256 : str
+        SHA-256 of the raw file bytes (hex).
+    n_rows_raw : int
+        Data rows in the file (trailing blank lines not counted).
+    n_dropped : int
+        Rows dropped because of blank/NaN cells (``drop_na=True``).
+    source_columns : dict of str to str
+        Internal column name -> header in the file it came from.
+    header_line : int
+        1-based line number of the header in the file.
+    displacement_zero : float
+        Displacement of the first kept row that was subtracted so that
+        ``displacement`` is the change from the first row [m]; 0 when the file
+        already starts at zero or has no displacement column.
+    """
+
+    path: Path
+    kind: str
+    data: pd.DataFrame
+    sha256: str
+    n_rows_raw: int
+    n_dropped: int
+    source_columns: dict[str, str]
+    header_line: int = 1
+    displacement_zero: float = 0.0
+    units: dict[str, str] = field(default_factory=dict)
+    """Internal column name -> its SI unit."""
+
+
+def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:
+    """SHA-256 of a file's bytes, read in chunks.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    chunk_size : int
+        Bytes read at a time [bytes].
+
+    Returns
+    -------
+    str
+        Hex digest.
+    """
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while chunk := fh.read(chunk_size):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+@dataclass
+class _Layout:
+    """What the file's preamble and header look like."""
+
+    header_line: int  # 1-based
+    headers: list[str]
+    sep: str
+    decimal: str
+    encoding: str
+
+
+def _sniff(path: Path, shown: str) -> _Layout:
+    """Find the header line, encoding, delimiter and decimal mark."""
+    with open(path, "rb") as fh:
+        first = fh.read(4)
+        if first.startswith((b"\xff\xfe", b"\xfe\xff")):
+            raise InputError(
+                f"{shown}: file is UTF-16 encoded",
+                "save it as CSV in UTF-8 (or Latin-1); in Excel: 'CSV UTF-8 (comma delimited)'",
+            )
+        fh.seek(0)
+        raw_lines: list[bytes] = []
+        header_idx = None
+        for i, line in enumerate(fh):
+            if i == 0 and line.startswith(b"\xef\xbb\xbf"):
+                line = line[3:]
+            raw_lines.append(line)
+            stripped = line.strip()
+            if stripped and not stripped.startswith(b"#"):
+                header_idx = i
+                break
+            if i >= _MAX_PREAMBLE_LINES:
+                break
+        data_sample: list[bytes] = []
+        if header_idx is not None:
+            for line in fh:
+                if line.strip():
+                    data_sample.append(line)
+                if len(data_sample) >= 50:
+                    break
+    if header_idx is None:
+        if all(not line.strip() for line in raw_lines):
+            raise InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
+        raise InputError(
+            f"{shown}: no header line found (only '#' comments and blank lines"
+            + (f" in the first {_MAX_PREAMBLE_LINES} lines)" if len(raw_lines) > _MAX_PREAMBLE_LINES else ")"),
+            "a run needs a header line and data rows after any '#' comment lines",
+        )
+    head = b"".join(raw_lines)
+    if b"\x00" in head:
+        raise InputError(f"{shown}: not a text CSV file (binary content before the header)")
+    try:
+        head.decode("utf-8")
+        encoding = "utf-8-sig"
+    except UnicodeDecodeError:
+        encoding = "latin-1"
+    header_text = raw_lines[header_idx].decode("utf-8" if encoding == "utf-8-sig" else "latin-1")
+    header_text = header_text.rstrip("\r\n")
+    if ";" in header_text and "," not in header_text:
+        sep = ";"
+        sample = b"".join(data_sample)
+        decimal = "." if (b"." in sample and b"," not in sample) else ","
+    elif "\t" in header_text and "," not in header_text:
+        sep, decimal = "\t", "."
+    else:
+        sep, decimal = ",", "."
+    try:
+        headers = next(csv.reader([header_text], delimiter=sep, quotechar="\"", skipinitialspace=True))
+    except (csv.Error, StopIteration) as exc:
+        raise InputError(f"{shown}: line {header_idx + 1}: cannot parse the header ({exc})") from None
+    headers = [h.strip() for h in headers]
+    return _Layout(header_idx + 1, headers, sep, decimal, encoding)
+
+
+def _count_trailing_blank_lines(path: Path, size: int) -> int:
+    """Blank lines at the end of the file that pandas would read as empty rows."""
+    tail_len = min(size, 4096)
+    with open(path, "rb") as fh:
+        fh.seek(size - tail_len)
+        tail = fh.read(tail_len)
+    stripped = tail.rstrip(b" \t\r\n")
+    if len(stripped) == 0 and tail_len < size:
+        return 0  # more than 4 KiB of whitespace: leave it to the NaN check
+    ws = tail[len(stripped):]
+    if not ws:
+        return 0
+    n_newlines = ws.count(b"\n")
+    last = ws.rsplit(b"\n", 1)[-1] if n_newlines else ws
+    partial = 1 if (n_newlines and last.strip(b"\r")) else 0
+    return max(n_newlines - 1, 0) + partial
+
+
+def _read_frame(path: Path, shown: str, layout: _Layout, usecols: list[int], dtype: Any) -> pd.DataFrame:
+    """pandas C-engine read of the data rows of the selected columns."""
+    last_exc: Exception | None = None
+    encodings = [layout.encoding] + (["latin-1"] if layout.encoding != "latin-1" else [])
+    for encoding in encodings:
+        try:
+            return pd.read_csv(
+                path,
+                sep=layout.sep,
+                decimal=layout.decimal,
+                header=None,
+                names=list(range(len(layout.headers))),
+                skiprows=layout.header_line,
+                usecols=usecols,
+                dtype=dtype,
+                engine="c",
+                encoding=encoding,
+                skip_blank_lines=False,
+                quotechar='"',
+                index_col=False,
+            )
+        except UnicodeDecodeError as exc:
+            last_exc = exc
+            continue
+        except pd.errors.EmptyDataError:
+            return pd.DataFrame({c: pd.Series([], dtype=np.float64) for c in usecols})
+        except (pd.errors.ParserError, csv.Error, OverflowError, MemoryError) as exc:
+            raise InputError(
+                f"{shown}: cannot parse the CSV: {' '.join(str(exc).split())}",
+                "check delimiters and quotes; the file is read as it is, never modified",
+            ) from None
+    raise InputError(f"{shown}: cannot decode the file ({last_exc})", "save it as UTF-8") from None
+
+
+def _locate_bad_cell(
+    path: Path, shown: str, layout: _Layout, usecols: list[int]
+) -> pd.DataFrame:
+    """Slow path: read as text, find the first non-numeric cell or convert all.
+
+    Cells holding only whitespace count as blank (NaN).
+    """
+    try:
+        text = _read_frame(path, shown, layout, usecols, dtype=str)
+    except ValueError as exc:
+        raise InputError(f"{shown}: cannot parse the CSV: {' '.join(str(exc).split())}") from None
+    out = {}
+    first_bad: tuple[int, int, str] | None = None
+    for col in usecols:
+        s = text[col]
+        stripped = s.str.strip()
+        if layout.decimal == ",":
+            stripped = stripped.str.replace(",", ".", regex=False)
+        blank = s.isna() | (stripped == "")
+        values = pd.to_numeric(stripped.where(~blank), errors="coerce")
+        bad = values.isna() & ~blank
+        if bad.any():
+            pos = int(np.flatnonzero(bad.to_numpy())[0])
+            if first_bad is None or pos < first_bad[0]:
+                first_bad = (pos, col, str(s.iloc[pos]))
+        out[col] = values.to_numpy(dtype=np.float64, na_value=np.nan)
+    if first_bad is not None:
+        pos, col, value = first_bad
+        value = value if len(value) <= 40 else value[:37] + "..."
+        raise InputError(
+            f"{shown}: line {layout.header_line + 1 + pos}, column {layout.headers[col]!r}: "
+            f"non-numeric value {value!r}",
+            "data rows must hold numbers only; '#' comments may appear only before the header",
+        )
+    return pd.DataFrame(out)
+
+
+def read_run(
+    path: str | os.PathLike,
+    kind: str,
+    columns: Mapping[str, Any] | None = None,
+    *,
+    drop_na: bool = False,
+    max_bytes: int = DEFAULT_MAX_BYTES,
+) -> RunData:
+    """Read one rig CSV log into validated SI data.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file. It is only read, never modified.
+    kind : str
+        ``"static"``, ``"dynamic"``, ``"sensing"`` or ``"curvature"``; sets the
+        required and optional columns (:data:`REQUIRED`, :data:`OPTIONAL`).
+    columns : mapping, optional
+        The experiment file's ``[columns]`` table: canonical name -> header
+        name, or -> ``{"from": header, "unit": unit, "scale": s, "offset": o}``
+        (all but ``from`` optional). The value used is
+        ``to_SI(raw * scale + offset, unit)``; ``unit`` defaults to the
+        canonical column's unit. Columns not listed are looked up by their
+        canonical name; optional columns that are absent are left out.
+    drop_na : bool
+        Drop rows with blank or NaN cells in the needed columns (counted in
+        ``n_dropped``) instead of raising.
+    max_bytes : int
+        Refuse files larger than this [bytes]; default 2 GiB.
+
+    Returns
+    -------
+    RunData
+        ``data`` has internal column names in SI, float64, a RangeIndex, and
+        ``displacement`` re-zeroed to the first kept row.
+
+    Raises
+    ------
+    InputError
+        Missing, empty, oversized or unparsable file; header without data
+        rows; missing required column; non-numeric, blank or non-finite
+        cell; duplicated or decreasing time; negative resistance; temperature
+        below absolute zero; force of the wrong sign in a pull test; fewer
+        rows than :data:`MIN_ROWS` for the kind.
+    """
+    p = Path(path)
+    shown = str(path)
+    if kind not in REQUIRED:
+        raise InputError(f"{shown}: unknown run kind {kind!r}", "one of " + ", ".join(KINDS))
+    if not p.exists():
+        raise InputError(f"{shown}: file not found", "check the run path in the experiment file")
+    if not p.is_file():
+        raise InputError(f"{shown}: not a regular file")
+    size = p.stat().st_size
+    if size > max_bytes:
+        raise InputError(
+            f"{shown}: file is {size / 1024**2:.1f} MiB, larger than the limit of "
+            f"{max_bytes / 1024**2:.1f} MiB",
+            "raise the limit with read_run(..., max_bytes=N) (CLI: --max-bytes N) "
+            "if the file really is this large",
+        )
+    if size == 0:
+        raise InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
+
+    columns = dict(columns or {})
+    specs = {
+        canon: column_spec(kind, canon, spec, where=f"{shown}: [columns]")
+        for canon, spec in columns.items()
+    }
+
+    layout = _sniff(p, shown)
+    headers = layout.headers
+    positions: dict[str, list[int]] = {}
+    for i, h in enumerate(headers):
+        positions.setdefault(h, []).append(i)
+
+    selected: dict[str, tuple[ColumnSpec, int]] = {}
+    for canon in REQUIRED[kind] + OPTIONAL[kind]:
+        spec = specs.get(canon) or column_spec(kind, canon)
+        where = positions.get(spec.header)
+        if where is None:
+            required = canon in REQUIRED[kind]
+            if not required and not spec.explicit:
+                continue
+            what = "required" if required else "mapped"
+            raise InputError(
+                f"{shown}: line {layout.header_line}: {what} column {spec.header!r}"
+                + (f" (for {canon})" if spec.header != canon else "")
+                + f" not found in the header of a {kind} run"
+                + _did_you_mean(spec.header, headers)
+                + " (headers: "
+                + ", ".join(repr(h) for h in headers[:12])
+                + (", ..." if len(headers) > 12 else "")
+                + ")",
+                _COLUMNS_HINT,
+            )
+        if len(where) > 1:
+            raise InputError(
+                f"{shown}: line {layout.header_line}: header {spec.header!r} appears in "
+                f"columns {', '.join(str(i + 1) for i in where)}",
+                "rename the duplicates so each header is unique",
+            )
+        selected[VARIABLE_MAP[canon][0]] = (spec, where[0])
+
+    usecols = sorted({idx for _, idx in selected.values()})
+    try:
+        raw = _read_frame(p, shown, layout, usecols, dtype=np.float64)
+    except ValueError:  # a cell that is not a number: find and name it
+        raw = _locate_bad_cell(p, shown, layout, usecols)
+
+    n_trailing = _count_trailing_blank_lines(p, size)
+    if n_trailing:
+        n_keep = len(raw) - n_trailing
+        tail_blank = raw.iloc[max(n_keep, 0):].isna().all(axis=1).all()
+        if n_keep >= 0 and tail_blank:
+            raw = raw.iloc[:n_keep]
+    n_rows_raw = len(raw)
+    if n_rows_raw == 0:
+        raise InputError(
+            f"{shown}: line {layout.header_line}: header only, no data rows",
+            "a run needs data rows after the header",
+        )
+
+    # SI conversion, column by column.
+    data: dict[str, np.ndarray] = {}
+    for name, (spec, idx) in selected.items():
+        data[name] = spec.to_si(raw[idx].to_numpy(dtype=np.float64))
+
+    def line_of(pos: int) -> int:
+        return layout.header_line + 1 + int(pos)
+
+    def col_desc(name: str) -> str:
+        spec = selected[name][0]
+        return repr(spec.header) + (f" ({spec.canonical})" if spec.header != spec.canonical else "")
+
+    # Blank / NaN cells.
+    names = list(data)
+    nan_mask = np.zeros(n_rows_raw, dtype=bool)
+    for name in names:
+        nan_mask |= np.isnan(data[name])
+    kept_pos = np.arange(n_rows_raw)
+    n_dropped = 0
+    if nan_mask.any():
+        if not drop_na:
+            pos = int(np.flatnonzero(nan_mask)[0])
+            bad = next(n for n in names if np.isnan(data[n][pos]))
+            n_bad = int(nan_mask.sum())
+            raise InputError(
+                f"{shown}: line {line_of(pos)}, column {col_desc(bad)}: blank or NaN cell"
+                + (f" ({n_bad} rows have one)" if n_bad > 1 else ""),
+                "fill the cell, or drop incomplete rows with drop_na=True (CLI: --drop-na)",
+            )
+        keep = ~nan_mask
+        kept_pos = np.flatnonzero(keep)
+        n_dropped = int(nan_mask.sum())
+        data = {n: v[keep] for n, v in data.items()}
+
+    # Infinite values (e.g. "inf" or 1e400 in the file).
+    for name in names:
+        bad = ~np.isfinite(data[name])
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"{shown}: line {line_of(kept_pos[j])}, column {col_desc(name)}: "
+                f"non-finite value {data[name][j]!r}",
+                "every cell must be a finite number",
+            )
+
+    n = len(kept_pos)
+    if n < MIN_ROWS[kind]:
+        raise InputError(
+            f"{shown}: only {n} usable data row{'s' if n != 1 else ''}"
+            + (f" ({n_dropped} dropped for blank cells)" if n_dropped else "")
+            + f"; a {kind} run needs at least {MIN_ROWS[kind]}",
+            "record a longer run",
+        )
+
+    if "time" in data:
+        t = data["time"]
+        dt = np.diff(t)
+        bad = ~(dt > 0)
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0]) + 1
+            what = "duplicated" if dt[j - 1] == 0 else "decreasing"
+            raise InputError(
+                f"{shown}: line {line_of(kept_pos[j])}, column {col_desc('time')}: {what} time "
+                f"{t[j]:.9g} s after {t[j - 1]:.9g} s on line {line_of(kept_pos[j - 1])}",
+                "time must increase strictly from row to row; split concatenated runs into separate files",
+            )
+
+    for name in _NONNEGATIVE:
+        if name in data:
+            bad = data[name] < 0
+            if bad.any():
+                j = int(np.flatnonzero(bad)[0])
+                raise InputError(
+                    f"{shown}: line {line_of(kept_pos[j])}, column {col_desc(name)}: "
+                    f"negative resistance {data[name][j]:.6g} ohm",
+                    "a resistance cannot be negative; check the column mapping and its unit",
+                )
+
+    if "temperature" in data:
+        bad = data["temperature"] < ABSOLUTE_ZERO_C
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"{shown}: line {line_of(kept_pos[j])}, column {col_desc('temperature')}: "
+                f"temperature {data['temperature'][j]:.6g} degC is below absolute zero (-273.15 degC)",
+                "check the temperature unit (degC, degF or K) in [columns]",
+            )
+
+    displacement_zero = 0.0
+    if "displacement" in data:
+        displacement_zero = float(data["displacement"][0])
+        if displacement_zero != 0.0:
+            data["displacement"] = data["displacement"] - displacement_zero
+
+    if kind == "sensing":
+        _check_pull_force(shown, data, selected)
+
+    frame = pd.DataFrame(data)
+    frame.index = pd.RangeIndex(len(frame))
+    units = {}
+    for name, (spec, _) in selected.items():
+        units[name] = SI_UNITS[_dimension(spec.unit)]
+    return RunData(
+        path=p,
+        kind=kind,
+        data=frame,
+        sha256=sha256_file(p),
+        n_rows_raw=n_rows_raw,
+        n_dropped=n_dropped,
+        source_columns={name: spec.header for name, (spec, _) in selected.items()},
+        header_line=layout.header_line,
+        displacement_zero=displacement_zero,
+        units=units,
+    )
+
+
+def _check_pull_force(shown: str, data: dict[str, np.ndarray], selected: dict) -> None:
+    """Flag a pull test whose force reads negative under load.
+
+    A small negative reading at zero load (sensor offset, noise) is data. Only
+    when most rows with positive displacement read a force below
+    ``-0.05 * max|force|`` is the sign taken to be wrong.
+    """
+    force = data["force"]
+    loaded = data["displacement"] > 0
+    n_loaded = int(loaded.sum())
+    fmax = float(np.max(np.abs(force))) if force.size else 0.0
+    if n_loaded == 0 or fmax == 0.0:
+        return
+    negative = force[loaded] < -0.05 * fmax
+    if int(negative.sum()) * 2 > n_loaded:
+        spec = selected["force"][0]
+        median = float(np.median(force[loaded]))
+        raise InputError(
+            f"{shown}: column {spec.header!r} (force_N): {int(negative.sum())} of {n_loaded} rows "
+            f"with displacement > 0 read a negative force (median {median:.4g} N); a pull test "
+            "stretches the sensor, so the force should be positive",
+            f'if the load cell reads tension as negative, map it as force_N = {{ from = "{spec.header}", '
+            "scale = -1 }} in [columns]",
+        )

@@ -1,0 +1,333 @@
+"""Error metrics between measured and predicted series, and acceptance checks.
+
+:func:`error_metrics` compares one measured series with one prediction;
+:func:`pooled_metrics` does the same over several runs concatenated;
+:func:`check_thresholds` compares metrics against the acceptance limits of an
+experiment file (see :data:`METRIC_UNITS_NOTE` for units and
+:data:`THRESHOLD_FORMS` for the key grammar).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from tcamlab.errors import ConfigError, InputError
+
+__all__ = [
+    "METRIC_NAMES",
+    "METRIC_UNITS_NOTE",
+    "THRESHOLD_FORMS",
+    "UNIT_SUFFIXES",
+    "ThresholdCheck",
+    "check_thresholds",
+    "error_metrics",
+    "pooled_metrics",
+    "quantity_unit",
+]
+
+METRIC_NAMES = ("rmse", "mae", "max_abs", "bias", "nrmse", "r2")
+"""Keys of :func:`error_metrics` that are metrics (``n`` and ``n_nan`` are counts)."""
+
+UNIT_SUFFIXES = ("per_mm", "mm", "N", "ohm")
+"""Unit suffixes a quantity name or threshold key may end in (``_<suffix>``)."""
+
+METRIC_UNITS_NOTE = """\
+Units of the error metrics follow the quantity they are computed on.
+
+``rmse``, ``mae``, ``max_abs`` and ``bias`` carry the unit of the series
+passed in: metrics of a displacement in mm are in mm, of a force in N are in
+N, of a resistance in ohm are in ohm. Convert the series to the display unit
+*before* calling :func:`error_metrics` (tcamlab works in SI internally, the
+reports and the thresholds in lab units). ``nrmse`` (rmse divided by the
+range of the measured series) and ``r2`` are dimensionless, and ``n`` /
+``n_nan`` are counts.
+
+The quantity names passed to :func:`check_thresholds` carry the unit as a
+suffix (``displacement_mm``, ``force_N``, ``gauge_factor_per_mm``,
+``resistance_ohm``); a threshold with the same suffix (``rmse_mm``) applies
+to those quantities only, so its limit is read in that unit.
+"""
+"""How the units of the metrics are decided (also shown in reports)."""
+
+_THRESHOLD_METRICS = ("max_abs", "r2_min", "rmse", "mae", "bias", "nrmse")
+
+THRESHOLD_FORMS = (
+    "<metric> or <metric>_<unit> with <metric> one of "
+    + ", ".join(sorted(_THRESHOLD_METRICS))
+    + " and <unit> one of "
+    + ", ".join(UNIT_SUFFIXES)
+    + " (e.g. rmse_mm, max_abs_N, nrmse, r2_min)"
+)
+"""Human-readable grammar of threshold keys, used in error hints."""
+
+
+# --------------------------------------------------------------------------
+# metrics
+# --------------------------------------------------------------------------
+
+
+def _as_pair(measured, predicted) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        m = np.asarray(measured, dtype=float)
+        p = np.asarray(predicted, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"metrics: measured/predicted are not numeric ({exc})",
+            "pass numeric arrays of the same shape",
+        ) from None
+    if m.shape != p.shape:
+        raise InputError(
+            f"metrics: measured has shape {m.shape} but predicted has shape {p.shape}",
+            "evaluate the prediction at the measured samples",
+        )
+    return m.ravel(), p.ravel()
+
+
+def error_metrics(measured, predicted) -> dict[str, float]:
+    """Error metrics of a prediction against a measurement.
+
+    Pairs where either value is NaN are left out and counted in ``n_nan``.
+    Units follow the quantity (see :data:`METRIC_UNITS_NOTE`).
+
+    Parameters
+    ----------
+    measured, predicted : array_like
+        Same shape; any shape is flattened.
+
+    Returns
+    -------
+    dict
+        ``rmse`` sqrt(mean(e^2)), ``mae`` mean(|e|), ``max_abs`` max(|e|),
+        ``bias`` mean(e), with e = predicted - measured; ``nrmse`` rmse /
+        (max(measured) - min(measured)), NaN if that range is 0; ``r2`` 1 -
+        SS_res / SS_tot (centred), NaN if SS_tot is 0; ``n`` number of pairs
+        used and ``n_nan`` number left out (both int). With no valid pair all
+        metrics are NaN.
+
+    Raises
+    ------
+    InputError
+        Shapes differ, values are not numeric, or a value is +-inf.
+    """
+    m, p = _as_pair(measured, predicted)
+    nan = np.isnan(m) | np.isnan(p)
+    m, p = m[~nan], p[~nan]
+    n_nan = int(np.count_nonzero(nan))
+    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(p))):
+        raise InputError(
+            "metrics: measured or predicted contains +-inf",
+            "replace missing samples by NaN, they are then left out",
+        )
+    n = int(m.size)
+    if n == 0:
+        out = {k: float("nan") for k in METRIC_NAMES}
+        out.update(n=0, n_nan=n_nan)
+        return out
+    e = p - m
+    abs_e = np.abs(e)
+    ss_res = float(np.dot(e, e))
+    rmse = float(np.sqrt(ss_res / n))
+    span = float(np.ptp(m))
+    if span > 0.0:
+        nrmse = rmse / span
+        dm = m - m.mean()
+        ss_tot = float(np.dot(dm, dm))
+        r2 = 1.0 - ss_res / ss_tot if ss_tot > 0.0 else float("nan")
+    else:
+        nrmse = float("nan")
+        r2 = float("nan")
+    return {
+        "rmse": rmse,
+        "mae": float(abs_e.mean()),
+        "max_abs": float(abs_e.max()),
+        "bias": float(e.mean()),
+        "nrmse": float(nrmse),
+        "r2": float(r2),
+        "n": n,
+        "n_nan": n_nan,
+    }
+
+
+def pooled_metrics(pairs: Iterable[tuple[object, object]]) -> dict[str, float]:
+    """:func:`error_metrics` over several (measured, predicted) pairs concatenated.
+
+    Each pair may have its own length; within a pair the shapes must match.
+
+    Raises
+    ------
+    InputError
+        No pair given, or a pair fails :func:`error_metrics` validation.
+    """
+    pairs = list(pairs)
+    if not pairs:
+        raise InputError(
+            "pooled_metrics: no (measured, predicted) pairs given",
+            "pass at least one run",
+        )
+    checked = [_as_pair(m, p) for m, p in pairs]
+    measured = np.concatenate([m for m, _ in checked])
+    predicted = np.concatenate([p for _, p in checked])
+    return error_metrics(measured, predicted)
+
+
+# --------------------------------------------------------------------------
+# thresholds
+# --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ThresholdCheck:
+    """Outcome of one threshold applied to one quantity.
+
+    Attributes
+    ----------
+    key : str
+        Threshold key as written in the experiment file (``rmse_mm``).
+    quantity : str
+        Quantity the metric belongs to (``displacement_mm``).
+    value : float
+        Metric value (for ``bias`` the signed bias; the check uses |bias|).
+    limit : float
+        Acceptance limit.
+    passed : bool
+        ``value >= limit`` for ``r2_min``, ``value <= limit`` otherwise;
+        False when the value is NaN or missing.
+    """
+
+    key: str
+    quantity: str
+    value: float
+    limit: float
+    passed: bool
+
+    @property
+    def metric(self) -> str:
+        """Metric name of the key (``rmse``, ``r2``...)."""
+        return _parse_threshold_key(self.key)[0]
+
+    @property
+    def comparison(self) -> str:
+        """``">="`` for a minimum (``r2_min``), ``"<="`` otherwise."""
+        return ">=" if _parse_threshold_key(self.key)[2] else "<="
+
+    def describe(self) -> str:
+        """One line such as ``displacement_mm rmse 0.42 <= 0.5: pass``."""
+        metric = self.metric
+        shown = f"|{self.value:.4g}|" if metric == "bias" else f"{self.value:.4g}"
+        verdict = "pass" if self.passed else "FAIL"
+        return f"{self.quantity} {metric} {shown} {self.comparison} {self.limit:.4g}: {verdict}"
+
+    def to_dict(self) -> dict:
+        """JSON-safe dict (NaN value becomes None)."""
+        d = asdict(self)
+        d["value"] = d["value"] if np.isfinite(d["value"]) else None
+        d["passed"] = bool(d["passed"])
+        return d
+
+
+def quantity_unit(quantity: str) -> str | None:
+    """Unit suffix of a quantity name, or None.
+
+    ``"stroke_per_mm"`` is ``"per_mm"`` (not ``"mm"``), ``"force_N"`` is
+    ``"N"``; the longest matching suffix of :data:`UNIT_SUFFIXES` wins.
+    """
+    for suffix in sorted(UNIT_SUFFIXES, key=len, reverse=True):
+        if quantity.endswith("_" + suffix):
+            return suffix
+    return None
+
+
+def _parse_threshold_key(key: str) -> tuple[str, str | None, bool]:
+    """Split a threshold key into (metric, unit suffix or None, is_minimum)."""
+    if isinstance(key, str):
+        for metric in sorted(_THRESHOLD_METRICS, key=len, reverse=True):
+            if key == metric:
+                return _metric_of(metric), None, metric == "r2_min"
+            if key.startswith(metric + "_"):
+                unit = key[len(metric) + 1 :]
+                if unit in UNIT_SUFFIXES:
+                    return _metric_of(metric), unit, metric == "r2_min"
+    hint = THRESHOLD_FORMS
+    if key == "r2" or (isinstance(key, str) and key.startswith("r2_") and not key.startswith("r2_min")):
+        hint = "r2 is a minimum: write r2_min; valid forms: " + THRESHOLD_FORMS
+    raise ConfigError(f"unknown threshold key {key!r}", hint)
+
+
+def _metric_of(threshold_metric: str) -> str:
+    return "r2" if threshold_metric == "r2_min" else threshold_metric
+
+
+def check_thresholds(
+    metrics_by_quantity: Mapping[str, Mapping[str, float]],
+    thresholds: Mapping[str, float],
+) -> list[ThresholdCheck]:
+    """Apply acceptance thresholds to metrics of several quantities.
+
+    Convention
+    ----------
+    A threshold key is ``<metric>`` or ``<metric>_<unit>`` with ``<metric>``
+    one of ``rmse``, ``mae``, ``max_abs``, ``bias``, ``nrmse``, ``r2_min``
+    and ``<unit>`` one of ``mm``, ``N``, ``per_mm``, ``ohm``.
+
+    * A key with a unit applies to every quantity whose name ends in that
+      unit (``rmse_mm`` to ``displacement_mm``; ``mm`` does not match
+      ``..._per_mm``). Its limit is in that unit, so the caller passes
+      metrics already converted to the display unit of each quantity.
+    * A key without a unit applies to every quantity (meant for the
+      dimensionless ``nrmse`` and ``r2_min``).
+    * ``r2_min`` passes when ``r2 >= limit``; every other key passes when
+      ``value <= limit``, with ``|bias|`` for ``bias``.
+    * A NaN or missing metric fails its check. A key that matches no
+      quantity yields no check.
+
+    Parameters
+    ----------
+    metrics_by_quantity : mapping
+        ``{"displacement_mm": error_metrics(...), "force_N": ...}``.
+    thresholds : mapping
+        ``{"rmse_mm": 0.5, "r2_min": 0.9}``.
+
+    Returns
+    -------
+    list of ThresholdCheck
+        In threshold order, then quantity order.
+
+    Raises
+    ------
+    ConfigError
+        Unknown threshold key, or a limit that is not a finite number.
+    """
+    parsed = []
+    for key, limit in thresholds.items():
+        metric, unit, is_min = _parse_threshold_key(key)
+        try:
+            limit_f = float(limit)
+        except (TypeError, ValueError):
+            limit_f = float("nan")
+        if not np.isfinite(limit_f) or isinstance(limit, bool):
+            raise ConfigError(
+                f"threshold {key!r} has limit {limit!r}, not a finite number",
+                "write a number in the unit of the key suffix",
+            )
+        parsed.append((key, metric, unit, is_min, limit_f))
+
+    checks: list[ThresholdCheck] = []
+    for key, metric, unit, is_min, limit_f in parsed:
+        for quantity, metrics in metrics_by_quantity.items():
+            if unit is not None and quantity_unit(quantity) != unit:
+                continue
+            raw = metrics.get(metric, float("nan"))
+            value = float("nan") if raw is None else float(raw)
+            compared = abs(value) if metric == "bias" else value
+            if not np.isfinite(compared):
+                passed = False
+            elif is_min:
+                passed = compared >= limit_f
+            else:
+                passed = compared <= limit_f
+            checks.append(ThresholdCheck(key, quantity, value, limit_f, bool(passed)))
+    return checks
+

@@ -1,0 +1,209 @@
+"""Plain data describing a report; no rendering happens here.
+
+The pipeline builds a :class:`Document` (or an :class:`IndexDocument` for a
+batch of reports) and hands it to :mod:`tcamlab.report.html` or
+:mod:`tcamlab.report.pdf`.  Every user-supplied string (titles, notes, column
+names, file names) is treated as plain text by both renderers and escaped, so
+it may contain anything, including markup.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+CELL_STATUSES = (None, "pass", "fail", "warn")
+INDEX_STATUSES = ("pass", "fail", "error")
+MISSING = "\u2013"  # en dash, shown for None cells
+
+_SAFE_SCHEMES = ("http://", "https://", "mailto:")
+
+
+def safe_href(href: str | None) -> str | None:
+    """Return *href* if it is safe to put in a link, else ``None``.
+
+    Relative references (``run-01/report.html``, ``#section``) and
+    ``http``/``https``/``mailto`` URLs are allowed; anything with another
+    scheme (``javascript:``, ``data:``, ``file:``...) is dropped.
+    """
+    if href is None:
+        return None
+    text = str(href).strip()
+    if not text:
+        return None
+    lowered = "".join(text.split()).lower()
+    if lowered.startswith(_SAFE_SCHEMES):
+        return text
+    # A scheme is "letters/digits/+-. followed by ':'" before any '/', '?', '#'.
+    head = lowered.split("/", 1)[0].split("?", 1)[0].split("#", 1)[0]
+    if ":" in head:
+        return None
+    return text
+
+
+@dataclass(frozen=True)
+class Cell:
+    """A table cell with explicit text and an optional status or link.
+
+    ``status`` is ``None``, ``"pass"``, ``"fail"`` or ``"warn"``; renderers
+    colour the cell accordingly.  ``href`` makes the text a link (unsafe
+    schemes such as ``javascript:`` are silently dropped when rendering).
+    """
+
+    text: str
+    status: str | None = None
+    href: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.status not in CELL_STATUSES:
+            raise ValueError(
+                f"Cell status must be one of {CELL_STATUSES}, got {self.status!r}"
+            )
+        if not isinstance(self.text, str):
+            object.__setattr__(self, "text", str(self.text))
+
+
+def _is_bool(value: Any) -> bool:
+    if isinstance(value, bool):
+        return True
+    t = type(value)
+    return t.__module__ == "numpy" and t.__name__ in ("bool_", "bool")
+
+
+def format_cell(value: object, number_format: str = "{:.4g}") -> Cell:
+    """Turn one raw table value into a :class:`Cell`.
+
+    ``None`` -> "–"; ``bool`` -> "pass"/"FAIL" with that status; integers
+    verbatim; other real numbers through *number_format*; ``Cell`` unchanged;
+    anything else through ``str``.
+    """
+    if isinstance(value, Cell):
+        return value
+    if value is None:
+        return Cell(MISSING)
+    if _is_bool(value):
+        return Cell("pass", "pass") if bool(value) else Cell("FAIL", "fail")
+    if isinstance(value, numbers.Integral):
+        return Cell(str(int(value)))
+    if isinstance(value, numbers.Real):
+        number = float(value)
+        if math.isnan(number):
+            return Cell("NaN")
+        return Cell(number_format.format(number))
+    return Cell(str(value))
+
+
+@dataclass
+class Table:
+    """A table with a header row.
+
+    Each row must have exactly ``len(columns)`` cells.  Cells may be ``str``,
+    ``int``, ``float``, ``None``, ``bool`` or :class:`Cell`; see
+    :func:`format_cell` for how they are shown.
+    """
+
+    columns: list[str]
+    rows: list[list[object]]
+    caption: str = ""
+    number_format: str = "{:.4g}"
+
+    def __post_init__(self) -> None:
+        self.columns = [str(c) for c in self.columns]
+        self.rows = [list(r) for r in self.rows]
+        for i, row in enumerate(self.rows):
+            if len(row) != len(self.columns):
+                raise ValueError(
+                    f"table {self.caption!r}: row {i} has {len(row)} cells, "
+                    f"expected {len(self.columns)} (one per column)"
+                )
+
+    def formatted_rows(self) -> list[list[Cell]]:
+        """Rows with every value converted to a :class:`Cell`."""
+        return [[format_cell(v, self.number_format) for v in row] for row in self.rows]
+
+
+@dataclass
+class Figure:
+    """A matplotlib figure with a caption (and alt text for the HTML)."""
+
+    figure: Any  # matplotlib.figure.Figure; not imported here to keep imports cheap
+    caption: str
+    alt: str = ""
+
+
+@dataclass
+class Section:
+    """A headed section.
+
+    Rendered in this order: heading, notes (highlighted warnings),
+    paragraphs, tables, figures, subsections.
+    """
+
+    heading: str
+    paragraphs: Sequence[str] = field(default_factory=list)
+    tables: Sequence[Table] = field(default_factory=list)
+    figures: Sequence[Figure] = field(default_factory=list)
+    subsections: Sequence["Section"] = field(default_factory=list)
+    notes: Sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class Document:
+    """One report.
+
+    ``metadata`` (tool version, command line, input hashes...) is shown as a
+    provenance table at the end, in insertion order.  ``synthetic_banner``,
+    when set, is shown prominently at the top (use it whenever the data is
+    synthetic).
+    """
+
+    title: str
+    subtitle: str = ""
+    sections: Sequence[Section] = field(default_factory=list)
+    metadata: Mapping[str, str] = field(default_factory=dict)
+    synthetic_banner: str | None = None
+
+
+@dataclass
+class IndexEntry:
+    """One row of an index page: a report and its headline result."""
+
+    name: str
+    title: str
+    kind: str
+    status: str
+    metrics: Mapping[str, str] = field(default_factory=dict)
+    link: str | None = None
+    error: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.status not in INDEX_STATUSES:
+            raise ValueError(
+                f"IndexEntry {self.name!r}: status must be one of "
+                f"{INDEX_STATUSES}, got {self.status!r}"
+            )
+
+
+@dataclass
+class IndexDocument:
+    """An index of many reports."""
+
+    title: str
+    entries: Sequence[IndexEntry] = field(default_factory=list)
+    metadata: Mapping[str, str] = field(default_factory=dict)
+
+    def metric_names(self) -> list[str]:
+        """Union of the entries' metric keys, in first-seen order."""
+        seen: dict[str, None] = {}
+        for entry in self.entries:
+            for key in entry.metrics:
+                seen.setdefault(str(key), None)
+        return list(seen)
+
+    def status_counts(self) -> dict[str, int]:
+        counts = {s: 0 for s in INDEX_STATUSES}
+        for entry in self.entries:
+            counts[entry.status] += 1
+        return counts

@@ -1,0 +1,32 @@
+import numpy as np
+import pytest
+
+from tcamlab.params import THESIS_TCA, THESIS_TCS, THESIS_ROBOT
+
+
+@pytest.fixture
+def tca():
+    return THESIS_TCA.build_sample(), THESIS_TCA.build_rig()
+
+
+@pytest.fixture
+def tcs():
+    return THESIS_TCS.build_sample(), THESIS_TCS.build_rig()
+
+
+@pytest.fixture
+def robot():
+    return THESIS_ROBOT.build_sample(), THESIS_ROBOT.build_rig()
+
+
+def geometry(sample):
+    """The sample's keyword arguments without the thermal ones (sensing models)."""
+    kw = sample.model_kwargs()
+    kw.pop("radial_cte")
+    kw.pop("shear_modulus_slope")
+    return kw
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
