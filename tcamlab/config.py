@@ -38,7 +38,6 @@ the factors of :data:`tcamlab.params.SAMPLE_KEYS` and
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
 import re
@@ -50,7 +49,7 @@ from typing import Any, Literal, Mapping, Optional
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from tcamlab import io as tio
-from tcamlab.errors import ConfigError, InputError
+from tcamlab.errors import ConfigError
 from tcamlab.params import PRESETS, RIG_KEYS, SAMPLE_KEYS, Rig, Sample, get_preset
 
 __all__ = [
@@ -265,7 +264,8 @@ def _short(value: Any) -> str:
 
 def _translate(err: ValidationError, shown: str, prefix: tuple = ()) -> ConfigError:
     """One-line :class:`ConfigError` from the first pydantic error."""
-    errors = err.errors(include_url=False)
+    # An unknown key usually explains a "missing" one (a typo): report it first.
+    errors = sorted(err.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
     more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
     return _describe(errors[0], shown, prefix, more)
 

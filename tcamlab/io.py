@@ -442,6 +442,8 @@ class RunData:
         Displacement of the first kept row that was subtracted so that
         ``displacement`` is the change from the first row [m]; 0 when the file
         already starts at zero or has no displacement column.
+    units : dict of str to str
+        Internal column name -> its SI unit (``"s"``, ``"m"``, ``"degC"`` ...).
     """
 
     path: Path
@@ -454,7 +456,6 @@ class RunData:
     header_line: int = 1
     displacement_zero: float = 0.0
     units: dict[str, str] = field(default_factory=dict)
-    """Internal column name -> its SI unit."""
 
 
 def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:

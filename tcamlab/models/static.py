@@ -338,6 +338,7 @@ def displacement(
     max_volume_fraction=0.887,
     radial_cte=8.1e-5,
     shear_modulus_slope=0.0,
+    youngs_modulus_slope=0.0,
     *,
     xtol=XTOL,
     rtol=RTOL,
@@ -379,6 +380,10 @@ def displacement(
         rho [1/K], positive for swelling.
     shear_modulus_slope : array_like, default 0.0
         k in G_t' = G_t - k dT [Pa/K]; 0 gives the constant-G model.
+    youngs_modulus_slope : array_like, default 0.0
+        c in E' = E (1 - c dT) for the E terms of f11 [1/K]. The thesis keeps E
+        constant (section 2.3.3); the effect library uses this. G_t stays at
+        its fabrication value.
     xtol, rtol : float
         Tolerances on sin(alpha) [-].
     maxiter : int
@@ -404,14 +409,18 @@ def displacement(
     raw = [np.asarray(v, float) for v in (
         delta_T, force, fiber_diameter, fiber_length, coil_length, coil_diameter,
         twists, youngs_modulus, thread_plies, max_volume_fraction, radial_cte,
-        shear_modulus_slope)]
+        shear_modulus_slope, youngs_modulus_slope)]
     shape = np.broadcast_shapes(*(a.shape for a in raw))
     # Scalars stay scalars (the common case: one sample, arrays of dT and F),
     # so the iteration indexes only what varies.
     flat = [a.reshape(()) if a.size == 1 else np.broadcast_to(a, shape).ravel() for a in raw]
-    dT, F, d0, l, L, D, N, E, plies, vfmax, rho, slope = flat
+    dT, F, d0, l, L, D, N, E_fab, plies, vfmax, rho, slope, e_slope = flat
     size = int(np.prod(shape))
-    g_t = sample_shear_modulus(d0, l, N, E, plies, vfmax)
+    g_t = sample_shear_modulus(d0, l, N, E_fab, plies, vfmax)
+    E = E_fab * (1.0 - e_slope * dT)
+    if np.any(E <= 0):
+        raise ModelDomainError("static model: Young's modulus E (1 - c dT) is not positive",
+                               hint="the E(T) slope is too large for this temperature range")
     g_tau = shear_modulus_at(dT, g_t, slope)
     tau = torque(dT, g_tau, d0, N, l, rho)
     s0 = L / l
