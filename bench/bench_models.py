@@ -3,7 +3,7 @@
 
 Run from the repository root::
 
-    python bench/bench_models.py            # full sizes (about a minute or two)
+    python bench/bench_models.py            # full sizes (about 30 s on 2 cores)
     python bench/bench_models.py --quick    # smoke run with smaller sizes
     python bench/bench_models.py --json out.json
 

@@ -136,6 +136,12 @@ class _ExperimentFile(BaseModel):
     thresholds: dict[str, Any] = Field(default_factory=dict)
 
 
+class _TemplateFile(_ExperimentFile):
+    """An experiment file used as a simulation template: ``runs`` may be empty or absent."""
+
+    runs: list[str] = Field(default_factory=list)
+
+
 def _model_keys(model: type[BaseModel]) -> list[str]:
     return [f.alias or name for name, f in model.model_fields.items()]
 
@@ -332,7 +338,8 @@ def _finite(shown: str, key: str, value: Any) -> float:
     return float(value)
 
 
-def load_experiment(path: str | os.PathLike, expected_kind: str | None = None) -> Experiment:
+def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *,
+                    require_runs: bool = True) -> Experiment:
     """Load, validate and convert an experiment file.
 
     Parameters
@@ -341,6 +348,10 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None) -
         The TOML file.
     expected_kind : str, optional
         Kind the caller handles; a file of another kind raises.
+    require_runs : bool
+        False for a simulation template: ``runs`` may then be absent or
+        empty and listed run files need not exist (they are resolved but
+        not checked).
 
     Returns
     -------
@@ -373,7 +384,7 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None) -
         raise ConfigError(f"{shown}: not UTF-8 text ({exc.reason} at byte {exc.start})", "save it as UTF-8") from None
 
     try:
-        doc = _ExperimentFile.model_validate(raw)
+        doc = (_ExperimentFile if require_runs else _TemplateFile).model_validate(raw)
     except ValidationError as exc:
         raise _translate(exc, shown) from None
 
@@ -390,7 +401,7 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None) -
     for i, run in enumerate(doc.runs):
         rp = Path(run)
         rp = (rp if rp.is_absolute() else base / rp).resolve()
-        if not rp.is_file():
+        if require_runs and not rp.is_file():
             raise ConfigError(
                 f"{shown}: runs[{i}]: run file {run!r} not found (looked for {rp})",
                 "run paths are relative to the experiment file",

@@ -1,0 +1,356 @@
+"""Command-line interface: parses arguments, calls :mod:`tcamlab.pipeline`, prints.
+
+No logic lives here beyond argument parsing, progress display and exit codes.
+Library imports happen inside the commands so ``tcamlab --help`` stays fast.
+Exit status: 0 success, 1 a threshold failed, 2 bad input (one-line error).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from tcamlab import __version__
+
+app = typer.Typer(
+    name="tcamlab",
+    help="Lab pipeline for twisted-and-coiled artificial muscles: ingest rig logs, run the "
+         "thesis models, validate, identify the spring constant, diagnose the sim-to-real "
+         "gap, and write HTML/PDF reports.\n\nExample: tcamlab report",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+validate_app = typer.Typer(
+    help="Validate a model against an experiment's runs and write its report.\n\n"
+         "Example: tcamlab validate static experiments/static.toml --out reports",
+    no_args_is_help=True)
+benchmark_app = typer.Typer(
+    help="Benchmarks of the diagnosis.\n\nExample: tcamlab benchmark diagnose --quick",
+    no_args_is_help=True)
+effects_app = typer.Typer(
+    help="The unmodelled-effect library.\n\nExample: tcamlab effects list --kind sensing",
+    no_args_is_help=True)
+app.add_typer(validate_app, name="validate")
+app.add_typer(benchmark_app, name="benchmark")
+app.add_typer(effects_app, name="effects")
+
+KINDS = ("static", "dynamic", "sensing", "curvature")
+
+
+def _fail(exc) -> None:
+    """Print tcamlab's one-line error and exit with its status."""
+    typer.echo(f"error: {exc.one_line()}", err=True)
+    raise typer.Exit(code=exc.exit_code)
+
+
+def _run(fn):
+    """Call fn(), turning tcamlab errors into one-line messages and exit codes."""
+    from tcamlab.errors import TcamlabError
+
+    try:
+        return fn()
+    except TcamlabError as exc:
+        _fail(exc)
+    except FileNotFoundError as exc:
+        typer.echo(f"error: {exc.filename}: file not found", err=True)
+        raise typer.Exit(code=2)
+    except PermissionError as exc:
+        typer.echo(f"error: {exc.filename}: permission denied", err=True)
+        raise typer.Exit(code=2)
+
+
+def _command_line() -> str:
+    return "tcamlab " + " ".join(sys.argv[1:]) if sys.argv else "tcamlab"
+
+
+def _print_json(obj) -> None:
+    from tcamlab.pipeline import dumps_json
+
+    typer.echo(dumps_json(obj), nl=False)
+
+
+def _version_callback(value: bool):
+    if value:
+        typer.echo(f"tcamlab {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: bool = typer.Option(False, "--version", callback=_version_callback,
+                                       is_eager=True, help="Show the version and exit.")):
+    """tcamlab: validate twisted-and-coiled muscle models against rig logs."""
+
+
+# -- validate -------------------------------------------------------------------------
+
+def _validate(kind: str, experiment: Path, out: Path, fmt: str, as_json: bool,
+              drop_na: bool, mc_draws: Optional[int]) -> None:
+    from tcamlab.pipeline import validate_experiment
+
+    outcome = _run(lambda: validate_experiment(
+        experiment, out, expected_kind=kind, formats=fmt, drop_na=drop_na,
+        mc_draws=mc_draws, command=_command_line()))
+    res = outcome.result
+    if as_json:
+        _print_json(res.to_dict())
+    else:
+        for q, block in res.metrics[res.primary].items():
+            m = block["pooled"]
+            typer.echo(f"{res.experiment.name}: {res.primary} {q}: RMSE {m['rmse']:.4g}, "
+                       f"R² {m['r2']:.4g} over {m['n']} samples")
+        for note in res.notes:
+            typer.echo(f"note: {note}")
+        for c in res.checks:
+            typer.echo(("pass " if c.passed else "FAIL ") + c.describe())
+        typer.echo(f"wrote {outcome.out_dir}")
+    if not res.passed:
+        raise typer.Exit(code=1)
+
+
+def _make_validate(kind: str, example: str):
+    def command(
+        experiment: Path = typer.Argument(..., help="Experiment file (TOML).", metavar="EXPERIMENT.toml"),
+        out: Path = typer.Option(Path("reports"), "--out", help="Parent folder of the report."),
+        fmt: str = typer.Option("html,pdf", "--format", help="Report formats: html, pdf or html,pdf."),
+        as_json: bool = typer.Option(False, "--json", help="Print metrics.json to stdout."),
+        drop_na: bool = typer.Option(False, "--drop-na", help="Drop rows with blank cells (counted in the report)."),
+        mc_draws: Optional[int] = typer.Option(None, "--mc-draws", help="Monte Carlo draws for the dynamic band (default 1000)."),
+    ):
+        _validate(kind, experiment, out, fmt, as_json, drop_na, mc_draws)
+
+    command.__doc__ = (f"Validate the {kind} model against an experiment's runs.\n\n"
+                       f"Writes OUT/NAME/report.html, report.pdf, metrics.json and "
+                       f"predictions.csv; exits 1 if a [thresholds] limit is exceeded.\n\n"
+                       f"Example: {example}")
+    return command
+
+
+for _kind, _ex in (
+        ("static", "tcamlab validate static experiments/static.toml"),
+        ("dynamic", "tcamlab validate dynamic experiments/dynamic.toml --format html"),
+        ("sensing", "tcamlab validate sensing experiments/sensing.toml --json"),
+        ("curvature", "tcamlab validate curvature experiments/curvature.toml --out reports")):
+    validate_app.command(_kind)(_make_validate(_kind, _ex))
+
+
+# -- report ---------------------------------------------------------------------------
+
+@app.command("report")
+def report(
+    experiments: Optional[List[Path]] = typer.Argument(None, help="Experiment files (default: all of experiments/).", metavar="[EXPERIMENT.toml]..."),
+    out: Path = typer.Option(Path("reports"), "--out", help="Output folder."),
+    experiments_dir: Path = typer.Option(Path("experiments"), "--experiments", help="Folder searched when no files are given."),
+    mc_draws: Optional[int] = typer.Option(None, "--mc-draws", help="Monte Carlo draws for dynamic bands."),
+):
+    """Validate every experiment; write each report, index.html and one combined PDF.
+
+    Example: tcamlab report --out reports
+    """
+    from tcamlab.pipeline import build_reports
+
+    interactive = sys.stderr.isatty() and not os.environ.get("CI")
+
+    def progress(name, i, n):
+        if interactive:
+            typer.echo(f"\r[{i + 1}/{n}] {name:<40}", err=True, nl=False)
+        else:
+            typer.echo(f"[{i + 1}/{n}] validating {name}", err=True)
+
+    outcome = _run(lambda: build_reports(experiments or None, out,
+                                         experiments_dir=experiments_dir,
+                                         mc_draws=mc_draws, progress=progress))
+    if interactive:
+        typer.echo("", err=True)
+    for e in outcome.entries:
+        line = f"{e.status:5s} {e.name}"
+        if e.error:
+            line += f": {e.error}"
+        typer.echo(line)
+    typer.echo(f"wrote {outcome.index_path} and {outcome.pdf_path}")
+    errors = [e for e in outcome.entries if e.status == "error"]
+    if errors:
+        raise typer.Exit(code=2)
+    if outcome.failed:
+        raise typer.Exit(code=1)
+
+
+# -- fit-spring -------------------------------------------------------------------------
+
+@app.command("fit-spring")
+def fit_spring(
+    inputs: List[Path] = typer.Argument(..., help="Pull-test CSV logs or sensing experiment files.", metavar="CSV_OR_EXPERIMENT..."),
+    intercept: bool = typer.Option(False, "--intercept", help="Fit F = S delta + c instead of through the origin."),
+    robust: bool = typer.Option(False, "--robust", help="Robust (soft-L1) fit that down-weights outliers."),
+    no_branches: bool = typer.Option(False, "--no-branches", help="Do not split loading and unloading branches."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Write the fit and residual plot (.svg or .png)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+):
+    """Identify the spring constant S of F = S delta (thesis section 3.3).
+
+    Least squares through the origin (the thesis's form) or with an intercept;
+    standard error, 95% CI and R² per run, per branch and pooled.
+
+    Example: tcamlab fit-spring raw/sensing_run1.csv raw/sensing_run2.csv --json
+    """
+    from tcamlab.pipeline import fit_spring_files
+
+    rep = _run(lambda: fit_spring_files(inputs, intercept=intercept, robust=robust,
+                                        by_branch=not no_branches, plot_path=plot))
+    if as_json:
+        _print_json(rep.to_dict())
+        return
+    for f in rep.fits + [rep.pooled]:
+        lo, hi = f.ci95
+        typer.echo(f"{f.run:>24s} {f.branch_label:>9s}: S = {f.spring_constant:.5g} N/m "
+                   f"± {f.stderr:.2g} (95% CI {lo:.5g}..{hi:.5g}), R² {f.r2:.5f}, n {f.n}, "
+                   f"{f.method}")
+
+
+# -- simulate ---------------------------------------------------------------------------
+
+def _parse_effects(items: List[str]) -> dict:
+    from tcamlab.errors import ConfigError
+
+    out = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"--effect {item!r}: expected NAME=STRENGTH",
+                              hint="e.g. --effect glass-transition=3 (3x the noise RMS)") from None
+        if not sep:
+            raise ConfigError(f"--effect {item!r}: expected NAME=STRENGTH")
+    return out
+
+
+@app.command("simulate")
+def simulate(
+    kind: str = typer.Argument(..., help="static, dynamic, sensing or curvature."),
+    experiment: Path = typer.Option(..., "--experiment", help="Template experiment file (sample and rig)."),
+    seed: int = typer.Option(..., "--seed", help="Seed of the random generator."),
+    out: Path = typer.Option(..., "--out", help="Folder receiving experiments/, raw/ and truth/."),
+    effect: Optional[List[str]] = typer.Option(None, "--effect", help="NAME=STRENGTH, strength in multiples of the noise RMS (repeatable)."),
+    runs: Optional[int] = typer.Option(None, "--runs", help="Number of runs (default 3)."),
+    name: Optional[str] = typer.Option(None, "--name", help="Experiment name (default: the kind)."),
+):
+    """Virtual rig: write synthetic run CSVs and an experiment file from the models.
+
+    Realistic measurement chains (noise, ADC quantisation, the thesis's protocols).
+    Effects are hidden from the experiment file; the truth goes to truth/NAME.truth.json.
+
+    Example: tcamlab simulate static --experiment experiments/templates/static.toml --seed 1 --out .
+    """
+    from tcamlab.errors import ConfigError
+
+    if kind not in KINDS:
+        _fail(ConfigError(f"unknown kind {kind!r}", hint="one of " + ", ".join(KINDS)))
+
+    def go():
+        from tcamlab import rig
+
+        return rig.simulate(kind, experiment, seed=seed, out_dir=out,
+                            effects=_parse_effects(effect), n_runs=runs, name=name,
+                            command=_command_line())
+
+    res = _run(go)
+    typer.echo(f"wrote {res.experiment_path} and {len(res.run_paths)} runs")
+
+
+# -- diagnose ---------------------------------------------------------------------------
+
+@app.command("diagnose")
+def diagnose(
+    experiment: Path = typer.Argument(..., help="Experiment file (TOML).", metavar="EXPERIMENT.toml"),
+    effects: Optional[str] = typer.Option(None, "--effects", help="Comma-separated candidate effects (default: all of the kind)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Write OUT/NAME/diagnosis.{html,pdf,json}."),
+    as_json: bool = typer.Option(False, "--json", help="Print the diagnosis as JSON."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
+):
+    """Where the model departs from the logs, which effect explains it, and by how much.
+
+    Example: tcamlab diagnose experiments/static.toml --out reports --json
+    """
+    def go():
+        from tcamlab.config import load_experiment
+        from tcamlab.diagnosis import diagnose as run_diagnosis
+
+        exp = load_experiment(experiment)
+        names = [e.strip() for e in effects.split(",")] if effects else None
+        result = run_diagnosis(exp, effects=names, seed=seed)
+        if out is not None:
+            from tcamlab.pipeline import write_diagnosis
+
+            write_diagnosis(result, exp, out)
+        return result
+
+    result = _run(go)
+    doc = result.to_dict()
+    if as_json:
+        _print_json(doc)
+        return
+    typer.echo(f"verdict: {doc['verdict']}" + (f" ({doc['effect']})" if doc.get("effect") else ""))
+    for r in doc["ranking"][:5]:
+        typer.echo(f"  {r['effect']:<36s} held-out RMSE {r['heldout_rmse_before']:.4g} -> "
+                   f"{r['heldout_rmse_after']:.4g} ({100 * r['shrinkage']:.0f}% shrinkage)")
+
+
+# -- benchmark --------------------------------------------------------------------------
+
+@benchmark_app.command("diagnose")
+def benchmark_diagnose(
+    quick: bool = typer.Option(False, "--quick", help="The CI subset (under 5 minutes)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
+    out: Path = typer.Option(Path("reports/benchmark"), "--out", help="Output folder."),
+    seeds: int = typer.Option(10, "--seeds", help="Seeds per case (full run)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes."),
+):
+    """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
+
+    Example: tcamlab benchmark diagnose --quick --out reports/benchmark
+    """
+    def go():
+        from tcamlab.benchmark import run_benchmark
+
+        return run_benchmark(out, quick=quick, scheduler=scheduler, workers=workers,
+                             seeds=seeds)
+
+    res = _run(go)
+    typer.echo(getattr(res, "summary_text", lambda: f"wrote {out}")())
+
+
+# -- effects ----------------------------------------------------------------------------
+
+@effects_app.command("list")
+def effects_list(kind: Optional[str] = typer.Option(None, "--kind", help="Only this rig kind."),
+                 as_json: bool = typer.Option(False, "--json", help="Print as JSON.")):
+    """List the unmodelled effects with their parameters and physical causes.
+
+    Example: tcamlab effects list --kind static
+    """
+    from tcamlab.effects import EFFECTS
+
+    rows = [e for e in EFFECTS.values() if kind is None or e.kind == kind]
+    if as_json:
+        _print_json([{"kind": e.kind, "name": e.name, "cause": e.cause, "source": e.source,
+                      "parameters": [{"name": p.field, "unit": p.unit} for p in e.params]}
+                     for e in rows])
+        return
+    for e in rows:
+        params = ", ".join(f"{p.field} [{p.unit}]" for p in e.params)
+        typer.echo(f"{e.kind:<10s} {e.name:<28s} {params}\n{'':11s}{e.cause}")
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app(prog_name="tcamlab")
+
+
+if __name__ == "__main__":
+    main()

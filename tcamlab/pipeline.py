@@ -1,0 +1,266 @@
+"""Pipeline: the CLI's commands as library calls that write files.
+
+Each function takes paths and options, calls the library (config -> io ->
+models -> metrics -> report) and returns a result object; the CLI only parses
+arguments and prints. Every file is written atomically, byte-identical for
+identical inputs (no timestamps, no absolute paths).
+"""
+
+from __future__ import annotations
+
+import io as _stdio
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.config import Experiment, load_experiment
+from tcamlab.errors import ConfigError, InputError, TcamlabError
+from tcamlab.report.atomic import atomic_write_bytes, atomic_write_text
+
+__all__ = ["validate_experiment", "ValidateOutcome", "build_reports", "ReportOutcome",
+           "fit_spring_files", "neutralise_csv", "dumps_json", "FORMATS"]
+
+FORMATS = ("html", "pdf")
+
+
+def dumps_json(obj) -> str:
+    """Deterministic JSON (sorted keys, no NaN)."""
+    return json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
+
+
+def neutralise_csv(df: pd.DataFrame) -> pd.DataFrame:
+    """Prefix text cells that a spreadsheet would run as a formula (= + - @) with '."""
+    out = df.copy()
+    for col in out.columns:
+        if out[col].dtype == object:
+            out[col] = out[col].map(
+                lambda v: "'" + v if isinstance(v, str) and v[:1] in ("=", "+", "-", "@", "\t",
+                                                                       "\r") else v)
+    out.columns = [("'" + c) if str(c)[:1] in ("=", "+", "-", "@") else c for c in out.columns]
+    return out
+
+
+def _csv_bytes(df: pd.DataFrame) -> bytes:
+    buf = _stdio.StringIO()
+    neutralise_csv(df).to_csv(buf, index=False, float_format="%.9g", lineterminator="\n")
+    return buf.getvalue().encode()
+
+
+@dataclass
+class ValidateOutcome:
+    """What ``validate`` produced for one experiment."""
+
+    result: object
+    out_dir: Path
+    files: list = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return self.result.passed
+
+
+def _parse_formats(formats: Sequence[str] | str) -> tuple[str, ...]:
+    if isinstance(formats, str):
+        formats = [f.strip() for f in formats.split(",") if f.strip()]
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:
+        raise ConfigError(f"--format: unknown format {bad[0]!r}", hint="use html, pdf or html,pdf")
+    return tuple(formats)
+
+
+def validate_experiment(path, out_dir="reports", *, expected_kind: str | None = None,
+                        formats=FORMATS, mc_draws: int | None = None, drop_na: bool = False,
+                        command: str | None = None) -> ValidateOutcome:
+    """Validate one experiment and write ``out_dir/NAME/{report.html, report.pdf,
+    metrics.json, predictions.csv}``.
+
+    Parameters
+    ----------
+    path : path-like
+        Experiment TOML.
+    out_dir : path-like
+        Parent directory of the report folder.
+    expected_kind : str, optional
+        The ``validate`` subcommand's kind; a mismatch is a ConfigError.
+    formats : str or sequence
+        Report formats among html, pdf.
+    mc_draws : int, optional
+        Monte Carlo draws for dynamic runs (default :data:`validation.MC_DRAWS`).
+    drop_na : bool
+        Drop rows with blank cells (counted in the report).
+    command : str, optional
+        Command line shown in the report's provenance.
+
+    Returns
+    -------
+    ValidateOutcome
+    """
+    from tcamlab import validation
+    from tcamlab.report.validation_report import validation_document
+
+    formats = _parse_formats(formats)
+    exp = load_experiment(path, expected_kind=expected_kind)
+    kw = {} if mc_draws is None else {"mc_draws": mc_draws}
+    result = validation.validate(exp, drop_na=drop_na, **kw)
+    target = Path(out_dir) / exp.name
+    files = _write_validation(result, target, formats, command)
+    return ValidateOutcome(result, target, files)
+
+
+def _write_validation(result, target: Path, formats, command) -> list[Path]:
+    from tcamlab.report.validation_report import validation_document
+
+    # Compute everything first, then write: a failure leaves no partial report.
+    doc = validation_document(result, command=command)
+    payload = {"metrics.json": dumps_json(result.to_dict()).encode(),
+               "predictions.csv": _csv_bytes(result.to_pandas())}
+    if "html" in formats:
+        from tcamlab.report.html import render_html
+
+        payload["report.html"] = render_html(doc).encode()
+    if "pdf" in formats:
+        from tcamlab.report.pdf import render_pdf
+
+        payload["report.pdf"] = render_pdf(doc)
+    files = []
+    for name, data in payload.items():
+        files.append(atomic_write_bytes(target / name, data))
+    result.document = doc
+    return files
+
+
+@dataclass
+class ReportOutcome:
+    """What ``report`` produced."""
+
+    out_dir: Path
+    entries: list
+    index_path: Path
+    pdf_path: Path | None
+
+    @property
+    def failed(self) -> list:
+        return [e for e in self.entries if e.status != "pass"]
+
+
+def _headline(result) -> dict[str, str]:
+    out = {}
+    for q, block in result.metrics[result.primary].items():
+        m = block["pooled"]
+        out[f"RMSE {q}"] = f"{m['rmse']:.4g}"
+        out[f"R² {q}"] = f"{m['r2']:.4g}"
+    return out
+
+
+def build_reports(paths: Sequence | None = None, out_dir="reports", *,
+                  experiments_dir="experiments", mc_draws: int | None = None,
+                  progress: Callable[[str, int, int], None] | None = None) -> ReportOutcome:
+    """Validate every experiment, write each report, ``index.html`` and one combined PDF.
+
+    An experiment that fails to load or validate is listed in the index with
+    its one-line error; the others still build.
+    """
+    from tcamlab.report.document import IndexDocument, IndexEntry
+    from tcamlab.report.html import render_index_html
+    from tcamlab.report.pdf import render_combined_pdf
+
+    if not paths:
+        folder = Path(experiments_dir)
+        paths = sorted(folder.glob("*.toml"))
+        if not paths:
+            raise ConfigError(f"{folder}: no experiment files (*.toml) found",
+                              hint="pass experiment files or use --experiments DIR")
+    out = Path(out_dir)
+    entries, docs = [], []
+    for i, p in enumerate(paths):
+        p = Path(p)
+        if progress:
+            progress(p.name, i, len(paths))
+        try:
+            outcome = validate_experiment(p, out, mc_draws=mc_draws, command=None)
+        except TcamlabError as exc:
+            entries.append(IndexEntry(name=p.stem, title=p.stem, kind="?", status="error",
+                                      metrics={}, link=None, error=exc.one_line()))
+            continue
+        res = outcome.result
+        entries.append(IndexEntry(
+            name=res.experiment.name, title=res.experiment.title, kind=res.kind,
+            status="pass" if res.passed else "fail", metrics=_headline(res),
+            link=f"{res.experiment.name}/report.html", error=None))
+        docs.append(res.document)
+    from tcamlab import __version__
+
+    index = IndexDocument(title="tcamlab validation reports", entries=entries,
+                          metadata={"tool": f"tcamlab {__version__}",
+                                    "experiments": str(len(entries))})
+    index_path = atomic_write_text(out / "index.html", render_index_html(index))
+    pdf_path = atomic_write_bytes(out / "reports.pdf", render_combined_pdf(docs, index))
+    return ReportOutcome(out, entries, index_path, pdf_path)
+
+
+def fit_spring_files(paths: Sequence, *, intercept: bool = False, robust: bool = False,
+                     by_branch: bool = True, plot_path=None):
+    """Identify S of F = S delta from pull-test CSVs or sensing experiment files.
+
+    Returns a :class:`tcamlab.fitting.SpringFitReport`; writes the fit and
+    residual plot to ``plot_path`` (SVG or PNG by extension) if given.
+    """
+    from tcamlab import io as tio
+    from tcamlab.fitting import fit_spring_runs
+
+    runs = []
+    for p in paths:
+        p = Path(p)
+        if p.suffix.lower() == ".toml":
+            exp = load_experiment(p, expected_kind="sensing")
+            for r in exp.read_runs():
+                runs.append((r.path.stem, r.data["displacement"].to_numpy(float),
+                             r.data["force"].to_numpy(float)))
+        else:
+            r = tio.read_run(p, "sensing")
+            runs.append((r.path.stem, r.data["displacement"].to_numpy(float),
+                         r.data["force"].to_numpy(float)))
+    if not runs:
+        raise InputError("fit-spring: no runs given", hint="pass CSV files or experiment files")
+    names = [n for n, _, _ in runs]
+    if len(set(names)) != len(names):
+        runs = [(f"{i + 1}:{n}", x, f) for i, (n, x, f) in enumerate(runs)]
+    report = fit_spring_runs(runs, intercept=intercept, robust=robust, by_branch=by_branch)
+    if plot_path is not None:
+        from tcamlab.report.figures import figure_to_png, figure_to_svg, new_figure
+
+        fig, (ax1, ax2) = _two_axes()
+        report.plot(ax1)
+        report.pooled.plot_residuals(ax2)
+        plot_path = Path(plot_path)
+        if plot_path.suffix.lower() == ".png":
+            atomic_write_bytes(plot_path, figure_to_png(fig))
+        else:
+            atomic_write_text(plot_path, figure_to_svg(fig))
+    return report
+
+
+def _two_axes():
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 6.0), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1)
+    return fig, (ax1, ax2)
+
+
+def write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
+    """Write OUT/NAME/diagnosis.json, diagnosis.html and diagnosis.pdf atomically."""
+    from tcamlab.report.diagnosis_report import diagnosis_document
+    from tcamlab.report.html import render_html
+    from tcamlab.report.pdf import render_pdf
+
+    doc = diagnosis_document(result, experiment)
+    target = Path(out_dir) / experiment.name
+    payload = {"diagnosis.json": dumps_json(result.to_dict()).encode(),
+               "diagnosis.html": render_html(doc).encode(),
+               "diagnosis.pdf": render_pdf(doc)}
+    return [atomic_write_bytes(target / name, data) for name, data in payload.items()]

@@ -1,0 +1,380 @@
+"""Validation: run the thesis model on each run's inputs and measure the error.
+
+``validate(experiment)`` returns a :class:`ValidationResult` holding, per run,
+the measured and predicted columns, error metrics per model variant and
+quantity (per run and pooled), threshold checks, and kind-specific extras
+(spring constants used for sensing, the Monte Carlo band for dynamic runs).
+No file is written here: see :mod:`tcamlab.pipeline`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from tcamlab import forward
+from tcamlab.config import Experiment
+from tcamlab.errors import InputError, ModelDomainError
+from tcamlab.io import RunData
+from tcamlab.metrics import check_thresholds, error_metrics, pooled_metrics
+
+__all__ = ["ValidationResult", "RunPrediction", "validate", "DISPLAY", "MC_DRAWS"]
+
+DISPLAY = {
+    # internal quantity -> (display name with unit, factor from SI)
+    "displacement": ("displacement_mm", 1e3),
+    "force": ("force_N", 1.0),
+    "kappa1": ("kappa1_per_mm", 1e-3),
+    "kappa2": ("kappa2_per_mm", 1e-3),
+    "temperature": ("temperature_C", 1.0),
+}
+"""Quantities as shown in reports, metrics and thresholds (lab units)."""
+
+MC_DRAWS = 1000
+"""Monte Carlo draws for the dynamic prediction band."""
+MC_GRID = 0.01
+"""Time step of the Monte Carlo band grid [s] (interpolated onto the log)."""
+
+
+@dataclass
+class RunPrediction:
+    """Measured and predicted values of one run (SI).
+
+    Attributes
+    ----------
+    name : str
+        Run name (CSV file stem).
+    data : DataFrame
+        The run's canonical SI columns as ingested.
+    predicted : dict
+        Model variant -> {quantity -> ndarray} [SI].
+    band : dict or None
+        Dynamic runs: {"lower", "upper", "median"} displacement [m].
+    info : dict
+        Per-run facts shown in the report (spring constant and its source...).
+    """
+
+    name: str
+    data: pd.DataFrame
+    predicted: dict
+    band: dict | None = None
+    info: dict = field(default_factory=dict)
+
+
+@dataclass
+class ValidationResult:
+    """Outcome of validating one experiment.
+
+    Attributes
+    ----------
+    experiment : Experiment
+    runs : list of RunData
+    predictions : list of RunPrediction
+    variants : list of str
+        Model variants compared; ``primary`` is the one thresholds apply to.
+    primary : str
+    metrics : dict
+        variant -> display quantity -> {"runs": {run: metrics}, "pooled": metrics}.
+    checks : list of ThresholdCheck
+    notes : list of str
+        Warnings and facts the reader must see (conditioning, draws out of range).
+    extras : dict
+        Kind-specific results (spring fits, conditioning, Monte Carlo summary).
+    """
+
+    experiment: Experiment
+    runs: list
+    predictions: list
+    variants: list
+    primary: str
+    metrics: dict
+    checks: list
+    notes: list = field(default_factory=list)
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def kind(self) -> str:
+        return self.experiment.kind
+
+    @property
+    def passed(self) -> bool:
+        return all(c.passed for c in self.checks)
+
+    @property
+    def quantities(self) -> tuple[str, ...]:
+        return forward.OUTPUTS[self.kind]
+
+    def to_pandas(self) -> pd.DataFrame:
+        """One row per logged sample: run, inputs, measured and predicted (lab units)."""
+        frames = []
+        inputs = [c for c in forward.INPUTS[self.kind] if c != "time"]
+        for p in self.predictions:
+            out = {"run": p.name, "row": np.arange(1, len(p.data) + 1)}
+            if "time" in p.data:
+                out["time_s"] = p.data["time"].to_numpy()
+            for c in inputs:
+                name, factor = _display_input(c)
+                out[name] = p.data[c].to_numpy() * factor
+            for q in self.quantities:
+                name, factor = DISPLAY[q]
+                out[f"measured_{name}"] = p.data[q].to_numpy() * factor
+                for v in self.variants:
+                    out[f"predicted_{name}__{_slug(v)}"] = p.predicted[v][q] * factor
+            if p.band is not None:
+                out["band_lower_displacement_mm"] = p.band["lower"] * 1e3
+                out["band_upper_displacement_mm"] = p.band["upper"] * 1e3
+            frames.append(pd.DataFrame(out))
+        return pd.concat(frames, ignore_index=True)
+
+    def metrics_table(self, variant: str | None = None) -> pd.DataFrame:
+        """Metrics per run and pooled for one variant (default: primary)."""
+        variant = self.primary if variant is None else variant
+        rows = []
+        for q, block in self.metrics[variant].items():
+            for run, m in list(block["runs"].items()) + [("pooled", block["pooled"])]:
+                rows.append({"quantity": q, "run": run, **m})
+        return pd.DataFrame(rows)
+
+    def to_dict(self) -> dict:
+        """The metrics.json document (schema in README)."""
+        from tcamlab import __version__
+
+        exp = self.experiment
+        return {
+            "schema_version": 1,
+            "tool": f"tcamlab {__version__}",
+            "experiment": exp.name,
+            "title": exp.title,
+            "kind": exp.kind,
+            "synthetic": exp.synthetic,
+            "inputs": [{"file": r.path.name, "sha256": r.sha256, "rows": int(len(r.data)),
+                        "dropped_rows": int(r.n_dropped)} for r in self.runs],
+            "primary_model": self.primary,
+            "models": {v: {q: {"runs": {k: _json(m) for k, m in b["runs"].items()},
+                               "pooled": _json(b["pooled"])}
+                           for q, b in self.metrics[v].items()}
+                       for v in self.variants},
+            "thresholds": [c.to_dict() for c in self.checks],
+            "passed": self.passed,
+            "notes": list(self.notes),
+            "extras": _json(self.extras),
+        }
+
+    def plot(self, ax=None, quantity: str | None = None):
+        """Measured against predicted (primary variant) for all runs, on one axes."""
+        if ax is None:
+            from matplotlib.figure import Figure
+
+            ax = Figure().add_subplot()
+        q = quantity or self.quantities[0]
+        name, factor = DISPLAY[q]
+        for p in self.predictions:
+            ax.plot(p.data[q] * factor, p.predicted[self.primary][q] * factor, ".", label=p.name)
+        ax.set_xlabel(f"measured {name}")
+        ax.set_ylabel(f"predicted {name}")
+        return ax
+
+
+def _display_input(column: str) -> tuple[str, float]:
+    mapping = {"temperature": ("temperature_C", 1.0), "voltage": ("voltage_V", 1.0),
+               "resistance": ("resistance_ohm", 1.0), "cable": ("cable_mm", 1e3),
+               "r1": ("r1_ohm", 1.0), "r2": ("r2_ohm", 1.0)}
+    return mapping[column]
+
+
+def _slug(variant: str) -> str:
+    return variant.replace("(", "").replace(")", "").replace(" ", "_").replace("-", "_")
+
+
+def _json(obj):
+    """JSON-safe copy: NaN/inf -> None, numpy scalars -> Python."""
+    if isinstance(obj, dict):
+        return {str(k): _json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        x = float(obj)
+        return x if np.isfinite(x) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.ndarray):
+        return _json(obj.tolist())
+    return obj
+
+
+def _metrics(predictions, variants, quantities) -> dict:
+    out = {}
+    for v in variants:
+        out[v] = {}
+        for q in quantities:
+            name, factor = DISPLAY[q]
+            pairs = [(p.data[q].to_numpy() * factor, p.predicted[v][q] * factor)
+                     for p in predictions]
+            out[v][name] = {
+                "runs": {p.name: error_metrics(m, pr) for p, (m, pr) in zip(predictions, pairs)},
+                "pooled": pooled_metrics(pairs),
+            }
+    return out
+
+
+def _run_names(runs: list[RunData]) -> list[str]:
+    names = [r.path.stem for r in runs]
+    if len(set(names)) != len(names):
+        names = [f"{i + 1}:{n}" for i, n in enumerate(names)]
+    return names
+
+
+# -- per kind -----------------------------------------------------------------------
+
+def _static(exp: Experiment, runs, names):
+    variants = ["G(T)", "constant-G"]
+    preds = []
+    for r, name in zip(runs, names):
+        predicted = {
+            "G(T)": forward.predict_static(exp.sample, exp.rig, r.data),
+            "constant-G": forward.predict_static(exp.sample, exp.rig, r.data, constant_g=True),
+        }
+        preds.append(RunPrediction(name, r.data, predicted))
+    return variants, "G(T)", preds, [], {}
+
+
+def _dynamic(exp: Experiment, runs, names, mc_draws, seed):
+    from tcamlab.models import dynamic as dyn
+
+    preds, notes = [], []
+    mc_summary = {}
+    for r, name in zip(runs, names):
+        predicted = {"G(T)": forward.predict_dynamic(exp.sample, exp.rig, r.data)}
+        band = None
+        t = r.data["time"].to_numpy(float)
+        if mc_draws and exp.rig.uncertainty:
+            grid = np.arange(t[0], t[-1] + MC_GRID / 2, MC_GRID)
+            idx = np.searchsorted(t, grid, side="right") - 1
+            volts = r.data["voltage"].to_numpy(float)[np.clip(idx, 0, t.size - 1)]
+            mc = dyn.monte_carlo(grid, volts, exp.sample, exp.rig, n_draws=mc_draws, seed=seed)
+            lo, med, hi = (np.interp(t, mc.time, q) for q in mc.band())
+            band = {"lower": lo, "median": med, "upper": hi}
+            meas = r.data["displacement"].to_numpy(float)
+            coverage = float(np.mean((meas >= lo) & (meas <= hi)))
+            mc_summary[name] = {"draws": mc_draws, "out_of_range": mc.n_invalid,
+                                "coverage_95": coverage}
+            if mc.n_invalid:
+                notes.append(
+                    f"{name}: {mc.n_invalid} of {mc_draws} Monte Carlo draws heated the "
+                    f"actuator past the G_t' > 0 limit of eq. (2.13) and were left out of "
+                    f"the band")
+        preds.append(RunPrediction(name, r.data, predicted, band=band))
+    extras = {"monte_carlo": {
+        "distribution": "log-normal, moment-matched to the stated mean and sd",
+        "parameters": sorted(k for k in exp.rig.uncertainty if k in dyn.MC_PARAMS),
+        "runs": mc_summary}} if mc_summary else {}
+    if not mc_summary:
+        notes.append("no [rig.uncertainty] given: no Monte Carlo prediction band")
+    return ["G(T)"], "G(T)", preds, notes, extras
+
+
+def _sensing(exp: Experiment, runs, names):
+    from tcamlab.fitting import fit_spring
+    from tcamlab.models import sensing as sens
+
+    preds, notes = [], []
+    spring = {}
+    geo = exp.sample.model_kwargs()
+    geo.pop("radial_cte")
+    geo.pop("shear_modulus_slope")
+    for i, (r, name) in enumerate(zip(runs, names)):
+        if exp.rig.spring_constant is not None:
+            s_val, source = exp.rig.spring_constant, "experiment file"
+        else:
+            others = [o for j, o in enumerate(runs) if j != i]
+            if not others:
+                raise InputError(
+                    f"{exp.path.name}: sensing validation needs a spring constant; with one run "
+                    "it cannot be identified without using the run being validated",
+                    hint="set spring_constant_N_per_m in [rig], or add a second run")
+            x = np.concatenate([o.data["displacement"].to_numpy(float) for o in others])
+            f = np.concatenate([o.data["force"].to_numpy(float) for o in others])
+            fit = fit_spring(x, f, run=f"without {name}")
+            s_val = fit.spring_constant
+            source = "identified leave-one-run-out from " + ", ".join(
+                n for j, n in enumerate(names) if j != i)
+        r0 = (exp.rig.initial_resistance if exp.rig.initial_resistance is not None
+              else float(r.data["resistance"].iloc[0]))
+        cond = sens.conditioning(s_val, **geo)
+        info = {"spring_constant_N_per_m": s_val, "spring_constant_source": source,
+                "initial_resistance_ohm": r0,
+                "initial_resistance_source": ("experiment file"
+                                              if exp.rig.initial_resistance is not None
+                                              else "first row of the run"),
+                "conditioning": cond.status, "margin_1_minus_S_f11": cond.margin}
+        spring[name] = info
+        if cond.status != "ok":
+            notes.append(f"{name}: sensing inversion {cond.describe()}")
+        try:
+            predicted = {"thesis": forward.predict_sensing(
+                exp.sample, exp.rig, r.data, spring_constant=s_val, initial_resistance=r0)}
+        except ModelDomainError as exc:
+            raise ModelDomainError(f"{exp.path.name}, run {name}: {exc.message}",
+                                   exc.hint) from None
+        preds.append(RunPrediction(name, r.data, predicted, info=info))
+    return ["thesis"], "thesis", preds, notes, {"spring_constant": spring}
+
+
+def _curvature(exp: Experiment, runs, names):
+    if exp.rig.spring_constant is None:
+        raise InputError(f"{exp.path.name}: curvature validation needs the sensor's spring "
+                         "constant", hint="set spring_constant_N_per_m in [rig] (one segment)")
+    preds = []
+    for r, name in zip(runs, names):
+        r0 = (float(r.data["r1"].iloc[0]), float(r.data["r2"].iloc[0]))
+        predicted = {"thesis": forward.predict_curvature(
+            exp.sample, exp.rig, r.data, spring_constant=exp.rig.spring_constant,
+            initial_resistances=r0)}
+        preds.append(RunPrediction(name, r.data, predicted,
+                                   info={"initial_resistances_ohm": r0}))
+    return ["thesis"], "thesis", preds, [], {}
+
+
+def validate(experiment: Experiment, runs: list[RunData] | None = None, *,
+             mc_draws: int = MC_DRAWS, seed: int = 0, drop_na: bool = False
+             ) -> ValidationResult:
+    """Validate the thesis model of ``experiment.kind`` against its runs.
+
+    Parameters
+    ----------
+    experiment : Experiment
+    runs : list of RunData, optional
+        Default: read the experiment's runs.
+    mc_draws : int
+        Monte Carlo draws for the dynamic band (0: none).
+    seed : int
+        Seed of the Monte Carlo draws.
+    drop_na : bool
+        Drop blank cells on reading (counted in the report).
+
+    Returns
+    -------
+    ValidationResult
+    """
+    runs = experiment.read_runs(drop_na=drop_na) if runs is None else runs
+    names = _run_names(runs)
+    kind = experiment.kind
+    if kind == "static":
+        variants, primary, preds, notes, extras = _static(experiment, runs, names)
+    elif kind == "dynamic":
+        variants, primary, preds, notes, extras = _dynamic(experiment, runs, names, mc_draws,
+                                                           seed)
+    elif kind == "sensing":
+        variants, primary, preds, notes, extras = _sensing(experiment, runs, names)
+    else:
+        variants, primary, preds, notes, extras = _curvature(experiment, runs, names)
+    metrics = _metrics(preds, variants, forward.OUTPUTS[kind])
+    pooled = {q: b["pooled"] for q, b in metrics[primary].items()}
+    checks = check_thresholds(pooled, experiment.thresholds)
+    dropped = sum(r.n_dropped for r in runs)
+    if dropped:
+        notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
+    return ValidationResult(experiment, runs, preds, variants, primary, metrics, checks,
+                            notes, extras)
