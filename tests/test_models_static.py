@@ -80,6 +80,27 @@ def test_n_coils():
         0.095 * math.sqrt(1 - (0.02 / 0.095) ** 2) / (math.pi * 0.36e-3), rel=1e-14)
 
 
+@pytest.mark.parametrize("method", ["jit", "numpy"])
+@pytest.mark.parametrize("slope", [0.0, 1.11e6], ids=["constant-G", "G(T)"])
+def test_solvers_agree(tca, method, slope):
+    sample, _ = tca
+    rng = np.random.default_rng(7)
+    dT = rng.uniform(0, 130, 2000)
+    force = rng.uniform(0.0, 1.0, 2000)
+    kw = dict(sample.model_kwargs(), shear_modulus_slope=slope)
+    got = static.displacement(dT, force, **kw, method=method)
+    # residual of (2.10)-(2.11) at the returned root, computed independently
+    s = sample.sin_alpha0 + got / sample.fiber_length
+    g = static.sample_shear_modulus(sample.fiber_diameter, sample.fiber_length, sample.twists,
+                                    sample.youngs_modulus)
+    d = sample.fiber_diameter * (1 + sample.radial_cte * dT)
+    f11, f12 = static.compliances(s, d, sample.fiber_length, sample.n_coils, g,
+                                  sample.youngs_modulus)
+    tau = static.torque(dT, static.shear_modulus_at(dT, g, slope), sample.fiber_diameter,
+                        sample.twists, sample.fiber_length, sample.radial_cte)
+    np.testing.assert_allclose(got, f11 * force - f12 * tau, rtol=0, atol=1e-13)
+
+
 @pytest.mark.parametrize("slope", [0.0, 1.11e6], ids=["constant-G", "G(T)"])
 def test_zero_temperature_rise_gives_the_spring_extension(tca, slope):
     sample, rig = tca
@@ -138,7 +159,7 @@ def test_internal_force_balances_the_load_at_equilibrium(tca):
 def test_full_output_returns_solver_result(tca):
     sample, rig = tca
     delta, res = static.displacement(np.array([0.0, 50.0]), rig.force, **sample.model_kwargs(),
-                                     full_output=True)
+                                     full_output=True, method="numpy")
     assert res.converged.all() and res.iterations < 20
     assert np.allclose(res.root, sample.sin_alpha0 + delta / sample.fiber_length, rtol=1e-14)
 

@@ -38,6 +38,9 @@ import numpy as np
 from tcamlab.errors import ConvergenceError, ModelDomainError
 from tcamlab.models._roots import MAXITER, RTOL, XTOL, RootResult, bracketed_newton
 
+METHOD = "jit"
+"""Default static solver: compiled per-point safeguarded Newton (see ``displacement``)."""
+
 __all__ = [
     "volume_fraction",
     "bias_angle",
@@ -340,6 +343,7 @@ def displacement(
     shear_modulus_slope=0.0,
     youngs_modulus_slope=0.0,
     *,
+    method=METHOD,
     xtol=XTOL,
     rtol=RTOL,
     maxiter=MAXITER,
@@ -384,6 +388,10 @@ def displacement(
         c in E' = E (1 - c dT) for the E terms of f11 [1/K]. The thesis keeps E
         constant (section 2.3.3); the effect library uses this. G_t stays at
         its fabrication value.
+    method : {"jit", "numpy"}
+        ``"jit"`` (default): a compiled per-point safeguarded Newton, run in
+        parallel; ``"numpy"``: the same iteration vectorised over arrays in
+        numpy (no compiler; the reference the JIT path is tested against).
     xtol, rtol : float
         Tolerances on sin(alpha) [-].
     maxiter : int
@@ -425,6 +433,11 @@ def displacement(
     tau = torque(dT, g_tau, d0, N, l, rho)
     s0 = L / l
     n = n_coils(l, L, D)
+    if method == "jit":
+        return _displacement_jit(shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fab,
+                                 e_slope, xtol, rtol, maxiter, full_output)
+    if method != "numpy":
+        raise ValueError(f"unknown method {method!r}; use 'jit' or 'numpy'")
     d = d0 * (1.0 + rho * dT)
     a, b, c = _compliance_coefficients(d, l, n)
 
@@ -452,6 +465,37 @@ def displacement(
     delta = (l * (res.root - s0)).reshape(shape)
     if full_output:
         return delta, res
+    return delta
+
+
+def _displacement_jit(shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fab, e_slope,
+                      xtol, rtol, maxiter, full_output):
+    from tcamlab.models import _static_kernel as K
+
+    def vec(a):
+        return np.ascontiguousarray(np.atleast_1d(np.asarray(a, float)))
+
+    out = np.empty(size)
+    status = np.zeros(size, dtype=np.int64)
+    K.solve(size, vec(dT), vec(F), vec(g_t), vec(g_tau), vec(d0), vec(l), vec(s0), vec(n),
+            vec(N), vec(rho), vec(E_fab), vec(e_slope), float(xtol), float(rtol), int(maxiter),
+            out, status)
+    if np.any(status == K.NO_BRACKET):
+        k = int(np.flatnonzero(status == K.NO_BRACKET)[0])
+        raise ModelDomainError(
+            "static model: no equilibrium pitch angle in [0, 90] deg for "
+            f"{int((status == K.NO_BRACKET).sum())} of {size} (temperature, force) points "
+            f"(first at index {k})",
+            hint="the coil would close or straighten completely; check load and sample")
+    if np.any(status == K.NO_CONVERGENCE):
+        raise ConvergenceError(
+            f"static model: {int((status != K.OK).sum())} of {size} points did not converge "
+            f"in {maxiter} iterations", hint="loosen xtol/rtol")
+    l_arr = np.asarray(l, float)
+    delta = (l_arr * (out - np.asarray(s0, float))).reshape(shape)
+    if full_output:
+        return delta, RootResult(root=out, iterations=int(maxiter), converged=status == K.OK,
+                                 residual=np.full(size, np.nan))
     return delta
 
 
