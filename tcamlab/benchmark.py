@@ -1,0 +1,595 @@
+"""Withheld-effect benchmark of the gap diagnosis (:mod:`tcamlab.diagnosis`).
+
+For every effect of every rig kind, at strengths 1, 3 and 10 (multiples of
+the noise RMS), the virtual rig (:func:`tcamlab.rig.simulate`) makes data
+*with* the effect; :func:`tcamlab.diagnosis.diagnose` then sees only the
+experiment file and the logs and has to name the effect. Null cases (no
+effect) measure false attributions; pairs of effects check that two causes
+are reported as aliased or as one of the pair, never as a confident third.
+
+Only the benchmark reads the simulator's truth files (to score); the
+diagnosis never does.
+
+Until :mod:`tcamlab.rig` is available a stand-in generator
+(:func:`standin_simulate`) with the same call signature is used: thesis
+protocols, :func:`tcamlab.forward.predict` with the effect's Mods, and
+Gaussian noise. Results say which generator made the data.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+from collections import Counter, defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tcamlab import forward as F
+from tcamlab.effects import effects_for, get_effect, mods_for
+
+__all__ = ["STRENGTHS", "PAIRS", "BenchmarkResult", "run_benchmark", "run_task",
+           "standin_simulate", "make_tasks", "score"]
+
+KINDS = ("static", "dynamic", "sensing", "curvature")
+STRENGTHS = (1.0, 3.0, 10.0)
+"""Effect strengths, multiples of the noise RMS."""
+
+PAIRS: dict[str, list[tuple[str, str]]] = {
+    "static": [("glass-transition", "displacement-drift"),
+               ("oven-thermal-lag", "youngs-modulus-temperature")],
+    "dynamic": [("response-delay", "convective-heat-loss")],
+    "sensing": [("initial-slack", "stress-relaxation"),
+                ("hysteresis", "stiffening-spring")],
+    "curvature": [("camera-placement", "axial-compression")],
+}
+"""Representative pairs of effects of one kind (one with distinct signatures,
+one more look-alike) for the pair cases."""
+
+PAIR_STRENGTH = 5.0
+TEMPLATES = Path(__file__).resolve().parent.parent / "experiments" / "templates"
+
+
+# ---------------------------------------------------------------------------
+# stand-in virtual rig (used when tcamlab.rig is not available)
+# ---------------------------------------------------------------------------
+
+STANDIN_NOISE = {
+    "static": {"displacement": 3e-6},
+    "dynamic": {"displacement": 4e-6},
+    "sensing": {"displacement": 10e-6, "force": 0.2e-3},
+    "curvature": {"kappa1": 0.3, "kappa2": 0.3},
+}
+"""Noise sd of the measured quantities of the stand-in rig [SI]."""
+
+_PRESET = {"static": "thesis-tca", "dynamic": "thesis-tca", "sensing": "thesis-tcs",
+           "curvature": "thesis-robot"}
+
+
+def _protocol(kind: str, rng, sample, rig) -> pd.DataFrame:
+    """Inputs of one run (noise-free) plus the hidden true state for sensing/curvature."""
+    from tcamlab.models import sensing as S
+
+    if kind == "static":
+        steps = np.concatenate([np.arange(25, 151, 5), np.arange(145, 24, -5)]).astype(float)
+        T = np.repeat(steps, 6) + rng.normal(0, 0.05, steps.size * 6)
+        return pd.DataFrame({"time": np.arange(T.size) * 10.0, "temperature": T})
+    if kind == "dynamic":
+        t = np.arange(0, 8.0, 0.02)
+        v = np.where((t >= 0.5) & (t < 1.5), rig.voltage, 0.0)
+        return pd.DataFrame({"time": t, "voltage": v})
+    kw = sample.model_kwargs()
+    kw.pop("radial_cte")
+    kw.pop("shear_modulus_slope")
+    if kind == "sensing":
+        levels = np.concatenate([np.arange(0, 5.01, 0.5), np.arange(4.5, -0.01, -0.5)]) * 1e-3
+        delta = np.repeat(levels, 25)
+        R = S.forward(delta, rig.initial_resistance, rig.spring_constant, **kw)
+        R = R + rng.normal(0, 2e-5, R.size)
+        return pd.DataFrame({"time": np.arange(delta.size) * 0.2, "resistance": R})
+    # curvature: cable pull up and down; sensor elongation shared 55/45
+    c = np.concatenate([np.linspace(0, 8e-3, 100), np.linspace(8e-3, 0, 100)[1:]])
+    lengths = np.asarray(rig.segment_lengths, float)
+    res = []
+    for j, w in enumerate((0.55, 0.45)):
+        ratio = lengths[j] / sample.coil_length
+        e = 0.5 * c * w
+        kwj = dict(kw)
+        kwj["fiber_length"] = kw["fiber_length"] * ratio
+        kwj["coil_length"] = lengths[j]
+        kwj["twists"] = kw["twists"] * ratio
+        r = S.forward(e, rig.initial_resistance, rig.spring_constant, **kwj)
+        res.append(r + rng.normal(0, 2e-5, r.size))
+    return pd.DataFrame({"time": np.arange(c.size) * 0.1, "cable": c, "r1": res[0], "r2": res[1]})
+
+
+def _options(kind, rig, d):
+    if kind == "sensing":
+        return {"spring_constant": rig.spring_constant, "initial_resistance": rig.initial_resistance}
+    if kind == "curvature":
+        return {"spring_constant": rig.spring_constant,
+                "initial_resistances": (rig.initial_resistance, rig.initial_resistance)}
+    return {}
+
+
+def _calibrate(kind, sample, rig, frames, effect, strength, noise):
+    """Parameter value whose output change has RMS = strength x noise (noise-normalised)."""
+    from tcamlab.errors import TcamlabError
+
+    p = effect.params[0]
+    sign = 1.0 if p.upper > 0 else -1.0
+    base = [F.predict(kind, sample, rig, d, F.Mods(), **_options(kind, rig, d)) for d in frames]
+
+    def rms(a):
+        mods = effect.mods([sign * a * p.scale] + [0.0] * (len(effect.params) - 1))
+        tot, n = 0.0, 0
+        for d, b in zip(frames, base):
+            out = F.predict(kind, sample, rig, d, mods, **_options(kind, rig, d))
+            for q in F.OUTPUTS[kind]:
+                z = (out[q] - b[q]) / noise[q]
+                tot += float(np.sum(z * z))
+                n += z.size
+        return math.sqrt(tot / n)
+
+    a = 1.0
+    for _ in range(8):
+        try:
+            r = rms(a)
+        except TcamlabError:
+            a *= 0.5
+            continue
+        if r <= 0:
+            a *= 10
+            continue
+        new = a * strength / r
+        new = float(np.clip(new, a / 10, a * 10))
+        if abs(new - a) < 1e-4 * a:
+            a = new
+            break
+        a = new
+    hi = p.upper if sign > 0 else -p.lower
+    a = min(a, hi / p.scale)
+    return sign * a * p.scale
+
+
+def standin_simulate(kind, template=None, *, seed, out_dir, effects=None, n_runs=None,
+                     noise_scale: float = 1.0):
+    """Stand-in for ``tcamlab.rig.simulate``: writes an experiment, runs and a truth file.
+
+    Returns a namespace with ``experiment_path``, ``run_paths``, ``truth_path``, ``truth``.
+    """
+    from types import SimpleNamespace
+
+    from tcamlab.config import write_experiment
+    from tcamlab.io import internal_to_canonical
+    from tcamlab.params import get_preset
+
+    rng = np.random.default_rng(seed)
+    n_runs = 5 if n_runs is None else int(n_runs)
+    preset = get_preset(_PRESET[kind])
+    sample = preset.build_sample()
+    rig = preset.build_rig()
+    noise = {q: s * noise_scale for q, s in STANDIN_NOISE[kind].items()}
+    frames = [_protocol(kind, rng, sample, rig) for _ in range(n_runs)]
+    active = {}
+    for name, strength in (effects or {}).items():
+        eff = get_effect(name, kind)
+        value = _calibrate(kind, sample, rig, frames, eff, float(strength), noise)
+        active[name] = [value] + [0.0] * (len(eff.params) - 1)
+    mods = mods_for(kind, active)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    run_paths = []
+    for j, d in enumerate(frames):
+        pred = F.predict(kind, sample, rig, d, mods, **_options(kind, rig, d))
+        data = d.copy()
+        for q in F.OUTPUTS[kind]:
+            data[q] = pred[q] + rng.normal(0, noise[q], len(d))
+        p = out / f"run_{j + 1:02d}.csv"
+        internal_to_canonical(data).to_csv(p, index=False)
+        run_paths.append(p)
+    doc = {"kind": kind, "title": f"stand-in {kind} run", "runs": [p.name for p in run_paths],
+           "synthetic": {"generator": "tcamlab.benchmark.standin_simulate", "seed": int(seed)},
+           "sample": {"preset": _PRESET[kind]}}
+    exp = write_experiment(out / "experiment.toml", doc)
+    truth = {"kind": kind, "effects": {n: {get_effect(n, kind).params[0].field: v[0]}
+                                       for n, v in active.items()},
+             "strengths": {n: float(s) for n, s in (effects or {}).items()},
+             "noise_sd": noise, "generator": "standin"}
+    tp = out / "truth.json"
+    tp.write_text(json.dumps(truth, indent=1))
+    return SimpleNamespace(experiment_path=exp, run_paths=run_paths, truth_path=tp, truth=truth)
+
+
+def _simulator():
+    try:
+        from tcamlab.rig import simulate  # noqa: F401
+        return simulate, "tcamlab.rig"
+    except ImportError:
+        return standin_simulate, "standin"
+
+
+# ---------------------------------------------------------------------------
+# tasks
+# ---------------------------------------------------------------------------
+
+
+def make_tasks(*, quick: bool = False, seeds: int = 10, kinds=KINDS, effects=None) -> list[dict]:
+    """Task dicts (case, kind, effects {name: strength}, seed)."""
+    tasks = []
+    strengths = (3.0,) if quick else STRENGTHS
+    n_seeds = 2 if quick else max(int(seeds), 1)
+    for kind in kinds:
+        names = [e.name for e in effects_for(kind)]
+        if effects is not None:
+            names = [n for n in names if n in effects]
+        for name in names:
+            for s in strengths:
+                for seed in range(n_seeds):
+                    tasks.append({"case": "single", "kind": kind, "effects": {name: s},
+                                  "seed": 1000 + seed})
+        for seed in range(n_seeds):
+            tasks.append({"case": "null", "kind": kind, "effects": {}, "seed": 5000 + seed})
+        if not quick:
+            for a, b in PAIRS.get(kind, []):
+                for seed in range(max(3, n_seeds // 2)):
+                    tasks.append({"case": "pair", "kind": kind,
+                                  "effects": {a: PAIR_STRENGTH, b: PAIR_STRENGTH},
+                                  "seed": 9000 + seed})
+    return tasks
+
+
+def run_task(task: dict) -> dict:
+    """Simulate one case in its own temp dir, diagnose it, score against the truth file."""
+    from tcamlab.config import load_experiment
+    from tcamlab.diagnosis import diagnose
+
+    simulate, generator = _simulator()
+    kind = task["kind"]
+    t0 = time.perf_counter()
+    out = dict(task)
+    out["generator"] = generator
+    with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
+        template = TEMPLATES / f"{kind}.toml"
+        try:
+            sim = simulate(kind, template, seed=task["seed"], out_dir=tmp,
+                           effects=dict(task["effects"]))
+            truth = json.loads(Path(sim.truth_path).read_text())
+            exp = load_experiment(sim.experiment_path)
+            res = diagnose(exp, n_boot=task.get("n_boot", 500), seed=0)
+        except Exception as exc:  # a failed case is recorded, not fatal
+            out.update({"error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0})
+            return out
+    d = res.to_dict()
+    out.update({
+        "verdict": d["verdict"], "effect": d["effect"], "aliased_with": d["aliased_with"],
+        "ranking": [c["effect"] for c in d["ranking"]],
+        "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
+        "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
+        "gap_rmse_over_noise": d["gap"]["rmse_over_noise"], "gap_limit": d["gap"]["limit"],
+        "fitted": {c["effect"]: {k: v["value"] for k, v in c["parameters"].items()}
+                   for c in d["ranking"]},
+        "truth_values": _truth_values(truth, kind, task["effects"]),
+        "seconds": time.perf_counter() - t0,
+    })
+    return out
+
+
+def _truth_values(truth: dict, kind: str, effects: dict) -> dict:
+    """{effect: {field: true value}} from a truth file (several layouts tolerated)."""
+    out = {}
+    eff_block = truth.get("effects", truth)
+    for name in effects:
+        fields = get_effect(name, kind).param_names
+        entry = eff_block.get(name) if isinstance(eff_block, dict) else None
+        vals = {}
+        if isinstance(entry, dict):
+            for f in fields:
+                if f in entry:
+                    vals[f] = entry[f]
+                elif "values" in entry and isinstance(entry["values"], dict) and f in entry["values"]:
+                    vals[f] = entry["values"][f]
+                elif "parameters" in entry and isinstance(entry["parameters"], dict) and f in entry["parameters"]:
+                    vals[f] = entry["parameters"][f]
+        elif isinstance(entry, (int, float)):
+            vals[fields[0]] = entry
+        elif isinstance(entry, (list, tuple)) and entry:
+            vals = dict(zip(fields, entry))
+        if not vals and isinstance(truth.get("mods"), dict):
+            vals = {f: truth["mods"][f] for f in fields if f in truth["mods"]}
+        out[name] = {k: (float(v) if isinstance(v, (int, float)) else v) for k, v in vals.items()}
+    return out
+
+
+# ---------------------------------------------------------------------------
+# scoring
+# ---------------------------------------------------------------------------
+
+CONFIDENT = ("attributed", "aliased")
+
+
+def _label(r: dict) -> str:
+    if "error" in r:
+        return "error"
+    if r["verdict"] in CONFIDENT:
+        return r["effect"]
+    return r["verdict"]
+
+
+def score(results: list[dict]) -> dict:
+    """Accuracy tables, false attributions, shrinkage, recovery, pairs, confusion."""
+    singles = [r for r in results if r["case"] == "single"]
+    nulls = [r for r in results if r["case"] == "null"]
+    pairs = [r for r in results if r["case"] == "pair"]
+
+    def acc(rows):
+        n = len(rows)
+        if not n:
+            return {"n": 0, "top1": None, "top3": None}
+        top1 = top3 = 0
+        for r in rows:
+            truth = next(iter(r["effects"]))
+            if "error" in r:
+                continue
+            conf = r["verdict"] in CONFIDENT
+            top1 += int(conf and r["ranking"][:1] == [truth])
+            top3 += int(conf and truth in r["ranking"][:3])
+        return {"n": n, "top1": top1 / n, "top3": top3 / n}
+
+    by_strength = {str(s): acc([r for r in singles if next(iter(r["effects"].values())) == s])
+                   for s in sorted({next(iter(r["effects"].values())) for r in singles})}
+    by_kind = {k: acc([r for r in singles if r["kind"] == k]) for k in KINDS
+               if any(r["kind"] == k for r in singles)}
+    by_kind_strength = {}
+    for k in by_kind:
+        by_kind_strength[k] = {str(s): acc([r for r in singles if r["kind"] == k
+                                            and next(iter(r["effects"].values())) == s])
+                               for s in sorted({next(iter(r["effects"].values())) for r in singles})}
+    by_effect = {}
+    for r in singles:
+        name = next(iter(r["effects"]))
+        by_effect.setdefault(f"{r['kind']}/{name}", []).append(r)
+    by_effect = {k: acc(v) for k, v in sorted(by_effect.items())}
+
+    shrink, recov = [], defaultdict(list)
+    for r in singles:
+        truth = next(iter(r["effects"]))
+        if "error" in r or r["verdict"] not in CONFIDENT or r["ranking"][:1] != [truth]:
+            continue
+        shrink.append(r["shrinkage"][truth])
+        tv = r.get("truth_values", {}).get(truth, {})
+        fv = r.get("fitted", {}).get(truth, {})
+        for f, v in tv.items():
+            if f in fv and isinstance(v, float) and v != 0 and fv[f] is not None:
+                recov[f"{r['kind']}/{truth}"].append(abs(fv[f] - v) / abs(v))
+    null_false = [r for r in nulls if "error" not in r and r["verdict"] in CONFIDENT]
+    null_by_kind = {k: {"n": sum(r["kind"] == k for r in nulls),
+                        "false": sum(r["kind"] == k for r in null_false),
+                        "verdicts": dict(Counter(r.get("verdict", "error") for r in nulls if r["kind"] == k))}
+                    for k in KINDS if any(r["kind"] == k for r in nulls)}
+
+    pair_rows = []
+    for r in pairs:
+        names = list(r["effects"])
+        if "error" in r:
+            outcome = "error"
+        elif r["verdict"] == "aliased" and set(names) & ({r["effect"]} | set(r["aliased_with"])):
+            outcome = "aliased"
+        elif r["verdict"] in CONFIDENT and r["effect"] in names:
+            outcome = "one of the pair"
+        elif r["verdict"] in CONFIDENT:
+            outcome = "confident third effect (failure)"
+        else:
+            outcome = r["verdict"]
+        pair_rows.append({"kind": r["kind"], "pair": " + ".join(names), "seed": r["seed"],
+                          "verdict": r.get("verdict"), "effect": r.get("effect"),
+                          "aliased_with": r.get("aliased_with"), "outcome": outcome})
+
+    confusion: dict[str, dict[str, dict[str, int]]] = {}
+    for r in singles + nulls:
+        truth = next(iter(r["effects"])) if r["effects"] else "none (null)"
+        confusion.setdefault(r["kind"], {}).setdefault(truth, {})
+        lab = _label(r)
+        confusion[r["kind"]][truth][lab] = confusion[r["kind"]][truth].get(lab, 0) + 1
+
+    return {
+        "accuracy_by_strength": by_strength,
+        "accuracy_by_kind": by_kind,
+        "accuracy_by_kind_and_strength": by_kind_strength,
+        "accuracy_by_effect": by_effect,
+        "null": {"n": len(nulls), "false_attributions": len(null_false),
+                 "rate": (len(null_false) / len(nulls)) if nulls else None, "by_kind": null_by_kind},
+        "median_shrinkage_when_right": float(np.median(shrink)) if shrink else None,
+        "n_right": len(shrink),
+        "parameter_recovery_median_rel_error": {k: float(np.median(v)) for k, v in recov.items()},
+        "pairs": pair_rows,
+        "pair_outcomes": dict(Counter(p["outcome"] for p in pair_rows)),
+        "confusion": confusion,
+        "errors": [{"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
+                   for r in results if "error" in r],
+        "seconds_median": float(np.median([r["seconds"] for r in results])) if results else None,
+    }
+
+
+# ---------------------------------------------------------------------------
+# execution
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class BenchmarkResult:
+    """Scores and raw case results of :func:`run_benchmark`."""
+
+    scores: dict
+    results: list[dict]
+    paths: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        from tcamlab.diagnosis import _jsonable
+
+        return _jsonable({"schema_version": 1, "settings": self.settings, "scores": self.scores,
+                          "results": self.results})
+
+
+def _execute(tasks, scheduler=None, workers=None) -> list[dict]:
+    if scheduler is not None:
+        from dask.distributed import Client
+
+        own = isinstance(scheduler, str)
+        client = Client(scheduler) if own else Client(scheduler)
+        try:
+            futures = client.map(run_task, tasks, pure=False)
+            return client.gather(futures)
+        finally:
+            client.close()
+    workers = workers or os.cpu_count() or 1
+    if workers <= 1 or len(tasks) <= 1:
+        return [run_task(t) for t in tasks]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(run_task, tasks, chunksize=1))
+
+
+def run_benchmark(out_dir, *, quick: bool = False, scheduler=None, workers=None, seeds: int = 10,
+                  kinds=KINDS, effects=None, tasks=None) -> BenchmarkResult:
+    """Run the withheld-effect benchmark and write benchmark.json, benchmark.md and a report.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Output directory.
+    quick : bool
+        CI subset: strength 3 x 2 seeds per effect and 2 nulls per kind, no pairs.
+    scheduler : str or dask Cluster, optional
+        Dask scheduler address (or cluster); default: local processes.
+    workers : int, optional
+        Local processes (default: all cores).
+    seeds : int
+        Seeds per (effect, strength) in the full run.
+    kinds, effects : optional
+        Restrict to some kinds / effect names (tiny runs, tests).
+    tasks : list of dict, optional
+        Explicit task list (overrides the above).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if tasks is None:
+        tasks = make_tasks(quick=quick, seeds=seeds, kinds=kinds, effects=effects)
+    t0 = time.perf_counter()
+    results = _execute(tasks, scheduler, workers)
+    wall = time.perf_counter() - t0
+    scores = score(results)
+    _, generator = _simulator()
+    settings = {"quick": bool(quick), "seeds": seeds, "n_tasks": len(tasks), "wall_seconds": wall,
+                "generator": generator, "strengths": [3.0] if quick else list(STRENGTHS),
+                "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})"}
+    res = BenchmarkResult(scores=scores, results=results, settings=settings)
+    from tcamlab.report import atomic_write_bytes, atomic_write_text
+
+    jp = atomic_write_text(out / "benchmark.json", json.dumps(res.to_dict(), indent=1, allow_nan=False))
+    mp = atomic_write_text(out / "benchmark.md", markdown(res))
+    paths = {"json": str(jp), "markdown": str(mp)}
+    try:
+        from tcamlab.report import render_html, render_pdf
+
+        doc = report_document(res)
+        paths["html"] = str(atomic_write_text(out / "benchmark.html", render_html(doc)))
+        paths["pdf"] = str(atomic_write_bytes(out / "benchmark.pdf", render_pdf(doc)))
+    except ImportError:  # pragma: no cover - renderer dependencies missing
+        pass
+    res.paths = paths
+    return res
+
+
+# ---------------------------------------------------------------------------
+# output
+# ---------------------------------------------------------------------------
+
+
+def _fmt(x, pct=False):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    return f"{x:.0%}" if pct else f"{x:.3g}"
+
+
+def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]]:
+    s = res.scores
+    tabs = []
+    rows = [[k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
+            for k, v in s["accuracy_by_strength"].items()]
+    tabs.append(("Attribution accuracy by strength (x noise RMS)",
+                 ["strength", "cases", "top-1", "top-3"], rows))
+    strengths = list(s["accuracy_by_strength"])
+    rows = []
+    for k, v in s["accuracy_by_kind_and_strength"].items():
+        rows.append([k] + [_fmt(v[st]["top1"], True) + f" ({v[st]['n']})" for st in strengths]
+                    + [_fmt(s["accuracy_by_kind"][k]["top1"], True)])
+    tabs.append(("Top-1 accuracy by kind (cases)", ["kind"] + [f"{st}x" for st in strengths] + ["all"], rows))
+    rows = [[k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
+            for k, v in s["accuracy_by_effect"].items()]
+    tabs.append(("Accuracy by effect", ["effect", "cases", "top-1", "top-3"], rows))
+    n = s["null"]
+    rows = [[k, str(v["n"]), str(v["false"]), ", ".join(f"{a}: {b}" for a, b in v["verdicts"].items())]
+            for k, v in n["by_kind"].items()]
+    rows.append(["all", str(n["n"]), str(n["false_attributions"]), _fmt(n["rate"], True)])
+    tabs.append(("Null cases (no effect): false attributions", ["kind", "cases", "false", "verdicts"], rows))
+    rows = [[k, _fmt(v)] for k, v in s["parameter_recovery_median_rel_error"].items()]
+    tabs.append(("Parameter recovery, median |fitted - true| / |true| (right attributions)",
+                 ["effect", "median rel. error"], rows))
+    if s["pairs"]:
+        rows = [[p["kind"], p["pair"], str(p["seed"]), str(p["verdict"]), str(p["effect"]),
+                 ", ".join(p["aliased_with"] or []), p["outcome"]] for p in s["pairs"]]
+        tabs.append(("Pairs of effects", ["kind", "pair", "seed", "verdict", "effect", "aliased with",
+                                          "outcome"], rows))
+    for kind, conf in s["confusion"].items():
+        cols = sorted({c for row in conf.values() for c in row})
+        rows = [[t] + [str(row.get(c, 0)) for c in cols] for t, row in conf.items()]
+        tabs.append((f"Confusion matrix, {kind} (rows: true effect; columns: diagnosis)",
+                     ["true \\ diagnosed"] + cols, rows))
+    return tabs
+
+
+def markdown(res: BenchmarkResult) -> str:
+    """Markdown tables of a benchmark, ready to paste into a README."""
+    s = res.scores
+    lines = ["# Withheld-effect benchmark of the gap diagnosis", "",
+             f"Generator: `{res.settings.get('generator')}`; {res.settings.get('n_tasks')} cases; "
+             f"{'quick subset' if res.settings.get('quick') else 'full run'}; "
+             f"wall time {res.settings.get('wall_seconds', 0):.0f} s; median "
+             f"{_fmt(s['seconds_median'])} s per case.", "",
+             f"Median held-out RMSE shrinkage where the attribution is right: "
+             f"{_fmt(s['median_shrinkage_when_right'], True)} ({s['n_right']} cases). "
+             f"Null false-attribution rate: {_fmt(s['null']['rate'], True)}.", ""]
+    if s["pair_outcomes"]:
+        lines += ["Pair outcomes: " + ", ".join(f"{k}: {v}" for k, v in s["pair_outcomes"].items()), ""]
+    for title, cols, rows in _tables(res):
+        lines += [f"## {title}", "", "| " + " | ".join(cols) + " |",
+                  "|" + "|".join("---" for _ in cols) + "|"]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        lines.append("")
+    if s["errors"]:
+        lines += ["## Failed cases", ""] + [f"- {e['task']}: {e['error']}" for e in s["errors"]] + [""]
+    return "\n".join(lines)
+
+
+def report_document(res: BenchmarkResult):
+    """A tcamlab.report Document of a benchmark."""
+    from tcamlab.report import Document, Section, Table
+
+    s = res.scores
+    sections = [Section("Summary", paragraphs=[
+        f"{res.settings.get('n_tasks')} simulated cases (generator {res.settings.get('generator')}).",
+        f"Median held-out shrinkage where right: {_fmt(s['median_shrinkage_when_right'], True)}; "
+        f"null false-attribution rate: {_fmt(s['null']['rate'], True)}."])]
+    for title, cols, rows in _tables(res):
+        sections.append(Section(title, tables=[Table(cols, rows, caption=title)]))
+    return Document("Withheld-effect benchmark", subtitle="tcamlab gap diagnosis",
+                    sections=sections, synthetic_banner="All data in this report is simulated.",
+                    metadata={"generator": str(res.settings.get("generator")),
+                              "wall time [s]": f"{res.settings.get('wall_seconds', 0):.0f}"})

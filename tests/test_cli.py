@@ -1,0 +1,227 @@
+"""Every CLI command through Typer's test runner, on the shipped sample data."""
+
+import hashlib
+import json
+import shutil
+from html.parser import HTMLParser
+from pathlib import Path
+
+import click
+import pytest
+from typer.main import get_command
+from typer.testing import CliRunner
+
+from tcamlab.cli import app
+
+ROOT = Path(__file__).resolve().parents[1]
+runner = CliRunner()
+KINDS = ("static", "dynamic", "sensing", "curvature")
+
+
+def _all_commands(cmd, path=()):
+    yield path, cmd
+    if isinstance(cmd, click.Group):
+        for name, sub in cmd.commands.items():
+            yield from _all_commands(sub, path + (name,))
+
+
+def test_every_command_has_help_with_an_example():
+    root = get_command(app)
+    seen = 0
+    for path, cmd in _all_commands(root):
+        result = runner.invoke(app, list(path) + ["--help"])
+        assert result.exit_code == 0, path
+        assert cmd.help, f"{' '.join(path)} has no help text"
+        if not isinstance(cmd, click.Group) or path:
+            assert "Example:" in cmd.help, f"{' '.join(path)} help lacks an example"
+        seen += 1
+    assert seen >= 12
+
+
+@pytest.fixture
+def lab(tmp_path):
+    """A copy of the shipped experiments and raw logs."""
+    shutil.copytree(ROOT / "experiments", tmp_path / "experiments",
+                    ignore=shutil.ignore_patterns("templates"))
+    shutil.copytree(ROOT / "raw", tmp_path / "raw")
+    return tmp_path
+
+
+def _hashes(folder):
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.glob("*"))}
+
+
+class _Counter(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.tags = {}
+
+    def handle_starttag(self, tag, attrs):
+        self.tags[tag] = self.tags.get(tag, 0) + 1
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_validate_writes_every_output(lab, kind):
+    before = _hashes(lab / "raw")
+    out = lab / "reports"
+    result = runner.invoke(app, ["validate", kind, str(lab / "experiments" / f"{kind}.toml"),
+                                 "--out", str(out), "--mc-draws", "200"])
+    assert result.exit_code == 0, result.output
+    folder = out / kind
+    for name in ("report.html", "report.pdf", "metrics.json", "predictions.csv"):
+        assert (folder / name).stat().st_size > 0
+    metrics = json.loads((folder / "metrics.json").read_text())
+    assert metrics["kind"] == kind and metrics["synthetic"]["seed"] is not None
+    pooled = next(iter(metrics["models"][metrics["primary_model"]].values()))["pooled"]
+    # sample data are model + measurement noise: the model explains them
+    assert pooled["r2"] > 0.95
+    parser = _Counter()
+    parser.feed((folder / "report.html").read_text())
+    assert parser.tags.get("svg", 0) >= 2 and parser.tags.get("table", 0) >= 3
+    assert "script" not in parser.tags
+    from pypdf import PdfReader
+
+    reader = PdfReader(str(folder / "report.pdf"))
+    text = "".join(page.extract_text() for page in reader.pages)
+    assert "SYNTHETIC" in text and "RMSE" in text
+    assert _hashes(lab / "raw") == before  # raw data never written
+
+
+def test_static_sample_shows_gt_beats_constant_g(lab):
+    out = lab / "reports"
+    result = runner.invoke(app, ["validate", "static", str(lab / "experiments/static.toml"),
+                                 "--out", str(out), "--json", "--format", "html"])
+    assert result.exit_code == 0
+    doc = json.loads(result.output)
+    gt = doc["models"]["G(T)"]["displacement_mm"]["pooled"]["rmse"]
+    cg = doc["models"]["constant-G"]["displacement_mm"]["pooled"]["rmse"]
+    assert gt < cg
+
+
+def test_validate_kind_mismatch_is_a_one_line_error(lab):
+    result = runner.invoke(app, ["validate", "dynamic", str(lab / "experiments/static.toml")])
+    assert result.exit_code == 2
+    assert "static" in result.output and "Traceback" not in result.output
+    assert len(result.output.strip().splitlines()) == 1
+
+
+def test_threshold_failure_exits_1(lab):
+    exp = lab / "experiments/static.toml"
+    exp.write_text(exp.read_text() + "\n[thresholds]\nrmse_mm = 1e-6\n")
+    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(lab / "r"),
+                                 "--format", "html"])
+    assert result.exit_code == 1
+    assert "FAIL" in result.output
+
+
+def test_report_builds_index_and_combined_pdf(lab, monkeypatch):
+    monkeypatch.chdir(lab)
+    result = runner.invoke(app, ["report", "--mc-draws", "100"])
+    assert result.exit_code == 0, result.output
+    index = (lab / "reports/index.html").read_text()
+    for kind in KINDS:
+        assert f'href="{kind}/report.html"' in index
+    from pypdf import PdfReader
+
+    assert len(PdfReader(str(lab / "reports/reports.pdf")).pages) >= 5
+
+
+def test_report_lists_a_broken_experiment_and_builds_the_rest(lab, monkeypatch):
+    monkeypatch.chdir(lab)
+    (lab / "experiments/broken.toml").write_text('kind = "static"\ntitle = "x"\nruns = ["nope.csv"]\n[sample]\npreset = "thesis-tca"\n')
+    result = runner.invoke(app, ["report", "--mc-draws", "50"])
+    assert result.exit_code == 2
+    assert "error broken" in result.output
+    assert (lab / "reports/static/report.html").exists()
+    assert "nope.csv" in (lab / "reports/index.html").read_text()
+
+
+def test_reports_are_byte_identical_on_rerun(lab):
+    outs = []
+    for k in range(2):
+        out = lab / f"r{k}"
+        result = runner.invoke(app, ["validate", "sensing", str(lab / "experiments/sensing.toml"),
+                                     "--out", str(out)])
+        assert result.exit_code == 0
+        outs.append({n: (out / "sensing" / n).read_bytes()
+                     for n in ("report.html", "report.pdf", "metrics.json", "predictions.csv")})
+    assert outs[0] == outs[1]
+
+
+def test_fit_spring_json_recovers_the_simulated_spring_constant(lab):
+    import tomllib
+
+    truth_s = tomllib.loads((ROOT / "experiments/templates/sensing.toml").read_text())["rig"][
+        "spring_constant_N_per_m"]
+    runs = sorted((lab / "raw").glob("sensing_run*.csv"))
+    assert len(runs) >= 2
+    result = runner.invoke(app, ["fit-spring", *map(str, runs), "--json",
+                                 "--plot", str(lab / "fit.svg")])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    assert doc["spring_constant_N_per_m"] == pytest.approx(truth_s, rel=0.02)
+    assert (lab / "fit.svg").read_text().lstrip().startswith("<svg")
+    # the experiment file works as input too
+    result = runner.invoke(app, ["fit-spring", str(lab / "experiments/sensing.toml")])
+    assert result.exit_code == 0 and "pooled" in result.output
+
+
+def test_fit_spring_bad_file_is_a_clear_error(lab):
+    bad = lab / "bad.csv"
+    bad.write_text("displacement_mm,force_N\n1,2\n")
+    result = runner.invoke(app, ["fit-spring", str(bad)])
+    assert result.exit_code == 2
+    assert "bad.csv" in result.output and "resistance_ohm" in result.output
+
+
+def test_foreign_headers_and_units_through_columns_alone(lab):
+    import pandas as pd
+
+    src = pd.read_csv(lab / "raw/static_run1.csv")
+    foreign = pd.DataFrame({"Temp (F)": src["temperature_C"] * 9 / 5 + 32,
+                            "laser": (src["displacement_mm"] + 2.5) / 0.01})
+    foreign.to_csv(lab / "raw/foreign.csv", index=False)
+    text = (lab / "experiments/static.toml").read_text()
+    import re
+
+    text = re.sub(r"runs = \[[^\]]*\]", 'runs = ["../raw/foreign.csv"]', text, flags=re.S)
+    text += ('\n[columns]\ntemperature_C = { from = "Temp (F)", unit = "degF" }\n'
+             'displacement_mm = { from = "laser", scale = 0.01, offset = -2.5 }\n')
+    (lab / "experiments/foreign.toml").write_text(text)
+    result = runner.invoke(app, ["validate", "static", str(lab / "experiments/foreign.toml"),
+                                 "--out", str(lab / "r"), "--json", "--format", "html"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    ref = runner.invoke(app, ["validate", "static", str(lab / "experiments/static.toml"),
+                              "--out", str(lab / "r2"), "--json", "--format", "html"])
+    run1 = json.loads(ref.output)["models"]["G(T)"]["displacement_mm"]["runs"]["static_run1"]
+    got = doc["models"]["G(T)"]["displacement_mm"]["runs"]["foreign"]
+    assert got["rmse"] == pytest.approx(run1["rmse"], rel=1e-6)
+
+
+def test_effects_list_and_version():
+    result = runner.invoke(app, ["effects", "list", "--json"])
+    assert result.exit_code == 0
+    names = {(e["kind"], e["name"]) for e in json.loads(result.output)}
+    assert ("static", "glass-transition") in names and len(names) >= 17
+    assert runner.invoke(app, ["--version"]).output.startswith("tcamlab ")
+
+
+def test_simulate_writes_an_experiment_that_validates(tmp_path):
+    result = runner.invoke(app, ["simulate", "static", "--experiment",
+                                 str(ROOT / "experiments/templates/static.toml"), "--seed", "5",
+                                 "--out", str(tmp_path), "--runs", "2"])
+    assert result.exit_code == 0, result.output
+    exp = tmp_path / "experiments/static.toml"
+    assert exp.exists()
+    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(tmp_path / "r"),
+                                 "--format", "html"])
+    assert result.exit_code == 0, result.output
+
+
+def test_simulate_unknown_effect_is_a_clear_error(tmp_path):
+    result = runner.invoke(app, ["simulate", "static", "--experiment",
+                                 str(ROOT / "experiments/templates/static.toml"), "--seed", "1",
+                                 "--out", str(tmp_path), "--effect", "glass-transitoin=3"])
+    assert result.exit_code == 2
+    assert "glass-transition" in result.output
