@@ -52,6 +52,10 @@ ARGS = _parse_args() if __name__ == "__main__" else _parse_args([])
 if __name__ == "__main__" and not ARGS.jit_cache and "NUMBA_CACHE_DIR" not in os.environ:
     # Must happen before numba is imported anywhere.
     os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="tcamlab-bench-numba-")
+    import atexit
+    import shutil
+
+    atexit.register(shutil.rmtree, os.environ["NUMBA_CACHE_DIR"], ignore_errors=True)
 
 import numpy as np  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402

@@ -286,7 +286,8 @@ def _sensing(exp: Experiment, runs, names):
     geo.pop("shear_modulus_slope")
     for i, (r, name) in enumerate(zip(runs, names)):
         if exp.rig.spring_constant is not None:
-            s_val, source = exp.rig.spring_constant, "experiment file"
+            s_val = exp.rig.spring_constant
+            source = exp.provenance.get("spring_constant", "experiment file")
         else:
             others = [o for j, o in enumerate(runs) if j != i]
             if not others:

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from tcamlab.params import THESIS_TCA, THESIS_TCS, THESIS_ROBOT
+from tcamlab.params import THESIS_ROBOT, THESIS_TCA, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT
 
 
 @pytest.fixture
@@ -11,7 +11,8 @@ def tca():
 
 @pytest.fixture
 def tcs():
-    return THESIS_TCS.build_sample(), THESIS_TCS.build_rig()
+    return THESIS_TCS.build_sample(), THESIS_TCS.build_rig(
+        spring_constant=THESIS_TCS_SPRING_CONSTANT.value)
 
 
 @pytest.fixture

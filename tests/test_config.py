@@ -145,8 +145,10 @@ def test_rig_keys_convert_with_params_factors(lab):
 def test_preset_rig_values_and_provenance(lab):
     exp = load_experiment(write_toml(lab, HEAD + '[sample]\npreset = "thesis-tcs"\n'))
     assert exp.sample == THESIS_TCS.build_sample()
-    assert exp.rig.spring_constant == THESIS_TCS.rig["spring_constant"].value
-    assert exp.provenance["spring_constant"] == THESIS_TCS.rig["spring_constant"].provenance
+    assert exp.rig.initial_resistance == THESIS_TCS.rig["initial_resistance"].value
+    assert exp.provenance["initial_resistance"] == THESIS_TCS.rig["initial_resistance"].provenance
+    # S is identified from pull tests, not taken from a preset
+    assert exp.rig.spring_constant is None
     assert exp.provenance["twists"] == THESIS_TCS.sample["twists"].provenance
 
 
