@@ -10,10 +10,7 @@ are reported as aliased or as one of the pair, never as a confident third.
 Only the benchmark reads the simulator's truth files (to score); the
 diagnosis never does.
 
-Until :mod:`tcamlab.rig` is available a stand-in generator
-(:func:`standin_simulate`) with the same call signature is used: thesis
-protocols, :func:`tcamlab.forward.predict` with the effect's Mods, and
-Gaussian noise. Results say which generator made the data.
+Static cases use the heat-cool oven program (:data:`STATIC_OVEN`).
 """
 
 from __future__ import annotations
@@ -29,13 +26,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from tcamlab import forward as F
-from tcamlab.effects import effects_for, get_effect, mods_for
+from tcamlab.effects import effects_for, get_effect
 
 __all__ = ["STRENGTHS", "PAIRS", "BenchmarkResult", "run_benchmark", "run_task",
-           "standin_simulate", "make_tasks", "score"]
+           "make_tasks", "score", "STATIC_OVEN"]
 
 KINDS = ("static", "dynamic", "sensing", "curvature")
 STRENGTHS = (1.0, 3.0, 10.0)
@@ -56,163 +51,17 @@ PAIR_STRENGTH = 5.0
 TEMPLATES = Path(__file__).resolve().parent.parent / "experiments" / "templates"
 
 
-# ---------------------------------------------------------------------------
-# stand-in virtual rig (used when tcamlab.rig is not available)
-# ---------------------------------------------------------------------------
-
-STANDIN_NOISE = {
-    "static": {"displacement": 3e-6},
-    "dynamic": {"displacement": 4e-6},
-    "sensing": {"displacement": 10e-6, "force": 0.2e-3},
-    "curvature": {"kappa1": 0.3, "kappa2": 0.3},
-}
-"""Noise sd of the measured quantities of the stand-in rig [SI]."""
-
-_PRESET = {"static": "thesis-tca", "dynamic": "thesis-tca", "sensing": "thesis-tcs",
-           "curvature": "thesis-robot"}
-
-
-def _protocol(kind: str, rng, sample, rig) -> pd.DataFrame:
-    """Inputs of one run (noise-free) plus the hidden true state for sensing/curvature."""
-    from tcamlab.models import sensing as S
-
-    if kind == "static":
-        steps = np.concatenate([np.arange(25, 151, 5), np.arange(145, 24, -5)]).astype(float)
-        T = np.repeat(steps, 6) + rng.normal(0, 0.05, steps.size * 6)
-        return pd.DataFrame({"time": np.arange(T.size) * 10.0, "temperature": T})
-    if kind == "dynamic":
-        t = np.arange(0, 8.0, 0.02)
-        v = np.where((t >= 0.5) & (t < 1.5), rig.voltage, 0.0)
-        return pd.DataFrame({"time": t, "voltage": v})
-    kw = sample.model_kwargs()
-    kw.pop("radial_cte")
-    kw.pop("shear_modulus_slope")
-    if kind == "sensing":
-        levels = np.concatenate([np.arange(0, 5.01, 0.5), np.arange(4.5, -0.01, -0.5)]) * 1e-3
-        delta = np.repeat(levels, 25)
-        R = S.forward(delta, rig.initial_resistance, rig.spring_constant, **kw)
-        R = R + rng.normal(0, 2e-5, R.size)
-        return pd.DataFrame({"time": np.arange(delta.size) * 0.2, "resistance": R})
-    # curvature: cable pull up and down; sensor elongation shared 55/45
-    c = np.concatenate([np.linspace(0, 8e-3, 100), np.linspace(8e-3, 0, 100)[1:]])
-    lengths = np.asarray(rig.segment_lengths, float)
-    res = []
-    for j, w in enumerate((0.55, 0.45)):
-        ratio = lengths[j] / sample.coil_length
-        e = 0.5 * c * w
-        kwj = dict(kw)
-        kwj["fiber_length"] = kw["fiber_length"] * ratio
-        kwj["coil_length"] = lengths[j]
-        kwj["twists"] = kw["twists"] * ratio
-        r = S.forward(e, rig.initial_resistance, rig.spring_constant, **kwj)
-        res.append(r + rng.normal(0, 2e-5, r.size))
-    return pd.DataFrame({"time": np.arange(c.size) * 0.1, "cable": c, "r1": res[0], "r2": res[1]})
-
-
-def _options(kind, rig, d):
-    if kind == "sensing":
-        return {"spring_constant": rig.spring_constant, "initial_resistance": rig.initial_resistance}
-    if kind == "curvature":
-        return {"spring_constant": rig.spring_constant,
-                "initial_resistances": (rig.initial_resistance, rig.initial_resistance)}
-    return {}
-
-
-def _calibrate(kind, sample, rig, frames, effect, strength, noise):
-    """Parameter value whose output change has RMS = strength x noise (noise-normalised)."""
-    from tcamlab.errors import TcamlabError
-
-    p = effect.params[0]
-    sign = 1.0 if p.upper > 0 else -1.0
-    base = [F.predict(kind, sample, rig, d, F.Mods(), **_options(kind, rig, d)) for d in frames]
-
-    def rms(a):
-        mods = effect.mods([sign * a * p.scale] + [0.0] * (len(effect.params) - 1))
-        tot, n = 0.0, 0
-        for d, b in zip(frames, base):
-            out = F.predict(kind, sample, rig, d, mods, **_options(kind, rig, d))
-            for q in F.OUTPUTS[kind]:
-                z = (out[q] - b[q]) / noise[q]
-                tot += float(np.sum(z * z))
-                n += z.size
-        return math.sqrt(tot / n)
-
-    a = 1.0
-    for _ in range(8):
-        try:
-            r = rms(a)
-        except TcamlabError:
-            a *= 0.5
-            continue
-        if r <= 0:
-            a *= 10
-            continue
-        new = a * strength / r
-        new = float(np.clip(new, a / 10, a * 10))
-        if abs(new - a) < 1e-4 * a:
-            a = new
-            break
-        a = new
-    hi = p.upper if sign > 0 else -p.lower
-    a = min(a, hi / p.scale)
-    return sign * a * p.scale
-
-
-def standin_simulate(kind, template=None, *, seed, out_dir, effects=None, n_runs=None,
-                     noise_scale: float = 1.0):
-    """Stand-in for ``tcamlab.rig.simulate``: writes an experiment, runs and a truth file.
-
-    Returns a namespace with ``experiment_path``, ``run_paths``, ``truth_path``, ``truth``.
-    """
-    from types import SimpleNamespace
-
-    from tcamlab.config import write_experiment
-    from tcamlab.io import internal_to_canonical
-    from tcamlab.params import get_preset
-
-    rng = np.random.default_rng(seed)
-    n_runs = 5 if n_runs is None else int(n_runs)
-    preset = get_preset(_PRESET[kind])
-    sample = preset.build_sample()
-    rig = preset.build_rig()
-    noise = {q: s * noise_scale for q, s in STANDIN_NOISE[kind].items()}
-    frames = [_protocol(kind, rng, sample, rig) for _ in range(n_runs)]
-    active = {}
-    for name, strength in (effects or {}).items():
-        eff = get_effect(name, kind)
-        value = _calibrate(kind, sample, rig, frames, eff, float(strength), noise)
-        active[name] = [value] + [0.0] * (len(eff.params) - 1)
-    mods = mods_for(kind, active)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    run_paths = []
-    for j, d in enumerate(frames):
-        pred = F.predict(kind, sample, rig, d, mods, **_options(kind, rig, d))
-        data = d.copy()
-        for q in F.OUTPUTS[kind]:
-            data[q] = pred[q] + rng.normal(0, noise[q], len(d))
-        p = out / f"run_{j + 1:02d}.csv"
-        internal_to_canonical(data).to_csv(p, index=False)
-        run_paths.append(p)
-    doc = {"kind": kind, "title": f"stand-in {kind} run", "runs": [p.name for p in run_paths],
-           "synthetic": {"generator": "tcamlab.benchmark.standin_simulate", "seed": int(seed)},
-           "sample": {"preset": _PRESET[kind]}}
-    exp = write_experiment(out / "experiment.toml", doc)
-    truth = {"kind": kind, "effects": {n: {get_effect(n, kind).params[0].field: v[0]}
-                                       for n, v in active.items()},
-             "strengths": {n: float(s) for n, s in (effects or {}).items()},
-             "noise_sd": noise, "generator": "standin"}
-    tp = out / "truth.json"
-    tp.write_text(json.dumps(truth, indent=1))
-    return SimpleNamespace(experiment_path=exp, run_paths=run_paths, truth_path=tp, truth=truth)
+STATIC_OVEN = "heat-cool"
+"""Oven program of the benchmark's static cases: the thesis's 5 degC steps up to
+150 degC and back down. The cooling branch is what tells sensor drift and
+thermal lag apart from temperature-only effects; with the thesis's
+heating-only program those come out ``aliased`` (README)."""
 
 
 def _simulator():
-    try:
-        from tcamlab.rig import simulate  # noqa: F401
-        return simulate, "tcamlab.rig"
-    except ImportError:
-        return standin_simulate, "standin"
+    from tcamlab.rig import simulate
+
+    return simulate, "tcamlab.rig"
 
 
 # ---------------------------------------------------------------------------
@@ -224,7 +73,7 @@ def make_tasks(*, quick: bool = False, seeds: int = 10, kinds=KINDS, effects=Non
     """Task dicts (case, kind, effects {name: strength}, seed)."""
     tasks = []
     strengths = (3.0,) if quick else STRENGTHS
-    n_seeds = 2 if quick else max(int(seeds), 1)
+    n_seeds = min(2, max(int(seeds), 1)) if quick else max(int(seeds), 1)
     for kind in kinds:
         names = [e.name for e in effects_for(kind)]
         if effects is not None:
@@ -258,11 +107,12 @@ def run_task(task: dict) -> dict:
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
         template = TEMPLATES / f"{kind}.toml"
         try:
+            extra = {"oven": STATIC_OVEN} if kind == "static" and generator == "tcamlab.rig" else {}
             sim = simulate(kind, template, seed=task["seed"], out_dir=tmp,
-                           effects=dict(task["effects"]))
+                           effects=dict(task["effects"]), **extra)
             truth = json.loads(Path(sim.truth_path).read_text())
             exp = load_experiment(sim.experiment_path)
-            res = diagnose(exp, n_boot=task.get("n_boot", 500), seed=0)
+            res = diagnose(exp, n_boot=task.get("n_boot", 500), seed=0, workers=1)
         except Exception as exc:  # a failed case is recorded, not fatal
             out.update({"error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0})
             return out
@@ -452,7 +302,9 @@ def _execute(tasks, scheduler=None, workers=None) -> list[dict]:
     workers = workers or os.cpu_count() or 1
     if workers <= 1 or len(tasks) <= 1:
         return [run_task(t) for t in tasks]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    import multiprocessing as mp
+
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
         return list(pool.map(run_task, tasks, chunksize=1))
 
 
@@ -465,7 +317,8 @@ def run_benchmark(out_dir, *, quick: bool = False, scheduler=None, workers=None,
     out_dir : path-like
         Output directory.
     quick : bool
-        CI subset: strength 3 x 2 seeds per effect and 2 nulls per kind, no pairs.
+        CI subset: strength 3 x 2 seeds per effect and 2 nulls per kind, no pairs
+        (``seeds=1`` makes it 1 seed each).
     scheduler : str or dask Cluster, optional
         Dask scheduler address (or cluster); default: local processes.
     workers : int, optional

@@ -1,20 +1,24 @@
 """Sim-to-real gap diagnosis: where the thesis model misses, which effect explains it, how far.
 
 :func:`diagnose` looks only at an experiment file (:class:`tcamlab.config.Experiment`)
-and its run logs (:class:`tcamlab.io.RunData`). It never reads simulator truth
+and its run logs (:class:`tcamlab.io.RunData`). It never reads a simulator's answer key
 files and never looks at file names, seeds or how the data was made.
 
 Steps
 -----
 1. **Baseline.** The thesis model (:func:`tcamlab.forward.predict`, no effect
    terms) with the experiment's parameters. Sensing: ``spring_constant`` is
-   ``rig.spring_constant`` or, when unset, a least-squares fit through the
-   origin of the *training* runs' force on displacement
-   (:func:`tcamlab.fitting.fit_spring`); ``initial_resistance`` is
-   ``rig.initial_resistance`` or the run's first row. Curvature:
-   ``rig.spring_constant`` and the run's first-row ``r1``, ``r2`` (averaged
-   over the leading rows at rest, i.e. with the cable still at its first
-   value, when there are several). Residual = measured - predicted for each
+   ``rig.spring_constant`` or, when unset, identified on the *training*
+   runs: started at the least-squares fit through the origin of force on
+   displacement (:func:`tcamlab.fitting.fit_spring`), then refined as a
+   nuisance parameter by least squares on the noise-normalised residuals of
+   both quantities, jointly with each candidate's parameters (a fit of F on
+   delta alone is biased by a load-cell zero offset or a force-side effect,
+   and the inversion amplifies an S error by 1 / (1 - S f11));
+   ``initial_resistance`` is ``rig.initial_resistance`` or the run's first
+   row. Curvature: ``rig.spring_constant`` and ``rig.initial_resistance``
+   for both segments, or when that is unset the first row of ``r1``, ``r2``
+   (averaged over the leading rows at rest). Residual = measured - predicted for each
    quantity of :data:`tcamlab.forward.OUTPUTS`, divided by that quantity's
    noise floor before pooling.
 
@@ -36,8 +40,10 @@ Steps
 4. **Verdict** (constants below, reasons in their docstrings):
 
    * ``none`` -- the baseline's mean squared normalised residual is below
-     :data:`GAP_LEVEL` quantile of F(N, nu), N points, nu the effective
-     degrees of freedom of the noise estimate (see :func:`gap_limit`);
+     the :data:`GAP_LEVEL` quantile of its no-gap distribution, F(N, nu) per
+     quantity (N points, nu the effective degrees of freedom of the noise
+     estimate), pooled over quantities by seeded Monte Carlo
+     (:func:`gap_limit`);
    * ``attributed`` -- the best candidate (lowest held-out RMSE) closes at
      least :data:`MIN_FRACTION_CLOSED` of the gap above the noise floor, its
      bootstrap shrinkage interval excludes 0, and no other candidate is
@@ -53,7 +59,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -102,6 +108,18 @@ estimate has 2 (n - 2) 36 / 140 = (36/70) (n - 2) degrees of freedom."""
 
 MEDIAN_EFFICIENCY = 2.0 / math.pi
 """Asymptotic efficiency of a median relative to a mean (pooling over runs)."""
+
+ZERO_REFERENCED: tuple[str, ...] = ()
+"""Quantities whose logged zero is re-estimated from the leading rows at rest.
+
+Empty: the thesis rigs tare the displacement on a mean of many readings at
+rest (and the pull-test encoder is exact), so the logged zero is taken as
+exact. Re-estimating it from model predictions at rest was tried and biases
+the sensing displacement (the inverted model is not symmetric about R0).
+Add ``"displacement"`` here for logs whose first row is a single noisy reading."""
+
+REST_TOLERANCE = 0.02
+"""Inputs within this fraction of their range of the first row count as "at rest"."""
 
 FAIL_RESIDUAL = 1.0e3
 """Normalised residual returned for every point of a model evaluation outside
@@ -163,18 +181,40 @@ def second_difference_sigma(r) -> float:
     return float(math.sqrt(np.sum(d2 * d2) / (6.0 * (r.size - 2))))
 
 
-def gap_limit(n_points: int, noise_dof: float, level: float = GAP_LEVEL) -> float:
+def gap_limit(n_points, noise_dof, level: float = GAP_LEVEL, *,
+              reference: Sequence[tuple[float, int]] = ()) -> float:
     """Largest baseline RMSE/noise consistent with "no gap".
 
-    Without a gap the normalised residuals are the noise divided by the
-    estimated noise sd, so mean(z^2) = (chi2_N / N) / (sigma_hat^2 / sigma^2)
-    ~ F(N, nu), with nu the effective degrees of freedom of sigma_hat^2
-    (:data:`SECOND_DIFF_EFFICIENCY`, :data:`MEDIAN_EFFICIENCY`). Treating the
-    two as independent is conservative: they share the data, which makes the
-    ratio less variable. Returns sqrt of the ``level`` quantile.
+    Without a gap each quantity's normalised residuals are its noise divided
+    by its estimated noise sd, so that quantity's mean(z^2) is
+    (chi2_N / N) / (sigma_hat^2 / sigma^2) ~ F(N, nu), with nu the effective
+    degrees of freedom of sigma_hat^2 (:data:`SECOND_DIFF_EFFICIENCY`,
+    :data:`MEDIAN_EFFICIENCY`). Treating numerator and denominator as
+    independent is conservative: they share the data, which makes the ratio
+    less variable. Several quantities (``n_points`` and ``noise_dof`` as
+    sequences) are pooled point-weighted, each with its own sigma_hat; the
+    ``level`` quantile is then taken from 40000 seeded Monte Carlo draws.
+
+    ``reference`` lists (share of the points, rest rows k) of runs whose zero
+    was re-estimated from k rest rows (see :data:`ZERO_REFERENCED`): off by
+    noise/sqrt(k), adding share * chi2_1 / k to the statistic.
+    Returns sqrt of the quantile.
     """
-    nu = max(float(noise_dof), 1.0)
-    return float(math.sqrt(stats.f.ppf(level, max(int(n_points), 1), nu)))
+    ns = [max(int(n), 1) for n in np.atleast_1d(n_points)]
+    nus = [max(float(v), 1.0) for v in np.atleast_1d(noise_dof)]
+    if len(nus) == 1 and len(ns) > 1:
+        nus = nus * len(ns)
+    if len(ns) == 1 and not reference:
+        return float(math.sqrt(stats.f.ppf(level, ns[0], nus[0])))
+    rng = np.random.default_rng(20240601)
+    m = 40000
+    total = float(sum(ns))
+    stat = np.zeros(m)
+    for n, nu in zip(ns, nus):
+        stat += (n / total) * (rng.chisquare(n, m) / n) / (rng.chisquare(nu, m) / nu)
+    for w, k in reference:
+        stat = stat + w * rng.chisquare(1, m) / max(int(k), 1)
+    return float(math.sqrt(np.quantile(stat, level)))
 
 
 def _ci(samples: np.ndarray) -> list[float]:
@@ -215,6 +255,11 @@ class _Problem:
             if missing:
                 raise ConfigError(f"diagnosis: run {i} has no column(s) {', '.join(missing)}")
         self._fixed_opts = [self._run_options(i) for i in range(len(self.frames))]
+        # Logged displacement is relative to the (noisy) first row: its zero is
+        # re-estimated from the leading rows at rest under every model evaluated.
+        self.rereferenced = tuple(q for q in self.quantities if q in ZERO_REFERENCED)
+        self.rest = [_rest_rows(self.kind, d) for d in self.frames]
+        self.spring_nuisance = self.kind == "sensing" and self.rig.spring_constant is None
 
     # options -------------------------------------------------------------
     def _run_options(self, i: int) -> dict:
@@ -223,6 +268,7 @@ class _Problem:
             r0 = self.rig.initial_resistance
             return {"initial_resistance": float(r0 if r0 is not None else d["resistance"].iloc[0])}
         if self.kind == "curvature":
+            r0 = self.rig.initial_resistance
             if self.rig.spring_constant is None:
                 raise ConfigError("diagnosis: a curvature experiment needs rig.spring_constant_N_per_m",
                                   "set spring_constant_N_per_m in [rig] (or use preset thesis-robot)")
@@ -230,9 +276,11 @@ class _Problem:
             rest = np.flatnonzero(np.abs(cable - cable[0]) > 1e-12)
             k = int(rest[0]) if rest.size else cable.size
             k = max(1, k)
-            return {"spring_constant": float(self.rig.spring_constant),
-                    "initial_resistances": (float(d["r1"].iloc[:k].mean()),
-                                            float(d["r2"].iloc[:k].mean()))}
+            if r0 is not None:
+                r0s = (float(r0), float(r0))
+            else:
+                r0s = (float(d["r1"].iloc[:k].mean()), float(d["r2"].iloc[:k].mean()))
+            return {"spring_constant": float(self.rig.spring_constant), "initial_resistances": r0s}
         return {}
 
     def spring_for(self, rows: Sequence[tuple[int, np.ndarray]]) -> float | None:
@@ -267,6 +315,16 @@ class _Problem:
     def measured(self, i: int, q: str) -> np.ndarray:
         return self.frames[i][q].to_numpy(float)
 
+    def resid(self, i: int, pred: dict) -> dict[str, np.ndarray]:
+        """measured - predicted [SI] per quantity, displacement re-referenced at rest."""
+        out = {}
+        for q in self.quantities:
+            r = self.measured(i, q) - pred[q]
+            if q in self.rereferenced:
+                r = r - float(np.mean(r[self.rest[i]]))
+            out[q] = r
+        return out
+
     def norm_resid(self, i: int, mods: Mods, spring, mask=None) -> np.ndarray:
         """Normalised residuals of run i (quantities stacked), or FAIL_RESIDUAL."""
         n = len(self.frames[i]) if mask is None else int(np.count_nonzero(mask))
@@ -274,11 +332,27 @@ class _Problem:
             pred = self.predict(i, mods, spring)
         except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError):
             return np.full(n * len(self.quantities), FAIL_RESIDUAL)
+        res = self.resid(i, pred)
         parts = []
         for q in self.quantities:
-            r = (self.measured(i, q) - pred[q]) / self.sigma[q]
+            r = res[q] / self.sigma[q]
             parts.append(r if mask is None else r[mask])
         return np.concatenate(parts)
+
+
+def _rest_rows(kind: str, d: pd.DataFrame) -> np.ndarray:
+    """Leading rows whose inputs stay at their first value (within 2 % of their range)."""
+    n = len(d)
+    first_move = n
+    for c in F.INPUTS[kind]:
+        if c == "time" or c not in d:
+            continue
+        x = d[c].to_numpy(float)
+        span = float(np.nanmax(x) - np.nanmin(x))
+        moved = np.flatnonzero(np.abs(x - x[0]) > REST_TOLERANCE * span) if span > 0 else np.array([], int)
+        if moved.size:
+            first_move = min(first_move, int(moved[0]))
+    return np.arange(max(first_move, 1))
 
 
 # ---------------------------------------------------------------------------
@@ -288,40 +362,67 @@ class _Problem:
 
 @dataclass
 class _Fit:
-    theta: np.ndarray          # scaled parameters
-    values: np.ndarray         # SI
+    theta: np.ndarray          # scaled parameters (effect, then the S nuisance if any)
+    values: np.ndarray         # effect parameters, SI
     sse: float                 # normalised
     n: int
     jac: np.ndarray | None
     success: bool
+    spring: float | None = None
 
 
-def _fit_effect(problem: _Problem, effect: Effect, rows, spring, *, max_nfev: int = 60) -> _Fit:
-    scales = np.array([p.scale for p in effect.params], float)
-    lo = np.array([p.lower for p in effect.params], float) / scales
-    hi = np.array([p.upper for p in effect.params], float) / scales
-    width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
-    eps = 1e-9 * width
-    lo_i, hi_i = lo + eps, hi - eps
+SPRING_STEP = 0.01
+"""Scale of the sensing spring-constant nuisance: S = S0 (1 + SPRING_STEP theta)."""
+
+
+def _fit_effect(problem: _Problem, effect: Effect | None, rows, spring, *, max_nfev: int = 60) -> _Fit:
+    """Least-squares fit of an effect (None: only the nuisance) on the given rows.
+
+    When the sensing S is identified from data it is a nuisance fitted jointly
+    (start: the through-origin value ``spring``), so a force-side effect is not
+    absorbed into a biased S.
+    """
+    params = effect.params if effect is not None else ()
+    nuis = problem.spring_nuisance
+    scales = np.array([p.scale for p in params], float)
+    lo = [p.lower / p.scale for p in params] + ([-50.0] if nuis else [])
+    hi = [p.upper / p.scale for p in params] + ([50.0] if nuis else [])
+    lo, hi = np.array(lo, float), np.array(hi, float)
+    k_eff = len(params)
+
+    def unpack(theta):
+        values = theta[:k_eff] * scales
+        sp = spring * (1.0 + SPRING_STEP * theta[k_eff]) if nuis else spring
+        return values, sp
 
     def fun(theta):
-        mods = effect.mods(theta * scales)
-        return np.concatenate([problem.norm_resid(i, mods, spring, m) for i, m in rows])
+        values, sp = unpack(theta)
+        mods = effect.mods(values) if effect is not None else Mods()
+        return np.concatenate([problem.norm_resid(i, mods, sp, m) for i, m in rows])
 
-    k = scales.size
+    k = lo.size
+    if k == 0:
+        r0 = fun(np.zeros(0))
+        return _Fit(np.zeros(0), np.zeros(0), float(np.sum(r0 ** 2)), r0.size, None, True, spring)
+    width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
+    lo_i, hi_i = lo + 1e-9 * width, hi - 1e-9 * width
     starts = [np.zeros(k)]
-    for sgn in (1.0, -1.0):
-        starts.append(np.full(k, sgn))
+    if k_eff:
+        for sgn in (1.0, -1.0):
+            x0 = np.zeros(k)
+            x0[:k_eff] = sgn
+            starts.append(x0)
     best = None
     seen = []
     for x0 in starts:
         x0 = np.clip(x0, lo_i, hi_i)
-        if any(np.allclose(x0, s) for s in seen):
+        if any(np.allclose(x0, s_) for s_ in seen):
             continue
         seen.append(x0)
         try:
             res = optimize.least_squares(fun, x0, bounds=(lo, hi), method="trf",
-                                         x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev)
+                                         x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev,
+                                         ftol=1e-6, xtol=1e-6, gtol=1e-8)
         except (ValueError, np.linalg.LinAlgError):
             continue
         sse = float(np.sum(res.fun ** 2))
@@ -329,9 +430,10 @@ def _fit_effect(problem: _Problem, effect: Effect, rows, spring, *, max_nfev: in
             best = (sse, res)
     if best is None:
         r0 = fun(np.zeros(k))
-        return _Fit(np.zeros(k), np.zeros(k), float(np.sum(r0 ** 2)), r0.size, None, False)
+        return _Fit(np.zeros(k), np.zeros(k_eff), float(np.sum(r0 ** 2)), r0.size, None, False, spring)
     sse, res = best
-    return _Fit(res.x, res.x * scales, sse, res.fun.size, res.jac, bool(res.success))
+    values, sp = unpack(res.x)
+    return _Fit(res.x, values, sse, res.fun.size, res.jac, bool(res.success), sp)
 
 
 def _param_ci(fit: _Fit, effect: Effect) -> dict:
@@ -339,12 +441,12 @@ def _param_ci(fit: _Fit, effect: Effect) -> dict:
     scales = np.array([p.scale for p in effect.params], float)
     k = scales.size
     sd = np.full(k, np.nan)
-    if fit.jac is not None and fit.n > k:
+    if fit.jac is not None and fit.n > fit.jac.shape[1]:
         J = np.asarray(fit.jac, float)
-        s2 = fit.sse / (fit.n - k)
+        s2 = fit.sse / (fit.n - J.shape[1])
         try:
             cov = np.linalg.inv(J.T @ J) * s2
-            sd = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scales
+            sd = np.sqrt(np.clip(np.diag(cov)[:k], 0.0, None)) * scales
         except np.linalg.LinAlgError:
             pass
     z = stats.norm.ppf(0.5 + CI_LEVEL / 2.0)
@@ -616,7 +718,7 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.corrcoef(a, b)[0, 1])
 
 
-def _between_run_spread(problem: _Problem, base_pred) -> dict:
+def _between_run_spread(problem: _Problem, base_res) -> dict:
     """Between-run sd of measured quantities where runs share their inputs."""
     frames = problem.frames
     if len(frames) < 2:
@@ -634,7 +736,7 @@ def _between_run_spread(problem: _Problem, base_pred) -> dict:
     for q in problem.quantities:
         unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
         # spread of the residuals (the model removes the input dependence)
-        R = np.vstack([problem.measured(i, q) - base_pred[i][q] for i in range(len(frames))])
+        R = np.vstack([base_res[i][q] for i in range(len(frames))])
         sd = float(np.sqrt(np.mean(np.var(R, axis=0, ddof=1))))
         out[q] = {"sd": sd * fac, "unit": unit}
     return out
@@ -680,8 +782,8 @@ def _complement(problem: _Problem, held) -> list[tuple[int, np.ndarray]]:
 # ---------------------------------------------------------------------------
 
 
-def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: int = 0
-             ) -> DiagnosisResult:
+def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: int = 0,
+             workers: int | None = None) -> DiagnosisResult:
     """Diagnose the gap between the thesis model and an experiment's runs.
 
     Parameters
@@ -696,6 +798,9 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         Bootstrap resamples over folds.
     seed : int
         Seed of the bootstrap only (the diagnosis is otherwise deterministic).
+    workers : int, optional
+        Processes (spawned) for the candidate fits; default 1 (serial). Results
+        do not depend on it.
 
     Returns
     -------
@@ -717,17 +822,18 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     spring_all = problem.spring_for(all_rows)
     base = Mods()
     base_pred = [problem.predict(i, base, spring_all) for i in range(n_runs)]
-    per_run_sigma = {q: [second_difference_sigma(problem.measured(i, q) - base_pred[i][q])
+    base_res = [problem.resid(i, p) for i, p in enumerate(base_pred)]
+    per_run_sigma = {q: [second_difference_sigma(base_res[i][q])
                          for i in range(n_runs)] for q in Q}
     for q in Q:
         vals = np.array([v for v in per_run_sigma[q] if np.isfinite(v) and v > 0])
         if vals.size == 0:
-            resid = np.concatenate([problem.measured(i, q) - base_pred[i][q] for i in range(n_runs)])
+            resid = np.concatenate([base_res[i][q] for i in range(n_runs)])
             vals = np.array([max(float(np.std(resid)), 1e-300)])
         problem.sigma[q] = float(np.median(vals))
     noise_dof_q = {q: SECOND_DIFF_EFFICIENCY * sum(max(len(d) - 2, 0) for d in problem.frames)
                    * (MEDIAN_EFFICIENCY if n_runs >= 3 else 1.0) for q in Q}
-    spread = _between_run_spread(problem, base_pred)
+    spread = _between_run_spread(problem, base_res)
 
     noise_floor = {"quantities": list(Q), "method": "second difference of baseline residuals, "
                    "median over runs", "by_quantity": {}, "between_runs": spread}
@@ -739,12 +845,22 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
             "dof": noise_dof_q[q]}
 
     # --- baseline gap ------------------------------------------------------------------
+    if problem.spring_nuisance:
+        spring_all = _fit_effect(problem, None, all_rows, spring_all).spring
+        base_pred = [problem.predict(i, base, spring_all) for i in range(n_runs)]
+        base_res = [problem.resid(i, p) for i, p in enumerate(base_pred)]
     z_runs = [problem.norm_resid(i, base, spring_all) for i in range(n_runs)]
     z_all = np.concatenate(z_runs)
     N = z_all.size
     base_rms_noise = float(np.sqrt(np.mean(z_all ** 2)))
     nu = min(noise_dof_q.values())
-    limit = gap_limit(N, nu)
+    # Zero re-estimated from k >= 2 rest rows: off by about noise/sqrt(k). With
+    # k = 1 nothing is re-estimated and the logged zero (a tare) is taken as exact.
+    ref_weights = [(len(problem.frames[i]) * len(problem.rereferenced) / N, len(problem.rest[i]))
+                   for i in range(n_runs) if len(problem.rest[i]) >= 2] if problem.rereferenced else []
+    limit = gap_limit([sum(len(d) for d in problem.frames)] * len(Q), [noise_dof_q[q] for q in Q],
+                      reference=ref_weights)
+    floor2 = 1.0 + sum(w / k for w, k in ref_weights)
     gap_significant = base_rms_noise > limit
     common_unit = _common_unit(Q)
 
@@ -757,7 +873,7 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     base_by_q = {}
     for q in Q:
         unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
-        r = np.concatenate([problem.measured(i, q) - base_pred[i][q] for i in range(n_runs)])
+        r = np.concatenate([base_res[i][q] for i in range(n_runs)])
         base_by_q[q] = {"rmse": float(np.sqrt(np.mean(r ** 2))) * fac, "bias": float(np.mean(r)) * fac,
                         "rmse_over_noise": float(np.sqrt(np.mean(r ** 2)) / problem.sigma[q]),
                         "unit": unit}
@@ -771,6 +887,8 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
                     else ("identified on training runs" if kind == "sensing" else None)},
     }
     gap = {"rmse_over_noise": base_rms_noise, "limit": limit, "level": GAP_LEVEL,
+           "expected_rmse_over_noise_without_gap": math.sqrt(floor2),
+           "rest_rows": [int(len(r)) for r in problem.rest] if problem.rereferenced else None,
            "n_points": int(N), "noise_dof": nu, "significant": bool(gap_significant),
            "rule": "baseline RMSE/noise above sqrt of the {:.0%} quantile of F(N, nu)".format(GAP_LEVEL)}
 
@@ -781,15 +899,13 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         force_edges = np.quantile(fall, [0, 0.25, 0.5, 0.75, 1.0])
     labels: dict[str, list] = {}
     zs: list[np.ndarray] = []
-    raw: dict[str, list] = {}
     qlab: list[np.ndarray] = []
     for i in range(n_runs):
         d = problem.frames[i]
         for q in Q:
             lab = _regime_labels(kind, d, q, force_edges)
-            r = problem.measured(i, q) - base_pred[i][q]
+            r = base_res[i][q]
             zs.append(r / problem.sigma[q])
-            raw.setdefault(q, [])
             qlab.append(np.full(len(d), q, dtype=object))
             for g, v in lab.items():
                 labels.setdefault(g, []).append(v)
@@ -827,7 +943,7 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
                  "n": int(len(d)), "by_quantity": {}}
         for q in Q:
             unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
-            r = problem.measured(i, q) - base_pred[i][q]
+            r = base_res[i][q]
             entry["by_quantity"][q] = {
                 "rmse": float(np.sqrt(np.mean(r ** 2))) * fac, "bias": float(np.mean(r)) * fac,
                 "unit": unit, "noise_sigma": per_run_sigma[q][i] * fac,
@@ -848,6 +964,8 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     for k, held in enumerate(folds):
         train = _complement(problem, held)
         spring = problem.spring_for(train)
+        if problem.spring_nuisance:
+            spring = _fit_effect(problem, None, train, spring).spring
         train_rows_f.append(train)
         spring_f.append(spring)
         for i, m in held:
@@ -869,32 +987,32 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     cand_results: list[CandidateResult] = []
     after_folds: dict[str, np.ndarray] = {}
     best_values: dict[str, np.ndarray] = {}
-    for eff in cands:
-        after_fold = np.zeros(K)
-        after_q = np.zeros((K, len(Q)))
-        fold_rows = []
-        for k, held in enumerate(folds):
-            fit = _fit_effect(problem, eff, train_rows_f[k], spring_f[k])
-            mods = eff.mods(fit.values)
-            for i, m in held:
-                za = problem.norm_resid(i, mods, spring_f[k], m)
-                after_fold[k] += np.sum(za ** 2)
-                nm = int(m.sum())
-                for j, q in enumerate(Q):
-                    after_q[k, j] += np.sum((za[j * nm:(j + 1) * nm] * problem.sigma[q]) ** 2)
-            fold_rows.append({"fold": k, "rmse_before_noise": math.sqrt(before_fold[k] / n_fold[k]),
-                              "rmse_after_noise": math.sqrt(after_fold[k] / n_fold[k]),
-                              "parameters": {p.field: float(v) for p, v in zip(eff.params, fit.values)}})
+    best_springs: dict[str, float | None] = {}
+    jobs = [(problem, eff, folds, train_rows_f, spring_f, all_rows, spring_all) for eff in cands]
+    n_work = _n_workers(workers, len(jobs))
+    if n_work > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=n_work, mp_context=mp.get_context("spawn")) as pool:
+            outcomes = list(pool.map(_candidate_job, jobs))
+    else:
+        outcomes = [_candidate_job(j) for j in jobs]
+    for eff, (after_fold, after_q, fold_vals, full) in zip(cands, outcomes):
+        fold_rows = [{"fold": k, "rmse_before_noise": math.sqrt(before_fold[k] / n_fold[k]),
+                      "rmse_after_noise": math.sqrt(after_fold[k] / n_fold[k]),
+                      "parameters": {p.field: float(v) for p, v in zip(eff.params, fold_vals[k])}}
+                     for k in range(K)]
         after_folds[eff.name] = after_fold
-        full = _fit_effect(problem, eff, all_rows, spring_all)
         best_values[eff.name] = full.values
+        best_springs[eff.name] = full.spring
         b4 = math.sqrt(before_fold.sum() / n_fold.sum())
         af = math.sqrt(after_fold.sum() / n_fold.sum())
         shrink = 1.0 - af / b4 if b4 > 0 else 0.0
         b_after = after_fold[boot_idx].sum(axis=1)
         with np.errstate(all="ignore"):
             boot_shrink = 1.0 - np.sqrt(b_after / b_n) / np.sqrt(b_before / b_n)
-        frac = (b4 ** 2 - af ** 2) / (b4 ** 2 - 1.0) if b4 ** 2 > 1.0 else float("nan")
+        frac = (b4 ** 2 - af ** 2) / (b4 ** 2 - floor2) if b4 ** 2 > floor2 else float("nan")
         kp = len(eff.params) + k_base
         by_q = {}
         for j, q in enumerate(Q):
@@ -940,7 +1058,7 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         if best is not None:
             try:
                 best_pred = problem.predict(i, get_effect(best.effect, kind).mods(best_values[best.effect]),
-                                            spring_all)
+                                            best_springs[best.effect])
             except (TcamlabError, ArithmeticError):
                 best_pred = None
         series_runs.append({"x": x, "xlabel": xlabel,
@@ -962,6 +1080,37 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
                            noise_floor=noise_floor, baseline=baseline, regimes=regimes,
                            runs=run_stats, gap=gap, reason=reason, settings=settings,
                            _series=series)
+
+
+def _candidate_job(job):
+    """Fit one candidate on every fold's training rows and on all rows."""
+    problem, eff, folds, train_rows_f, spring_f, all_rows, spring_all = job
+    Q = problem.quantities
+    K = len(folds)
+    after_fold = np.zeros(K)
+    after_q = np.zeros((K, len(Q)))
+    fold_vals = []
+    for k, held in enumerate(folds):
+        fit = _fit_effect(problem, eff, train_rows_f[k], spring_f[k])
+        fold_vals.append(fit.values)
+        mods = eff.mods(fit.values)
+        for i, m in held:
+            za = problem.norm_resid(i, mods, fit.spring, m)
+            after_fold[k] += np.sum(za ** 2)
+            nm = int(m.sum())
+            for j, q in enumerate(Q):
+                after_q[k, j] += np.sum((za[j * nm:(j + 1) * nm] * problem.sigma[q]) ** 2)
+    full = _fit_effect(problem, eff, all_rows, spring_all)
+    return after_fold, after_q, fold_vals, full
+
+
+def _n_workers(workers, n_jobs: int) -> int:
+    """Processes for the candidate fits (default 1; never inside a daemon process)."""
+    import multiprocessing as mp
+
+    if workers is None or mp.current_process().daemon:
+        return 1
+    return max(1, min(int(workers), n_jobs))
 
 
 def _common_unit(Q) -> str:

@@ -279,7 +279,15 @@ def _check_kind(kind: str) -> None:
         raise ConfigError(f"unknown rig kind {kind!r}", hint="one of " + ", ".join(DEFAULT_RUNS))
 
 
-def protocol(kind: str, rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+OVEN_PROGRAMS = ("heating", "heat-cool")
+"""Static oven programs: the thesis's heating-only 25 -> 150 degC steps, or the
+same steps up and back down to 25 degC (a cooling branch: 51 readings), the
+experiment that separates sensor drift and thermal lag from temperature-only
+effects."""
+
+
+def protocol(kind: str, rig: Rig, rng: np.random.Generator, oven: str = "heating"
+             ) -> pd.DataFrame:
     """The exact programmed quantities of one run (SI, internal names).
 
     Parameters
@@ -291,6 +299,8 @@ def protocol(kind: str, rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
     rng : numpy.random.Generator
         Draws the oven regulation error (static) and the timing jitter
         (dynamic); the sensing and curvature programs are deterministic.
+    oven : {"heating", "heat-cool"}
+        Static oven program (:data:`OVEN_PROGRAMS`).
 
     Returns
     -------
@@ -302,6 +312,11 @@ def protocol(kind: str, rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
     _check_kind(kind)
     if kind == "static":
         steps = np.asarray(OVEN_STEPS_C)
+        if oven == "heat-cool":
+            steps = np.concatenate([steps, steps[-2::-1]])
+        elif oven != "heating":
+            raise ConfigError(f"unknown oven program {oven!r}",
+                              hint="one of " + ", ".join(OVEN_PROGRAMS))
         temp = steps + rng.normal(0.0, OVEN_REGULATION_SD_C, steps.size)
         return pd.DataFrame({"time": np.arange(steps.size) * OVEN_DWELL_S, "temperature": temp})
     if kind == "dynamic":
@@ -864,7 +879,7 @@ def _jsonable(obj):
 def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, Any] | None = None,
              n_runs: int | None = None, scatter: Mapping[str, float] | None = None,
              noise_scale: float = 1.0, name: str | None = None,
-             command: str | None = None) -> SimulationResult:
+             command: str | None = None, oven: str = "heating") -> SimulationResult:
     """Simulate an experiment of one rig kind and write it like a lab would.
 
     Parameters
@@ -896,6 +911,8 @@ def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, A
     command : str, optional
         The command line recorded in ``[synthetic]`` (``--effect`` options
         are removed there, kept in the truth file).
+    oven : {"heating", "heat-cool"}
+        Static oven program (:data:`OVEN_PROGRAMS`); ignored for other kinds.
 
     Returns
     -------
@@ -927,6 +944,8 @@ def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, A
     out = Path(out_dir)
     full_command = command if command is not None else _default_command(
         kind, template_arg, seed, out_dir, n_runs, noise_scale, None if name == exp.name else name)
+    if kind == "static" and oven != "heating" and command is None:
+        full_command += f" --oven {oven}"
     full_command_truth = full_command
     if effects and command is None:
         full_command_truth += "".join(
@@ -936,7 +955,7 @@ def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, A
     sample0, rig0 = exp.sample, exp.rig
     # One stream per run, drawn in a fixed order: protocol, scatter, then noise.
     rngs = [np.random.default_rng([int(seed), k]) for k in range(n)]
-    protos = [protocol(kind, rig0, rngs[k]) for k in range(n)]
+    protos = [protocol(kind, rig0, rngs[k], oven) for k in range(n)]
     trues = [_scattered(kind, sample0, rig0, scatter, rngs[k]) for k in range(n)]
     sd = noise_sd(kind, sample0, rig0, noise_scale=noise_scale)
     if noise_scale == 0:

@@ -33,7 +33,7 @@ import numpy as np
 
 from tcamlab.errors import ConvergenceError, ModelDomainError
 from tcamlab.models import static as _static
-from tcamlab.models._roots import MAXITER, RootResult, bracketed_newton
+from tcamlab.models._roots import MAXITER, bracketed_newton
 
 __all__ = ["diameter_from_resistance", "resistance_from_diameter", "torque",
            "invert", "forward", "conditioning", "Conditioning", "ILL_CONDITIONED_MARGIN"]
