@@ -7,7 +7,6 @@ Exit status: 0 success, 1 a threshold failed, 2 bad input (one-line error).
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 from pathlib import Path
@@ -63,6 +62,62 @@ def _run(fn):
     except PermissionError as exc:
         typer.echo(f"error: {exc.filename}: permission denied", err=True)
         raise typer.Exit(code=2)
+    except OSError as exc:  # e.g. a path that is a folder, a name too long
+        where = f"{exc.filename}: " if exc.filename else ""
+        typer.echo(f"error: {where}{exc.strerror or exc}", err=True)
+        raise typer.Exit(code=2)
+
+
+def _shown_path(p: Path) -> str:
+    """A path as shown in a report: relative to the working directory when below it,
+    else elided to its name, so reports carry no absolute paths."""
+    if not p.is_absolute():
+        return p.as_posix()
+    try:
+        return p.relative_to(Path.cwd()).as_posix()
+    except ValueError:
+        return ".../" + p.name
+
+
+def _validate_command(kind: str, experiment: Path, drop_na: bool,
+                      mc_draws: Optional[int]) -> str:
+    """The validate command line as shown in the report's provenance.
+
+    Rebuilt from the parsed options (not sys.argv), with the experiment path
+    made relative and only the options that change the report's content, so
+    the report is byte-identical wherever the lab folder lives and wherever
+    the report is written (--out, --format, --json, --max-bytes do not
+    change a byte of it).
+    """
+    parts = ["tcamlab", "validate", kind, _shown_path(experiment)]
+    if drop_na:
+        parts.append("--drop-na")
+    if mc_draws is not None:
+        parts += ["--mc-draws", str(mc_draws)]
+    return " ".join(parts)
+
+
+_MAX_BYTES_HELP = ("Refuse CSV logs larger than this many bytes (default 2 GiB); "
+                   "K, M or G suffixes allowed, e.g. 500M.")
+
+
+def _max_bytes(value: Optional[str]) -> Optional[int]:
+    """Parse --max-bytes: a positive integer, optionally with a K/M/G (binary) suffix."""
+    if value is None:
+        return None
+    text = value.strip()
+    factor = 1
+    if text[-1:].upper() in ("K", "M", "G"):
+        factor = 1024 ** ("KMG".index(text[-1].upper()) + 1)
+        text = text[:-1]
+    try:
+        n = int(text) * factor
+    except ValueError:
+        n = 0
+    if n <= 0:
+        raise typer.BadParameter(f"expected a positive number of bytes such as 1000000 or 500M, "
+                                 f"got {value!r}", param_hint="'--max-bytes'")
+    return n
 
 
 def _command_line() -> str:
@@ -90,12 +145,13 @@ def _main(version: bool = typer.Option(False, "--version", callback=_version_cal
 # -- validate -------------------------------------------------------------------------
 
 def _validate(kind: str, experiment: Path, out: Path, fmt: str, as_json: bool,
-              drop_na: bool, mc_draws: Optional[int]) -> None:
+              drop_na: bool, mc_draws: Optional[int], max_bytes: Optional[int]) -> None:
     from tcamlab.pipeline import validate_experiment
 
+    command = _validate_command(kind, experiment, drop_na, mc_draws)
     outcome = _run(lambda: validate_experiment(
         experiment, out, expected_kind=kind, formats=fmt, drop_na=drop_na,
-        mc_draws=mc_draws, command=_command_line()))
+        mc_draws=mc_draws, max_bytes=max_bytes, command=command))
     res = outcome.result
     if as_json:
         _print_json(res.to_dict())
@@ -120,9 +176,10 @@ def _make_validate(kind: str, example: str):
         fmt: str = typer.Option("html,pdf", "--format", help="Report formats: html, pdf or html,pdf."),
         as_json: bool = typer.Option(False, "--json", help="Print metrics.json to stdout."),
         drop_na: bool = typer.Option(False, "--drop-na", help="Drop rows with blank cells (counted in the report)."),
-        mc_draws: Optional[int] = typer.Option(None, "--mc-draws", help="Monte Carlo draws for the dynamic band (default 1000)."),
+        mc_draws: Optional[int] = typer.Option(None, "--mc-draws", min=0, help="Monte Carlo draws for the dynamic band (default 1000)."),
+        max_bytes: Optional[str] = typer.Option(None, "--max-bytes", metavar="N", help=_MAX_BYTES_HELP),
     ):
-        _validate(kind, experiment, out, fmt, as_json, drop_na, mc_draws)
+        _validate(kind, experiment, out, fmt, as_json, drop_na, mc_draws, _max_bytes(max_bytes))
 
     command.__doc__ = (f"Validate the {kind} model against an experiment's runs.\n\n"
                        f"Writes OUT/NAME/report.html, report.pdf, metrics.json and "
@@ -146,12 +203,18 @@ def report(
     experiments: Optional[List[Path]] = typer.Argument(None, help="Experiment files (default: all of experiments/).", metavar="[EXPERIMENT.toml]..."),
     out: Path = typer.Option(Path("reports"), "--out", help="Output folder."),
     experiments_dir: Path = typer.Option(Path("experiments"), "--experiments", help="Folder searched when no files are given."),
-    mc_draws: Optional[int] = typer.Option(None, "--mc-draws", help="Monte Carlo draws for dynamic bands."),
+    mc_draws: Optional[int] = typer.Option(None, "--mc-draws", min=0, help="Monte Carlo draws for dynamic bands."),
+    drop_na: bool = typer.Option(False, "--drop-na", help="Drop rows with blank cells (counted in each report)."),
+    max_bytes: Optional[str] = typer.Option(None, "--max-bytes", metavar="N", help=_MAX_BYTES_HELP),
 ):
     """Validate every experiment; write each report, index.html and one combined PDF.
 
+    An experiment that cannot be validated is listed in the index with its error
+    (exit status 2); the others still build.
+
     Example: tcamlab report --out reports
     """
+    limit = _max_bytes(max_bytes)
     from tcamlab.pipeline import build_reports
 
     interactive = sys.stderr.isatty() and not os.environ.get("CI")
@@ -164,7 +227,8 @@ def report(
 
     outcome = _run(lambda: build_reports(experiments or None, out,
                                          experiments_dir=experiments_dir,
-                                         mc_draws=mc_draws, progress=progress))
+                                         mc_draws=mc_draws, drop_na=drop_na,
+                                         max_bytes=limit, progress=progress))
     if interactive:
         typer.echo("", err=True)
     for e in outcome.entries:
@@ -190,6 +254,8 @@ def fit_spring(
     no_branches: bool = typer.Option(False, "--no-branches", help="Do not split loading and unloading branches."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write the fit and residual plot (.svg or .png)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+    drop_na: bool = typer.Option(False, "--drop-na", help="Drop rows with blank cells."),
+    max_bytes: Optional[str] = typer.Option(None, "--max-bytes", metavar="N", help=_MAX_BYTES_HELP),
 ):
     """Identify the spring constant S of F = S delta (thesis section 3.3).
 
@@ -200,8 +266,10 @@ def fit_spring(
     """
     from tcamlab.pipeline import fit_spring_files
 
+    limit = _max_bytes(max_bytes)
     rep = _run(lambda: fit_spring_files(inputs, intercept=intercept, robust=robust,
-                                        by_branch=not no_branches, plot_path=plot))
+                                        by_branch=not no_branches, plot_path=plot,
+                                        drop_na=drop_na, max_bytes=limit))
     if as_json:
         _print_json(rep.to_dict())
         return

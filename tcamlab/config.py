@@ -71,6 +71,9 @@ RIG_DEFAULT = "tcamlab default (tcamlab.params.Rig; not set by the preset or the
 
 _LIST_KEYS = {"segment_lengths_mm"}
 
+MAX_EXPERIMENT_BYTES = 1024**2
+"""Largest experiment file :func:`load_experiment` reads [bytes] (1 MiB)."""
+
 # --- pydantic models ----------------------------------------------------------
 
 _STRICT = ConfigDict(extra="forbid", strict=True)
@@ -245,7 +248,8 @@ class Experiment:
         list of tcamlab.io.RunData
         """
         return [
-            tio.read_run(p, self.kind, self.columns, drop_na=drop_na, max_bytes=max_bytes)
+            tio.read_run(p, self.kind, self.columns, drop_na=drop_na, max_bytes=max_bytes,
+                         shown=_display_path(p))
             for p in self.runs
         ]
 
@@ -332,6 +336,25 @@ def _hint_for(loc: tuple) -> str | None:
     return hints.get(loc[0]) if loc else None
 
 
+def _is_dir(p: Path) -> bool:
+    try:
+        return p.is_dir()
+    except OSError:
+        return False
+
+
+def _display_path(p: Path) -> str:
+    """``p`` relative to the working directory when it lies below it, else as it is.
+
+    Error messages end up in ``index.html``; this keeps the absolute location
+    of the user's working directory out of them.
+    """
+    try:
+        return str(p.relative_to(Path.cwd().resolve()))
+    except (ValueError, OSError):
+        return str(p)
+
+
 def _finite(shown: str, key: str, value: Any) -> float:
     if not math.isfinite(value):
         raise ConfigError(f"{shown}: {key}: expected a finite number, got {value!r}")
@@ -367,14 +390,34 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *
     """
     p = Path(path)
     shown = str(path)
-    if not p.is_file():
+    try:
+        is_file, exists = p.is_file(), p.exists()
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{shown}: cannot be used as a file name "
+                          f"({getattr(exc, 'strerror', None) or exc})") from None
+    if not is_file:
         raise ConfigError(
-            f"{shown}: experiment file not found" if not p.exists() else f"{shown}: not a file",
+            f"{shown}: experiment file not found" if not exists else f"{shown}: not a file",
             "experiment files live in experiments/NAME.toml",
         )
     try:
-        with open(p, "rb") as fh:
-            raw = tomllib.load(fh)
+        size = p.stat().st_size
+        if size > MAX_EXPERIMENT_BYTES:
+            raise ConfigError(
+                f"{shown}: experiment file is {size} bytes, larger than the limit of "
+                f"{MAX_EXPERIMENT_BYTES} bytes",
+                "an experiment file is a few lines of TOML; check that the right file is named",
+            )
+        data = p.read_bytes()
+    except OSError as exc:
+        raise ConfigError(f"{shown}: cannot read the file ({exc.strerror or exc})",
+                          "check that it exists and is readable") from None
+    # Editors on Windows often save UTF-8 with a byte-order mark, which
+    # tomllib refuses as an "invalid statement" at line 1: accept it.
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        raw = tomllib.loads(data.decode("utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(
             f"{shown}: TOML syntax error: {' '.join(str(exc).split())}",
@@ -382,6 +425,8 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *
         ) from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{shown}: not UTF-8 text ({exc.reason} at byte {exc.start})", "save it as UTF-8") from None
+    except RecursionError:
+        raise ConfigError(f"{shown}: TOML nested too deeply", "arrays and tables nest only a few levels in an experiment file") from None
 
     try:
         doc = (_ExperimentFile if require_runs else _TemplateFile).model_validate(raw)
@@ -399,11 +444,24 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *
     base = p.resolve().parent
     runs = []
     for i, run in enumerate(doc.runs):
-        rp = Path(run)
-        rp = (rp if rp.is_absolute() else base / rp).resolve()
-        if require_runs and not rp.is_file():
+        shown_run = _short(run)
+        if not run.strip() or "\x00" in run:
+            raise ConfigError(f"{shown}: runs[{i}]: {shown_run} is not a file name",
+                              'e.g. runs = ["../raw/run1.csv"] (relative to the experiment file)')
+        try:
+            rp = Path(run)
+            rp = (rp if rp.is_absolute() else base / rp).resolve()
+            is_file = rp.is_file()
+        except (OSError, ValueError) as exc:
             raise ConfigError(
-                f"{shown}: runs[{i}]: run file {run!r} not found (looked for {rp})",
+                f"{shown}: runs[{i}]: {shown_run} cannot be used as a file name "
+                f"({getattr(exc, 'strerror', None) or exc})",
+                "run paths are relative to the experiment file",
+            ) from None
+        if require_runs and not is_file:
+            what = "is a folder, not a file" if _is_dir(rp) else "not found"
+            raise ConfigError(
+                f"{shown}: runs[{i}]: run file {shown_run} {what} (looked for {_display_path(rp)})",
                 "run paths are relative to the experiment file",
             )
         runs.append(rp)

@@ -494,11 +494,17 @@ class _Layout:
 def _sniff(path: Path, shown: str) -> _Layout:
     """Find the header line, encoding, delimiter and decimal mark."""
     with open(path, "rb") as fh:
-        first = fh.read(4)
+        first = fh.read(8192)
         if first.startswith((b"\xff\xfe", b"\xfe\xff")):
             raise InputError(
                 f"{shown}: file is UTF-16 encoded",
                 "save it as CSV in UTF-8 (or Latin-1); in Excel: 'CSV UTF-8 (comma delimited)'",
+            )
+        nul = first.find(b"\x00")
+        if nul >= 0:
+            raise InputError(
+                f"{shown}: not a text CSV file (NUL byte at byte {nul + 1})",
+                "a run is a text CSV file; check that the right file is named",
             )
         fh.seek(0)
         raw_lines: list[bytes] = []
@@ -650,6 +656,7 @@ def read_run(
     *,
     drop_na: bool = False,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    shown: str | None = None,
 ) -> RunData:
     """Read one rig CSV log into validated SI data.
 
@@ -671,7 +678,10 @@ def read_run(
         Drop rows with blank or NaN cells in the needed columns (counted in
         ``n_dropped``) instead of raising.
     max_bytes : int
-        Refuse files larger than this [bytes]; default 2 GiB.
+        Refuse files larger than this [bytes]; default 2 GiB. The size is
+        checked before anything is read.
+    shown : str, optional
+        How error messages name the file (default: ``str(path)``).
 
     Returns
     -------
@@ -688,8 +698,30 @@ def read_run(
         below absolute zero; force of the wrong sign in a pull test; fewer
         rows than :data:`MIN_ROWS` for the kind.
     """
-    p = Path(path)
-    shown = str(path)
+    shown = str(path) if shown is None else shown
+    if "\x00" in str(path):
+        raise InputError(f"{shown!r}: not a file name (it holds a NUL character)")
+    try:
+        return _read_run(Path(path), shown, kind, columns, drop_na, max_bytes)
+    except OSError as exc:  # unreadable, a FIFO that vanished, name too long ...
+        raise InputError(
+            f"{shown}: cannot read the file ({exc.strerror or exc})",
+            "check that the file exists and is readable",
+        ) from None
+
+
+def _size_text(n: int) -> str:
+    """Bytes as text: exact below 1 MiB, else in MiB/GiB."""
+    if n < 1024**2:
+        return f"{n} bytes"
+    if n < 1024**3:
+        return f"{n / 1024**2:.1f} MiB"
+    return f"{n / 1024**3:.2f} GiB"
+
+
+def _read_run(p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None,
+              drop_na: bool, max_bytes: int) -> RunData:
+    """:func:`read_run` without the translation of OSError."""
     if kind not in REQUIRED:
         raise InputError(f"{shown}: unknown run kind {kind!r}", "one of " + ", ".join(KINDS))
     if not p.exists():
@@ -699,10 +731,10 @@ def read_run(
     size = p.stat().st_size
     if size > max_bytes:
         raise InputError(
-            f"{shown}: file is {size / 1024**2:.1f} MiB, larger than the limit of "
-            f"{max_bytes / 1024**2:.1f} MiB",
-            "raise the limit with read_run(..., max_bytes=N) (CLI: --max-bytes N) "
-            "if the file really is this large",
+            f"{shown}: file is {_size_text(size)}, larger than the limit of "
+            f"{_size_text(max_bytes)}",
+            "if the file really is this large, raise the limit with --max-bytes N "
+            "(library: read_run(..., max_bytes=N))",
         )
     if size == 0:
         raise InputError(f"{shown}: file is empty", "a run needs a header line and data rows")

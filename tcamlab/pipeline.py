@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import io as _stdio
 import json
+import os
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
+from urllib.parse import quote
 
-import numpy as np
 import pandas as pd
 
 from tcamlab.config import Experiment, load_experiment
@@ -32,14 +34,24 @@ def dumps_json(obj) -> str:
     return json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
 
 
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
 def neutralise_csv(df: pd.DataFrame) -> pd.DataFrame:
-    """Prefix text cells that a spreadsheet would run as a formula (= + - @) with '."""
+    """Prefix text cells that a spreadsheet would run as a formula (= + - @) with '.
+
+    Only text cells change: numeric columns (negative numbers included) are
+    left as numbers. Text columns may be ``object`` or pandas' string dtype
+    (the default for text from pandas 3 on), so the test is "not numeric",
+    not ``dtype == object``.
+    """
     out = df.copy()
     for col in out.columns:
-        if out[col].dtype == object:
-            out[col] = out[col].map(
-                lambda v: "'" + v if isinstance(v, str) and v[:1] in ("=", "+", "-", "@", "\t",
-                                                                       "\r") else v)
+        series = out[col]
+        if pd.api.types.is_numeric_dtype(series) or pd.api.types.is_bool_dtype(series):
+            continue
+        out[col] = series.map(
+            lambda v: "'" + v if isinstance(v, str) and v.startswith(_FORMULA_START) else v)
     out.columns = [("'" + c) if str(c)[:1] in ("=", "+", "-", "@") else c for c in out.columns]
     return out
 
@@ -74,6 +86,7 @@ def _parse_formats(formats: Sequence[str] | str) -> tuple[str, ...]:
 
 def validate_experiment(path, out_dir="reports", *, expected_kind: str | None = None,
                         formats=FORMATS, mc_draws: int | None = None, drop_na: bool = False,
+                        max_bytes: int | None = None,
                         command: str | None = None) -> ValidateOutcome:
     """Validate one experiment and write ``out_dir/NAME/{report.html, report.pdf,
     metrics.json, predictions.csv}``.
@@ -92,6 +105,9 @@ def validate_experiment(path, out_dir="reports", *, expected_kind: str | None = 
         Monte Carlo draws for dynamic runs (default :data:`validation.MC_DRAWS`).
     drop_na : bool
         Drop rows with blank cells (counted in the report).
+    max_bytes : int, optional
+        Refuse run files larger than this [bytes] (default
+        :data:`tcamlab.io.DEFAULT_MAX_BYTES`).
     command : str, optional
         Command line shown in the report's provenance.
 
@@ -100,12 +116,10 @@ def validate_experiment(path, out_dir="reports", *, expected_kind: str | None = 
     ValidateOutcome
     """
     from tcamlab import validation
-    from tcamlab.report.validation_report import validation_document
-
     formats = _parse_formats(formats)
     exp = load_experiment(path, expected_kind=expected_kind)
     kw = {} if mc_draws is None else {"mc_draws": mc_draws}
-    result = validation.validate(exp, drop_na=drop_na, **kw)
+    result = validation.validate(exp, drop_na=drop_na, max_bytes=max_bytes, **kw)
     target = Path(out_dir) / exp.name
     files = _write_validation(result, target, formats, command)
     return ValidateOutcome(result, target, files)
@@ -126,11 +140,74 @@ def _write_validation(result, target: Path, formats, command) -> list[Path]:
         from tcamlab.report.pdf import render_pdf
 
         payload["report.pdf"] = render_pdf(doc)
-    files = []
-    for name, data in payload.items():
-        files.append(atomic_write_bytes(target / name, data))
+    files = write_all_or_nothing(target, payload)
     result.document = doc
     return files
+
+
+def write_all_or_nothing(target: Path, payload: dict[str, bytes]) -> list[Path]:
+    """Write several files of one report so that a failure leaves none of them half-done.
+
+    Every file is first written in full to a temporary file in ``target``
+    (``.NAME.XXXX.tmp``, flushed and fsynced); only when all are on disk are
+    they renamed over their final names (``os.replace``, atomic on POSIX and
+    Windows). If anything fails before the renames, the temporary files are
+    removed and no final file is touched. A process killed outright
+    (SIGKILL) before the renames leaves at most ``.*.tmp`` files, never a
+    truncated ``report.html``/``report.pdf``/``metrics.json``/``predictions.csv``.
+
+    Parameters
+    ----------
+    target : path-like
+        Folder receiving the files (created).
+    payload : dict of str to bytes
+        File name -> content.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The written files, in payload order.
+
+    Raises
+    ------
+    TcamlabError
+        When the file system refuses (permissions, disk full...).
+    """
+    from tcamlab.report.atomic import _default_mode
+
+    target = Path(target)
+    staged: list[tuple[Path, Path]] = []
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        for name, data in payload.items():
+            final = target / name
+            try:
+                mode = final.stat().st_mode & 0o7777
+            except FileNotFoundError:
+                mode = _default_mode()
+            fd, tmp_name = tempfile.mkstemp(dir=target, prefix=f".{name}.", suffix=".tmp")
+            tmp = Path(tmp_name)
+            staged.append((tmp, final))
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(tmp, mode)
+        for tmp, final in staged:
+            os.replace(tmp, final)
+    except BaseException as exc:
+        for tmp, _ in staged:
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
+        if isinstance(exc, OSError):
+            raise TcamlabError(
+                f"cannot write {target}: {exc.strerror or exc}",
+                hint="check free disk space and that the output directory is writable",
+            ) from exc
+        raise
+    return [final for _, final in staged]
 
 
 @dataclass
@@ -158,11 +235,14 @@ def _headline(result) -> dict[str, str]:
 
 def build_reports(paths: Sequence | None = None, out_dir="reports", *,
                   experiments_dir="experiments", mc_draws: int | None = None,
+                  drop_na: bool = False, max_bytes: int | None = None,
                   progress: Callable[[str, int, int], None] | None = None) -> ReportOutcome:
     """Validate every experiment, write each report, ``index.html`` and one combined PDF.
 
     An experiment that fails to load or validate is listed in the index with
-    its one-line error; the others still build.
+    its one-line error and gets no new report files; the others still build.
+    ``drop_na`` and ``max_bytes`` are passed to every experiment's
+    :func:`validate_experiment`.
     """
     from tcamlab.report.document import IndexDocument, IndexEntry
     from tcamlab.report.html import render_index_html
@@ -181,7 +261,8 @@ def build_reports(paths: Sequence | None = None, out_dir="reports", *,
         if progress:
             progress(p.name, i, len(paths))
         try:
-            outcome = validate_experiment(p, out, mc_draws=mc_draws, command=None)
+            outcome = validate_experiment(p, out, mc_draws=mc_draws, drop_na=drop_na,
+                                          max_bytes=max_bytes, command=None)
         except TcamlabError as exc:
             entries.append(IndexEntry(name=p.stem, title=p.stem, kind="?", status="error",
                                       metrics={}, link=None, error=exc.one_line()))
@@ -190,7 +271,7 @@ def build_reports(paths: Sequence | None = None, out_dir="reports", *,
         entries.append(IndexEntry(
             name=res.experiment.name, title=res.experiment.title, kind=res.kind,
             status="pass" if res.passed else "fail", metrics=_headline(res),
-            link=f"{res.experiment.name}/report.html", error=None))
+            link=f"{quote(res.experiment.name)}/report.html", error=None))
         docs.append(res.document)
     from tcamlab import __version__
 
@@ -203,25 +284,30 @@ def build_reports(paths: Sequence | None = None, out_dir="reports", *,
 
 
 def fit_spring_files(paths: Sequence, *, intercept: bool = False, robust: bool = False,
-                     by_branch: bool = True, plot_path=None):
+                     by_branch: bool = True, plot_path=None, drop_na: bool = False,
+                     max_bytes: int | None = None):
     """Identify S of F = S delta from pull-test CSVs or sensing experiment files.
 
     Returns a :class:`tcamlab.fitting.SpringFitReport`; writes the fit and
     residual plot to ``plot_path`` (SVG or PNG by extension) if given.
+    ``drop_na`` and ``max_bytes`` are passed to :func:`tcamlab.io.read_run`.
     """
     from tcamlab import io as tio
     from tcamlab.fitting import fit_spring_runs
 
+    read_kw: dict = {"drop_na": drop_na}
+    if max_bytes is not None:
+        read_kw["max_bytes"] = max_bytes
     runs = []
     for p in paths:
         p = Path(p)
         if p.suffix.lower() == ".toml":
             exp = load_experiment(p, expected_kind="sensing")
-            for r in exp.read_runs():
+            for r in exp.read_runs(**read_kw):
                 runs.append((r.path.stem, r.data["displacement"].to_numpy(float),
                              r.data["force"].to_numpy(float)))
         else:
-            r = tio.read_run(p, "sensing")
+            r = tio.read_run(p, "sensing", **read_kw)
             runs.append((r.path.stem, r.data["displacement"].to_numpy(float),
                          r.data["force"].to_numpy(float)))
     if not runs:
@@ -231,11 +317,15 @@ def fit_spring_files(paths: Sequence, *, intercept: bool = False, robust: bool =
         runs = [(f"{i + 1}:{n}", x, f) for i, (n, x, f) in enumerate(runs)]
     report = fit_spring_runs(runs, intercept=intercept, robust=robust, by_branch=by_branch)
     if plot_path is not None:
-        from tcamlab.report.figures import figure_to_png, figure_to_svg, new_figure
+        from tcamlab.report.figures import figure_to_png, figure_to_svg
 
-        fig, (ax1, ax2) = _two_axes()
-        report.plot(ax1)
-        report.pooled.plot_residuals(ax2)
+        import matplotlib
+
+        # Run names come from file names: '$' must not start matplotlib mathtext.
+        with matplotlib.rc_context({"text.parse_math": False}):
+            fig, (ax1, ax2) = _two_axes()
+            report.plot(ax1)
+            report.pooled.plot_residuals(ax2)
         plot_path = Path(plot_path)
         if plot_path.suffix.lower() == ".png":
             atomic_write_bytes(plot_path, figure_to_png(fig))

@@ -16,7 +16,7 @@ import pandas as pd
 
 from tcamlab import forward
 from tcamlab.config import Experiment
-from tcamlab.errors import InputError, ModelDomainError
+from tcamlab.errors import ConvergenceError, InputError, IntegrationError, ModelDomainError
 from tcamlab.io import RunData
 from tcamlab.metrics import check_thresholds, error_metrics, pooled_metrics
 
@@ -228,13 +228,32 @@ def _run_names(runs: list[RunData]) -> list[str]:
 
 # -- per kind -----------------------------------------------------------------------
 
+_MODEL_ERRORS = (ModelDomainError, ConvergenceError, IntegrationError)
+
+
+def _in_run(exp: Experiment, name: str, fn, *args, **kwargs):
+    """Call a model; name the experiment file and the run in any model error.
+
+    A parameter set with no physical solution (G_t' <= 0 in the run's
+    temperature range, S f11 >= 1 ...) then reads, on one line,
+    ``static.toml, run static_run1: <reason> (hint: ...)``.
+    """
+    try:
+        return fn(*args, **kwargs)
+    except _MODEL_ERRORS as exc:
+        prefix = f"{exp.path.name}, run {name}: "
+        if exc.message.startswith(prefix):
+            raise
+        raise type(exc)(prefix + exc.message, exc.hint) from None
+
 def _static(exp: Experiment, runs, names):
     variants = ["G(T)", "constant-G"]
     preds = []
     for r, name in zip(runs, names):
         predicted = {
-            "G(T)": forward.predict_static(exp.sample, exp.rig, r.data),
-            "constant-G": forward.predict_static(exp.sample, exp.rig, r.data, constant_g=True),
+            "G(T)": _in_run(exp, name, forward.predict_static, exp.sample, exp.rig, r.data),
+            "constant-G": _in_run(exp, name, forward.predict_static, exp.sample, exp.rig,
+                                  r.data, constant_g=True),
         }
         preds.append(RunPrediction(name, r.data, predicted))
     return variants, "G(T)", preds, [], {}
@@ -246,14 +265,16 @@ def _dynamic(exp: Experiment, runs, names, mc_draws, seed):
     preds, notes = [], []
     mc_summary = {}
     for r, name in zip(runs, names):
-        predicted = {"G(T)": forward.predict_dynamic(exp.sample, exp.rig, r.data)}
+        predicted = {"G(T)": _in_run(exp, name, forward.predict_dynamic, exp.sample, exp.rig,
+                                     r.data)}
         band = None
         t = r.data["time"].to_numpy(float)
         if mc_draws and exp.rig.uncertainty:
             grid = np.arange(t[0], t[-1] + MC_GRID / 2, MC_GRID)
             idx = np.searchsorted(t, grid, side="right") - 1
             volts = r.data["voltage"].to_numpy(float)[np.clip(idx, 0, t.size - 1)]
-            mc = dyn.monte_carlo(grid, volts, exp.sample, exp.rig, n_draws=mc_draws, seed=seed)
+            mc = _in_run(exp, name, dyn.monte_carlo, grid, volts, exp.sample, exp.rig,
+                         n_draws=mc_draws, seed=seed)
             lo, med, hi = (np.interp(t, mc.time, q) for q in mc.band())
             band = {"lower": lo, "median": med, "upper": hi}
             meas = r.data["displacement"].to_numpy(float)
@@ -303,7 +324,7 @@ def _sensing(exp: Experiment, runs, names):
                 n for j, n in enumerate(names) if j != i)
         r0 = (exp.rig.initial_resistance if exp.rig.initial_resistance is not None
               else float(r.data["resistance"].iloc[0]))
-        cond = sens.conditioning(s_val, **geo)
+        cond = _in_run(exp, name, sens.conditioning, s_val, **geo)
         info = {"spring_constant_N_per_m": s_val, "spring_constant_source": source,
                 "initial_resistance_ohm": r0,
                 "initial_resistance_source": ("experiment file"
@@ -313,12 +334,9 @@ def _sensing(exp: Experiment, runs, names):
         spring[name] = info
         if cond.status != "ok":
             notes.append(f"{name}: sensing inversion {cond.describe()}")
-        try:
-            predicted = {"thesis": forward.predict_sensing(
-                exp.sample, exp.rig, r.data, spring_constant=s_val, initial_resistance=r0)}
-        except ModelDomainError as exc:
-            raise ModelDomainError(f"{exp.path.name}, run {name}: {exc.message}",
-                                   exc.hint) from None
+        predicted = {"thesis": _in_run(
+            exp, name, forward.predict_sensing, exp.sample, exp.rig, r.data,
+            spring_constant=s_val, initial_resistance=r0)}
         preds.append(RunPrediction(name, r.data, predicted, info=info))
     return ["thesis"], "thesis", preds, notes, {"spring_constant": spring}
 
@@ -330,17 +348,17 @@ def _curvature(exp: Experiment, runs, names):
     preds = []
     for r, name in zip(runs, names):
         r0 = (float(r.data["r1"].iloc[0]), float(r.data["r2"].iloc[0]))
-        predicted = {"thesis": forward.predict_curvature(
-            exp.sample, exp.rig, r.data, spring_constant=exp.rig.spring_constant,
-            initial_resistances=r0)}
+        predicted = {"thesis": _in_run(
+            exp, name, forward.predict_curvature, exp.sample, exp.rig, r.data,
+            spring_constant=exp.rig.spring_constant, initial_resistances=r0)}
         preds.append(RunPrediction(name, r.data, predicted,
                                    info={"initial_resistances_ohm": r0}))
     return ["thesis"], "thesis", preds, [], {}
 
 
 def validate(experiment: Experiment, runs: list[RunData] | None = None, *,
-             mc_draws: int = MC_DRAWS, seed: int = 0, drop_na: bool = False
-             ) -> ValidationResult:
+             mc_draws: int = MC_DRAWS, seed: int = 0, drop_na: bool = False,
+             max_bytes: int | None = None) -> ValidationResult:
     """Validate the thesis model of ``experiment.kind`` against its runs.
 
     Parameters
@@ -354,12 +372,17 @@ def validate(experiment: Experiment, runs: list[RunData] | None = None, *,
         Seed of the Monte Carlo draws.
     drop_na : bool
         Drop blank cells on reading (counted in the report).
+    max_bytes : int, optional
+        Refuse run files larger than this [bytes] (default
+        :data:`tcamlab.io.DEFAULT_MAX_BYTES`).
 
     Returns
     -------
     ValidationResult
     """
-    runs = experiment.read_runs(drop_na=drop_na) if runs is None else runs
+    if runs is None:
+        kw = {} if max_bytes is None else {"max_bytes": max_bytes}
+        runs = experiment.read_runs(drop_na=drop_na, **kw)
     names = _run_names(runs)
     kind = experiment.kind
     if kind == "static":

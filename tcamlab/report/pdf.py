@@ -1,7 +1,8 @@
 """PDF rendering with reportlab platypus (pure Python, no system libraries).
 
 Output is reproducible: reportlab's ``invariant`` mode fixes the document ID
-and dates, the info dictionary is fixed, fonts are the DejaVu TTFs shipped
+and dates (``SOURCE_DATE_EPOCH`` is hidden from it, so the variable changes
+nothing), the info dictionary is fixed, fonts are the DejaVu TTFs shipped
 with matplotlib (so Greek letters and units render; Helvetica is the
 fallback), and figures are embedded as deterministic PNGs.
 
@@ -11,7 +12,9 @@ is laid out twice to learn M.  Headings get PDF outline (bookmark) entries.
 
 from __future__ import annotations
 
+import contextlib
 import io
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -517,11 +520,29 @@ def _build(make_flowables: Callable[[_Ctx], list[Any]], title: str, subject: str
         doc.build(flowables)
         return buf.getvalue(), doc.page
 
-    _, pages = run(None)
-    data, pages2 = run(pages)
-    if pages2 != pages:  # footer text cannot change layout, but be safe
-        data, _ = run(pages2)
+    with _without_source_date_epoch():
+        _, pages = run(None)
+        data, pages2 = run(pages)
+        if pages2 != pages:  # footer text cannot change layout, but be safe
+            data, _ = run(pages2)
     return data
+
+
+@contextlib.contextmanager
+def _without_source_date_epoch():
+    """Hide ``SOURCE_DATE_EPOCH`` from reportlab while a PDF is built.
+
+    reportlab stamps CreationDate/ModDate from ``SOURCE_DATE_EPOCH`` even in
+    invariant mode. tcamlab's outputs embed no date at all (they depend only
+    on the inputs), so the variable must not change a single byte; with it
+    hidden, invariant mode uses its fixed date (2000-01-01).
+    """
+    saved = os.environ.pop("SOURCE_DATE_EPOCH", None)
+    try:
+        yield
+    finally:
+        if saved is not None:
+            os.environ["SOURCE_DATE_EPOCH"] = saved
 
 
 def render_pdf(doc: Document) -> bytes:

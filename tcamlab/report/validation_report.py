@@ -111,7 +111,26 @@ def _threshold_table(result) -> Table | None:
                          f"{result.primary} model")
 
 
+def _run_label(name: str) -> str:
+    """A run name (a file stem, so user text) made safe as a matplotlib legend label.
+
+    matplotlib hides artists whose label starts with '_' from the legend; a
+    leading space keeps such runs visible. Mathtext ('$...$') is switched off
+    where the figures are drawn (see :func:`_figures`).
+    """
+    return " " + name if name.startswith("_") else name
+
+
 def _figures(result) -> list[Figure]:
+    """The report's figures, drawn with mathtext off: run names are file names and a
+    '$' in one must be shown as it is, not parsed (or fail to parse) as TeX."""
+    import matplotlib
+
+    with matplotlib.rc_context({"text.parse_math": False}):
+        return _draw_figures(result)
+
+
+def _draw_figures(result) -> list[Figure]:
     kind = result.kind
     figs = []
     if kind == "static":
@@ -119,11 +138,11 @@ def _figures(result) -> list[Figure]:
         for p in result.predictions:
             t = p.data["temperature"].to_numpy()
             (line,) = ax.plot(t, p.data["displacement"] * 1e3, "o", ms=3,
-                              label=f"{p.name} measured")
+                              label=f"{_run_label(p.name)} measured")
             ax.plot(t, p.predicted["G(T)"]["displacement"] * 1e3, "-", color=line.get_color(),
-                    label=f"{p.name} G(T) model")
+                    label=f"{_run_label(p.name)} G(T) model")
             ax.plot(t, p.predicted["constant-G"]["displacement"] * 1e3, "--",
-                    color=line.get_color(), alpha=0.7, label=f"{p.name} constant-G model")
+                    color=line.get_color(), alpha=0.7, label=f"{_run_label(p.name)} constant-G model")
         ax.set_xlabel("temperature [°C]")
         ax.set_ylabel("displacement [mm]")
         ax.legend(fontsize=6, ncol=2)
@@ -137,9 +156,9 @@ def _figures(result) -> list[Figure]:
             if p.band is not None:
                 ax.fill_between(t, p.band["lower"] * 1e3, p.band["upper"] * 1e3, alpha=0.15)
             (line,) = ax.plot(t, p.data["displacement"] * 1e3, ".", ms=1.5,
-                              label=f"{p.name} measured")
+                              label=f"{_run_label(p.name)} measured")
             ax.plot(t, p.predicted["G(T)"]["displacement"] * 1e3, "-",
-                    color=line.get_color(), lw=1, label=f"{p.name} model")
+                    color=line.get_color(), lw=1, label=f"{_run_label(p.name)} model")
         ax.set_xlabel("time [s]")
         ax.set_ylabel("displacement [mm]")
         ax.legend(fontsize=6, ncol=2)
@@ -152,9 +171,9 @@ def _figures(result) -> list[Figure]:
             fig, ax = new_figure()
             for p in result.predictions:
                 r = p.data["resistance"].to_numpy()
-                (line,) = ax.plot(r, p.data[q] * factor, "o", ms=2, label=f"{p.name} measured")
+                (line,) = ax.plot(r, p.data[q] * factor, "o", ms=2, label=f"{_run_label(p.name)} measured")
                 ax.plot(r, p.predicted["thesis"][q] * factor, "-", color=line.get_color(),
-                        lw=1, label=f"{p.name} model")
+                        lw=1, label=f"{_run_label(p.name)} model")
             ax.set_xlabel("resistance [ohm]")
             ax.set_ylabel(f"{q} [{unit}]")
             ax.legend(fontsize=6, ncol=2)
@@ -166,9 +185,9 @@ def _figures(result) -> list[Figure]:
             c = p.data["cable"].to_numpy() * 1e3
             for q, marker in (("kappa1", "o"), ("kappa2", "s")):
                 (line,) = ax.plot(c, p.data[q] * 1e-3, marker, ms=3,
-                                  label=f"{p.name} {q} camera")
+                                  label=f"{_run_label(p.name)} {q} camera")
                 ax.plot(c, p.predicted["thesis"][q] * 1e-3, "-", color=line.get_color(),
-                        lw=1, label=f"{p.name} {q} model")
+                        lw=1, label=f"{_run_label(p.name)} {q} model")
         ax.set_xlabel("cable pull [mm]")
         ax.set_ylabel("curvature [1/mm]")
         ax.legend(fontsize=6, ncol=2)
@@ -183,7 +202,7 @@ def _figures(result) -> list[Figure]:
         name, factor = DISPLAY[q]
         for p in result.predictions:
             res = (p.predicted[result.primary][q] - p.data[q].to_numpy()) * factor
-            ax.plot(np.arange(res.size), res, ".", ms=2, label=f"{p.name} {name}")
+            ax.plot(np.arange(res.size), res, ".", ms=2, label=f"{_run_label(p.name)} {name}")
     ax.axhline(0.0, color="0.3", lw=0.8)
     ax.set_xlabel("row")
     ax.set_ylabel("predicted − measured")
