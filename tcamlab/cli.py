@@ -298,6 +298,24 @@ def _parse_effects(items: List[str]) -> dict:
     return out
 
 
+def _parse_scatter(items: Optional[List[str]]) -> Optional[dict]:
+    from tcamlab.errors import ConfigError
+
+    if not items:
+        return None
+    out = {}
+    for item in items:
+        field, sep, value = item.partition("=")
+        try:
+            out[field.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"--scatter {item!r}: expected FIELD=REL",
+                              hint="e.g. --scatter twists=0.002 (0.2% between runs)") from None
+        if not sep:
+            raise ConfigError(f"--scatter {item!r}: expected FIELD=REL")
+    return out
+
+
 @app.command("simulate")
 def simulate(
     kind: str = typer.Argument(..., help="static, dynamic, sensing or curvature."),
@@ -307,6 +325,9 @@ def simulate(
     effect: Optional[List[str]] = typer.Option(None, "--effect", help="NAME=STRENGTH, strength in multiples of the noise RMS (repeatable)."),
     runs: Optional[int] = typer.Option(None, "--runs", help="Number of runs (default 3)."),
     name: Optional[str] = typer.Option(None, "--name", help="Experiment name (default: the kind)."),
+    scatter: Optional[List[str]] = typer.Option(None, "--scatter", help="FIELD=REL: relative sd of a Sample/Rig field between runs, e.g. twists=0.002 (repeatable; default: the rig's small realistic scatter)."),
+    noise_scale: float = typer.Option(1.0, "--noise-scale", help="Multiply every instrument noise sd."),
+    oven: str = typer.Option("heating", "--oven", help="Static oven program: heating (thesis, 25->150 degC) or heat-cool (and back down)."),
 ):
     """Virtual rig: write synthetic run CSVs and an experiment file from the models.
 
@@ -325,7 +346,18 @@ def simulate(
 
         return rig.simulate(kind, experiment, seed=seed, out_dir=out,
                             effects=_parse_effects(effect), n_runs=runs, name=name,
-                            command=_command_line())
+                            scatter=_parse_scatter(scatter), noise_scale=noise_scale,
+                            oven=oven, command=command)
+
+    command = f"tcamlab simulate {kind} --experiment {experiment} --seed {seed} --out {out}"
+    for flag, value, default in (("--runs", runs, None), ("--name", name, None),
+                                 ("--noise-scale", noise_scale, 1.0), ("--oven", oven, "heating")):
+        if value != default:
+            command += f" {flag} {value}"
+    for item in scatter or []:
+        command += f" --scatter {item}"
+    for item in effect or []:
+        command += f" --effect {item}"
 
     res = _run(go)
     typer.echo(f"wrote {res.experiment_path} and {len(res.run_paths)} runs")
