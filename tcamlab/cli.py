@@ -408,21 +408,48 @@ def benchmark_diagnose(
     quick: bool = typer.Option(False, "--quick", help="The CI subset (under 5 minutes)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address."),
     out: Path = typer.Option(Path("reports/benchmark"), "--out", help="Output folder."),
-    seeds: int = typer.Option(10, "--seeds", help="Seeds per case (full run)."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes."),
+    seeds: int = typer.Option(10, "--seeds", help="Seeds per case (full run; --quick uses at most 2)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: all cores)."),
+    kind: Optional[List[str]] = typer.Option(None, "--kind", help="Only this rig kind (repeatable)."),
+    effect: Optional[List[str]] = typer.Option(None, "--effect", help="Only this effect (repeatable)."),
 ):
     """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
 
+    Simulates every effect at 1x, 3x and 10x the noise RMS (10 seeds), null cases and
+    pairs; diagnoses each with the effect withheld; writes benchmark.json, .md, .html, .pdf.
+
     Example: tcamlab benchmark diagnose --quick --out reports/benchmark
     """
+    from tcamlab.errors import ConfigError
+
+    kinds = tuple(kind) if kind else KINDS
+    bad = [k for k in kinds if k not in KINDS]
+    if bad:
+        _fail(ConfigError(f"--kind {bad[0]!r}: unknown kind", hint="one of " + ", ".join(KINDS)))
+
     def go():
         from tcamlab.benchmark import run_benchmark
 
         return run_benchmark(out, quick=quick, scheduler=scheduler, workers=workers,
-                             seeds=seeds)
+                             seeds=seeds, kinds=kinds, effects=list(effect) if effect else None)
 
     res = _run(go)
-    typer.echo(getattr(res, "summary_text", lambda: f"wrote {out}")())
+    sc = res.scores
+    for strength, acc in sorted(sc["accuracy_by_strength"].items(), key=lambda kv: float(kv[0])):
+        if acc.get("n"):
+            typer.echo(f"strength {strength}x: top-1 {acc['top1']:.2f}, top-3 {acc['top3']:.2f} "
+                       f"over {acc['n']} cases")
+    null = sc["null"]
+    if null["n"]:
+        typer.echo(f"null cases: {null['false_attributions']} false attributions of {null['n']}")
+    if sc.get("median_shrinkage_when_right") is not None:
+        typer.echo(f"median held-out shrinkage when right: "
+                   f"{100 * sc['median_shrinkage_when_right']:.0f}%")
+    if sc["errors"]:
+        typer.echo(f"{len(sc['errors'])} cases failed with an error (see benchmark.json)")
+    typer.echo(f"wrote {out}")
+    if sc["errors"]:
+        raise typer.Exit(code=2)
 
 
 # -- effects ----------------------------------------------------------------------------

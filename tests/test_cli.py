@@ -225,3 +225,30 @@ def test_simulate_unknown_effect_is_a_clear_error(tmp_path):
                                  "--out", str(tmp_path), "--effect", "glass-transitoin=3"])
     assert result.exit_code == 2
     assert "glass-transition" in result.output
+
+
+def test_diagnose_command_on_a_simulated_experiment(tmp_path):
+    result = runner.invoke(app, ["simulate", "curvature", "--experiment",
+                                 str(ROOT / "experiments/templates/curvature.toml"), "--seed", "4",
+                                 "--out", str(tmp_path), "--effect", "camera-placement=10"])
+    assert result.exit_code == 0, result.output
+    exp = tmp_path / "experiments/curvature.toml"
+    result = runner.invoke(app, ["diagnose", str(exp), "--json", "--out", str(tmp_path / "d")])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    assert doc["verdict"] == "attributed" and doc["effect"] == "camera-placement"
+    for name in ("diagnosis.json", "diagnosis.html", "diagnosis.pdf"):
+        assert (tmp_path / "d/curvature" / name).stat().st_size > 0
+    text = runner.invoke(app, ["diagnose", str(exp), "--effects", "camera-placement"])
+    assert text.exit_code == 0 and "verdict: attributed" in text.output
+
+
+def test_benchmark_diagnose_command_on_a_tiny_subset(tmp_path):
+    result = runner.invoke(app, ["benchmark", "diagnose", "--quick", "--seeds", "1",
+                                 "--kind", "curvature", "--effect", "camera-placement",
+                                 "--workers", "1", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert "strength 3.0x: top-1 1.00" in result.output
+    assert (tmp_path / "benchmark.json").exists() and (tmp_path / "benchmark.md").exists()
+    bad = runner.invoke(app, ["benchmark", "diagnose", "--kind", "oven"])
+    assert bad.exit_code == 2
