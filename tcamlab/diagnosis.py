@@ -375,6 +375,53 @@ SPRING_STEP = 0.01
 """Scale of the sensing spring-constant nuisance: S = S0 (1 + SPRING_STEP theta)."""
 
 
+DOMAIN_BISECTIONS = 24
+"""Bisection steps that locate the edge of a parameter's physical domain."""
+
+
+def _domain_bounds(problem: _Problem, effect: Effect, rows, spring, scales, lo, hi) -> None:
+    """Shrink each effect parameter's bounds (in place) to where the model is defined.
+
+    A library bound can lie outside the model's physical domain on these runs
+    (e.g. a G_t slope that makes G_t' <= 0 at the hottest reading). The fit
+    must stay inside the domain: a penalty wall there makes the objective
+    discontinuous and the optimiser stalls short of an optimum near the edge.
+    The edge is found by bisection between 0 (the thesis model) and the bound.
+    It is checked on the *inputs* of every run, withheld ones included: the
+    domain depends on inputs only (e.g. the hottest reading), and a parameter
+    fitted on the training runs must still give a prediction for the withheld
+    run. No measured output is used here.
+    """
+    k_eff = len(effect.params)
+
+    def valid(j, t):
+        theta = np.zeros(k_eff)
+        theta[j] = t
+        mods = effect.mods(theta * scales)
+        for i in range(len(problem.frames)):
+            try:
+                problem.predict(i, mods, spring)
+            except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError):
+                return False
+        return True
+
+    if not valid(0, 0.0):
+        return
+    for j in range(k_eff):
+        for bounds in (hi, lo):
+            b = bounds[j]
+            if not np.isfinite(b) or b == 0 or valid(j, b):
+                continue
+            good, bad = 0.0, b
+            for _ in range(DOMAIN_BISECTIONS):
+                mid = 0.5 * (good + bad)
+                if valid(j, mid):
+                    good = mid
+                else:
+                    bad = mid
+            bounds[j] = good
+
+
 def _fit_effect(problem: _Problem, effect: Effect | None, rows, spring, *, max_nfev: int = 60) -> _Fit:
     """Least-squares fit of an effect (None: only the nuisance) on the given rows.
 
@@ -401,6 +448,8 @@ def _fit_effect(problem: _Problem, effect: Effect | None, rows, spring, *, max_n
         return np.concatenate([problem.norm_resid(i, mods, sp, m) for i, m in rows])
 
     k = lo.size
+    if k_eff:
+        _domain_bounds(problem, effect, rows, spring, scales, lo, hi)
     if k == 0:
         r0 = fun(np.zeros(0))
         return _Fit(np.zeros(0), np.zeros(0), float(np.sum(r0 ** 2)), r0.size, None, True, spring)

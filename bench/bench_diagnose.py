@@ -1,0 +1,72 @@
+"""Time `tcamlab diagnose` on one five-run experiment of each rig kind.
+
+Run: python bench/bench_diagnose.py [--json out.json]
+
+Each experiment is simulated by the virtual rig (five runs, one effect at 3x
+the noise RMS, seed 1) in a temporary folder; then `diagnose` runs on it once
+to warm up (JIT compile, imports) and the best of three timed runs is
+reported, against the goal of 30 s on the 2-core machine. The reference is
+the same diagnosis restricted to one candidate effect, so the ratio shows
+what the full candidate set costs.
+"""
+
+import argparse
+import json
+import tempfile
+import time
+
+from tcamlab.config import load_experiment
+from tcamlab.diagnosis import diagnose
+from tcamlab.rig import simulate
+
+CASES = {
+    "static": "glass-transition",
+    "dynamic": "response-delay",
+    "sensing": "initial-slack",
+    "curvature": "camera-placement",
+}
+GOAL_S = 30.0
+
+
+def best_of(fn, n=3):
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", help="also write the numbers as JSON")
+    args = ap.parse_args()
+    rows = []
+    for kind, effect in CASES.items():
+        with tempfile.TemporaryDirectory() as tmp:
+            sim = simulate(kind, f"experiments/templates/{kind}.toml", seed=1, out_dir=tmp,
+                           effects={effect: 3.0}, n_runs=5)
+            exp = load_experiment(sim.experiment_path)
+            runs = exp.read_runs()
+            diagnose(exp, runs)  # warm-up: imports and JIT
+            full, res = best_of(lambda: diagnose(exp, runs))
+            one, _ = best_of(lambda: diagnose(exp, runs, effects=[effect]))
+            rows.append({"kind": kind, "effect": effect, "runs": 5,
+                         "rows": sum(len(r.data) for r in runs),
+                         "seconds": full, "seconds_one_candidate": one,
+                         "verdict": res.verdict, "attributed": res.effect,
+                         "pass": full < GOAL_S})
+    print("| kind | runs (rows) | withheld effect (3x) | diagnose, all candidates | one candidate |"
+          " verdict | goal < 30 s |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['kind']} | 5 ({r['rows']}) | {r['effect']} | {r['seconds']:.2f} s | "
+              f"{r['seconds_one_candidate']:.2f} s | {r['verdict']} ({r['attributed']}) | "
+              f"{'PASS' if r['pass'] else 'FAIL'} |")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(rows, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
