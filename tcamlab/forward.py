@@ -273,9 +273,7 @@ def predict_sensing(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = N
     r = data["resistance"].to_numpy(float)
     if mods.temperature_offset:
         r = r / (1.0 + SILVER_TCR * mods.temperature_offset)
-    kw = sample.model_kwargs()
-    kw.pop("radial_cte")
-    kw.pop("shear_modulus_slope")
+    kw = sample.sensor_kwargs()
     delta, _ = _sens.invert(r, initial_resistance, spring_constant, **kw)
     if mods.hysteresis:
         unloading = _unloading_mask(data["resistance"].to_numpy(float))
@@ -310,9 +308,7 @@ def predict_curvature(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods =
     dict
         ``kappa1``, ``kappa2`` [1/m].
     """
-    kw = sample.model_kwargs()
-    kw.pop("radial_cte")
-    kw.pop("shear_modulus_slope")
+    kw = sample.sensor_kwargs()
     lengths = np.asarray(rig.segment_lengths, float)
     res = np.vstack([data["r1"].to_numpy(float), data["r2"].to_numpy(float)])
     cable = data["cable"].to_numpy(float)

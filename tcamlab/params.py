@@ -91,6 +91,12 @@ class Sample:
         """The fields as keyword arguments for the model functions."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
+    def sensor_kwargs(self) -> dict[str, float]:
+        """Keyword arguments of the sensing and curvature models (no thermal fields)."""
+        kw = self.model_kwargs()
+        del kw["radial_cte"], kw["shear_modulus_slope"]
+        return kw
+
 
 def validate_sample(s: Sample, where: str = "[sample]") -> None:
     """Raise :class:`ConfigError` when a sample is physically impossible."""

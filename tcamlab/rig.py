@@ -349,13 +349,6 @@ def protocol(kind: str, rig: Rig, rng: np.random.Generator, oven: str = "heating
     return pd.DataFrame({"cable": np.arange(n) * CABLE_STEP_M})
 
 
-def _sensor_kwargs(sample: Sample) -> dict[str, float]:
-    kw = sample.model_kwargs()
-    kw.pop("radial_cte")
-    kw.pop("shear_modulus_slope")
-    return kw
-
-
 def _segment_curvatures(cable: np.ndarray, rig: Rig) -> np.ndarray:
     """Neutral-axis curvature of each segment (tip first) for a cable pull [1/m]."""
     lengths = np.asarray(rig.segment_lengths, float)
@@ -399,7 +392,7 @@ def exact_inputs(kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame,
     """
     if kind in ("static", "dynamic"):
         return proto.copy()
-    kw = _sensor_kwargs(sample)
+    kw = sample.sensor_kwargs()
     if kind == "sensing":
         if rig.spring_constant is None or rig.initial_resistance is None:
             raise ConfigError("sensing simulation needs spring_constant_N_per_m and "

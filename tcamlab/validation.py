@@ -302,9 +302,7 @@ def _sensing(exp: Experiment, runs, names):
 
     preds, notes = [], []
     spring = {}
-    geo = exp.sample.model_kwargs()
-    geo.pop("radial_cte")
-    geo.pop("shear_modulus_slope")
+    geo = exp.sample.sensor_kwargs()
     for i, (r, name) in enumerate(zip(runs, names)):
         if exp.rig.spring_constant is not None:
             s_val = exp.rig.spring_constant

@@ -22,10 +22,7 @@ def robot():
 
 def geometry(sample):
     """The sample's keyword arguments without the thermal ones (sensing models)."""
-    kw = sample.model_kwargs()
-    kw.pop("radial_cte")
-    kw.pop("shear_modulus_slope")
-    return kw
+    return sample.sensor_kwargs()
 
 
 @pytest.fixture
