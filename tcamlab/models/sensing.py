@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tcamlab.errors import ConvergenceError, ModelDomainError
+from tcamlab.errors import ModelDomainError
 from tcamlab.models import static as _static
 from tcamlab.models._roots import MAXITER, bracketed_newton
 
@@ -313,11 +313,8 @@ def _invert_compressed(h, idx, l, s0, xtol, rtol, maxiter):
             "than any compression of the coil explains (no physical root)",
             hint="check initial_resistance_ohm (R0) and the resistance column",
         )
-    try:
-        res = bracketed_newton(lambda x, j: h(x, idx[j]), lo, hi, 0.5 * (lo + hi),
-                               xtol=xtol, rtol=rtol, maxiter=maxiter, what="sensing delta")
-    except ConvergenceError:
-        raise
+    res = bracketed_newton(lambda x, j: h(x, idx[j]), lo, hi, 0.5 * (lo + hi),
+                           xtol=xtol, rtol=rtol, maxiter=maxiter, what="sensing delta")
     return res.root
 
 
