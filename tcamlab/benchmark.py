@@ -30,7 +30,7 @@ import numpy as np
 from tcamlab.effects import effects_for, get_effect
 
 __all__ = ["STRENGTHS", "PAIRS", "BenchmarkResult", "run_benchmark", "run_task",
-           "make_tasks", "score", "STATIC_OVEN"]
+           "make_tasks", "score", "STATIC_OVEN", "noise_ceiling"]
 
 KINDS = ("static", "dynamic", "sensing", "curvature")
 STRENGTHS = (1.0, 3.0, 10.0)
@@ -95,7 +95,13 @@ def make_tasks(*, quick: bool = False, seeds: int = 10, kinds=KINDS, effects=Non
 
 
 def run_task(task: dict) -> dict:
-    """Simulate one case in its own temp dir, diagnose it, score against the truth file."""
+    """Simulate one case in its own temp dir, diagnose it, score against the truth file.
+
+    ``task`` holds ``case``, ``kind``, ``effects`` {name: strength} and
+    ``seed``; optional ``template`` (experiment file; default the kind's
+    template), ``noise_scale`` and ``oven`` (static) go to the simulator,
+    ``n_boot`` to the diagnosis.
+    """
     from tcamlab.config import load_experiment
     from tcamlab.diagnosis import diagnose
 
@@ -105,9 +111,11 @@ def run_task(task: dict) -> dict:
     out = dict(task)
     out["generator"] = generator
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
-        template = TEMPLATES / f"{kind}.toml"
+        template = task.get("template") or TEMPLATES / f"{kind}.toml"
         try:
-            extra = {"oven": STATIC_OVEN} if kind == "static" and generator == "tcamlab.rig" else {}
+            extra = {"oven": task.get("oven", STATIC_OVEN)} if kind == "static" and generator == "tcamlab.rig" else {}
+            if "noise_scale" in task:
+                extra["noise_scale"] = float(task["noise_scale"])
             sim = simulate(kind, template, seed=task["seed"], out_dir=tmp,
                            effects=dict(task["effects"]), **extra)
             truth = json.loads(Path(sim.truth_path).read_text())
@@ -123,6 +131,8 @@ def run_task(task: dict) -> dict:
         "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
         "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
         "gap_rmse_over_noise": d["gap"]["rmse_over_noise"], "gap_limit": d["gap"]["limit"],
+        "heldout_rmse_before_noise": (d["ranking"][0]["heldout_rmse_before_noise"]
+                                      if d["ranking"] else None),
         "fitted": {c["effect"]: {k: v["value"] for k, v in c["parameters"].items()}
                    for c in d["ranking"]},
         "truth_values": _truth_values(truth, kind, task["effects"]),
@@ -208,11 +218,20 @@ def score(results: list[dict]) -> dict:
     by_effect = {k: acc(v) for k, v in sorted(by_effect.items())}
 
     shrink, recov = [], defaultdict(list)
+    by_s = defaultdict(lambda: {"shrinkage": [], "attainable": [], "fraction_closed": []})
     for r in singles:
         truth = next(iter(r["effects"]))
         if "error" in r or r["verdict"] not in CONFIDENT or r["ranking"][:1] != [truth]:
             continue
         shrink.append(r["shrinkage"][truth])
+        cell = by_s[str(next(iter(r["effects"].values())))]
+        cell["shrinkage"].append(r["shrinkage"][truth])
+        cell["fraction_closed"].append(r.get("fraction_closed", {}).get(truth))
+        b4 = r.get("heldout_rmse_before_noise")
+        if b4 and b4 > 1.0:
+            # On withheld data no model beats the noise (RMSE/noise = 1), so a case
+            # can shrink by at most 1 - 1/b4.
+            cell["attainable"].append(r["shrinkage"][truth] / (1.0 - 1.0 / b4))
         tv = r.get("truth_values", {}).get(truth, {})
         fv = r.get("fitted", {}).get(truth, {})
         for f, v in tv.items():
@@ -256,6 +275,11 @@ def score(results: list[dict]) -> dict:
         "null": {"n": len(nulls), "false_attributions": len(null_false),
                  "rate": (len(null_false) / len(nulls)) if nulls else None, "by_kind": null_by_kind},
         "median_shrinkage_when_right": float(np.median(shrink)) if shrink else None,
+        "shrinkage_by_strength": {k: _shrink_cell(k, v) for k, v in sorted(by_s.items(),
+                                                                          key=lambda kv: float(kv[0]))},
+        "median_fraction_closed_when_right": (float(np.nanmedian([x for v in by_s.values()
+                                                                   for x in v["fraction_closed"]]))
+                                              if shrink else None),
         "n_right": len(shrink),
         "parameter_recovery_median_rel_error": {k: float(np.median(v)) for k, v in recov.items()},
         "pairs": pair_rows,
@@ -265,6 +289,28 @@ def score(results: list[dict]) -> dict:
                    for r in results if "error" in r],
         "seconds_median": float(np.median([r["seconds"] for r in results])) if results else None,
     }
+
+
+def noise_ceiling(strength: float) -> float:
+    """Largest held-out RMSE shrinkage any model can reach at a strength.
+
+    An effect whose gap has RMS ``strength`` x the noise sd gives a baseline
+    held-out RMSE of sqrt(1 + strength^2) noise sd; a perfect model still
+    leaves the noise of the withheld run, so the shrinkage is at most
+    1 - 1 / sqrt(1 + strength^2) (29 %, 68 %, 90 % at 1x, 3x, 10x).
+    """
+    return 1.0 - 1.0 / math.sqrt(1.0 + float(strength) ** 2)
+
+
+def _shrink_cell(strength: str, cell: dict) -> dict:
+    def med(v):
+        v = [x for x in v if x is not None and math.isfinite(x)]
+        return float(np.median(v)) if v else None
+
+    return {"n": len(cell["shrinkage"]), "median_shrinkage": med(cell["shrinkage"]),
+            "noise_ceiling": noise_ceiling(float(strength)),
+            "median_share_of_attainable": med(cell["attainable"]),
+            "median_fraction_closed": med(cell["fraction_closed"])}
 
 
 # ---------------------------------------------------------------------------
@@ -392,6 +438,13 @@ def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]
             for k, v in n["by_kind"].items()]
     rows.append(["all", str(n["n"]), str(n["false_attributions"]), _fmt(n["rate"], True)])
     tabs.append(("Null cases (no effect): false attributions", ["kind", "cases", "false", "verdicts"], rows))
+    if s.get("shrinkage_by_strength"):
+        rows = [[k, str(v["n"]), _fmt(v["median_shrinkage"], True), _fmt(v["noise_ceiling"], True),
+                 _fmt(v["median_share_of_attainable"], True), _fmt(v["median_fraction_closed"], True)]
+                for k, v in s["shrinkage_by_strength"].items()]
+        tabs.append(("Held-out shrinkage where the attribution is right, by strength",
+                     ["strength", "cases", "median RMSE shrinkage", "noise ceiling",
+                      "median share of attainable", "median fraction of gap closed"], rows))
     rows = [[k, _fmt(v)] for k, v in s["parameter_recovery_median_rel_error"].items()]
     tabs.append(("Parameter recovery, median |fitted - true| / |true| (right attributions)",
                  ["effect", "median rel. error"], rows))
@@ -417,8 +470,13 @@ def markdown(res: BenchmarkResult) -> str:
              f"wall time {res.settings.get('wall_seconds', 0):.0f} s; median "
              f"{_fmt(s['seconds_median'])} s per case.", "",
              f"Median held-out RMSE shrinkage where the attribution is right: "
-             f"{_fmt(s['median_shrinkage_when_right'], True)} ({s['n_right']} cases). "
-             f"Null false-attribution rate: {_fmt(s['null']['rate'], True)}.", ""]
+             f"{_fmt(s['median_shrinkage_when_right'], True)} ({s['n_right']} cases); median "
+             f"fraction of the gap above the noise floor closed: "
+             f"{_fmt(s.get('median_fraction_closed_when_right'), True)}. "
+             f"Null false-attribution rate: {_fmt(s['null']['rate'], True)}.", "",
+             "Held-out RMSE includes the withheld run's noise, which no model removes: at "
+             "strength s the shrinkage cannot exceed 1 - 1/sqrt(1 + s^2) (the noise ceiling "
+             "in the shrinkage table).", ""]
     if s["pair_outcomes"]:
         lines += ["Pair outcomes: " + ", ".join(f"{k}: {v}" for k, v in s["pair_outcomes"].items()), ""]
     for title, cols, rows in _tables(res):
@@ -438,7 +496,9 @@ def report_document(res: BenchmarkResult):
     s = res.scores
     sections = [Section("Summary", paragraphs=[
         f"{res.settings.get('n_tasks')} simulated cases (generator {res.settings.get('generator')}).",
-        f"Median held-out shrinkage where right: {_fmt(s['median_shrinkage_when_right'], True)}; "
+        f"Median held-out shrinkage where right: {_fmt(s['median_shrinkage_when_right'], True)} "
+        f"(fraction of the gap above noise closed: "
+        f"{_fmt(s.get('median_fraction_closed_when_right'), True)}); "
         f"null false-attribution rate: {_fmt(s['null']['rate'], True)}."])]
     for title, cols, rows in _tables(res):
         sections.append(Section(title, tables=[Table(cols, rows, caption=title)]))

@@ -27,7 +27,10 @@ Steps
    (6 (n - 2))`` on each run's residuals (a smooth model gap has a small
    second difference, white noise gives exactly sigma^2), pooled over runs
    by the median. Where runs share their inputs (a replicated protocol) the
-   between-run spread is reported as a cross-check. Residual RMSE, bias,
+   between-run spread of the residuals is a second, independent-looking
+   estimate; when the two agree (F test) they are pooled with the weights
+   that minimise the variance, which matters for short runs (the camera rig
+   logs 11 rows a run) (:func:`pool_noise_estimates`). Residual RMSE, bias,
    share of squared error and RMSE/noise per regime; lag-1 autocorrelation
    and Durbin-Watson per run; correlation of residuals with each input.
 
@@ -80,6 +83,7 @@ __all__ = [
     "DiagnosisResult",
     "diagnose",
     "gap_limit",
+    "pool_noise_estimates",
     "second_difference_sigma",
 ]
 
@@ -117,6 +121,18 @@ rest (and the pull-test encoder is exact), so the logged zero is taken as
 exact. Re-estimating it from model predictions at rest was tried and biases
 the sensing displacement (the inverted model is not symmetric about R0).
 Add ``"displacement"`` here for logs whose first row is a single noisy reading."""
+
+SHARED_INPUTS: dict[str, tuple[str, ...]] = {
+    "static": ("temperature",), "dynamic": ("voltage",), "sensing": ("resistance",),
+    "curvature": ("cable",)}
+"""Inputs that set a row's operating point: runs whose values of these agree
+row by row (within 2 % of their range) are replicates, and the spread of their
+residuals across runs measures the noise. The curvature rig's r1, r2 are
+measured responses of the commanded cable, so only the cable counts there."""
+
+POOL_CONSISTENCY_LEVEL = 0.99
+"""Two-sided level of the F test that admits the between-run variance into
+the noise floor (:func:`pool_noise_estimates`)."""
 
 REST_TOLERANCE = 0.02
 """Inputs within this fraction of their range of the first row count as "at rest"."""
@@ -775,8 +791,7 @@ def _between_run_spread(problem: _Problem, base_res) -> dict:
     n = {len(d) for d in frames}
     if len(n) != 1:
         return {"available": False, "reason": "runs differ in length"}
-    ins = [c for c in F.INPUTS[problem.kind] if c != "time"]
-    for c in ins:
+    for c in SHARED_INPUTS[problem.kind]:
         X = np.vstack([d[c].to_numpy(float) for d in frames])
         span = float(np.ptp(X)) or 1.0
         if np.max(np.abs(X - X.mean(axis=0))) > 0.02 * span:
@@ -786,9 +801,62 @@ def _between_run_spread(problem: _Problem, base_res) -> dict:
         unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
         # spread of the residuals (the model removes the input dependence)
         R = np.vstack([base_res[i][q] for i in range(len(frames))])
-        sd = float(np.sqrt(np.mean(np.var(R, axis=0, ddof=1))))
-        out[q] = {"sd": sd * fac, "unit": unit}
+        var = float(np.mean(np.var(R, axis=0, ddof=1)))
+        out[q] = {"sd": math.sqrt(var) * fac, "unit": unit, "var_si": var,
+                  "dof": (len(frames) - 1) * len(frames[0])}
     return out
+
+
+def pool_noise_estimates(run_vars, between_var: float, n_rows: int, median_dof: float,
+                         level: float = POOL_CONSISTENCY_LEVEL):
+    """Pool the second-difference and between-run noise variances, if they agree.
+
+    With ``n`` runs of ``m`` rows at the same inputs, the second-difference
+    variance (mean over runs) ``a`` and the between-run variance ``b`` (the
+    residuals' variance across runs at each row, averaged over rows) are both
+    unbiased for white noise, with degrees of freedom nu_a = (36/70) (m - 2) n
+    (:data:`SECOND_DIFF_EFFICIENCY`) and nu_b = (n - 1) m. They share the data:
+    as quadratic forms e' A e and e' B e with tr(A) = tr(B) = 1,
+    tr(A^2) = 1/nu_a, tr(B^2) = 1/nu_b and tr(A B) = 1/(n m) (the Kronecker
+    structure gives tr(D'D) tr(C) = 6 (m - 2)(n - 1)). The weight
+    w = (tb - tab) / (ta + tb - 2 tab) on ``a`` minimises the variance of
+    w a + (1 - w) b, whose degrees of freedom are 1 / tr(M^2).
+
+    ``b`` also holds run-to-run differences that are not noise (sample scatter,
+    an effect that changes between runs), so it is used only when its ratio to
+    the robust estimate (median over runs, ``median_dof``) lies inside the
+    two-sided ``level`` interval of F(nu_b, median_dof).
+
+    Parameters
+    ----------
+    run_vars : array_like
+        Second-difference variance of each run [quantity unit^2].
+    between_var : float
+        Between-run variance [quantity unit^2].
+    n_rows : int
+        Rows per run.
+    median_dof : float
+        Degrees of freedom of the median-pooled estimate.
+
+    Returns
+    -------
+    (variance, dof) or None
+        None when the two disagree (the second-difference estimate stands).
+    """
+    run_vars = np.asarray(run_vars, float)
+    n, m = run_vars.size, int(n_rows)
+    if n < 2 or m < 3 or not (between_var > 0) or not np.all(run_vars > 0):
+        return None
+    nu_a = SECOND_DIFF_EFFICIENCY * (m - 2) * n
+    nu_b = (n - 1) * m
+    lo, hi = stats.f.ppf([(1.0 - level) / 2.0, (1.0 + level) / 2.0], nu_b, median_dof)
+    if not lo <= between_var / float(np.median(run_vars)) <= hi:
+        return None
+    a = float(np.mean(run_vars))
+    ta, tb, tab = 1.0 / nu_a, 1.0 / nu_b, 1.0 / (n * m)
+    w = min(max((tb - tab) / (ta + tb - 2.0 * tab), 0.0), 1.0)
+    tr = w * w * ta + (1.0 - w) ** 2 * tb + 2.0 * w * (1.0 - w) * tab
+    return w * a + (1.0 - w) * between_var, 1.0 / tr
 
 
 # ---------------------------------------------------------------------------
@@ -874,24 +942,34 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     base_res = [problem.resid(i, p) for i, p in enumerate(base_pred)]
     per_run_sigma = {q: [second_difference_sigma(base_res[i][q])
                          for i in range(n_runs)] for q in Q}
+    spread = _between_run_spread(problem, base_res)
+    noise_dof_q, noise_method = {}, {}
     for q in Q:
         vals = np.array([v for v in per_run_sigma[q] if np.isfinite(v) and v > 0])
         if vals.size == 0:
             resid = np.concatenate([base_res[i][q] for i in range(n_runs)])
             vals = np.array([max(float(np.std(resid)), 1e-300)])
         problem.sigma[q] = float(np.median(vals))
-    noise_dof_q = {q: SECOND_DIFF_EFFICIENCY * sum(max(len(d) - 2, 0) for d in problem.frames)
-                   * (MEDIAN_EFFICIENCY if n_runs >= 3 else 1.0) for q in Q}
-    spread = _between_run_spread(problem, base_res)
+        noise_dof_q[q] = SECOND_DIFF_EFFICIENCY * sum(max(len(d) - 2, 0) for d in problem.frames) \
+            * (MEDIAN_EFFICIENCY if n_runs >= 3 else 1.0)
+        noise_method[q] = "second difference"
+        if spread.get("available") and vals.size == n_runs:
+            pooled = pool_noise_estimates(np.asarray(per_run_sigma[q]) ** 2, spread[q]["var_si"],
+                                          len(problem.frames[0]), noise_dof_q[q])
+            spread[q]["consistent"] = pooled is not None
+            if pooled is not None:
+                problem.sigma[q], noise_dof_q[q] = math.sqrt(pooled[0]), pooled[1]
+                noise_method[q] = "second difference + between runs"
 
-    noise_floor = {"quantities": list(Q), "method": "second difference of baseline residuals, "
-                   "median over runs", "by_quantity": {}, "between_runs": spread}
+    noise_floor = {"quantities": list(Q), "method": "second difference of baseline residuals "
+                   "(median over runs); pooled with the between-run spread where runs share their "
+                   "inputs and the two agree", "by_quantity": {}, "between_runs": spread}
     for q in Q:
         unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
         noise_floor["by_quantity"][q] = {
             "sigma": problem.sigma[q] * fac, "unit": unit,
             "per_run": [v * fac for v in per_run_sigma[q]],
-            "dof": noise_dof_q[q]}
+            "dof": noise_dof_q[q], "method": noise_method[q]}
 
     # --- baseline gap ------------------------------------------------------------------
     if problem.spring_nuisance:

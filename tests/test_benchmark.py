@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -58,7 +59,8 @@ def test_scoring_rules():
     def single(truth, verdict, effect, ranking, s=3.0):
         return {"case": "single", "kind": "static", "effects": {truth: s}, "seed": 1,
                 "verdict": verdict, "effect": effect, "aliased_with": [], "ranking": ranking,
-                "shrinkage": {e: 0.8 for e in ranking}, "fitted": {}, "truth_values": {},
+                "shrinkage": {e: 0.6 for e in ranking}, "fitted": {}, "truth_values": {},
+                "fraction_closed": {e: 0.9 for e in ranking}, "heldout_rmse_before_noise": 4.0,
                 "seconds": 1.0}
     results = [
         single("a", "attributed", "a", ["a", "b", "c"]),
@@ -75,3 +77,9 @@ def test_scoring_rules():
     assert s["null"]["rate"] == 1.0
     assert s["pairs"][0]["outcome"].startswith("confident third")
     assert s["confusion"]["static"]["a"] == {"a": 1, "b": 1, "unexplained": 1}
+    # one right attribution: shrinkage 0.6 of an attainable 1 - 1/4 = 0.75
+    cell = s["shrinkage_by_strength"]["3.0"]
+    assert cell["n"] == 1 and cell["median_shrinkage"] == pytest.approx(0.6)
+    assert cell["median_share_of_attainable"] == pytest.approx(0.8)
+    assert cell["noise_ceiling"] == pytest.approx(1 - 1 / math.sqrt(10), rel=1e-12)
+    assert s["median_fraction_closed_when_right"] == pytest.approx(0.9)

@@ -15,7 +15,7 @@ import pytest
 
 from tcamlab import diagnosis
 from tcamlab.config import load_experiment
-from tcamlab.diagnosis import diagnose, gap_limit, second_difference_sigma
+from tcamlab.diagnosis import diagnose, gap_limit, pool_noise_estimates, second_difference_sigma
 
 ROOT = Path(__file__).resolve().parent.parent
 TEMPLATES = ROOT / "experiments" / "templates"
@@ -121,6 +121,40 @@ def test_noise_estimators():
     # the no-gap limit shrinks toward 1 with more data and grows with a re-estimated zero
     assert gap_limit(100, 50) > gap_limit(10000, 5000) > 1.0
     assert gap_limit(1000, 500, reference=[(1.0, 4)]) > gap_limit(1000, 500)
+
+
+@pytest.mark.parametrize("n_runs, n_rows", [(3, 11), (3, 51), (5, 30)])
+def test_pooled_noise_is_unbiased_with_the_stated_dof(n_runs, n_rows):
+    # Replicated runs with a common smooth gap and white noise (sd 0.5): the
+    # pooled variance must average 0.25 and vary as a chi-square with the dof it
+    # reports (var = 2 sigma^4 / nu).
+    rng = np.random.default_rng(42)
+    x = np.linspace(0.0, 1.0, n_rows)
+    gap = 2.0 * x ** 2
+    est, dofs = [], []
+    for _ in range(4000):
+        R = gap + rng.normal(0.0, 0.5, (n_runs, n_rows))
+        run_vars = np.array([second_difference_sigma(r) ** 2 for r in R])
+        between = float(np.mean(np.var(R, axis=0, ddof=1)))
+        median_dof = diagnosis.SECOND_DIFF_EFFICIENCY * (n_rows - 2) * n_runs * diagnosis.MEDIAN_EFFICIENCY
+        out = pool_noise_estimates(run_vars, between, n_rows, median_dof)
+        if out is not None:
+            est.append(out[0])
+            dofs.append(out[1])
+    est = np.array(est)
+    assert est.size > 3900  # the F test rejects about 1 %
+    nu = dofs[0]
+    assert nu > (n_runs - 1) * n_rows  # better than either estimate alone
+    assert np.mean(est) == pytest.approx(0.25, rel=0.02)
+    assert np.var(est) == pytest.approx(2 * 0.25 ** 2 / nu, rel=0.12)
+
+
+def test_pooled_noise_refuses_disagreeing_estimates():
+    run_vars = np.full(3, 1.0)
+    assert pool_noise_estimates(run_vars, 4.0, 50, 50.0) is None  # run-to-run scatter
+    assert pool_noise_estimates(run_vars, 0.2, 50, 50.0) is None
+    var, nu = pool_noise_estimates(run_vars, 1.1, 50, 50.0)
+    assert 1.0 < var < 1.1 and nu > 100
 
 
 @pytest.mark.skipif(not os.environ.get("TCAMLAB_TIMING"), reason="set TCAMLAB_TIMING=1 to time")
