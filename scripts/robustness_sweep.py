@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import tempfile
+import time
 from pathlib import Path
 
 from tcamlab.benchmark import TEMPLATES, BenchmarkResult, _execute, markdown, score
@@ -97,14 +98,16 @@ def main(argv=None) -> int:
     kinds = args.kind or list(VARIANTS)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="tcam-sweep-") as tmp:
         tasks = make_tasks(Path(tmp), kinds)
         results = _execute(tasks, None, args.workers)
+    wall = time.perf_counter() - t0
     for r in results:
         r.pop("template", None)
     res = BenchmarkResult(scores=score(results), results=results,
                           settings={"generator": "tcamlab.rig (off-design variants)",
-                                    "n_tasks": len(tasks), "quick": False,
+                                    "n_tasks": len(tasks), "quick": False, "wall_seconds": wall,
                                     "noise_scales": list(NOISE), "strengths": list(STRENGTHS)})
     import json
 

@@ -59,6 +59,7 @@ Steps
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -69,7 +70,7 @@ import pandas as pd
 from scipy import optimize, stats
 
 from tcamlab import forward as F
-from tcamlab.effects import Effect, effects_for, get_effect
+from tcamlab.effects import Effect, combine, effects_for, get_effect
 from tcamlab.errors import ConfigError, TcamlabError
 from tcamlab.forward import Mods
 
@@ -102,6 +103,14 @@ majority of the gap, not just part of it."""
 
 CI_LEVEL = 0.95
 """Level of every reported interval."""
+
+MIN_PARTIAL_FRACTION = 0.05
+"""When no single candidate explains the gap, candidates that alone close at
+least this share of it (and improve the withheld runs) are paired."""
+
+PAIR_POOL = 4
+"""At most this many of the best single candidates enter the pair search
+(6 pairs), which bounds its cost."""
 
 SECOND_DIFF_EFFICIENCY = 36.0 / 70.0
 """Degrees of freedom of the second-difference variance estimate per point,
@@ -591,6 +600,7 @@ class DiagnosisResult:
     gap: dict
     reason: str
     settings: dict
+    combination: dict | None = None
     _series: dict = field(default_factory=dict, repr=False)
 
     # -- export --------------------------------------------------------------
@@ -609,6 +619,7 @@ class DiagnosisResult:
             "noise_floor": self.noise_floor,
             "baseline": self.baseline,
             "ranking": [c.to_dict() for c in self.ranking],
+            "combination": self.combination,
             "regimes": self.regimes,
             "runs": self.runs,
             "settings": self.settings,
@@ -1115,17 +1126,21 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     after_folds: dict[str, np.ndarray] = {}
     best_values: dict[str, np.ndarray] = {}
     best_springs: dict[str, float | None] = {}
-    jobs = [(problem, eff, folds, train_rows_f, spring_f, all_rows, spring_all) for eff in cands]
-    n_work = _n_workers(workers, len(jobs))
-    if n_work > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+    b4 = math.sqrt(before_fold.sum() / n_fold.sum())
 
-        with ProcessPoolExecutor(max_workers=n_work, mp_context=mp.get_context("spawn")) as pool:
-            outcomes = list(pool.map(_candidate_job, jobs))
-    else:
-        outcomes = [_candidate_job(j) for j in jobs]
-    for eff, (after_fold, after_q, fold_vals, full) in zip(cands, outcomes):
+    def run_jobs(effs):
+        jobs = [(problem, eff, folds, train_rows_f, spring_f, all_rows, spring_all) for eff in effs]
+        n_work = _n_workers(workers, len(jobs))
+        if n_work > 1:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(max_workers=n_work, mp_context=mp.get_context("spawn")) as pool:
+                return list(pool.map(_candidate_job, jobs))
+        return [_candidate_job(j) for j in jobs]
+
+    def scored(eff, outcome) -> CandidateResult:
+        after_fold, after_q, fold_vals, full = outcome
         fold_rows = [{"fold": k, "rmse_before_noise": math.sqrt(before_fold[k] / n_fold[k]),
                       "rmse_after_noise": math.sqrt(after_fold[k] / n_fold[k]),
                       "parameters": {p.field: float(v) for p, v in zip(eff.params, fold_vals[k])}}
@@ -1133,7 +1148,6 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         after_folds[eff.name] = after_fold
         best_values[eff.name] = full.values
         best_springs[eff.name] = full.spring
-        b4 = math.sqrt(before_fold.sum() / n_fold.sum())
         af = math.sqrt(after_fold.sum() / n_fold.sum())
         shrink = 1.0 - af / b4 if b4 > 0 else 0.0
         b_after = after_fold[boot_idx].sum(axis=1)
@@ -1153,24 +1167,47 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
             fac = DISPLAY_UNITS[Q[0]][1]
             rb = math.sqrt(before_q.sum() / n_q.sum()) * fac
             ra = math.sqrt(after_q.sum() / n_q.sum()) * fac
-        cand_results.append(CandidateResult(
+        return CandidateResult(
             effect=eff.name, heldout_rmse_before=rb, heldout_rmse_after=ra, unit=common_unit,
             heldout_rmse_before_noise=b4, heldout_rmse_after_noise=af, shrinkage=shrink,
             shrinkage_ci95=_ci(boot_shrink), fraction_closed=frac,
             aic=full.sse + 2 * kp, bic=full.sse + kp * math.log(max(full.n, 1)),
             parameters=_param_ci(full, eff), by_quantity=by_q, folds=fold_rows,
-            cause=eff.cause, separate_by=eff.separate_by, fit_success=full.success))
+            cause=eff.cause, separate_by=eff.separate_by, fit_success=full.success)
 
+    for eff, outcome in zip(cands, run_jobs(cands)):
+        cand_results.append(scored(eff, outcome))
     cand_results.sort(key=lambda c: (c.heldout_rmse_after_noise, c.effect))
 
     # --- verdict -----------------------------------------------------------------------
     verdict, effect, aliased, reason = _verdict(cand_results, gap_significant, after_folds,
                                                 boot_idx, b_n, base_rms_noise, limit)
+    # Two effects at once: when no single candidate explains the gap, try pairs of
+    # the candidates that each explain part of it (forward selection, one step).
+    combination = None
+    by_name = {e.name: e for e in cands}
+    if verdict == "unexplained" and gap_significant:
+        pool = [c.effect for c in cand_results
+                if np.isfinite(c.fraction_closed) and c.fraction_closed >= MIN_PARTIAL_FRACTION
+                and c.shrinkage_ci95[0] > 0][:PAIR_POOL]
+        pairs = [combine(by_name[a], by_name[b]) for a, b in itertools.combinations(pool, 2)]
+        pairs = [e for e in pairs if e is not None]
+        if pairs:
+            combos = [scored(e, o) for e, o in zip(pairs, run_jobs(pairs))]
+            combos.sort(key=lambda c: (c.heldout_rmse_after_noise, c.effect))
+            order = {c.effect: i for i, c in enumerate(cand_results)}
+            picked = _pair_verdict(combos, after_folds, boot_idx, b_n, order)
+            if picked is not None:
+                verdict, effect, aliased, reason, combination = picked
     separate = {c.effect: c.separate_by for c in cand_results if c.effect in ([effect] + aliased)} \
         if verdict == "aliased" else {}
 
     # --- series for plots -----------------------------------------------------------
     best = cand_results[0] if cand_results else None
+    best_eff = by_name.get(best.effect) if best is not None else None
+    if combination is not None:
+        best = next(c for c in combos if c.effect == combination["effect"])
+        best_eff = combine(*(by_name[m] for m in combination["effects"]))
     series_runs = []
     for i in range(n_runs):
         d = problem.frames[i]
@@ -1184,7 +1221,7 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         best_pred = None
         if best is not None:
             try:
-                best_pred = problem.predict(i, get_effect(best.effect, kind).mods(best_values[best.effect]),
+                best_pred = problem.predict(i, best_eff.mods(best_values[best.effect]),
                                             best_springs[best.effect])
             except (TcamlabError, ArithmeticError):
                 best_pred = None
@@ -1206,7 +1243,7 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
                            ranking=cand_results, aliased_with=aliased, separate_by=separate,
                            noise_floor=noise_floor, baseline=baseline, regimes=regimes,
                            runs=run_stats, gap=gap, reason=reason, settings=settings,
-                           _series=series)
+                           combination=combination, _series=series)
 
 
 def _candidate_job(job):
@@ -1278,6 +1315,48 @@ def _verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, lim
             f"{best.effect} closes {_pct(best.fraction_closed)} of the gap above the noise floor on "
             f"withheld data (held-out RMSE shrinks by {best.shrinkage:.0%}) and every other candidate "
             "is clearly worse")
+
+
+def _pair_verdict(combos, after_folds, boot_idx, b_n, order):
+    """Verdict from pairs of effects, or None when no pair qualifies.
+
+    A pair qualifies when it closes at least :data:`MIN_FRACTION_CLOSED` of the
+    gap on withheld data with a shrinkage interval above 0 and is clearly
+    better than each of its members alone (paired bootstrap of the held-out
+    MSE difference above 0): both effects are needed. The best qualifying pair
+    names the effect (the member that ranks higher alone); other qualifying
+    pairs that fit the withheld runs indistinguishably well make it ``aliased``.
+    """
+    def boot(name):
+        return after_folds[name][boot_idx].sum(axis=1)
+
+    qualified = []
+    for c in combos:
+        if not (np.isfinite(c.fraction_closed) and c.fraction_closed >= MIN_FRACTION_CLOSED
+                and c.shrinkage_ci95[0] > 0):
+            continue
+        a_pair = boot(c.effect)
+        if all(_ci((boot(m) - a_pair) / b_n)[0] > 0 for m in c.effect.split("+")):
+            qualified.append(c)
+    if not qualified:
+        return None
+    best = qualified[0]
+    members = sorted(best.effect.split("+"), key=lambda m: order.get(m, len(order)))
+    primary, second = members[0], members[1:]
+    a_best = boot(best.effect)
+    rivals = [c for c in qualified[1:] if _ci((boot(c.effect) - a_best) / b_n)[0] <= 0]
+    combination = {"effects": members, **best.to_dict()}
+    both = " and ".join(members)
+    closes = (f"no single candidate closes {MIN_FRACTION_CLOSED:.0%} of the gap; {both} together "
+              f"close {_pct(best.fraction_closed)} of it on withheld data (held-out RMSE shrinks "
+              f"by {best.shrinkage:.0%}), and the pair beats either alone")
+    if rivals:
+        others = sorted(({m for c in rivals for m in c.effect.split("+")} | set(second)) - {primary},
+                        key=lambda m: order.get(m, len(order)))
+        return ("aliased", primary, others,
+                closes + "; but " + ", ".join(c.effect for c in rivals)
+                + " fit the withheld runs indistinguishably well", combination)
+    return "attributed", primary, [], closes, combination
 
 
 def _pct(x) -> str:

@@ -16,7 +16,7 @@ import numpy as np
 
 from tcamlab.forward import Mods
 
-__all__ = ["EffectParam", "Effect", "EFFECTS", "effects_for", "get_effect", "mods_for"]
+__all__ = ["EffectParam", "Effect", "EFFECTS", "combine", "effects_for", "get_effect", "mods_for"]
 
 
 @dataclass(frozen=True)
@@ -180,6 +180,30 @@ EFFECTS: dict[tuple[str, str], Effect] = {(e.kind, e.name): e for e in (
        "thesis sec. 4.3 (d1 = 9 mm)",
        "section the robot and measure d1, or bend it to a known curvature"),
 )}
+
+
+def combine(*effects: Effect) -> Effect | None:
+    """Two or more effects of one kind acting together (their parameters concatenated).
+
+    The combination is again a nested augmentation: all parameters zero is the
+    thesis model. Returns None when the effects set a common Mods field (they
+    would overwrite each other) or belong to different kinds.
+    """
+    if len({e.kind for e in effects}) != 1:
+        return None
+    seen: set[str] = set()
+    for e in effects:
+        fields = set(e.param_names) | set(e.fixed)
+        if fields & seen:
+            return None
+        seen |= fields
+    fixed: dict = {}
+    for e in effects:
+        fixed.update(e.fixed)
+    return Effect("+".join(e.name for e in effects), effects[0].kind,
+                  tuple(p for e in effects for p in e.params),
+                  "; ".join(e.cause for e in effects), "; ".join(e.source for e in effects),
+                  "; ".join(e.separate_by for e in effects), fixed)
 
 
 def effects_for(kind: str) -> list[Effect]:

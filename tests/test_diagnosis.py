@@ -48,6 +48,34 @@ def test_withheld_effect_is_attributed(tmp_path, kind, effect, seed):
     assert best.fraction_closed > 0.5
 
 
+def test_two_effects_at_once_are_found_as_a_pair(tmp_path):
+    # Camera placement and axial compression at 5x each: neither alone closes half
+    # of the gap, the pair does; the verdict must name one of the two.
+    truth = {"camera-placement": 5.0, "axial-compression": 5.0}
+    exp = _simulate(tmp_path, "curvature", truth, 9001)
+    res = diagnose(exp, n_boot=300)
+    assert res.verdict in ("attributed", "aliased")
+    assert res.effect in truth
+    assert res.combination is not None and set(res.combination["effects"]) == set(truth)
+    assert res.combination["fraction_closed"] > 0.9
+    assert all(c.fraction_closed < diagnosis.MIN_FRACTION_CLOSED for c in res.ranking)
+    doc = res.to_dict()
+    assert doc["combination"]["effects"] == res.combination["effects"]
+    json.dumps(doc, allow_nan=False)
+
+
+def test_combined_effect_is_nested_and_refuses_overlap():
+    from tcamlab.effects import combine, get_effect
+
+    a, b = get_effect("camera-placement", "curvature"), get_effect("axial-compression", "curvature")
+    ab = combine(a, b)
+    assert ab.name == "camera-placement+axial-compression"
+    assert ab.param_names == a.param_names + b.param_names
+    assert ab.mods([0.0, 0.0]) == a.mods([0.0])  # all zero: the thesis model
+    assert combine(a, a) is None
+    assert combine(a, get_effect("hysteresis", "sensing")) is None
+
+
 @pytest.mark.parametrize("kind, seed", [("static", 21), ("curvature", 22), ("sensing", 23)])
 def test_null_case_gives_none(tmp_path, kind, seed):
     exp = _simulate(tmp_path, kind, {}, seed)

@@ -33,6 +33,18 @@ def verdict_text(result) -> str:
             tail += (f" (the best, {best.effect}, closes {_pct(best.fraction_closed)} of the gap above "
                      f"the noise floor)")
         return lead + tail + ". Look for a cause outside the effect library."
+    combo = getattr(result, "combination", None)
+    if combo is not None:
+        a, b = combo["effects"][0], " and ".join(combo["effects"][1:])
+        text = (f" No single candidate explains it, but two together do: {a} and {b}. Fitted "
+                f"together on the other runs and tested on the withheld one, they cut the RMSE by "
+                f"{_pct(combo['shrinkage'])} (95 % interval {_pct(combo['shrinkage_ci95'][0])} to "
+                f"{_pct(combo['shrinkage_ci95'][1])}) and close {_pct(combo['fraction_closed'])} of "
+                f"the gap above the noise floor; the pair beats either effect alone.")
+        if result.verdict == "aliased":
+            text += (" Other pairs fit the withheld data just as well (with "
+                     + ", ".join(result.aliased_with) + "); these data cannot tell them apart.")
+        return lead + text
     text = (f" The most likely cause is {best.effect}: {best.cause}. Fitted on the other runs and "
             f"tested on the withheld one, it cuts the RMSE by {_pct(best.shrinkage)} (95 % interval "
             f"{_pct(best.shrinkage_ci95[0])} to {_pct(best.shrinkage_ci95[1])}) and closes "
@@ -65,6 +77,16 @@ def diagnosis_section(result) -> Section:
                      _pct(c.shrinkage), f"{_pct(c.shrinkage_ci95[0])} to {_pct(c.shrinkage_ci95[1])}",
                      _pct(c.fraction_closed), _num(c.aic - result.baseline["aic"], "{:.1f}"),
                      _num(c.bic - result.baseline["bic"], "{:.1f}"), params])
+    combo = getattr(result, "combination", None)
+    if combo is not None:
+        params = "; ".join(
+            f"{name} = {_num(p['value'])} [{_num(p['ci95'][0])}, {_num(p['ci95'][1])}] {p['unit']}"
+            for name, p in combo["parameters"].items())
+        rows.insert(0, [" + ".join(combo["effects"]) + " (pair)", _num(combo["heldout_rmse_before"], "{:.4g}"),
+                        _num(combo["heldout_rmse_after"], "{:.4g}"), _pct(combo["shrinkage"]),
+                        f"{_pct(combo['shrinkage_ci95'][0])} to {_pct(combo['shrinkage_ci95'][1])}",
+                        _pct(combo["fraction_closed"]), _num(combo["aic"] - result.baseline["aic"], "{:.1f}"),
+                        _num(combo["bic"] - result.baseline["bic"], "{:.1f}"), params])
     ranking = Table(["effect", f"held-out RMSE before [{unit}]", f"held-out RMSE after [{unit}]",
                      "shrinkage", "95 % interval", "gap closed", "dAIC", "dBIC",
                      "fitted parameters (95 % CI)"], rows,
