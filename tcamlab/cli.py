@@ -396,7 +396,9 @@ def diagnose(
         _print_json(doc)
         return
     typer.echo(f"verdict: {doc['verdict']}" + (f" ({doc['effect']})" if doc.get("effect") else ""))
-    for r in doc["ranking"][:5]:
+    typer.echo(f"  {doc['reason']}")
+    rows = ([doc["combination"]] if doc.get("combination") else []) + doc["ranking"][:5]
+    for r in rows:
         typer.echo(f"  {r['effect']:<36s} held-out RMSE {r['heldout_rmse_before']:.4g} -> "
                    f"{r['heldout_rmse_after']:.4g} ({100 * r['shrinkage']:.0f}% shrinkage)")
 
