@@ -198,7 +198,8 @@ def score(results: list[dict]) -> dict:
             if "error" in r:
                 continue
             conf = r["verdict"] in CONFIDENT
-            top1 += int(conf and r["ranking"][:1] == [truth])
+            # the named effect (the best single candidate, or the primary of a pair)
+            top1 += int(conf and r["effect"] == truth)
             top3 += int(conf and truth in r["ranking"][:3])
         return {"n": n, "top1": top1 / n, "top3": top3 / n}
 
@@ -221,7 +222,7 @@ def score(results: list[dict]) -> dict:
     by_s = defaultdict(lambda: {"shrinkage": [], "attainable": [], "fraction_closed": []})
     for r in singles:
         truth = next(iter(r["effects"]))
-        if "error" in r or r["verdict"] not in CONFIDENT or r["ranking"][:1] != [truth]:
+        if "error" in r or r["verdict"] not in CONFIDENT or r["effect"] != truth:
             continue
         shrink.append(r["shrinkage"][truth])
         cell = by_s[str(next(iter(r["effects"].values())))]
