@@ -15,7 +15,7 @@ All data is synthetic (``tcamlab.rig.simulate``, seeds 7000+). It prints the
 benchmark's tables (markdown) and writes ``benchmark.json`` to ``--out``.
 
 Run: ``python scripts/robustness_sweep.py --out bench/results/robustness``
-(about 10 minutes on 2 cores).
+(about 6 minutes on 2 cores).
 """
 
 from __future__ import annotations
