@@ -3,9 +3,9 @@
 Run: python bench/bench_diagnose.py [--json out.json]
 
 Each experiment is simulated by the virtual rig (five runs, one effect at 3x
-the noise RMS, seed 1; plus the slowest kind with two effects at 5x, which
-makes the diagnosis run its pair search) in a temporary folder; then `diagnose` runs on it once
-to warm up (JIT compile, imports) and the best of three timed runs is
+the noise RMS, seed 1; plus sensing and dynamic with two effects at 5x, where
+the dynamic case runs the pair search) in a temporary folder; then
+`diagnose` runs on it once to warm up (JIT compile, imports) and the best of three timed runs is
 reported, against the goal of 30 s on the 2-core machine. The reference is
 the same diagnosis restricted to one candidate effect, so the ratio shows
 what the full candidate set costs.
@@ -75,4 +75,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    main()  # spawned workers re-import this file; keep the guard
