@@ -55,6 +55,13 @@ Steps
      :data:`MIN_FRACTION_CLOSED` and the paired bootstrap interval of its
      held-out MSE minus the best's contains 0;
    * ``unexplained`` -- the gap is significant and no candidate qualifies.
+
+5. **Two effects.** When no single candidate qualifies, candidates that alone
+   close at least :data:`MIN_PARTIAL_FRACTION` of the gap (the best
+   :data:`PAIR_POOL`) are fitted in pairs (:func:`tcamlab.effects.combine`)
+   and scored the same way; a pair that qualifies and beats each member alone
+   gives ``attributed`` (or ``aliased``, with rival pairs), naming the member
+   that ranks higher alone; the pair is ``DiagnosisResult.combination``.
 """
 
 from __future__ import annotations
