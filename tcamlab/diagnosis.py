@@ -27,9 +27,9 @@ Steps
    (6 (n - 2))`` on each run's residuals (a smooth model gap has a small
    second difference, white noise gives exactly sigma^2), pooled over runs
    by the median. Where runs share their inputs (a replicated protocol) the
-   between-run spread of the residuals is a second, independent-looking
-   estimate; when the two agree (F test) they are pooled with the weights
-   that minimise the variance, which matters for short runs (the camera rig
+   between-run spread of the residuals is a second (correlated) estimate;
+   when the two agree (F test) they are pooled with the weights that
+   minimise the variance, which matters for short runs (the camera rig
    logs 11 rows a run) (:func:`pool_noise_estimates`). Residual RMSE, bias,
    share of squared error and RMSE/noise per regime; lag-1 autocorrelation
    and Durbin-Watson per run; correlation of residuals with each input.
@@ -820,7 +820,7 @@ def _between_run_spread(problem: _Problem, base_res) -> dict:
         # spread of the residuals (the model removes the input dependence)
         R = np.vstack([base_res[i][q] for i in range(len(frames))])
         var = float(np.mean(np.var(R, axis=0, ddof=1)))
-        out[q] = {"sd": math.sqrt(var) * fac, "unit": unit, "var_si": var,
+        out[q] = {"sd": math.sqrt(var) * fac, "unit": unit,
                   "dof": (len(frames) - 1) * len(frames[0])}
     return out
 
@@ -972,7 +972,8 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
             * (MEDIAN_EFFICIENCY if n_runs >= 3 else 1.0)
         noise_method[q] = "second difference"
         if spread.get("available") and vals.size == n_runs:
-            pooled = pool_noise_estimates(np.asarray(per_run_sigma[q]) ** 2, spread[q]["var_si"],
+            between_var = (spread[q]["sd"] / DISPLAY_UNITS.get(q, ("", 1.0))[1]) ** 2
+            pooled = pool_noise_estimates(np.asarray(per_run_sigma[q]) ** 2, between_var,
                                           len(problem.frames[0]), noise_dof_q[q])
             spread[q]["consistent"] = pooled is not None
             if pooled is not None:
