@@ -55,18 +55,30 @@ def main(argv=None):
         return 0
     base_t, _ = run_times(base, args.runs)
     cli_med, base_med = statistics.median(cli_t), statistics.median(base_t)
-    print("| Command | Median of %d | Min | Max |" % args.runs)
+    print(f"| Command | Median of {args.runs} | Min | Max |")
     print("|---|---|---|---|")
-    print(f"| python -m tcamlab --help | {cli_med * 1e3:.0f} ms | {min(cli_t) * 1e3:.0f} ms "
-          f"| {max(cli_t) * 1e3:.0f} ms |")
-    print(f"| python -c pass (baseline) | {base_med * 1e3:.0f} ms | {min(base_t) * 1e3:.0f} ms "
-          f"| {max(base_t) * 1e3:.0f} ms |")
+    print(
+        f"| python -m tcamlab --help | {cli_med * 1e3:.0f} ms | {min(cli_t) * 1e3:.0f} ms "
+        f"| {max(cli_t) * 1e3:.0f} ms |"
+    )
+    print(
+        f"| python -c pass (baseline) | {base_med * 1e3:.0f} ms | {min(base_t) * 1e3:.0f} ms "
+        f"| {max(base_t) * 1e3:.0f} ms |"
+    )
     print(f"\nCLI overhead over the bare interpreter: {(cli_med - base_med) * 1e3:.0f} ms")
     if args.json:
         with open(args.json, "w") as fh:
-            json.dump({"cli_s": cli_t, "baseline_s": base_t, "cli_median_s": cli_med,
-                       "baseline_median_s": base_med, "overhead_s": cli_med - base_med},
-                      fh, indent=2)
+            json.dump(
+                {
+                    "cli_s": cli_t,
+                    "baseline_s": base_t,
+                    "cli_median_s": cli_med,
+                    "baseline_median_s": base_med,
+                    "overhead_s": cli_med - base_med,
+                },
+                fh,
+                indent=2,
+            )
     return 0
 
 

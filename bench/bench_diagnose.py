@@ -48,27 +48,40 @@ def main():
     for kind, effects in CASES:
         effect = next(iter(effects))
         with tempfile.TemporaryDirectory() as tmp:
-            sim = simulate(kind, f"experiments/templates/{kind}.toml", seed=1, out_dir=tmp,
-                           effects=effects, n_runs=5)
+            sim = simulate(
+                kind, f"experiments/templates/{kind}.toml", seed=1, out_dir=tmp, effects=effects, n_runs=5
+            )
             exp = load_experiment(sim.experiment_path)
             runs = exp.read_runs()
             diagnose(exp, runs)  # warm-up: imports and JIT
-            full, res = best_of(lambda: diagnose(exp, runs))
-            one, _ = best_of(lambda: diagnose(exp, runs, effects=[effect]))
+            full, res = best_of(lambda exp=exp, runs=runs: diagnose(exp, runs))
+            one, _ = best_of(lambda exp=exp, runs=runs, effect=effect: diagnose(exp, runs, effects=[effect]))
             label = " + ".join(f"{k} {v:g}x" for k, v in effects.items())
-            rows.append({"kind": kind, "effect": label, "runs": 5,
-                         "rows": sum(len(r.data) for r in runs),
-                         "seconds": full, "seconds_one_candidate": one,
-                         "verdict": res.verdict, "attributed": res.effect,
-                         "pair": (res.combination or {}).get("effect"),
-                         "pass": full < GOAL_S})
-    print("| kind | runs (rows) | withheld effect(s) | diagnose, all candidates | one candidate |"
-          " verdict | goal < 30 s |")
+            rows.append(
+                {
+                    "kind": kind,
+                    "effect": label,
+                    "runs": 5,
+                    "rows": sum(len(r.data) for r in runs),
+                    "seconds": full,
+                    "seconds_one_candidate": one,
+                    "verdict": res.verdict,
+                    "attributed": res.effect,
+                    "pair": (res.combination or {}).get("effect"),
+                    "pass": full < GOAL_S,
+                }
+            )
+    print(
+        "| kind | runs (rows) | withheld effect(s) | diagnose, all candidates | one candidate |"
+        " verdict | goal < 30 s |"
+    )
     print("|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['kind']} | 5 ({r['rows']}) | {r['effect']} | {r['seconds']:.2f} s | "
-              f"{r['seconds_one_candidate']:.2f} s | {r['verdict']} ({r['pair'] or r['attributed']}) | "
-              f"{'PASS' if r['pass'] else 'FAIL'} |")
+        print(
+            f"| {r['kind']} | 5 ({r['rows']}) | {r['effect']} | {r['seconds']:.2f} s | "
+            f"{r['seconds_one_candidate']:.2f} s | {r['verdict']} ({r['pair'] or r['attributed']}) | "
+            f"{'PASS' if r['pass'] else 'FAIL'} |"
+        )
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=2)

@@ -38,13 +38,16 @@ import time
 
 def _parse_args(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true",
-                    help="smaller sizes (1e5 points, 1,000 draws) for a smoke run")
+    ap.add_argument(
+        "--quick", action="store_true", help="smaller sizes (1e5 points, 1,000 draws) for a smoke run"
+    )
     ap.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    ap.add_argument("--jit-cache", action="store_true",
-                    help="use numba's on-disk cache (first call loads it instead of compiling)")
-    ap.add_argument("--only", default="1,2,3,4",
-                    help="comma-separated figures to run (default 1,2,3,4)")
+    ap.add_argument(
+        "--jit-cache",
+        action="store_true",
+        help="use numba's on-disk cache (first call loads it instead of compiling)",
+    )
+    ap.add_argument("--only", default="1,2,3,4", help="comma-separated figures to run (default 1,2,3,4)")
     return ap.parse_args(argv)
 
 
@@ -62,10 +65,18 @@ from scipy.optimize import brentq  # noqa: E402
 
 from tcamlab.errors import ModelDomainError  # noqa: E402
 from tcamlab.models import dynamic, sensing, static  # noqa: E402
-from tcamlab.params import G_ACCEL, THESIS_TCA, THESIS_TCS  # noqa: E402
+from tcamlab.params import THESIS_TCA, THESIS_TCS  # noqa: E402
 
-SENSING_KEYS = ("fiber_diameter", "fiber_length", "coil_length", "coil_diameter", "twists",
-                "youngs_modulus", "thread_plies", "max_volume_fraction")
+SENSING_KEYS = (
+    "fiber_diameter",
+    "fiber_length",
+    "coil_length",
+    "coil_diameter",
+    "twists",
+    "youngs_modulus",
+    "thread_plies",
+    "max_volume_fraction",
+)
 
 
 # --------------------------------------------------------------------------- timing
@@ -126,12 +137,12 @@ def _ref_f11_f12(s, d, l, n, G, E):
 def ref_static_point(dT, F, d0, l, L, D, N, E, plies, vfmax, rho, slope):
     """One point of the static model the way a plain script would do it."""
     Gt = _ref_shear_modulus(d0, l, N, E, plies, vfmax)
-    Gt_T = Gt - slope * dT                          # (2.13), torque only
+    Gt_T = Gt - slope * dT  # (2.13), torque only
     if Gt_T <= 0:
         raise ValueError("G_t' <= 0")
-    d = d0 * (1.0 + rho * dT)                       # swollen diameter
+    d = d0 * (1.0 + rho * dT)  # swollen diameter
     J = math.pi * d**4 / 32.0
-    tau = Gt_T * J * 2.0 * math.pi * N * (1.0 - d0 / d) / l   # (2.6)-(2.8)
+    tau = Gt_T * J * 2.0 * math.pi * N * (1.0 - d0 / d) / l  # (2.6)-(2.8)
     s0 = L / l
     n = l * math.sqrt(1.0 - s0 * s0) / (math.pi * D)
 
@@ -152,9 +163,18 @@ def bench_static(cfg):
     dT = rng.uniform(0.0, 130.0, n)
     F = rng.uniform(0.2, 0.8, n)
 
-    args = (kw["fiber_diameter"], kw["fiber_length"], kw["coil_length"], kw["coil_diameter"],
-            kw["twists"], kw["youngs_modulus"], kw["thread_plies"],
-            kw["max_volume_fraction"], kw["radial_cte"], kw["shear_modulus_slope"])
+    args = (
+        kw["fiber_diameter"],
+        kw["fiber_length"],
+        kw["coil_length"],
+        kw["coil_diameter"],
+        kw["twists"],
+        kw["youngs_modulus"],
+        kw["thread_plies"],
+        kw["max_volume_fraction"],
+        kw["radial_cte"],
+        kw["shear_modulus_slope"],
+    )
     dTl, Fl = dT[:n_ref].tolist(), F[:n_ref].tolist()
 
     def ref():
@@ -177,39 +197,54 @@ def bench_static(cfg):
 
     rows = []
     for method, label, first_note in (
-            ("jit", "1. static.displacement, default method=\"jit\" (thesis-tca, G(T) 1.11e6 Pa/K)",
-             "compile" if not ARGS.jit_cache else "cache load"),
-            ("numpy", "1n. static.displacement, method=\"numpy\" (same points)",
-             "no compile")):
+        (
+            "jit",
+            '1. static.displacement, default method="jit" (thesis-tca, G(T) 1.11e6 Pa/K)',
+            "compile" if not ARGS.jit_cache else "cache load",
+        ),
+        ("numpy", '1n. static.displacement, method="numpy" (same points)', "no compile"),
+    ):
         first, best, delta = runs[method]
         diff = float(np.max(np.abs(ref_out - delta[:n_ref])))
         rate = n / best
         ratio = rate / ref_rate
         ok = rate >= 1e6 and ratio >= 50 and diff < 1e-9
-        notes = [f"static {method}: max |fast - brentq| over {n_ref:,} pts = {diff:.3e} m "
-                 f"(limit 1e-9 m); first call {fmt_time(first)} ({first_note}); "
-                 f"delta range {delta.min() * 1e3:.3f}..{delta.max() * 1e3:.3f} mm"]
+        notes = [
+            f"static {method}: max |fast - brentq| over {n_ref:,} pts = {diff:.3e} m "
+            f"(limit 1e-9 m); first call {fmt_time(first)} ({first_note}); "
+            f"delta range {delta.min() * 1e3:.3f}..{delta.max() * 1e3:.3f} mm"
+        ]
         if method == "jit":
             import numba
 
-            notes.append(f"static: max |jit - numpy| over {n:,} pts = {jit_vs_numpy:.3e} m; "
-                         f"jit is {runs['numpy'][1] / best:.1f}x the numpy path; numba threads = "
-                         f"{numba.get_num_threads()}")
-        rows.append({
-            "figure": label,
-            "size": f"{n:,} pts (ref {n_ref:,})",
-            "fast": fmt_rate(rate, "pt"), "fast_s": best, "rate": rate,
-            "ref": fmt_rate(ref_rate, "pt"), "ref_s": ref_best, "ref_rate": ref_rate,
-            "ratio": ratio, "first_call_s": first, "ref_first_call_s": ref_first,
-            "goal": ">= 1e6 pt/s, >= 50x, diff < 1e-9 m",
-            "pass": ok,
-            "notes": notes,
-            "method": method,
-            # The goal is the default path's; the numpy row is shown for comparison.
-            "info": method != "jit",
-            "max_abs_diff_m": diff,
-            **({"max_abs_diff_jit_vs_numpy_m": jit_vs_numpy} if method == "jit" else {}),
-        })
+            notes.append(
+                f"static: max |jit - numpy| over {n:,} pts = {jit_vs_numpy:.3e} m; "
+                f"jit is {runs['numpy'][1] / best:.1f}x the numpy path; numba threads = "
+                f"{numba.get_num_threads()}"
+            )
+        rows.append(
+            {
+                "figure": label,
+                "size": f"{n:,} pts (ref {n_ref:,})",
+                "fast": fmt_rate(rate, "pt"),
+                "fast_s": best,
+                "rate": rate,
+                "ref": fmt_rate(ref_rate, "pt"),
+                "ref_s": ref_best,
+                "ref_rate": ref_rate,
+                "ratio": ratio,
+                "first_call_s": first,
+                "ref_first_call_s": ref_first,
+                "goal": ">= 1e6 pt/s, >= 50x, diff < 1e-9 m",
+                "pass": ok,
+                "notes": notes,
+                "method": method,
+                # The goal is the default path's; the numpy row is shown for comparison.
+                "info": method != "jit",
+                "max_abs_diff_m": diff,
+                **({"max_abs_diff_jit_vs_numpy_m": jit_vs_numpy} if method == "jit" else {}),
+            }
+        )
     return rows
 
 
@@ -217,9 +252,9 @@ def bench_static(cfg):
 def ref_invert_point(R, R0, S, d0, l, L, D, N, E, plies, vfmax):
     """One resistance sample, plain script: brentq on delta (1 - S f11) + f12 tau = 0."""
     Gt = _ref_shear_modulus(d0, l, N, E, plies, vfmax)
-    d = d0 * math.sqrt(R0 / R)                      # (3.1)-(3.2)
+    d = d0 * math.sqrt(R0 / R)  # (3.1)-(3.2)
     J = math.pi * d**4 / 32.0
-    tau = Gt * J * 2.0 * math.pi * N * (1.0 - d0 / d) / l   # (3.3)
+    tau = Gt * J * 2.0 * math.pi * N * (1.0 - d0 / d) / l  # (3.3)
     s0 = L / l
     n = l * math.sqrt(1.0 - s0 * s0) / (math.pi * D)
     if tau == 0.0:
@@ -243,8 +278,7 @@ def bench_sensing(cfg):
     rng = np.random.default_rng(2)
     R = rng.uniform(30.0, 31.7, n)
 
-    first, best, (delta, _force) = timed(lambda: sensing.invert(R, R0, S, **skw),
-                                         cfg["repeats"])
+    first, best, (delta, _force) = timed(lambda: sensing.invert(R, R0, S, **skw), cfg["repeats"])
     args = tuple(skw[k] for k in SENSING_KEYS)
     Rl = R[:n_ref].tolist()
 
@@ -262,35 +296,52 @@ def bench_sensing(cfg):
         t0 = time.perf_counter()
         sensing.invert(one, R0, S, **skw)
         lat[i] = time.perf_counter() - t0
-    lat_med, lat_p99, lat_best = (float(np.median(lat)), float(np.quantile(lat, 0.99)),
-                                  float(lat.min()))
+    lat_med, lat_p99, lat_best = (float(np.median(lat)), float(np.quantile(lat, 0.99)), float(lat.min()))
 
     rate = n / best
     ref_rate = n_ref / ref_best
     ratio = rate / ref_rate
     ok = rate >= 1e6
-    return [{
-        "figure": "2. sensing.invert (thesis-tcs, R 30..31.7 ohm)",
-        "size": f"{n:,} samples (ref {n_ref:,})",
-        "fast": fmt_rate(rate, "S"), "fast_s": best, "rate": rate,
-        "ref": fmt_rate(ref_rate, "S"), "ref_s": ref_best, "ref_rate": ref_rate,
-        "ratio": ratio, "first_call_s": first, "ref_first_call_s": ref_first,
-        "goal": ">= 1e6 S/s",
-        "pass": ok,
-        "notes": [f"sensing: max |fast - brentq| over {n_ref:,} samples = {diff:.3e} m; "
-                  f"R0 = {R0} ohm, S = {S} N/m"],
-        "max_abs_diff_m": diff,
-    }, {
-        "figure": "2b. sensing.invert single-sample latency",
-        "size": f"1-element array, {lat.size:,} calls",
-        "fast": f"median {fmt_time(lat_med)}", "fast_s": lat_med,
-        "ref": "-", "ratio": None, "first_call_s": None,
-        "goal": "< 1 ms per call (median)",
-        "pass": lat_med < 1e-3,
-        "notes": [f"latency: median {lat_med * 1e6:.0f} us, best {lat_best * 1e6:.0f} us, "
-                  f"p99 {lat_p99 * 1e6:.0f} us, max {lat.max() * 1e6:.0f} us per call"],
-        "latency_median_s": lat_med, "latency_p99_s": lat_p99, "latency_best_s": lat_best,
-    }]
+    return [
+        {
+            "figure": "2. sensing.invert (thesis-tcs, R 30..31.7 ohm)",
+            "size": f"{n:,} samples (ref {n_ref:,})",
+            "fast": fmt_rate(rate, "S"),
+            "fast_s": best,
+            "rate": rate,
+            "ref": fmt_rate(ref_rate, "S"),
+            "ref_s": ref_best,
+            "ref_rate": ref_rate,
+            "ratio": ratio,
+            "first_call_s": first,
+            "ref_first_call_s": ref_first,
+            "goal": ">= 1e6 S/s",
+            "pass": ok,
+            "notes": [
+                f"sensing: max |fast - brentq| over {n_ref:,} samples = {diff:.3e} m; "
+                f"R0 = {R0} ohm, S = {S} N/m"
+            ],
+            "max_abs_diff_m": diff,
+        },
+        {
+            "figure": "2b. sensing.invert single-sample latency",
+            "size": f"1-element array, {lat.size:,} calls",
+            "fast": f"median {fmt_time(lat_med)}",
+            "fast_s": lat_med,
+            "ref": "-",
+            "ratio": None,
+            "first_call_s": None,
+            "goal": "< 1 ms per call (median)",
+            "pass": lat_med < 1e-3,
+            "notes": [
+                f"latency: median {lat_med * 1e6:.0f} us, best {lat_best * 1e6:.0f} us, "
+                f"p99 {lat_p99 * 1e6:.0f} us, max {lat.max() * 1e6:.0f} us per call"
+            ],
+            "latency_median_s": lat_med,
+            "latency_p99_s": lat_p99,
+            "latency_best_s": lat_best,
+        },
+    ]
 
 
 # ------------------------------------------------------------------ 3. dynamic
@@ -306,8 +357,14 @@ def bench_dynamic(cfg):
     sample = THESIS_TCA.build_sample()
     rig = THESIS_TCA.build_rig()
     kw = sample.model_kwargs()
-    kw.update(load=rig.load, damping=rig.damping, thermal_mass=rig.thermal_mass,
-              heat_loss=rig.heat_loss, resistance=rig.resistance, ambient=rig.ambient)
+    kw.update(
+        load=rig.load,
+        damping=rig.damping,
+        thermal_mass=rig.thermal_mass,
+        heat_loss=rig.heat_loss,
+        resistance=rig.resistance,
+        ambient=rig.ambient,
+    )
     t, v = pulse_grid(1000.0)
     atol0 = np.asarray(dynamic.ATOL)
 
@@ -323,18 +380,19 @@ def bench_dynamic(cfg):
     # than the rtol-1e-11 reference can resolve (its error there is the
     # reference's own error).
     tight = run("DOP853", 1e-13, atol0 * 1e-7)
-    tight_self = float(np.max(np.abs(tight.displacement - run(
-        "DOP853", 1e-13, atol0 * 1e-5).displacement)))
+    tight_self = float(np.max(np.abs(tight.displacement - run("DOP853", 1e-13, atol0 * 1e-5).displacement)))
 
     def errs(r):
-        return (float(np.max(np.abs(r.displacement - ref.displacement))),
-                float(np.max(np.abs(r.displacement - tight.displacement))))
+        return (
+            float(np.max(np.abs(r.displacement - ref.displacement))),
+            float(np.max(np.abs(r.displacement - tight.displacement))),
+        )
 
     first, best, res = timed(lambda: run("dp5"), cfg["dyn_repeats"])
     err_dp5, err_dp5_t = errs(res)
 
     # RK45 tolerance ladder, loose to tight: (rtol, atol as a multiple of the default).
-    ladder = [(10.0 ** -k, 10.0 ** (8 - k)) for k in range(6, 12)]
+    ladder = [(10.0**-k, 10.0 ** (8 - k)) for k in range(6, 12)]
     ladder += [(1e-11, 1e-5), (1e-12, 1e-6), (3e-13, 3e-7), (1e-13, 1e-7)]
     tried = []
     pick_brief = pick_tight = None
@@ -368,10 +426,16 @@ def bench_dynamic(cfg):
     return {
         "figure": "3. dynamic.response dp5 vs RK45 (10 s pulse, 1 kHz out)",
         "size": f"{t.size:,} samples",
-        "fast": f"{fmt_time(best)} /run", "fast_s": best, "rate": 1 / best,
-        "ref": f"{fmt_time(rk_best)} /run", "ref_s": rk_best, "ref_rate": 1 / rk_best,
-        "ratio": ratio, "ratio_prefix": "" if matched else ">= ",
-        "first_call_s": first, "ref_first_call_s": rk_first,
+        "fast": f"{fmt_time(best)} /run",
+        "fast_s": best,
+        "rate": 1 / best,
+        "ref": f"{fmt_time(rk_best)} /run",
+        "ref_s": rk_best,
+        "ref_rate": 1 / rk_best,
+        "ratio": ratio,
+        "ratio_prefix": "" if matched else ">= ",
+        "first_call_s": first,
+        "ref_first_call_s": rk_first,
         "goal": ">= 10x at equal accuracy",
         "pass": ratio >= 10 and ratio_brief >= 10,
         "notes": [
@@ -382,21 +446,28 @@ def bench_dynamic(cfg):
             f"dynamic: RK45 at rtol {pick_tight[0]:g}, atol x {pick_tight[1]:g}: "
             f"{err_rk_t:.2e} m vs rtol-1e-13 ref ({err_rk:.2e} m vs rtol-1e-11 ref), "
             f"{rk.steps:,} RHS evals; ratio {ratio:.1f}x"
-            + ("" if matched else " is a LOWER BOUND: even the tightest RK45 tried is less "
-               "accurate than dp5"),
+            + (
+                "" if matched else " is a LOWER BOUND: even the tightest RK45 tried is less accurate than dp5"
+            ),
             f"dynamic: brief's protocol (errors vs DOP853 rtol 1e-11, comparable = within its "
             f"{ref_self:.1e} m resolution): RK45 rtol {pick_brief[0]:g}, atol x "
             f"{pick_brief[1]:g}, {fmt_time(rkb_best)} /run, ratio {ratio_brief:.1f}x",
             "dynamic: RK45 ladder (rtol, atol x, err vs 1e-11 ref, err vs 1e-13 ref, time): "
-            + "; ".join(f"{a:g}, {b:g}, {c:.1e}, {d:.1e}, {fmt_time(e)}"
-                        for a, b, c, d, e in tried),
+            + "; ".join(f"{a:g}, {b:g}, {c:.1e}, {d:.1e}, {fmt_time(e)}" for a, b, c, d, e in tried),
             f"dynamic: peak |x| = {peak * 1e3:.3f} mm",
         ],
-        "err_dp5_vs_ref11_m": err_dp5, "err_dp5_vs_ref13_m": err_dp5_t,
-        "err_rk45_vs_ref11_m": err_rk, "err_rk45_vs_ref13_m": err_rk_t,
-        "rk45_rtol": pick_tight[0], "rk45_atol_scale": pick_tight[1], "matched": matched,
-        "ratio_brief_protocol": ratio_brief, "rk45_brief_rtol": pick_brief[0],
-        "rk45_ladder": tried, "ref11_self_diff_m": ref_self, "ref13_self_diff_m": tight_self,
+        "err_dp5_vs_ref11_m": err_dp5,
+        "err_dp5_vs_ref13_m": err_dp5_t,
+        "err_rk45_vs_ref11_m": err_rk,
+        "err_rk45_vs_ref13_m": err_rk_t,
+        "rk45_rtol": pick_tight[0],
+        "rk45_atol_scale": pick_tight[1],
+        "matched": matched,
+        "ratio_brief_protocol": ratio_brief,
+        "rk45_brief_rtol": pick_brief[0],
+        "rk45_ladder": tried,
+        "ref11_self_diff_m": ref_self,
+        "ref13_self_diff_m": tight_self,
     }
 
 
@@ -406,8 +477,9 @@ def bench_monte_carlo(cfg):
     rig = THESIS_TCA.build_rig()
     t, v = pulse_grid(100.0)
     n = cfg["mc_draws"]
-    first, best, mc = timed(lambda: dynamic.monte_carlo(t, v, sample, rig, n_draws=n, seed=0),
-                            cfg["mc_repeats"])
+    first, best, mc = timed(
+        lambda: dynamic.monte_carlo(t, v, sample, rig, n_draws=n, seed=0), cfg["mc_repeats"]
+    )
 
     # Reference: a Python loop of solve_ivp(RK45) over the same draws, at the
     # Monte Carlo tolerances, extrapolated from the first few draws.
@@ -421,18 +493,30 @@ def bench_monte_carlo(cfg):
         for i in range(n_ref):
             try:
                 r = dynamic.response(
-                    t, v, **skw, load=mc.draws["load"][i], damping=mc.draws["damping"][i],
+                    t,
+                    v,
+                    **skw,
+                    load=mc.draws["load"][i],
+                    damping=mc.draws["damping"][i],
                     thermal_mass=mc.draws["thermal_mass"][i],
-                    heat_loss=mc.draws["heat_loss"][i], resistance=mc.draws["resistance"][i],
-                    ambient=rig.ambient, method="RK45", rtol=1e-6, atol=(1e-4, 1e-8, 1e-7))
+                    heat_loss=mc.draws["heat_loss"][i],
+                    resistance=mc.draws["resistance"][i],
+                    ambient=rig.ambient,
+                    method="RK45",
+                    rtol=1e-6,
+                    atol=(1e-4, 1e-8, 1e-7),
+                )
                 out.append(r.displacement)
             except ModelDomainError:
                 out.append(None)
         return out
 
     ref_first, ref_best, ref_out = timed(ref, 1)
-    diffs = [float(np.max(np.abs(x - mc.displacement[row_of[i]])))
-             for i, x in enumerate(ref_out) if x is not None and i in row_of]
+    diffs = [
+        float(np.max(np.abs(x - mc.displacement[row_of[i]])))
+        for i, x in enumerate(ref_out)
+        if x is not None and i in row_of
+    ]
     agree_invalid = sum((x is None) == (not mc.valid[i]) for i, x in enumerate(ref_out))
     rate = n / best
     ref_rate = n_ref / ref_best
@@ -441,10 +525,15 @@ def bench_monte_carlo(cfg):
     return {
         "figure": "4. dynamic.monte_carlo (C_th, lambda, b), 10 s pulse, 100 Hz grid",
         "size": f"{n:,} draws x {t.size:,} samples (ref {n_ref})",
-        "fast": f"{fmt_time(best)} ({fmt_rate(rate, 'draw')})", "fast_s": best, "rate": rate,
+        "fast": f"{fmt_time(best)} ({fmt_rate(rate, 'draw')})",
+        "fast_s": best,
+        "rate": rate,
         "ref": f"{fmt_time(ref_best / n_ref * n)} extrap. ({fmt_rate(ref_rate, 'draw')})",
-        "ref_s": ref_best / n_ref * n, "ref_rate": ref_rate,
-        "ratio": rate / ref_rate, "first_call_s": first, "ref_first_call_s": ref_first,
+        "ref_s": ref_best / n_ref * n,
+        "ref_rate": ref_rate,
+        "ratio": rate / ref_rate,
+        "first_call_s": first,
+        "ref_first_call_s": ref_first,
         "goal": "<= 10 s wall" + ("" if n == 10000 else " (scaled to 10,000 draws)"),
         "pass": best / n * 10000 <= 10.0,
         "notes": [
@@ -454,7 +543,10 @@ def bench_monte_carlo(cfg):
             f"draws: max |diff| = {max(diffs) if diffs else float('nan'):.2e} m; "
             f"valid/invalid agree on {agree_invalid}/{n_ref}",
         ],
-        "n_invalid": mc.n_invalid, "n_draws": n, "grid_hz": 100.0, "n_time": int(t.size),
+        "n_invalid": mc.n_invalid,
+        "n_draws": n,
+        "grid_hz": 100.0,
+        "n_time": int(t.size),
     }
 
 
@@ -463,12 +555,24 @@ def table(rows):
     head = ("Figure", "Size", "Fast", "Reference", "Ratio", "First call", "Goal", "Result")
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     for r in rows:
-        ratio = ("-" if r.get("ratio") is None
-                 else f"{r.get('ratio_prefix', '')}{r['ratio']:,.1f}x")
+        ratio = "-" if r.get("ratio") is None else f"{r.get('ratio_prefix', '')}{r['ratio']:,.1f}x"
         fc = "-" if r.get("first_call_s") is None else fmt_time(r["first_call_s"])
-        lines.append("| " + " | ".join((r["figure"], r["size"], r["fast"], r["ref"], ratio, fc,
-                                         r["goal"], ("PASS" if r["pass"] else "FAIL")
-                                         + (" (info)" if r.get("info") else ""))) + " |")
+        lines.append(
+            "| "
+            + " | ".join(
+                (
+                    r["figure"],
+                    r["size"],
+                    r["fast"],
+                    r["ref"],
+                    ratio,
+                    fc,
+                    r["goal"],
+                    ("PASS" if r["pass"] else "FAIL") + (" (info)" if r.get("info") else ""),
+                )
+            )
+            + " |"
+        )
     return "\n".join(lines)
 
 
@@ -490,21 +594,29 @@ def main():
     only = {s.strip() for s in ARGS.only.split(",")}
     rows = []
     t_start = time.perf_counter()
-    for key, fn in (("1", bench_static), ("2", bench_sensing), ("3", bench_dynamic),
-                    ("4", bench_monte_carlo)):
+    for key, fn in (
+        ("1", bench_static),
+        ("2", bench_sensing),
+        ("3", bench_dynamic),
+        ("4", bench_monte_carlo),
+    ):
         if key not in only:
             continue
         t0 = time.perf_counter()
         out = fn(cfg)
         rows.extend(out if isinstance(out, list) else [out])
-        print(f"[figure {key} done in {time.perf_counter() - t0:.1f} s]", file=sys.stderr,
-              flush=True)
+        print(f"[figure {key} done in {time.perf_counter() - t0:.1f} s]", file=sys.stderr, flush=True)
     cmd = "python " + " ".join([os.path.relpath(sys.argv[0])] + sys.argv[1:])
-    jit = ("fresh numba cache (first call = compile)" if not ARGS.jit_cache
-           else "numba on-disk cache (first call = cache load)")
+    jit = (
+        "fresh numba cache (first call = compile)"
+        if not ARGS.jit_cache
+        else "numba on-disk cache (first call = cache load)"
+    )
     print(f"## tcamlab model benchmarks{' (--quick)' if quick else ''}\n")
-    print(f"`{cmd}` - Python {platform.python_version()}, numpy {np.__version__}, "
-          f"{os.cpu_count()} CPUs, {jit}; best of N after one warm-up call.\n")
+    print(
+        f"`{cmd}` - Python {platform.python_version()}, numpy {np.__version__}, "
+        f"{os.cpu_count()} CPUs, {jit}; best of N after one warm-up call.\n"
+    )
     print(table(rows))
     print()
     for r in rows:
@@ -513,10 +625,21 @@ def main():
     print(f"\nTotal bench time {time.perf_counter() - t_start:.1f} s.")
     if ARGS.json:
         with open(ARGS.json, "w") as fh:
-            json.dump({"command": cmd, "quick": quick, "config": cfg,
-                       "python": platform.python_version(), "numpy": np.__version__,
-                       "cpus": os.cpu_count(), "jit_cache": ARGS.jit_cache, "results": rows},
-                      fh, indent=2, default=float)
+            json.dump(
+                {
+                    "command": cmd,
+                    "quick": quick,
+                    "config": cfg,
+                    "python": platform.python_version(),
+                    "numpy": np.__version__,
+                    "cpus": os.cpu_count(),
+                    "jit_cache": ARGS.jit_cache,
+                    "results": rows,
+                },
+                fh,
+                indent=2,
+                default=float,
+            )
         print(f"JSON written to {ARGS.json}")
     return 0
 

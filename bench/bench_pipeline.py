@@ -71,10 +71,16 @@ def env_info():
         affinity = len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         affinity = os.cpu_count()
-    return {"date": _dt.date.today().isoformat(), "python": platform.python_version(),
-            "numpy": version("numpy"), "pandas": version("pandas"),
-            "cpus": os.cpu_count(), "nproc": affinity, "machine": platform.machine(),
-            "system": f"{platform.system()} {platform.release()}"}
+    return {
+        "date": _dt.date.today().isoformat(),
+        "python": platform.python_version(),
+        "numpy": version("numpy"),
+        "pandas": version("pandas"),
+        "cpus": os.cpu_count(),
+        "nproc": affinity,
+        "machine": platform.machine(),
+        "system": f"{platform.system()} {platform.release()}",
+    }
 
 
 # --------------------------------------------------------------------------- a. ingest
@@ -94,7 +100,7 @@ def write_dynamic_log(path: Path, rows: int, chunk: int = 1_000_000, seed: int =
     rng = np.random.default_rng(seed)
     rate, period, on, volts = 1000.0, 20.0, 2.0, 10.0
     tau, dT_ss, k_mm_per_K, ambient = 1.8, 60.0, 0.08, 24.0
-    q_laser = 10.0 / (2**10 - 1)                    # mm per ADC code
+    q_laser = 10.0 / (2**10 - 1)  # mm per ADC code
     rest_code = None
     t0 = time.perf_counter()
     with open(path, "w", newline="\n") as fh:
@@ -105,19 +111,20 @@ def write_dynamic_log(path: Path, rows: int, chunk: int = 1_000_000, seed: int =
             phase = np.mod(t, period)
             heating = phase < on
             rise_end = dT_ss * (1.0 - np.exp(-on / tau))
-            dT = np.where(heating, dT_ss * (1.0 - np.exp(-phase / tau)),
-                          rise_end * np.exp(-(phase - on) / tau))
+            dT = np.where(
+                heating, dT_ss * (1.0 - np.exp(-phase / tau)), rise_end * np.exp(-(phase - on) / tau)
+            )
             v = np.where(heating, volts, 0.0) + rng.normal(0.0, 0.003, k.size)
-            x_true = 5.0 - k_mm_per_K * dT + rng.normal(0.0, 0.005, k.size)   # mm on the laser
+            x_true = 5.0 - k_mm_per_K * dT + rng.normal(0.0, 0.005, k.size)  # mm on the laser
             codes = np.clip(np.round(x_true / q_laser), 0, 2**10 - 1)
             if rest_code is None:
                 rest_code = codes[0]
             disp = (codes - rest_code) * q_laser
             temp = np.round((ambient + dT + rng.normal(0.0, 0.15, k.size)) / 0.25) * 0.25
-            frame = pd.DataFrame({"time_s": t, "voltage_V": v, "displacement_mm": disp,
-                                  "temperature_C": temp})
-            frame.to_csv(fh, header=False, index=False, float_format="%.3f",
-                         lineterminator="\n")
+            frame = pd.DataFrame(
+                {"time_s": t, "voltage_V": v, "displacement_mm": disp, "temperature_C": temp}
+            )
+            frame.to_csv(fh, header=False, index=False, float_format="%.3f", lineterminator="\n")
     return {"rows": rows, "bytes": path.stat().st_size, "write_s": time.perf_counter() - t0}
 
 
@@ -178,8 +185,7 @@ def run_child(code: str, path: Path) -> dict:
     address space only) is reported next to it as a check.
     """
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
-                          text=True, cwd=REPO)
+    proc = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, cwd=REPO)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         tail = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
@@ -193,8 +199,11 @@ def run_child(code: str, path: Path) -> dict:
 
 
 def generate_in_subprocess(path: Path, rows: int) -> dict:
-    proc = subprocess.run([sys.executable, __file__, "--generate", str(path), "--rows", str(rows)],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, __file__, "--generate", str(path), "--rows", str(rows)],
+        capture_output=True,
+        text=True,
+    )
     if proc.returncode != 0:
         tail = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
         raise RuntimeError(f"log generation exited {proc.returncode}: {tail}")
@@ -206,8 +215,11 @@ def bench_ingest(args) -> dict:
     path = tmp / "dynamic_1khz.csv"
     try:
         gen = generate_in_subprocess(path, args.rows)
-        print(f"[ingest: wrote {gen['rows']:,} rows, {gen['bytes'] / MB:.0f} MB in "
-              f"{gen['write_s']:.1f} s]", file=sys.stderr, flush=True)
+        print(
+            f"[ingest: wrote {gen['rows']:,} rows, {gen['bytes'] / MB:.0f} MB in {gen['write_s']:.1f} s]",
+            file=sys.stderr,
+            flush=True,
+        )
         # Reference first, then tcamlab; both find the file in the page cache
         # (it was just written), so neither pays for the disk.
         # Alternate the two readers so a noisy neighbour hits both alike.
@@ -219,8 +231,9 @@ def bench_ingest(args) -> dict:
         fast = min(fast_all, key=lambda r: r["call_s"])
         profile = None
         if args.profile:
-            proc = subprocess.run([sys.executable, "-c", _CHILD_PROFILE, str(path)],
-                                  capture_output=True, text=True, cwd=REPO)
+            proc = subprocess.run(
+                [sys.executable, "-c", _CHILD_PROFILE, str(path)], capture_output=True, text=True, cwd=REPO
+            )
             profile = proc.stdout if proc.returncode == 0 else proc.stderr
         t_ratio = fast["call_s"] / ref["call_s"]
         m_ratio = fast["rss_mb"] / ref["rss_mb"]
@@ -242,18 +255,26 @@ def bench_ingest(args) -> dict:
             f"frame {ref['frame_bytes'] / MB:.0f} MB",
         ]
         return {
-            "figure": "a. ingest: tcamlab.io.read_run(path, \"dynamic\")",
+            "figure": 'a. ingest: tcamlab.io.read_run(path, "dynamic")',
             "size": f"{gen['rows']:,} rows, {gen['bytes'] / MB:.0f} MB CSV",
             "time": f"{fast['call_s']:.2f} s, peak RSS {fast['rss_mb']:,.0f} MB",
             "reference": f"pandas.read_csv: {ref['call_s']:.2f} s, {ref['rss_mb']:,.0f} MB",
             "ratio": f"{t_ratio:.2f}x time, {m_ratio:.2f}x RSS",
             "goal": f"< {INGEST_TIME_GOAL_S:g} s, < {INGEST_RSS_GOAL_MB / 1000:g} GB RSS",
-            "result": "PASS" if ok else "FAIL", "pass": ok,
-            "time_s": fast["call_s"], "rss_mb": fast["rss_mb"],
-            "ref_time_s": ref["call_s"], "ref_rss_mb": ref["rss_mb"],
-            "time_ratio": t_ratio, "rss_ratio": m_ratio,
-            "read_run": fast, "pandas": ref, "read_run_all": fast_all, "pandas_all": ref_all,
-            "file": gen, "profile": profile,
+            "result": "PASS" if ok else "FAIL",
+            "pass": ok,
+            "time_s": fast["call_s"],
+            "rss_mb": fast["rss_mb"],
+            "ref_time_s": ref["call_s"],
+            "ref_rss_mb": ref["rss_mb"],
+            "time_ratio": t_ratio,
+            "rss_ratio": m_ratio,
+            "read_run": fast,
+            "pandas": ref,
+            "read_run_all": fast_all,
+            "pandas_all": ref_all,
+            "file": gen,
+            "profile": profile,
             "notes": notes,
         }
     finally:
@@ -268,9 +289,14 @@ def _timed_report(cwd: Path, out: Path) -> dict:
     env = dict(os.environ)
     env.pop("CI", None)  # stderr is a pipe: the CLI prints one progress line per experiment
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "tcamlab", "report", "--out", str(out)],
-                            cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tcamlab", "report", "--out", str(out)],
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     reader = threading.Thread(target=lambda: stdout_lines.extend(proc.stdout), daemon=True)
     reader.start()
     marks: list[tuple[float, str]] = []
@@ -294,8 +320,13 @@ def _timed_report(cwd: Path, out: Path) -> dict:
             end = marks[i + 1][0] if i + 1 < len(marks) else wall
             label = name if i + 1 < len(marks) else f"{name} + index.html + reports.pdf"
             segments.append((label, end - t))
-    return {"wall_s": wall, "returncode": proc.returncode, "segments": segments,
-            "stdout": [s.rstrip("\n") for s in stdout_lines], "stderr_other": other_err}
+    return {
+        "wall_s": wall,
+        "returncode": proc.returncode,
+        "segments": segments,
+        "stdout": [s.rstrip("\n") for s in stdout_lines],
+        "stderr_other": other_err,
+    }
 
 
 def bench_report(args) -> dict:
@@ -303,50 +334,73 @@ def bench_report(args) -> dict:
     goal = f"< {REPORT_GOAL_S:g} s (best of {args.report_runs})"
     exps = sorted((REPO / "experiments").glob("*.toml"))
     if not exps:
-        return {"figure": figure, "size": "sample data not available", "time": "-",
-                "reference": "-", "ratio": "-", "goal": goal, "result": "n/a", "pass": None,
-                "notes": ["report: sample data not available (experiments/*.toml is empty)"]}
+        return {
+            "figure": figure,
+            "size": "sample data not available",
+            "time": "-",
+            "reference": "-",
+            "ratio": "-",
+            "goal": goal,
+            "result": "n/a",
+            "pass": None,
+            "notes": ["report: sample data not available (experiments/*.toml is empty)"],
+        }
     tmp = Path(tempfile.mkdtemp(prefix="tcamlab-bench-report-"))
     try:
         for name in ("experiments", "raw"):
             if (REPO / name).is_dir():
                 shutil.copytree(REPO / name, tmp / name)
-        n_raw = sum(1 for p in (tmp / "raw").rglob("*") if p.is_file()) \
-            if (tmp / "raw").is_dir() else 0
-        raw_mb = sum(p.stat().st_size for p in (tmp / "raw").rglob("*") if p.is_file()) / MB \
-            if (tmp / "raw").is_dir() else 0.0
+        n_raw = sum(1 for p in (tmp / "raw").rglob("*") if p.is_file()) if (tmp / "raw").is_dir() else 0
+        raw_mb = (
+            sum(p.stat().st_size for p in (tmp / "raw").rglob("*") if p.is_file()) / MB
+            if (tmp / "raw").is_dir()
+            else 0.0
+        )
         runs = []
         for i in range(args.report_runs):
             r = _timed_report(tmp, tmp / "reports")
             runs.append(r)
-            print(f"[report run {i + 1}: {r['wall_s']:.2f} s, exit {r['returncode']}]",
-                  file=sys.stderr, flush=True)
+            print(
+                f"[report run {i + 1}: {r['wall_s']:.2f} s, exit {r['returncode']}]",
+                file=sys.stderr,
+                flush=True,
+            )
         best = min(runs, key=lambda r: r["wall_s"])
         completed = all(r["returncode"] in (0, 1) for r in runs)
         ok = completed and best["wall_s"] < REPORT_GOAL_S
-        status = {0: "all experiments pass", 1: "ran; some experiment fails its thresholds",
-                  2: "ran; some experiment errored"}.get(best["returncode"],
-                                                          f"exit {best['returncode']}")
+        status = {
+            0: "all experiments pass",
+            1: "ran; some experiment fails its thresholds",
+            2: "ran; some experiment errored",
+        }.get(best["returncode"], f"exit {best['returncode']}")
         notes = [
             f"report: {len(exps)} experiment files, {n_raw} raw files ({raw_mb:.1f} MB); "
             f"runs {', '.join(fmt_time(r['wall_s']) for r in runs)} (exit "
             f"{', '.join(str(r['returncode']) for r in runs)}: {status})",
-            "report: split of the best run: " + "; ".join(
-                f"{label} {fmt_time(s)} ({100 * s / best['wall_s']:.0f}%)"
-                for label, s in best["segments"]),
+            "report: split of the best run: "
+            + "; ".join(
+                f"{label} {fmt_time(s)} ({100 * s / best['wall_s']:.0f}%)" for label, s in best["segments"]
+            ),
             "report: CLI output of the best run: " + " | ".join(best["stdout"]),
         ]
         if best["stderr_other"]:
             notes.append("report: other stderr: " + " | ".join(best["stderr_other"][-5:]))
-        return {"figure": figure,
-                "size": f"{len(exps)} experiments, {n_raw} raw files",
-                "time": fmt_time(best["wall_s"]),
-                "reference": "- (no meaningful baseline)", "ratio": "-", "goal": goal,
-                "result": ("PASS" if ok else "FAIL") + ("" if completed else " (errors)"),
-                "pass": ok, "time_s": best["wall_s"],
-                "runs_s": [r["wall_s"] for r in runs],
-                "returncodes": [r["returncode"] for r in runs],
-                "segments": best["segments"], "stdout": best["stdout"], "notes": notes}
+        return {
+            "figure": figure,
+            "size": f"{len(exps)} experiments, {n_raw} raw files",
+            "time": fmt_time(best["wall_s"]),
+            "reference": "- (no meaningful baseline)",
+            "ratio": "-",
+            "goal": goal,
+            "result": ("PASS" if ok else "FAIL") + ("" if completed else " (errors)"),
+            "pass": ok,
+            "time_s": best["wall_s"],
+            "runs_s": [r["wall_s"] for r in runs],
+            "returncodes": [r["returncode"] for r in runs],
+            "segments": best["segments"],
+            "stdout": best["stdout"],
+            "notes": notes,
+        }
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -362,20 +416,40 @@ def bench_help(args) -> dict:
     base = [sys.executable, "-c", "pass"]
     warm = subprocess.run(cli, capture_output=True, text=True, cwd=REPO)
     if warm.returncode != 0:
-        return {"figure": figure, "size": "-", "time": "CLI not available", "reference": "-",
-                "ratio": "-", "goal": goal, "result": "n/a", "pass": None, "notes": []}
+        return {
+            "figure": figure,
+            "size": "-",
+            "time": "CLI not available",
+            "reference": "-",
+            "ratio": "-",
+            "goal": goal,
+            "result": "n/a",
+            "pass": None,
+            "notes": [],
+        }
     subprocess.run(base, capture_output=True)
     cli_t, _ = run_times(cli, args.help_runs)
     base_t, _ = run_times(base, args.help_runs)
     cli_med, base_med = statistics.median(cli_t), statistics.median(base_t)
     ok = cli_med < HELP_GOAL_S
-    return {"figure": figure, "size": f"{args.help_runs} runs",
-            "time": f"{fmt_time(cli_med)} median", "reference": f"python -c pass: "
-            f"{fmt_time(base_med)}", "ratio": f"{cli_med / base_med:.1f}x",
-            "goal": goal, "result": "PASS" if ok else "FAIL", "pass": ok,
-            "time_s": cli_med, "ref_time_s": base_med, "runs_s": cli_t, "baseline_runs_s": base_t,
-            "notes": [f"--help: min {fmt_time(min(cli_t))}, max {fmt_time(max(cli_t))}; CLI "
-                      f"overhead over the bare interpreter {fmt_time(cli_med - base_med)}"]}
+    return {
+        "figure": figure,
+        "size": f"{args.help_runs} runs",
+        "time": f"{fmt_time(cli_med)} median",
+        "reference": f"python -c pass: {fmt_time(base_med)}",
+        "ratio": f"{cli_med / base_med:.1f}x",
+        "goal": goal,
+        "result": "PASS" if ok else "FAIL",
+        "pass": ok,
+        "time_s": cli_med,
+        "ref_time_s": base_med,
+        "runs_s": cli_t,
+        "baseline_runs_s": base_t,
+        "notes": [
+            f"--help: min {fmt_time(min(cli_t))}, max {fmt_time(max(cli_t))}; CLI "
+            f"overhead over the bare interpreter {fmt_time(cli_med - base_med)}"
+        ],
+    }
 
 
 # --------------------------------------------------------------------------- driver
@@ -390,17 +464,29 @@ def table(rows) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rows", type=int, default=10_000_000,
-                    help="rows of the ingest file (default 10,000,000 = 2.8 h at 1 kHz)")
+    ap.add_argument(
+        "--rows",
+        type=int,
+        default=10_000_000,
+        help="rows of the ingest file (default 10,000,000 = 2.8 h at 1 kHz)",
+    )
     ap.add_argument("--json", metavar="PATH", help="also write the results as JSON")
-    ap.add_argument("--only", default="ingest,report,help",
-                    help="comma-separated subset of: ingest, report, help")
-    ap.add_argument("--repeats", type=int, default=3,
-                    help="fresh subprocesses per ingest reader; the fastest is kept (default 3)")
+    ap.add_argument(
+        "--only", default="ingest,report,help", help="comma-separated subset of: ingest, report, help"
+    )
+    ap.add_argument(
+        "--repeats",
+        type=int,
+        default=3,
+        help="fresh subprocesses per ingest reader; the fastest is kept (default 3)",
+    )
     ap.add_argument("--report-runs", type=int, default=3)
     ap.add_argument("--help-runs", type=int, default=5)
-    ap.add_argument("--profile", action="store_true",
-                    help="also cProfile read_run in a third subprocess and print the top")
+    ap.add_argument(
+        "--profile",
+        action="store_true",
+        help="also cProfile read_run in a third subprocess and print the top",
+    )
     ap.add_argument("--generate", metavar="PATH", help=argparse.SUPPRESS)  # internal
     args = ap.parse_args(argv)
     if args.generate:  # child mode: write the log, print its JSON summary
@@ -415,13 +501,14 @@ def main(argv=None) -> int:
         if key in only:
             t0 = time.perf_counter()
             rows.append(fn(args))
-            print(f"[{key} done in {time.perf_counter() - t0:.1f} s]", file=sys.stderr,
-                  flush=True)
+            print(f"[{key} done in {time.perf_counter() - t0:.1f} s]", file=sys.stderr, flush=True)
     cmd = "python " + " ".join([os.path.relpath(sys.argv[0])] + (argv or sys.argv[1:]))
     print("## tcamlab pipeline benchmarks\n")
-    print(f"`{cmd}` - {info['date']}, Python {info['python']}, pandas {info['pandas']}, "
-          f"numpy {info['numpy']}, nproc {info['nproc']} ({info['cpus']} CPUs), "
-          f"{info['system']} {info['machine']}.\n")
+    print(
+        f"`{cmd}` - {info['date']}, Python {info['python']}, pandas {info['pandas']}, "
+        f"numpy {info['numpy']}, nproc {info['nproc']} ({info['cpus']} CPUs), "
+        f"{info['system']} {info['machine']}.\n"
+    )
     print(table(rows))
     print()
     for r in rows:
@@ -435,8 +522,9 @@ def main(argv=None) -> int:
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         with open(args.json, "w") as fh:
-            json.dump({"command": cmd, **info, "rows_arg": args.rows, "results": rows}, fh,
-                      indent=2, default=float)
+            json.dump(
+                {"command": cmd, **info, "rows_arg": args.rows, "results": rows}, fh, indent=2, default=float
+            )
         print(f"JSON written to {args.json}")
     return 0
 

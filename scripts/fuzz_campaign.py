@@ -63,23 +63,94 @@ def _seed_csvs(max_lines: int = 80) -> dict[str, list[str]]:
 
 
 def _seed_tomls() -> dict[str, str]:
-    return {p.stem: p.read_text(encoding="utf-8")
-            for p in sorted((ROOT / "experiments").glob("*.toml"))}
+    return {p.stem: p.read_text(encoding="utf-8") for p in sorted((ROOT / "experiments").glob("*.toml"))}
 
 
 # --- generators of odd values -------------------------------------------------------
 
 ODD_CELLS = [
-    "", " ", "NaN", "nan", "NA", "N/A", "null", "None", "inf", "-inf", "+inf", "Infinity",
-    "1e308", "-1e308", "1e309", "1e400", "-1e400", "1e-400", "4.9e-324", "9" * 400,
-    "0x10", "1_000", "--1", "+-1", "1e", "e5", ".", "-", "+", "1,5", "1.5.5", "١٢٣",
-    "\u00a0", "\u2212" + "1", "1\u00a0000", "TRUE", "#", '"', '""', "'", ";", "\t", "\x00",
-    "\ufeff", "°", "µ", "\U0001f600", "=1+1", "@SUM(A1)", "<script>", "%s%n", "\\",
-    "0", "-0", "1e-3", "-1e-3", "12345678901234567890", "3.4028235e38", "-273.16", "-1000",
+    "",
+    " ",
+    "NaN",
+    "nan",
+    "NA",
+    "N/A",
+    "null",
+    "None",
+    "inf",
+    "-inf",
+    "+inf",
+    "Infinity",
+    "1e308",
+    "-1e308",
+    "1e309",
+    "1e400",
+    "-1e400",
+    "1e-400",
+    "4.9e-324",
+    "9" * 400,
+    "0x10",
+    "1_000",
+    "--1",
+    "+-1",
+    "1e",
+    "e5",
+    ".",
+    "-",
+    "+",
+    "1,5",
+    "1.5.5",
+    "١٢٣",
+    "\u00a0",
+    "\u2212" + "1",
+    "1\u00a0000",
+    "TRUE",
+    "#",
+    '"',
+    '""',
+    "'",
+    ";",
+    "\t",
+    "\x00",
+    "\ufeff",
+    "°",
+    "µ",
+    "\U0001f600",
+    "=1+1",
+    "@SUM(A1)",
+    "<script>",
+    "%s%n",
+    "\\",
+    "0",
+    "-0",
+    "1e-3",
+    "-1e-3",
+    "12345678901234567890",
+    "3.4028235e38",
+    "-273.16",
+    "-1000",
 ]
 
-ODD_TEXT = ["", " ", "x", "\x00", "\ufeff", "é", "°C", "<b>", "\U0001f600", "a\nb", "\\u0000",
-            "=cmd", "../", "/", "C:\\x", "\u202e", "\ud7ff", "a" * 300]
+ODD_TEXT = [
+    "",
+    " ",
+    "x",
+    "\x00",
+    "\ufeff",
+    "é",
+    "°C",
+    "<b>",
+    "\U0001f600",
+    "a\nb",
+    "\\u0000",
+    "=cmd",
+    "../",
+    "/",
+    "C:\\x",
+    "\u202e",
+    "\ud7ff",
+    "a" * 300,
+]
 
 
 def _rand_unicode(rng: random.Random, n: int) -> str:
@@ -115,9 +186,24 @@ def _odd_number(rng: random.Random) -> str:
 
 # --- CSV mutations ------------------------------------------------------------------
 
-CSV_MILD = ["semicolon_comma", "semicolon_point", "tab", "bom", "crlf", "comments", "extra_col",
-            "scale_values", "neg_values", "reverse_rows", "dup_row", "swap_cols", "latin1",
-            "trailing_sep", "blank_lines", "drop_rows"]
+CSV_MILD = [
+    "semicolon_comma",
+    "semicolon_point",
+    "tab",
+    "bom",
+    "crlf",
+    "comments",
+    "extra_col",
+    "scale_values",
+    "neg_values",
+    "reverse_rows",
+    "dup_row",
+    "swap_cols",
+    "latin1",
+    "trailing_sep",
+    "blank_lines",
+    "drop_rows",
+]
 """Mutations that often keep a file readable, so later checks and models see odd data."""
 
 
@@ -140,15 +226,55 @@ def csv_mutations(rng: random.Random, text: str) -> tuple[bytes, dict]:
     raw_post: list = []
     mild = rng.random() < 0.35
     for _ in range(rng.randint(1, 3)):
-        op = rng.choice(CSV_MILD) if mild else rng.choice([
-            "cell", "cell", "cell", "cells", "swap_cols", "dup_header", "drop_col", "rename_col",
-            "case_header", "extra_col", "drop_rows", "dup_row", "reverse_rows", "shuffle_rows",
-            "no_rows", "header_only", "semicolon_comma", "semicolon_point", "tab", "bom",
-            "latin1", "utf16", "crlf", "comments", "blank_lines", "short_row", "long_row",
-            "quote", "truncate", "byte_flip", "insert_bytes", "nul", "unicode_header",
-            "huge_line", "empty", "whitespace", "neg_values", "scale_values", "only_comments",
-            "time_dup", "trailing_sep",
-        ])
+        op = (
+            rng.choice(CSV_MILD)
+            if mild
+            else rng.choice(
+                [
+                    "cell",
+                    "cell",
+                    "cell",
+                    "cells",
+                    "swap_cols",
+                    "dup_header",
+                    "drop_col",
+                    "rename_col",
+                    "case_header",
+                    "extra_col",
+                    "drop_rows",
+                    "dup_row",
+                    "reverse_rows",
+                    "shuffle_rows",
+                    "no_rows",
+                    "header_only",
+                    "semicolon_comma",
+                    "semicolon_point",
+                    "tab",
+                    "bom",
+                    "latin1",
+                    "utf16",
+                    "crlf",
+                    "comments",
+                    "blank_lines",
+                    "short_row",
+                    "long_row",
+                    "quote",
+                    "truncate",
+                    "byte_flip",
+                    "insert_bytes",
+                    "nul",
+                    "unicode_header",
+                    "huge_line",
+                    "empty",
+                    "whitespace",
+                    "neg_values",
+                    "scale_values",
+                    "only_comments",
+                    "time_dup",
+                    "trailing_sep",
+                ]
+            )
+        )
         steps.append(op)
         if op == "cell" and rows:
             r = rng.randrange(len(rows))
@@ -175,8 +301,7 @@ def csv_mutations(rng: random.Random, text: str) -> tuple[bytes, dict]:
         elif op == "rename_col" and header:
             c = rng.randrange(len(header))
             h = header[c]
-            header[c] = (h[:-1] if len(h) > 1 and rng.random() < 0.5
-                         else h + rng.choice(["_", "x", " ", "s"]))
+            header[c] = h[:-1] if len(h) > 1 and rng.random() < 0.5 else h + rng.choice(["_", "x", " ", "s"])
         elif op == "case_header" and header:
             c = rng.randrange(len(header))
             header[c] = header[c].upper()
@@ -255,8 +380,16 @@ def csv_mutations(rng: random.Random, text: str) -> tuple[bytes, dict]:
         elif op == "trailing_sep":
             header = header + [""]
             rows = [r + [""] for r in rows]
-        elif op in ("truncate", "byte_flip", "insert_bytes", "nul", "huge_line", "empty",
-                    "whitespace", "unicode_header"):
+        elif op in (
+            "truncate",
+            "byte_flip",
+            "insert_bytes",
+            "nul",
+            "huge_line",
+            "empty",
+            "whitespace",
+            "unicode_header",
+        ):
             raw_post.append(op)
     text_out = _join(header, rows, sep, eol)
     if "unicode_header" in raw_post:
@@ -264,8 +397,11 @@ def csv_mutations(rng: random.Random, text: str) -> tuple[bytes, dict]:
     if encoding == "utf-16":
         data = text_out.encode("utf-16")
     else:
-        data = text_out.encode(encoding, errors="replace") if encoding == "latin-1" else \
-            text_out.encode("utf-8", errors="surrogatepass")
+        data = (
+            text_out.encode(encoding, errors="replace")
+            if encoding == "latin-1"
+            else text_out.encode("utf-8", errors="surrogatepass")
+        )
     data = prefix_bytes + data
     if bom:
         data = b"\xef\xbb\xbf" + data
@@ -323,15 +459,54 @@ def random_columns(rng: random.Random, kind: str) -> dict | None:
 
 # --- TOML mutations -----------------------------------------------------------------
 
-TOML_MILD = ["sample_value", "rig_value", "uncertainty", "thresholds", "runs", "preset", "kind",
-             "bom", "columns"]
+TOML_MILD = [
+    "sample_value",
+    "rig_value",
+    "uncertainty",
+    "thresholds",
+    "runs",
+    "preset",
+    "kind",
+    "bom",
+    "columns",
+]
 
 TOML_VALUES = [
-    '""', '"x"', "0", "-1", "1e400", "nan", "inf", "-inf", "+nan", "true", "false", "[]", "[1, 2]",
-    '["a", 1]', "{}", '{ from = "x" }', "1979-05-27T07:32:00Z", "1979-05-27", "07:32:00",
-    "9223372036854775807", "-9223372036854775808", "0x7fffffff", "0b101", "1_000", "3.4e38",
-    '"\\u0000"', '"<script>alert(1)</script>"', '"=cmd|x"', '"\U0001f600"', "'''lit'''",
-    '"""multi\nline"""', "[[1], [2]]", "-0.0", "1e-320", "12345678901234567890123",
+    '""',
+    '"x"',
+    "0",
+    "-1",
+    "1e400",
+    "nan",
+    "inf",
+    "-inf",
+    "+nan",
+    "true",
+    "false",
+    "[]",
+    "[1, 2]",
+    '["a", 1]',
+    "{}",
+    '{ from = "x" }',
+    "1979-05-27T07:32:00Z",
+    "1979-05-27",
+    "07:32:00",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "0x7fffffff",
+    "0b101",
+    "1_000",
+    "3.4e38",
+    '"\\u0000"',
+    '"<script>alert(1)</script>"',
+    '"=cmd|x"',
+    '"\U0001f600"',
+    "'''lit'''",
+    '"""multi\nline"""',
+    "[[1], [2]]",
+    "-0.0",
+    "1e-320",
+    "12345678901234567890123",
 ]
 
 
@@ -341,8 +516,11 @@ def _toml_value(rng: random.Random) -> str:
         return rng.choice(TOML_VALUES)
     if r < 0.8:
         return f"{rng.uniform(-1, 1) * 10 ** rng.randint(-20, 20):.6g}"
-    return '"' + _rand_unicode(rng, rng.randint(0, 8)).replace("\\", "\\\\").replace('"', '\\"') \
-        .replace("\n", "\\n") + '"'
+    return (
+        '"'
+        + _rand_unicode(rng, rng.randint(0, 8)).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+        + '"'
+    )
 
 
 def _set_key(lines: list[str], table: str, key: str, value: str) -> None:
@@ -365,13 +543,43 @@ def toml_mutations(rng: random.Random, text: str, run_names: list[str]) -> tuple
     raw_post: list[str] = []
     mild = rng.random() < 0.35
     for _ in range(rng.randint(1, 3)):
-        op = rng.choice(TOML_MILD) if mild else rng.choice([
-            "value", "value", "value", "typo_key", "unknown_key", "delete_line", "dup_line",
-            "kind", "runs", "runs", "columns", "columns", "thresholds", "sample_value",
-            "rig_value", "uncertainty", "preset", "drop_table", "swap_lines", "truncate",
-            "byte_flip", "unicode", "nul", "latin1", "bom", "table_header", "deep",
-            "dotted", "empty",
-        ])
+        op = (
+            rng.choice(TOML_MILD)
+            if mild
+            else rng.choice(
+                [
+                    "value",
+                    "value",
+                    "value",
+                    "typo_key",
+                    "unknown_key",
+                    "delete_line",
+                    "dup_line",
+                    "kind",
+                    "runs",
+                    "runs",
+                    "columns",
+                    "columns",
+                    "thresholds",
+                    "sample_value",
+                    "rig_value",
+                    "uncertainty",
+                    "preset",
+                    "drop_table",
+                    "swap_lines",
+                    "truncate",
+                    "byte_flip",
+                    "unicode",
+                    "nul",
+                    "latin1",
+                    "bom",
+                    "table_header",
+                    "deep",
+                    "dotted",
+                    "empty",
+                ]
+            )
+        )
         steps.append(op)
         kv = [i for i, line in enumerate(lines) if "=" in line and not line.startswith("[")]
         if op == "value" and kv:
@@ -383,7 +591,7 @@ def toml_mutations(rng: random.Random, text: str, run_names: list[str]) -> tuple
             k, v = lines[i].split("=", 1)
             k = k.strip()
             j = rng.randrange(len(k)) if k else 0
-            k2 = (k[:j] + k[j + 1:]) if rng.random() < 0.5 else (k[:j] + rng.choice("aexs_") + k[j:])
+            k2 = (k[:j] + k[j + 1 :]) if rng.random() < 0.5 else (k[:j] + rng.choice("aexs_") + k[j:])
             lines[i] = f"{k2 or 'x'} ={v}"
         elif op == "unknown_key":
             i = rng.randint(0, len(lines))
@@ -401,44 +609,108 @@ def toml_mutations(rng: random.Random, text: str, run_names: list[str]) -> tuple
                 lines[kv_kind[0]] = f"kind = {new}"
         elif op == "runs":
             idx = [i for i, line in enumerate(lines) if line.startswith("runs")]
-            choice = rng.choice([
-                "[]", '[""]', '["."]', '[".."]', '["../raw"]', '["/nonexistent.csv"]',
-                '["../raw/none.csv"]', "[1]", '"../raw/x.csv"', "[[]]",
-                '["../raw/' + rng.choice(run_names) + '"]',
-                '["../raw/' + rng.choice(run_names) + '", "../raw/' + rng.choice(run_names) + '"]',
-                '["../raw/\\u0000.csv"]', '["' + "a" * 5000 + '"]', '["../raw/*.csv"]',
-                '["C:\\\\x.csv"]', '["~/x.csv"]', '["../experiments/static.toml"]',
-            ])
+            choice = rng.choice(
+                [
+                    "[]",
+                    '[""]',
+                    '["."]',
+                    '[".."]',
+                    '["../raw"]',
+                    '["/nonexistent.csv"]',
+                    '["../raw/none.csv"]',
+                    "[1]",
+                    '"../raw/x.csv"',
+                    "[[]]",
+                    '["../raw/' + rng.choice(run_names) + '"]',
+                    '["../raw/' + rng.choice(run_names) + '", "../raw/' + rng.choice(run_names) + '"]',
+                    '["../raw/\\u0000.csv"]',
+                    '["' + "a" * 5000 + '"]',
+                    '["../raw/*.csv"]',
+                    '["C:\\\\x.csv"]',
+                    '["~/x.csv"]',
+                    '["../experiments/static.toml"]',
+                ]
+            )
             if idx:
                 lines[idx[0]] = f"runs = {choice}"
         elif op == "columns":
-            canon = rng.choice(["time_s", "temperature_C", "displacement_mm", "force_N",
-                                "resistance_ohm", "voltage_V", "r1_ohm", "kappa1_per_mm",
-                                "bogus", "current_A"])
-            spec = rng.choice([
-                '"x"', f'"{canon}"', "3", "[]", '{ from = "x" }', f'{{ from = "{canon}" }}',
-                f'{{ from = "{canon}", unit = "{rng.choice(list(tio.UNITS) + ["furlong"])}" }}',
-                f'{{ from = "{canon}", scale = {rng.choice(["0", "-1", "nan", "inf", "1e308", "2"])} }}',
-                f'{{ from = "{canon}", offset = {rng.choice(["nan", "-inf", "1e308", "-273.15", "true"])} }}',
-                f'{{ from = "{canon}", units = "mm" }}', '{ unit = "mm" }', "{}",
-                f'{{ from = "{canon}", from2 = 1 }}', '{ from = "" }', '{ from = 3 }',
-            ])
+            canon = rng.choice(
+                [
+                    "time_s",
+                    "temperature_C",
+                    "displacement_mm",
+                    "force_N",
+                    "resistance_ohm",
+                    "voltage_V",
+                    "r1_ohm",
+                    "kappa1_per_mm",
+                    "bogus",
+                    "current_A",
+                ]
+            )
+            spec = rng.choice(
+                [
+                    '"x"',
+                    f'"{canon}"',
+                    "3",
+                    "[]",
+                    '{ from = "x" }',
+                    f'{{ from = "{canon}" }}',
+                    f'{{ from = "{canon}", unit = "{rng.choice(list(tio.UNITS) + ["furlong"])}" }}',
+                    f'{{ from = "{canon}", scale = {rng.choice(["0", "-1", "nan", "inf", "1e308", "2"])} }}',
+                    f'{{ from = "{canon}", offset = {rng.choice(["nan", "-inf", "1e308", "-273.15", "true"])} }}',
+                    f'{{ from = "{canon}", units = "mm" }}',
+                    '{ unit = "mm" }',
+                    "{}",
+                    f'{{ from = "{canon}", from2 = 1 }}',
+                    '{ from = "" }',
+                    "{ from = 3 }",
+                ]
+            )
             _set_key(lines, "[columns]", canon, spec)
         elif op == "thresholds":
-            key = rng.choice(["rmse_mm", "r2_min", "bias_N", "x", "rmse", "nrmse_per_mm",
-                              "max_abs_ohm", "rmse_furlong", '""'])
-            _set_key(lines, "[thresholds]", key,
-                     _toml_value(rng) if rng.random() < 0.5 else f"{rng.uniform(0, 2):.3g}")
+            key = rng.choice(
+                [
+                    "rmse_mm",
+                    "r2_min",
+                    "bias_N",
+                    "x",
+                    "rmse",
+                    "nrmse_per_mm",
+                    "max_abs_ohm",
+                    "rmse_furlong",
+                    '""',
+                ]
+            )
+            _set_key(
+                lines,
+                "[thresholds]",
+                key,
+                _toml_value(rng) if rng.random() < 0.5 else f"{rng.uniform(0, 2):.3g}",
+            )
         elif op in ("sample_value", "rig_value", "uncertainty"):
             from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 
             keys = list(SAMPLE_KEYS) if op == "sample_value" else list(RIG_KEYS)
-            table = {"sample_value": "[sample]", "rig_value": "[rig]",
-                     "uncertainty": "[rig.uncertainty]"}[op]
+            table = {"sample_value": "[sample]", "rig_value": "[rig]", "uncertainty": "[rig.uncertainty]"}[op]
             key = rng.choice(keys)
-            val = rng.choice([_toml_value(rng), "0", "-1", "1e9", "1e-9", "0.5", "2", "1.0001",
-                              "[30, 30]", "[0]", "[]", "[1e308, 1e308]"] +
-                             [f"{rng.uniform(0.01, 300):.4g}"] * 6)
+            val = rng.choice(
+                [
+                    _toml_value(rng),
+                    "0",
+                    "-1",
+                    "1e9",
+                    "1e-9",
+                    "0.5",
+                    "2",
+                    "1.0001",
+                    "[30, 30]",
+                    "[0]",
+                    "[]",
+                    "[1e308, 1e308]",
+                ]
+                + [f"{rng.uniform(0.01, 300):.4g}"] * 6
+            )
             if key == "segment_lengths_mm" and rng.random() < 0.7:
                 val = f"[{rng.uniform(1, 90):.3g}, {rng.uniform(1, 90):.3g}]"
             _set_key(lines, table, key, val)
@@ -457,14 +729,37 @@ def toml_mutations(rng: random.Random, text: str, run_names: list[str]) -> tuple
             a, b = rng.sample(range(len(lines)), 2)
             lines[a], lines[b] = lines[b], lines[a]
         elif op == "table_header":
-            lines.insert(rng.randint(0, len(lines)),
-                         rng.choice(["[sample]", "[rig]", "[[runs]]", "[columns]", "[]", "[a.b.c]",
-                                     "[rig.uncertainty.x]", "[synthetic]", "[thresholds]"]))
+            lines.insert(
+                rng.randint(0, len(lines)),
+                rng.choice(
+                    [
+                        "[sample]",
+                        "[rig]",
+                        "[[runs]]",
+                        "[columns]",
+                        "[]",
+                        "[a.b.c]",
+                        "[rig.uncertainty.x]",
+                        "[synthetic]",
+                        "[thresholds]",
+                    ]
+                ),
+            )
         elif op == "deep":
             lines.append("x = " + "[" * 200 + "]" * 200)
         elif op == "dotted":
-            lines.append(rng.choice(["sample.preset = 1", "rig.load_g.x = 1", "columns.time_s.from = 3",
-                                     "synthetic = 1", "runs.x = 1", "notes = []"]))
+            lines.append(
+                rng.choice(
+                    [
+                        "sample.preset = 1",
+                        "rig.load_g.x = 1",
+                        "columns.time_s.from = 3",
+                        "synthetic = 1",
+                        "runs.x = 1",
+                        "notes = []",
+                    ]
+                )
+            )
         else:
             raw_post.append(op)
     data = ("\n".join(lines) + "\n").encode("utf-8", errors="surrogatepass")
@@ -528,8 +823,13 @@ def one_input(lab: Lab, seed: int, index: int) -> dict:
         record.update(type="csv", kind=read_kind, columns=repr(columns), drop_na=drop_na, **info)
 
         def call():
-            return tio.read_run(path, read_kind, columns, drop_na=drop_na,
-                                max_bytes=rng.choice([tio.DEFAULT_MAX_BYTES] * 30 + [64]))
+            return tio.read_run(
+                path,
+                read_kind,
+                columns,
+                drop_na=drop_na,
+                max_bytes=rng.choice([tio.DEFAULT_MAX_BYTES] * 30 + [64]),
+            )
     else:
         name = rng.choice(sorted(lab.tomls))
         data, info = toml_mutations(rng, lab.tomls[name], lab.run_names)
@@ -541,6 +841,7 @@ def one_input(lab: Lab, seed: int, index: int) -> dict:
         def call():
             exp = load_experiment(path, expected_kind=expected)
             return exp.read_runs(drop_na=rng.random() < 0.5)
+
     record["input"] = data
     try:
         with warnings.catch_warnings():
@@ -558,11 +859,15 @@ def one_input(lab: Lab, seed: int, index: int) -> dict:
             record["exception"] = "multi-line TcamlabError message"
             record["traceback"] = msg
     except RecursionError as exc:  # pragma: no cover - recorded like any crash
-        record.update(outcome="crash", exception=f"RecursionError: {exc}",
-                      traceback=traceback.format_exc(limit=-6))
+        record.update(
+            outcome="crash", exception=f"RecursionError: {exc}", traceback=traceback.format_exc(limit=-6)
+        )
     except Exception as exc:
-        record.update(outcome="crash", exception=f"{type(exc).__name__}: {exc}"[:500],
-                      traceback=traceback.format_exc(limit=-6))
+        record.update(
+            outcome="crash",
+            exception=f"{type(exc).__name__}: {exc}"[:500],
+            traceback=traceback.format_exc(limit=-6),
+        )
     return record
 
 
@@ -581,8 +886,10 @@ def pipeline_check(lab: Lab, record: dict) -> dict | None:
     except TcamlabError:
         return None
     except Exception as exc:
-        return {"exception": f"{type(exc).__name__}: {exc}"[:500],
-                "traceback": traceback.format_exc(limit=-6)}
+        return {
+            "exception": f"{type(exc).__name__}: {exc}"[:500],
+            "traceback": traceback.format_exc(limit=-6),
+        }
     return None
 
 
@@ -591,8 +898,12 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=12000, help="number of generated inputs")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--findings", type=Path, default=None, help="folder for crashing inputs")
-    ap.add_argument("--pipeline-every", type=int, default=0,
-                    help="also validate every N-th experiment that loads (0: never)")
+    ap.add_argument(
+        "--pipeline-every",
+        type=int,
+        default=0,
+        help="also validate every N-th experiment that loads (0: never)",
+    )
     ap.add_argument("--json", type=Path, default=None, help="write the summary as JSON")
     ap.add_argument("--replay", default=None, help="SEED:INDEX of one input to rerun")
     args = ap.parse_args(argv)
@@ -603,8 +914,13 @@ def main(argv=None) -> int:
         if args.replay:
             seed, index = (int(x) for x in args.replay.split(":"))
             rec = one_input(lab, seed, index)
-            print(json.dumps({k: (v if k != "input" else repr(v[:2000])) for k, v in rec.items()
-                              if k != "result"}, indent=2, default=str))
+            print(
+                json.dumps(
+                    {k: (v if k != "input" else repr(v[:2000])) for k, v in rec.items() if k != "result"},
+                    indent=2,
+                    default=str,
+                )
+            )
             return 1 if rec["outcome"] == "crash" else 0
         counts: Counter = Counter()
         kinds: Counter = Counter()
@@ -629,30 +945,41 @@ def main(argv=None) -> int:
                         rec = {**rec, "outcome": "crash", "stage": "validate", **bad}
                         counts["pipeline crash"] += 1
             if rec["outcome"] == "crash":
-                sig = rec["exception"].split(":")[0] + " @ " + \
-                    rec["traceback"].strip().splitlines()[-3].strip()[:120]
+                sig = (
+                    rec["exception"].split(":")[0]
+                    + " @ "
+                    + rec["traceback"].strip().splitlines()[-3].strip()[:120]
+                )
                 signatures[sig] += 1
                 if signatures[sig] <= 3:
                     crashes.append(rec)
-                    print(f"CRASH #{i} ({rec['type']}, {rec.get('steps')}): {rec['exception']}",
-                          file=sys.stderr)
+                    print(
+                        f"CRASH #{i} ({rec['type']}, {rec.get('steps')}): {rec['exception']}", file=sys.stderr
+                    )
                     print(f"  input: {rec['input'][:300]!r}", file=sys.stderr)
                     if args.findings:
                         args.findings.mkdir(parents=True, exist_ok=True)
                         ext = "csv" if rec["type"] == "csv" else "toml"
                         (args.findings / f"crash-{args.seed}-{i}.{ext}").write_bytes(rec["input"])
                         (args.findings / f"crash-{args.seed}-{i}.txt").write_text(
-                            json.dumps({k: v for k, v in rec.items()
-                                        if k not in ("input", "result")}, indent=2, default=str))
+                            json.dumps(
+                                {k: v for k, v in rec.items() if k not in ("input", "result")},
+                                indent=2,
+                                default=str,
+                            )
+                        )
             if (i + 1) % 1000 == 0:
-                print(f"{i + 1} inputs, {dict(counts)}, {time.perf_counter() - t0:.0f} s",
-                      file=sys.stderr)
+                print(f"{i + 1} inputs, {dict(counts)}, {time.perf_counter() - t0:.0f} s", file=sys.stderr)
         elapsed = time.perf_counter() - t0
         summary = {
-            "inputs": args.n, "seed": args.seed, "by_type": dict(kinds),
-            "outcomes": dict(counts), "tcamlab_errors": dict(errors),
+            "inputs": args.n,
+            "seed": args.seed,
+            "by_type": dict(kinds),
+            "outcomes": dict(counts),
+            "tcamlab_errors": dict(errors),
             "experiments_validated": pipeline_runs,
-            "crash_signatures": dict(signatures), "seconds": round(elapsed, 1),
+            "crash_signatures": dict(signatures),
+            "seconds": round(elapsed, 1),
         }
         print(json.dumps(summary, indent=2))
         if args.json:

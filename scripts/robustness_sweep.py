@@ -30,20 +30,22 @@ from tcamlab.effects import effects_for
 
 # kind -> list of (label, text appended to the template's [sample] / [rig] tables)
 VARIANTS: dict[str, list[tuple[str, dict, dict]]] = {
-    "static": [("load 30 g, coil 0.40 mm, 140 turns", {"coil_diameter_mm": 0.40, "twists": 140.0},
-                {"load_g": 30.0}),
-               ("load 70 g, ambient 25 C", {}, {"load_g": 70.0, "ambient_C": 25.0})],
-    "dynamic": [("load 70 g, 8 V, R 35 ohm", {}, {"load_g": 70.0, "voltage_V": 8.0,
-                                                  "resistance_ohm": 35.0}),
-                ("load 30 g, pulse 2 s", {}, {"load_g": 30.0, "pulse_s": 2.0})],
-    "sensing": [("S 3.5 N/m, R0 45 ohm", {}, {"spring_constant_N_per_m": 3.5,
-                                              "initial_resistance_ohm": 45.0}),
-                ("S 6.5 N/m, R0 25 ohm", {}, {"spring_constant_N_per_m": 6.5,
-                                              "initial_resistance_ohm": 25.0})],
-    "curvature": [("offset 7 mm, S 12 N/m", {}, {"sensor_offset_mm": 7.0,
-                                                 "spring_constant_N_per_m": 12.0}),
-                  ("offset 11 mm, R0 14 ohm", {}, {"sensor_offset_mm": 11.0,
-                                                   "initial_resistance_ohm": 14.0})],
+    "static": [
+        ("load 30 g, coil 0.40 mm, 140 turns", {"coil_diameter_mm": 0.40, "twists": 140.0}, {"load_g": 30.0}),
+        ("load 70 g, ambient 25 C", {}, {"load_g": 70.0, "ambient_C": 25.0}),
+    ],
+    "dynamic": [
+        ("load 70 g, 8 V, R 35 ohm", {}, {"load_g": 70.0, "voltage_V": 8.0, "resistance_ohm": 35.0}),
+        ("load 30 g, pulse 2 s", {}, {"load_g": 30.0, "pulse_s": 2.0}),
+    ],
+    "sensing": [
+        ("S 3.5 N/m, R0 45 ohm", {}, {"spring_constant_N_per_m": 3.5, "initial_resistance_ohm": 45.0}),
+        ("S 6.5 N/m, R0 25 ohm", {}, {"spring_constant_N_per_m": 6.5, "initial_resistance_ohm": 25.0}),
+    ],
+    "curvature": [
+        ("offset 7 mm, S 12 N/m", {}, {"sensor_offset_mm": 7.0, "spring_constant_N_per_m": 12.0}),
+        ("offset 11 mm, R0 14 ohm", {}, {"sensor_offset_mm": 11.0, "initial_resistance_ohm": 14.0}),
+    ],
 }
 NOISE = (0.5, 2.0)
 STRENGTHS = (2.0, 6.0)
@@ -54,8 +56,13 @@ def _variant_template(kind: str, sample: dict, rig: dict, path: Path) -> Path:
     import tomllib
 
     base = tomllib.loads((TEMPLATES / f"{kind}.toml").read_text())
-    lines = [f'kind = "{kind}"', f'title = "{base.get("title", kind)} (variant)"', "runs = []", "",
-             "[sample]"]
+    lines = [
+        f'kind = "{kind}"',
+        f'title = "{base.get("title", kind)} (variant)"',
+        "runs = []",
+        "",
+        "[sample]",
+    ]
     for k, v in {**base.get("sample", {}), **sample}.items():
         lines.append(f"{k} = {v!r}".replace("'", '"'))
     lines += ["", "[rig]"]
@@ -79,13 +86,30 @@ def make_tasks(tmp: Path, kinds) -> list[dict]:
             for eff in effects_for(kind):
                 for s in STRENGTHS:
                     seed += 1
-                    tasks.append({"case": "single", "kind": kind, "effects": {eff.name: s},
-                                  "seed": seed, "template": str(tpl), "noise_scale": noise,
-                                  "variant": label})
+                    tasks.append(
+                        {
+                            "case": "single",
+                            "kind": kind,
+                            "effects": {eff.name: s},
+                            "seed": seed,
+                            "template": str(tpl),
+                            "noise_scale": noise,
+                            "variant": label,
+                        }
+                    )
             for _ in range(2):
                 seed += 1
-                tasks.append({"case": "null", "kind": kind, "effects": {}, "seed": seed,
-                              "template": str(tpl), "noise_scale": noise, "variant": label})
+                tasks.append(
+                    {
+                        "case": "null",
+                        "kind": kind,
+                        "effects": {},
+                        "seed": seed,
+                        "template": str(tpl),
+                        "noise_scale": noise,
+                        "variant": label,
+                    }
+                )
     return tasks
 
 
@@ -105,10 +129,18 @@ def main(argv=None) -> int:
     wall = time.perf_counter() - t0
     for r in results:
         r.pop("template", None)
-    res = BenchmarkResult(scores=score(results), results=results,
-                          settings={"generator": "tcamlab.rig (off-design variants)",
-                                    "n_tasks": len(tasks), "quick": False, "wall_seconds": wall,
-                                    "noise_scales": list(NOISE), "strengths": list(STRENGTHS)})
+    res = BenchmarkResult(
+        scores=score(results),
+        results=results,
+        settings={
+            "generator": "tcamlab.rig (off-design variants)",
+            "n_tasks": len(tasks),
+            "quick": False,
+            "wall_seconds": wall,
+            "noise_scales": list(NOISE),
+            "strengths": list(STRENGTHS),
+        },
+    )
     import json
 
     (out / "benchmark.json").write_text(json.dumps(res.to_dict(), indent=1))

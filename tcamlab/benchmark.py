@@ -29,19 +29,29 @@ import numpy as np
 
 from tcamlab.effects import effects_for, get_effect
 
-__all__ = ["STRENGTHS", "PAIRS", "BenchmarkResult", "run_benchmark", "run_task",
-           "make_tasks", "score", "STATIC_OVEN", "noise_ceiling"]
+__all__ = [
+    "STRENGTHS",
+    "PAIRS",
+    "BenchmarkResult",
+    "run_benchmark",
+    "run_task",
+    "make_tasks",
+    "score",
+    "STATIC_OVEN",
+    "noise_ceiling",
+]
 
 KINDS = ("static", "dynamic", "sensing", "curvature")
 STRENGTHS = (1.0, 3.0, 10.0)
 """Effect strengths, multiples of the noise RMS."""
 
 PAIRS: dict[str, list[tuple[str, str]]] = {
-    "static": [("glass-transition", "displacement-drift"),
-               ("oven-thermal-lag", "youngs-modulus-temperature")],
+    "static": [
+        ("glass-transition", "displacement-drift"),
+        ("oven-thermal-lag", "youngs-modulus-temperature"),
+    ],
     "dynamic": [("response-delay", "convective-heat-loss")],
-    "sensing": [("initial-slack", "stress-relaxation"),
-                ("hysteresis", "stiffening-spring")],
+    "sensing": [("initial-slack", "stress-relaxation"), ("hysteresis", "stiffening-spring")],
     "curvature": [("camera-placement", "axial-compression")],
 }
 """Representative pairs of effects of one kind (one with distinct signatures,
@@ -81,16 +91,20 @@ def make_tasks(*, quick: bool = False, seeds: int = 10, kinds=KINDS, effects=Non
         for name in names:
             for s in strengths:
                 for seed in range(n_seeds):
-                    tasks.append({"case": "single", "kind": kind, "effects": {name: s},
-                                  "seed": 1000 + seed})
+                    tasks.append({"case": "single", "kind": kind, "effects": {name: s}, "seed": 1000 + seed})
         for seed in range(n_seeds):
             tasks.append({"case": "null", "kind": kind, "effects": {}, "seed": 5000 + seed})
         if not quick:
             for a, b in PAIRS.get(kind, []):
                 for seed in range(max(3, n_seeds // 2)):
-                    tasks.append({"case": "pair", "kind": kind,
-                                  "effects": {a: PAIR_STRENGTH, b: PAIR_STRENGTH},
-                                  "seed": 9000 + seed})
+                    tasks.append(
+                        {
+                            "case": "pair",
+                            "kind": kind,
+                            "effects": {a: PAIR_STRENGTH, b: PAIR_STRENGTH},
+                            "seed": 9000 + seed,
+                        }
+                    )
     return tasks
 
 
@@ -113,11 +127,16 @@ def run_task(task: dict) -> dict:
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
         template = task.get("template") or TEMPLATES / f"{kind}.toml"
         try:
-            extra = {"oven": task.get("oven", STATIC_OVEN)} if kind == "static" and generator == "tcamlab.rig" else {}
+            extra = (
+                {"oven": task.get("oven", STATIC_OVEN)}
+                if kind == "static" and generator == "tcamlab.rig"
+                else {}
+            )
             if "noise_scale" in task:
                 extra["noise_scale"] = float(task["noise_scale"])
-            sim = simulate(kind, template, seed=task["seed"], out_dir=tmp,
-                           effects=dict(task["effects"]), **extra)
+            sim = simulate(
+                kind, template, seed=task["seed"], out_dir=tmp, effects=dict(task["effects"]), **extra
+            )
             truth = json.loads(Path(sim.truth_path).read_text())
             exp = load_experiment(sim.experiment_path)
             res = diagnose(exp, n_boot=task.get("n_boot", 500), seed=0, workers=1)
@@ -125,19 +144,26 @@ def run_task(task: dict) -> dict:
             out.update({"error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0})
             return out
     d = res.to_dict()
-    out.update({
-        "verdict": d["verdict"], "effect": d["effect"], "aliased_with": d["aliased_with"],
-        "ranking": [c["effect"] for c in d["ranking"]],
-        "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
-        "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
-        "gap_rmse_over_noise": d["gap"]["rmse_over_noise"], "gap_limit": d["gap"]["limit"],
-        "heldout_rmse_before_noise": (d["ranking"][0]["heldout_rmse_before_noise"]
-                                      if d["ranking"] else None),
-        "fitted": {c["effect"]: {k: v["value"] for k, v in c["parameters"].items()}
-                   for c in d["ranking"]},
-        "truth_values": _truth_values(truth, kind, task["effects"]),
-        "seconds": time.perf_counter() - t0,
-    })
+    out.update(
+        {
+            "verdict": d["verdict"],
+            "effect": d["effect"],
+            "aliased_with": d["aliased_with"],
+            "ranking": [c["effect"] for c in d["ranking"]],
+            "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
+            "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
+            "gap_rmse_over_noise": d["gap"]["rmse_over_noise"],
+            "gap_limit": d["gap"]["limit"],
+            "heldout_rmse_before_noise": (
+                d["ranking"][0]["heldout_rmse_before_noise"] if d["ranking"] else None
+            ),
+            "fitted": {
+                c["effect"]: {k: v["value"] for k, v in c["parameters"].items()} for c in d["ranking"]
+            },
+            "truth_values": _truth_values(truth, kind, task["effects"]),
+            "seconds": time.perf_counter() - t0,
+        }
+    )
     return out
 
 
@@ -155,7 +181,11 @@ def _truth_values(truth: dict, kind: str, effects: dict) -> dict:
                     vals[f] = entry[f]
                 elif "values" in entry and isinstance(entry["values"], dict) and f in entry["values"]:
                     vals[f] = entry["values"][f]
-                elif "parameters" in entry and isinstance(entry["parameters"], dict) and f in entry["parameters"]:
+                elif (
+                    "parameters" in entry
+                    and isinstance(entry["parameters"], dict)
+                    and f in entry["parameters"]
+                ):
                     vals[f] = entry["parameters"][f]
         elif isinstance(entry, (int, float)):
             vals[fields[0]] = entry
@@ -203,15 +233,19 @@ def score(results: list[dict]) -> dict:
             top3 += int(conf and truth in r["ranking"][:3])
         return {"n": n, "top1": top1 / n, "top3": top3 / n}
 
-    by_strength = {str(s): acc([r for r in singles if next(iter(r["effects"].values())) == s])
-                   for s in sorted({next(iter(r["effects"].values())) for r in singles})}
-    by_kind = {k: acc([r for r in singles if r["kind"] == k]) for k in KINDS
-               if any(r["kind"] == k for r in singles)}
+    by_strength = {
+        str(s): acc([r for r in singles if next(iter(r["effects"].values())) == s])
+        for s in sorted({next(iter(r["effects"].values())) for r in singles})
+    }
+    by_kind = {
+        k: acc([r for r in singles if r["kind"] == k]) for k in KINDS if any(r["kind"] == k for r in singles)
+    }
     by_kind_strength = {}
     for k in by_kind:
-        by_kind_strength[k] = {str(s): acc([r for r in singles if r["kind"] == k
-                                            and next(iter(r["effects"].values())) == s])
-                               for s in sorted({next(iter(r["effects"].values())) for r in singles})}
+        by_kind_strength[k] = {
+            str(s): acc([r for r in singles if r["kind"] == k and next(iter(r["effects"].values())) == s])
+            for s in sorted({next(iter(r["effects"].values())) for r in singles})
+        }
     by_effect = {}
     for r in singles:
         name = next(iter(r["effects"]))
@@ -239,10 +273,15 @@ def score(results: list[dict]) -> dict:
             if f in fv and isinstance(v, float) and v != 0 and fv[f] is not None:
                 recov[f"{r['kind']}/{truth}"].append(abs(fv[f] - v) / abs(v))
     null_false = [r for r in nulls if "error" not in r and r["verdict"] in CONFIDENT]
-    null_by_kind = {k: {"n": sum(r["kind"] == k for r in nulls),
-                        "false": sum(r["kind"] == k for r in null_false),
-                        "verdicts": dict(Counter(r.get("verdict", "error") for r in nulls if r["kind"] == k))}
-                    for k in KINDS if any(r["kind"] == k for r in nulls)}
+    null_by_kind = {
+        k: {
+            "n": sum(r["kind"] == k for r in nulls),
+            "false": sum(r["kind"] == k for r in null_false),
+            "verdicts": dict(Counter(r.get("verdict", "error") for r in nulls if r["kind"] == k)),
+        }
+        for k in KINDS
+        if any(r["kind"] == k for r in nulls)
+    }
 
     pair_rows = []
     for r in pairs:
@@ -257,9 +296,17 @@ def score(results: list[dict]) -> dict:
             outcome = "confident third effect (failure)"
         else:
             outcome = r["verdict"]
-        pair_rows.append({"kind": r["kind"], "pair": " + ".join(names), "seed": r["seed"],
-                          "verdict": r.get("verdict"), "effect": r.get("effect"),
-                          "aliased_with": r.get("aliased_with"), "outcome": outcome})
+        pair_rows.append(
+            {
+                "kind": r["kind"],
+                "pair": " + ".join(names),
+                "seed": r["seed"],
+                "verdict": r.get("verdict"),
+                "effect": r.get("effect"),
+                "aliased_with": r.get("aliased_with"),
+                "outcome": outcome,
+            }
+        )
 
     confusion: dict[str, dict[str, dict[str, int]]] = {}
     for r in singles + nulls:
@@ -273,21 +320,29 @@ def score(results: list[dict]) -> dict:
         "accuracy_by_kind": by_kind,
         "accuracy_by_kind_and_strength": by_kind_strength,
         "accuracy_by_effect": by_effect,
-        "null": {"n": len(nulls), "false_attributions": len(null_false),
-                 "rate": (len(null_false) / len(nulls)) if nulls else None, "by_kind": null_by_kind},
+        "null": {
+            "n": len(nulls),
+            "false_attributions": len(null_false),
+            "rate": (len(null_false) / len(nulls)) if nulls else None,
+            "by_kind": null_by_kind,
+        },
         "median_shrinkage_when_right": float(np.median(shrink)) if shrink else None,
-        "shrinkage_by_strength": {k: _shrink_cell(k, v) for k, v in sorted(by_s.items(),
-                                                                          key=lambda kv: float(kv[0]))},
-        "median_fraction_closed_when_right": (float(np.nanmedian([x for v in by_s.values()
-                                                                   for x in v["fraction_closed"]]))
-                                              if shrink else None),
+        "shrinkage_by_strength": {
+            k: _shrink_cell(k, v) for k, v in sorted(by_s.items(), key=lambda kv: float(kv[0]))
+        },
+        "median_fraction_closed_when_right": (
+            float(np.nanmedian([x for v in by_s.values() for x in v["fraction_closed"]])) if shrink else None
+        ),
         "n_right": len(shrink),
         "parameter_recovery_median_rel_error": {k: float(np.median(v)) for k, v in recov.items()},
         "pairs": pair_rows,
         "pair_outcomes": dict(Counter(p["outcome"] for p in pair_rows)),
         "confusion": confusion,
-        "errors": [{"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
-                   for r in results if "error" in r],
+        "errors": [
+            {"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
+            for r in results
+            if "error" in r
+        ],
         "seconds_median": float(np.median([r["seconds"] for r in results])) if results else None,
     }
 
@@ -308,10 +363,13 @@ def _shrink_cell(strength: str, cell: dict) -> dict:
         v = [x for x in v if x is not None and math.isfinite(x)]
         return float(np.median(v)) if v else None
 
-    return {"n": len(cell["shrinkage"]), "median_shrinkage": med(cell["shrinkage"]),
-            "noise_ceiling": noise_ceiling(float(strength)),
-            "median_share_of_attainable": med(cell["attainable"]),
-            "median_fraction_closed": med(cell["fraction_closed"])}
+    return {
+        "n": len(cell["shrinkage"]),
+        "median_shrinkage": med(cell["shrinkage"]),
+        "noise_ceiling": noise_ceiling(float(strength)),
+        "median_share_of_attainable": med(cell["attainable"]),
+        "median_fraction_closed": med(cell["fraction_closed"]),
+    }
 
 
 # ---------------------------------------------------------------------------
@@ -331,8 +389,9 @@ class BenchmarkResult:
     def to_dict(self) -> dict:
         from tcamlab.diagnosis import _jsonable
 
-        return _jsonable({"schema_version": 1, "settings": self.settings, "scores": self.scores,
-                          "results": self.results})
+        return _jsonable(
+            {"schema_version": 1, "settings": self.settings, "scores": self.scores, "results": self.results}
+        )
 
 
 def _execute(tasks, scheduler=None, workers=None) -> list[dict]:
@@ -355,8 +414,17 @@ def _execute(tasks, scheduler=None, workers=None) -> list[dict]:
         return list(pool.map(run_task, tasks, chunksize=1))
 
 
-def run_benchmark(out_dir, *, quick: bool = False, scheduler=None, workers=None, seeds: int = 10,
-                  kinds=KINDS, effects=None, tasks=None) -> BenchmarkResult:
+def run_benchmark(
+    out_dir,
+    *,
+    quick: bool = False,
+    scheduler=None,
+    workers=None,
+    seeds: int = 10,
+    kinds=KINDS,
+    effects=None,
+    tasks=None,
+) -> BenchmarkResult:
     """Run the withheld-effect benchmark and write benchmark.json, benchmark.md and a report.
 
     Parameters
@@ -386,9 +454,15 @@ def run_benchmark(out_dir, *, quick: bool = False, scheduler=None, workers=None,
     wall = time.perf_counter() - t0
     scores = score(results)
     _, generator = _simulator()
-    settings = {"quick": bool(quick), "seeds": seeds, "n_tasks": len(tasks), "wall_seconds": wall,
-                "generator": generator, "strengths": [3.0] if quick else list(STRENGTHS),
-                "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})"}
+    settings = {
+        "quick": bool(quick),
+        "seeds": seeds,
+        "n_tasks": len(tasks),
+        "wall_seconds": wall,
+        "generator": generator,
+        "strengths": [3.0] if quick else list(STRENGTHS),
+        "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
+    }
     res = BenchmarkResult(scores=scores, results=results, settings=settings)
     from tcamlab.report import atomic_write_bytes, atomic_write_text
 
@@ -421,68 +495,132 @@ def _fmt(x, pct=False):
 def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]]:
     s = res.scores
     tabs = []
-    rows = [[k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
-            for k, v in s["accuracy_by_strength"].items()]
-    tabs.append(("Attribution accuracy by strength (x noise RMS)",
-                 ["strength", "cases", "top-1", "top-3"], rows))
+    rows = [
+        [k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
+        for k, v in s["accuracy_by_strength"].items()
+    ]
+    tabs.append(
+        ("Attribution accuracy by strength (x noise RMS)", ["strength", "cases", "top-1", "top-3"], rows)
+    )
     strengths = list(s["accuracy_by_strength"])
     rows = []
     for k, v in s["accuracy_by_kind_and_strength"].items():
-        rows.append([k] + [_fmt(v[st]["top1"], True) + f" ({v[st]['n']})" for st in strengths]
-                    + [_fmt(s["accuracy_by_kind"][k]["top1"], True)])
+        rows.append(
+            [k]
+            + [_fmt(v[st]["top1"], True) + f" ({v[st]['n']})" for st in strengths]
+            + [_fmt(s["accuracy_by_kind"][k]["top1"], True)]
+        )
     tabs.append(("Top-1 accuracy by kind (cases)", ["kind"] + [f"{st}x" for st in strengths] + ["all"], rows))
-    rows = [[k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
-            for k, v in s["accuracy_by_effect"].items()]
+    rows = [
+        [k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
+        for k, v in s["accuracy_by_effect"].items()
+    ]
     tabs.append(("Accuracy by effect", ["effect", "cases", "top-1", "top-3"], rows))
     n = s["null"]
-    rows = [[k, str(v["n"]), str(v["false"]), ", ".join(f"{a}: {b}" for a, b in v["verdicts"].items())]
-            for k, v in n["by_kind"].items()]
+    rows = [
+        [k, str(v["n"]), str(v["false"]), ", ".join(f"{a}: {b}" for a, b in v["verdicts"].items())]
+        for k, v in n["by_kind"].items()
+    ]
     rows.append(["all", str(n["n"]), str(n["false_attributions"]), _fmt(n["rate"], True)])
     tabs.append(("Null cases (no effect): false attributions", ["kind", "cases", "false", "verdicts"], rows))
     if s.get("shrinkage_by_strength"):
-        rows = [[k, str(v["n"]), _fmt(v["median_shrinkage"], True), _fmt(v["noise_ceiling"], True),
-                 _fmt(v["median_share_of_attainable"], True), _fmt(v["median_fraction_closed"], True)]
-                for k, v in s["shrinkage_by_strength"].items()]
-        tabs.append(("Held-out shrinkage where the attribution is right, by strength",
-                     ["strength", "cases", "median RMSE shrinkage", "noise ceiling",
-                      "median share of attainable", "median fraction of gap closed"], rows))
+        rows = [
+            [
+                k,
+                str(v["n"]),
+                _fmt(v["median_shrinkage"], True),
+                _fmt(v["noise_ceiling"], True),
+                _fmt(v["median_share_of_attainable"], True),
+                _fmt(v["median_fraction_closed"], True),
+            ]
+            for k, v in s["shrinkage_by_strength"].items()
+        ]
+        tabs.append(
+            (
+                "Held-out shrinkage where the attribution is right, by strength",
+                [
+                    "strength",
+                    "cases",
+                    "median RMSE shrinkage",
+                    "noise ceiling",
+                    "median share of attainable",
+                    "median fraction of gap closed",
+                ],
+                rows,
+            )
+        )
     rows = [[k, _fmt(v)] for k, v in s["parameter_recovery_median_rel_error"].items()]
-    tabs.append(("Parameter recovery, median |fitted - true| / |true| (right attributions)",
-                 ["effect", "median rel. error"], rows))
+    tabs.append(
+        (
+            "Parameter recovery, median |fitted - true| / |true| (right attributions)",
+            ["effect", "median rel. error"],
+            rows,
+        )
+    )
     if s["pairs"]:
-        rows = [[p["kind"], p["pair"], str(p["seed"]), str(p["verdict"]), str(p["effect"]),
-                 ", ".join(p["aliased_with"] or []), p["outcome"]] for p in s["pairs"]]
-        tabs.append(("Pairs of effects", ["kind", "pair", "seed", "verdict", "effect", "aliased with",
-                                          "outcome"], rows))
+        rows = [
+            [
+                p["kind"],
+                p["pair"],
+                str(p["seed"]),
+                str(p["verdict"]),
+                str(p["effect"]),
+                ", ".join(p["aliased_with"] or []),
+                p["outcome"],
+            ]
+            for p in s["pairs"]
+        ]
+        tabs.append(
+            (
+                "Pairs of effects",
+                ["kind", "pair", "seed", "verdict", "effect", "aliased with", "outcome"],
+                rows,
+            )
+        )
     for kind, conf in s["confusion"].items():
         cols = sorted({c for row in conf.values() for c in row})
         rows = [[t] + [str(row.get(c, 0)) for c in cols] for t, row in conf.items()]
-        tabs.append((f"Confusion matrix, {kind} (rows: true effect; columns: diagnosis)",
-                     ["true \\ diagnosed"] + cols, rows))
+        tabs.append(
+            (
+                f"Confusion matrix, {kind} (rows: true effect; columns: diagnosis)",
+                ["true \\ diagnosed"] + cols,
+                rows,
+            )
+        )
     return tabs
 
 
 def markdown(res: BenchmarkResult) -> str:
     """Markdown tables of a benchmark, ready to paste into a README."""
     s = res.scores
-    lines = ["# Withheld-effect benchmark of the gap diagnosis", "",
-             f"Generator: `{res.settings.get('generator')}`; {res.settings.get('n_tasks')} cases; "
-             f"{'quick subset' if res.settings.get('quick') else 'full run'}; "
-             f"wall time {res.settings.get('wall_seconds', 0):.0f} s; median "
-             f"{_fmt(s['seconds_median'])} s per case.", "",
-             f"Median held-out RMSE shrinkage where the attribution is right: "
-             f"{_fmt(s['median_shrinkage_when_right'], True)} ({s['n_right']} cases); median "
-             f"fraction of the gap above the noise floor closed: "
-             f"{_fmt(s.get('median_fraction_closed_when_right'), True)}. "
-             f"Null false-attribution rate: {_fmt(s['null']['rate'], True)}.", "",
-             "Held-out RMSE includes the withheld run's noise, which no model removes: at "
-             "strength s the shrinkage cannot exceed 1 - 1/sqrt(1 + s^2) (the noise ceiling "
-             "in the shrinkage table).", ""]
+    lines = [
+        "# Withheld-effect benchmark of the gap diagnosis",
+        "",
+        f"Generator: `{res.settings.get('generator')}`; {res.settings.get('n_tasks')} cases; "
+        f"{'quick subset' if res.settings.get('quick') else 'full run'}; "
+        f"wall time {res.settings.get('wall_seconds', 0):.0f} s; median "
+        f"{_fmt(s['seconds_median'])} s per case.",
+        "",
+        f"Median held-out RMSE shrinkage where the attribution is right: "
+        f"{_fmt(s['median_shrinkage_when_right'], True)} ({s['n_right']} cases); median "
+        f"fraction of the gap above the noise floor closed: "
+        f"{_fmt(s.get('median_fraction_closed_when_right'), True)}. "
+        f"Null false-attribution rate: {_fmt(s['null']['rate'], True)}.",
+        "",
+        "Held-out RMSE includes the withheld run's noise, which no model removes: at "
+        "strength s the shrinkage cannot exceed 1 - 1/sqrt(1 + s^2) (the noise ceiling "
+        "in the shrinkage table).",
+        "",
+    ]
     if s["pair_outcomes"]:
         lines += ["Pair outcomes: " + ", ".join(f"{k}: {v}" for k, v in s["pair_outcomes"].items()), ""]
     for title, cols, rows in _tables(res):
-        lines += [f"## {title}", "", "| " + " | ".join(cols) + " |",
-                  "|" + "|".join("---" for _ in cols) + "|"]
+        lines += [
+            f"## {title}",
+            "",
+            "| " + " | ".join(cols) + " |",
+            "|" + "|".join("---" for _ in cols) + "|",
+        ]
         lines += ["| " + " | ".join(r) + " |" for r in rows]
         lines.append("")
     if s["errors"]:
@@ -495,15 +633,27 @@ def report_document(res: BenchmarkResult):
     from tcamlab.report import Document, Section, Table
 
     s = res.scores
-    sections = [Section("Summary", paragraphs=[
-        f"{res.settings.get('n_tasks')} simulated cases (generator {res.settings.get('generator')}).",
-        f"Median held-out shrinkage where right: {_fmt(s['median_shrinkage_when_right'], True)} "
-        f"(fraction of the gap above noise closed: "
-        f"{_fmt(s.get('median_fraction_closed_when_right'), True)}); "
-        f"null false-attribution rate: {_fmt(s['null']['rate'], True)}."])]
+    sections = [
+        Section(
+            "Summary",
+            paragraphs=[
+                f"{res.settings.get('n_tasks')} simulated cases (generator {res.settings.get('generator')}).",
+                f"Median held-out shrinkage where right: {_fmt(s['median_shrinkage_when_right'], True)} "
+                f"(fraction of the gap above noise closed: "
+                f"{_fmt(s.get('median_fraction_closed_when_right'), True)}); "
+                f"null false-attribution rate: {_fmt(s['null']['rate'], True)}.",
+            ],
+        )
+    ]
     for title, cols, rows in _tables(res):
         sections.append(Section(title, tables=[Table(cols, rows, caption=title)]))
-    return Document("Withheld-effect benchmark", subtitle="tcamlab gap diagnosis",
-                    sections=sections, synthetic_banner="All data in this report is simulated.",
-                    metadata={"generator": str(res.settings.get("generator")),
-                              "wall time [s]": f"{res.settings.get('wall_seconds', 0):.0f}"})
+    return Document(
+        "Withheld-effect benchmark",
+        subtitle="tcamlab gap diagnosis",
+        sections=sections,
+        synthetic_banner="All data in this report is simulated.",
+        metadata={
+            "generator": str(res.settings.get("generator")),
+            "wall time [s]": f"{res.settings.get('wall_seconds', 0):.0f}",
+        },
+    )

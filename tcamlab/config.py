@@ -42,9 +42,10 @@ import math
 import os
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Mapping, Optional
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
@@ -83,27 +84,26 @@ class _Synthetic(BaseModel):
     model_config = _STRICT
     generator: str
     seed: int
-    command: Optional[str] = None
+    command: str | None = None
 
 
 def _sample_field(key: str):
     if key == "thread_plies":
-        return (Optional[int], None)
-    return (Optional[float], None)
+        return (int | None, None)
+    return (float | None, None)
 
 
 _SampleTable = create_model(
     "_SampleTable",
     __config__=_STRICT,
-    preset=(Optional[Literal[tuple(PRESETS)]], None),  # type: ignore[valid-type]
+    preset=(Literal[tuple(PRESETS)] | None, None),  # type: ignore[valid-type]
     **{key: _sample_field(key) for key in SAMPLE_KEYS},
 )
 
 
 def _rig_fields() -> dict[str, Any]:
     return {
-        key: ((Optional[list[float]], None) if key in _LIST_KEYS else (Optional[float], None))
-        for key in RIG_KEYS
+        key: ((list[float] | None, None) if key in _LIST_KEYS else (float | None, None)) for key in RIG_KEYS
     }
 
 
@@ -111,7 +111,7 @@ _RigUncertainty = create_model("_RigUncertainty", __config__=_STRICT, **_rig_fie
 _RigTable = create_model(
     "_RigTable",
     __config__=_STRICT,
-    uncertainty=(Optional[_RigUncertainty], None),
+    uncertainty=(_RigUncertainty | None, None),
     **_rig_fields(),
 )
 
@@ -121,9 +121,9 @@ class _ColumnTable(BaseModel):
 
     model_config = ConfigDict(extra="forbid", strict=True, populate_by_name=True)
     from_: str = Field(alias="from")
-    unit: Optional[str] = None
-    scale: Optional[float] = None
-    offset: Optional[float] = None
+    unit: str | None = None
+    scale: float | None = None
+    offset: float | None = None
 
 
 class _ExperimentFile(BaseModel):
@@ -131,10 +131,10 @@ class _ExperimentFile(BaseModel):
     kind: Literal["static", "dynamic", "sensing", "curvature"]
     title: str
     runs: list[str] = Field(min_length=1)
-    notes: Optional[str] = None
-    synthetic: Optional[_Synthetic] = None
-    sample: Optional[_SampleTable] = None  # type: ignore[valid-type]
-    rig: Optional[_RigTable] = None  # type: ignore[valid-type]
+    notes: str | None = None
+    synthetic: _Synthetic | None = None
+    sample: _SampleTable | None = None  # type: ignore[valid-type]
+    rig: _RigTable | None = None  # type: ignore[valid-type]
     columns: dict[str, Any] = Field(default_factory=dict)
     thresholds: dict[str, Any] = Field(default_factory=dict)
 
@@ -248,8 +248,9 @@ class Experiment:
         list of tcamlab.io.RunData
         """
         return [
-            tio.read_run(p, self.kind, self.columns, drop_na=drop_na, max_bytes=max_bytes,
-                         shown=_display_path(p))
+            tio.read_run(
+                p, self.kind, self.columns, drop_na=drop_na, max_bytes=max_bytes, shown=_display_path(p)
+            )
             for p in self.runs
         ]
 
@@ -292,9 +293,7 @@ def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = 
         allowed = allowed or []
         table = f"[{'.'.join(parent)}]" if parent else "the top level"
         return ConfigError(
-            f"{shown}: unknown key {key!r} in {table}"
-            + tio._did_you_mean(str(loc[-1]), allowed)
-            + more,
+            f"{shown}: unknown key {key!r} in {table}" + tio._did_you_mean(str(loc[-1]), allowed) + more,
             "allowed keys: " + ", ".join(allowed) if allowed else None,
         )
     if kind == "missing":
@@ -312,9 +311,7 @@ def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = 
         numeric = kind.startswith(("float", "int"))
         return ConfigError(
             f"{shown}: {key}: expected {_EXPECTED[kind]}, got {_short(e['input'])}{more}",
-            "numbers are written without quotes in TOML"
-            if numeric and isinstance(e["input"], str)
-            else None,
+            "numbers are written without quotes in TOML" if numeric and isinstance(e["input"], str) else None,
         )
     return ConfigError(f"{shown}: {key}: {e['msg']}{more}")
 
@@ -361,8 +358,9 @@ def _finite(shown: str, key: str, value: Any) -> float:
     return float(value)
 
 
-def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *,
-                    require_runs: bool = True) -> Experiment:
+def load_experiment(
+    path: str | os.PathLike, expected_kind: str | None = None, *, require_runs: bool = True
+) -> Experiment:
     """Load, validate and convert an experiment file.
 
     Parameters
@@ -393,8 +391,9 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *
     try:
         is_file, exists = p.is_file(), p.exists()
     except (OSError, ValueError) as exc:
-        raise ConfigError(f"{shown}: cannot be used as a file name "
-                          f"({getattr(exc, 'strerror', None) or exc})") from None
+        raise ConfigError(
+            f"{shown}: cannot be used as a file name ({getattr(exc, 'strerror', None) or exc})"
+        ) from None
     if not is_file:
         raise ConfigError(
             f"{shown}: experiment file not found" if not exists else f"{shown}: not a file",
@@ -410,8 +409,9 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *
             )
         data = p.read_bytes()
     except OSError as exc:
-        raise ConfigError(f"{shown}: cannot read the file ({exc.strerror or exc})",
-                          "check that it exists and is readable") from None
+        raise ConfigError(
+            f"{shown}: cannot read the file ({exc.strerror or exc})", "check that it exists and is readable"
+        ) from None
     # Editors on Windows often save UTF-8 with a byte-order mark, which
     # tomllib refuses as an "invalid statement" at line 1: accept it.
     if data.startswith(b"\xef\xbb\xbf"):
@@ -424,9 +424,14 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *
             "see https://toml.io; strings need quotes, tables are [name]",
         ) from None
     except UnicodeDecodeError as exc:
-        raise ConfigError(f"{shown}: not UTF-8 text ({exc.reason} at byte {exc.start})", "save it as UTF-8") from None
+        raise ConfigError(
+            f"{shown}: not UTF-8 text ({exc.reason} at byte {exc.start})", "save it as UTF-8"
+        ) from None
     except RecursionError:
-        raise ConfigError(f"{shown}: TOML nested too deeply", "arrays and tables nest only a few levels in an experiment file") from None
+        raise ConfigError(
+            f"{shown}: TOML nested too deeply",
+            "arrays and tables nest only a few levels in an experiment file",
+        ) from None
 
     try:
         doc = (_ExperimentFile if require_runs else _TemplateFile).model_validate(raw)
@@ -446,8 +451,10 @@ def load_experiment(path: str | os.PathLike, expected_kind: str | None = None, *
     for i, run in enumerate(doc.runs):
         shown_run = _short(run)
         if not run.strip() or "\x00" in run:
-            raise ConfigError(f"{shown}: runs[{i}]: {shown_run} is not a file name",
-                              'e.g. runs = ["../raw/run1.csv"] (relative to the experiment file)')
+            raise ConfigError(
+                f"{shown}: runs[{i}]: {shown_run} is not a file name",
+                'e.g. runs = ["../raw/run1.csv"] (relative to the experiment file)',
+            )
         try:
             rp = Path(run)
             rp = (rp if rp.is_absolute() else base / rp).resolve()
@@ -522,7 +529,8 @@ def _build_sample(doc: _ExperimentFile, shown: str) -> tuple[Sample, dict[str, s
                 raise ConfigError(
                     f"{shown}: [sample] has no preset, so every sample key is required; "
                     f"missing: {', '.join(missing)}",
-                    "add preset = \"thesis-tca\" (or another of " + ", ".join(sorted(PRESETS))
+                    'add preset = "thesis-tca" (or another of '
+                    + ", ".join(sorted(PRESETS))
                     + ") to [sample], or give the missing keys",
                 )
             sample = Sample(**overrides)
@@ -530,8 +538,7 @@ def _build_sample(doc: _ExperimentFile, shown: str) -> tuple[Sample, dict[str, s
             preset = get_preset(preset_name)
             sample = preset.build_sample(**overrides)
             provenance = {
-                k: (EXPERIMENT_FILE if k in overrides else v.provenance)
-                for k, v in preset.sample.items()
+                k: (EXPERIMENT_FILE if k in overrides else v.provenance) for k, v in preset.sample.items()
             } | provenance
     except ConfigError as exc:
         if exc.message.startswith(shown):
@@ -687,7 +694,9 @@ def dumps_toml(data: Mapping[str, Any]) -> str:
 
     def emit(table: Mapping[str, Any], path: tuple[str, ...]) -> None:
         inline = bool(path) and path[-1] in _INLINE_TABLES_IN
-        scalars = [(k, v) for k, v in table.items() if v is not None and (inline or not isinstance(v, Mapping))]
+        scalars = [
+            (k, v) for k, v in table.items() if v is not None and (inline or not isinstance(v, Mapping))
+        ]
         tables = [(k, v) for k, v in table.items() if isinstance(v, Mapping) and not inline]
         if path and (scalars or not tables):
             if lines:
@@ -702,9 +711,7 @@ def dumps_toml(data: Mapping[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_experiment(
-    path: str | os.PathLike, data: Mapping[str, Any], *, comment: str | None = None
-) -> Path:
+def write_experiment(path: str | os.PathLike, data: Mapping[str, Any], *, comment: str | None = None) -> Path:
     """Write an experiment (or any) TOML document.
 
     Parameters

@@ -69,8 +69,8 @@ from __future__ import annotations
 import itertools
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -139,8 +139,11 @@ the sensing displacement (the inverted model is not symmetric about R0).
 Add ``"displacement"`` here for logs whose first row is a single noisy reading."""
 
 SHARED_INPUTS: dict[str, tuple[str, ...]] = {
-    "static": ("temperature",), "dynamic": ("voltage",), "sensing": ("resistance",),
-    "curvature": ("cable",)}
+    "static": ("temperature",),
+    "dynamic": ("voltage",),
+    "sensing": ("resistance",),
+    "curvature": ("cable",),
+}
 """Inputs that set a row's operating point: runs whose values of these agree
 row by row (within 2 % of their range) are replicates, and the spread of their
 residuals across runs measures the noise. The curvature rig's r1, r2 are
@@ -166,9 +169,16 @@ DISPLAY_UNITS: dict[str, tuple[str, float]] = {
 }
 """Quantity -> (display unit, factor from SI)."""
 
-_INPUT_UNITS = {"temperature": ("degC", 1.0), "time": ("s", 1.0), "voltage": ("V", 1.0),
-                "resistance": ("ohm", 1.0), "cable": ("mm", 1e3), "r1": ("ohm", 1.0),
-                "r2": ("ohm", 1.0), "force": ("N", 1.0)}
+_INPUT_UNITS = {
+    "temperature": ("degC", 1.0),
+    "time": ("s", 1.0),
+    "voltage": ("V", 1.0),
+    "resistance": ("ohm", 1.0),
+    "cable": ("mm", 1e3),
+    "r1": ("ohm", 1.0),
+    "r2": ("ohm", 1.0),
+    "force": ("N", 1.0),
+}
 
 
 # ---------------------------------------------------------------------------
@@ -213,8 +223,9 @@ def second_difference_sigma(r) -> float:
     return float(math.sqrt(np.sum(d2 * d2) / (6.0 * (r.size - 2))))
 
 
-def gap_limit(n_points, noise_dof, level: float = GAP_LEVEL, *,
-              reference: Sequence[tuple[float, int]] = ()) -> float:
+def gap_limit(
+    n_points, noise_dof, level: float = GAP_LEVEL, *, reference: Sequence[tuple[float, int]] = ()
+) -> float:
     """Largest baseline RMSE/noise consistent with "no gap".
 
     Without a gap each quantity's normalised residuals are its noise divided
@@ -302,8 +313,10 @@ class _Problem:
         if self.kind == "curvature":
             r0 = self.rig.initial_resistance
             if self.rig.spring_constant is None:
-                raise ConfigError("diagnosis: a curvature experiment needs rig.spring_constant_N_per_m",
-                                  "set spring_constant_N_per_m in [rig] (or use preset thesis-robot)")
+                raise ConfigError(
+                    "diagnosis: a curvature experiment needs rig.spring_constant_N_per_m",
+                    "set spring_constant_N_per_m in [rig] (or use preset thesis-robot)",
+                )
             cable = d["cable"].to_numpy(float)
             rest = np.flatnonzero(np.abs(cable - cable[0]) > 1e-12)
             k = int(rest[0]) if rest.size else cable.size
@@ -337,8 +350,7 @@ class _Problem:
     def predict(self, i: int, mods: Mods, spring: float | None) -> dict[str, np.ndarray]:
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out = F.predict(self.kind, self.sample, self.rig, self.frames[i], mods,
-                            **self.options(i, spring))
+            out = F.predict(self.kind, self.sample, self.rig, self.frames[i], mods, **self.options(i, spring))
         for q in self.quantities:
             if not np.all(np.isfinite(out[q])):
                 raise ArithmeticError("non-finite prediction")
@@ -394,9 +406,9 @@ def _rest_rows(kind: str, d: pd.DataFrame) -> np.ndarray:
 
 @dataclass
 class _Fit:
-    theta: np.ndarray          # scaled parameters (effect, then the S nuisance if any)
-    values: np.ndarray         # effect parameters, SI
-    sse: float                 # normalised
+    theta: np.ndarray  # scaled parameters (effect, then the S nuisance if any)
+    values: np.ndarray  # effect parameters, SI
+    sse: float  # normalised
     n: int
     jac: np.ndarray | None
     success: bool
@@ -484,7 +496,7 @@ def _fit_effect(problem: _Problem, effect: Effect | None, rows, spring, *, max_n
         _domain_bounds(problem, effect, rows, spring, scales, lo, hi)
     if k == 0:
         r0 = fun(np.zeros(0))
-        return _Fit(np.zeros(0), np.zeros(0), float(np.sum(r0 ** 2)), r0.size, None, True, spring)
+        return _Fit(np.zeros(0), np.zeros(0), float(np.sum(r0**2)), r0.size, None, True, spring)
     width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
     lo_i, hi_i = lo + 1e-9 * width, hi - 1e-9 * width
     starts = [np.zeros(k)]
@@ -501,17 +513,26 @@ def _fit_effect(problem: _Problem, effect: Effect | None, rows, spring, *, max_n
             continue
         seen.append(x0)
         try:
-            res = optimize.least_squares(fun, x0, bounds=(lo, hi), method="trf",
-                                         x_scale=1.0, diff_step=1e-4, max_nfev=max_nfev,
-                                         ftol=1e-6, xtol=1e-6, gtol=1e-8)
+            res = optimize.least_squares(
+                fun,
+                x0,
+                bounds=(lo, hi),
+                method="trf",
+                x_scale=1.0,
+                diff_step=1e-4,
+                max_nfev=max_nfev,
+                ftol=1e-6,
+                xtol=1e-6,
+                gtol=1e-8,
+            )
         except (ValueError, np.linalg.LinAlgError):
             continue
-        sse = float(np.sum(res.fun ** 2))
+        sse = float(np.sum(res.fun**2))
         if best is None or sse < best[0]:
             best = (sse, res)
     if best is None:
         r0 = fun(np.zeros(k))
-        return _Fit(np.zeros(k), np.zeros(k_eff), float(np.sum(r0 ** 2)), r0.size, None, False, spring)
+        return _Fit(np.zeros(k), np.zeros(k_eff), float(np.sum(r0**2)), r0.size, None, False, spring)
     sse, res = best
     values, sp = unpack(res.x)
     return _Fit(res.x, values, sse, res.fun.size, res.jac, bool(res.success), sp)
@@ -533,9 +554,13 @@ def _param_ci(fit: _Fit, effect: Effect) -> dict:
     z = stats.norm.ppf(0.5 + CI_LEVEL / 2.0)
     out = {}
     for p, v, s in zip(effect.params, fit.values, sd):
-        out[p.field] = {"value": float(v), "ci95": [float(v - z * s), float(v + z * s)],
-                        "stderr": float(s), "unit": p.unit,
-                        "at_bound": bool(np.isclose(v, p.lower) or np.isclose(v, p.upper))}
+        out[p.field] = {
+            "value": float(v),
+            "ci95": [float(v - z * s), float(v + z * s)],
+            "stderr": float(s),
+            "unit": p.unit,
+            "at_bound": bool(np.isclose(v, p.lower) or np.isclose(v, p.upper)),
+        }
     return out
 
 
@@ -576,17 +601,27 @@ class CandidateResult:
     fit_success: bool = True
 
     def to_dict(self) -> dict:
-        return _jsonable({
-            "effect": self.effect, "heldout_rmse_before": self.heldout_rmse_before,
-            "heldout_rmse_after": self.heldout_rmse_after, "unit": self.unit,
-            "heldout_rmse_before_noise": self.heldout_rmse_before_noise,
-            "heldout_rmse_after_noise": self.heldout_rmse_after_noise,
-            "shrinkage": self.shrinkage, "shrinkage_ci95": self.shrinkage_ci95,
-            "fraction_closed": self.fraction_closed, "aic": self.aic, "bic": self.bic,
-            "parameters": self.parameters, "by_quantity": self.by_quantity,
-            "folds": self.folds, "cause": self.cause, "separate_by": self.separate_by,
-            "fit_success": self.fit_success,
-        })
+        return _jsonable(
+            {
+                "effect": self.effect,
+                "heldout_rmse_before": self.heldout_rmse_before,
+                "heldout_rmse_after": self.heldout_rmse_after,
+                "unit": self.unit,
+                "heldout_rmse_before_noise": self.heldout_rmse_before_noise,
+                "heldout_rmse_after_noise": self.heldout_rmse_after_noise,
+                "shrinkage": self.shrinkage,
+                "shrinkage_ci95": self.shrinkage_ci95,
+                "fraction_closed": self.fraction_closed,
+                "aic": self.aic,
+                "bic": self.bic,
+                "parameters": self.parameters,
+                "by_quantity": self.by_quantity,
+                "folds": self.folds,
+                "cause": self.cause,
+                "separate_by": self.separate_by,
+                "fit_success": self.fit_success,
+            }
+        )
 
 
 @dataclass
@@ -613,36 +648,43 @@ class DiagnosisResult:
     # -- export --------------------------------------------------------------
     def to_dict(self) -> dict:
         """JSON-safe dict (no NaN: non-finite numbers become null)."""
-        return _jsonable({
-            "schema_version": SCHEMA_VERSION,
-            "kind": self.kind,
-            "experiment": self.experiment,
-            "verdict": self.verdict,
-            "effect": self.effect,
-            "aliased_with": self.aliased_with,
-            "separate_by": self.separate_by,
-            "reason": self.reason,
-            "gap": self.gap,
-            "noise_floor": self.noise_floor,
-            "baseline": self.baseline,
-            "ranking": [c.to_dict() for c in self.ranking],
-            "combination": self.combination,
-            "regimes": self.regimes,
-            "runs": self.runs,
-            "settings": self.settings,
-        })
+        return _jsonable(
+            {
+                "schema_version": SCHEMA_VERSION,
+                "kind": self.kind,
+                "experiment": self.experiment,
+                "verdict": self.verdict,
+                "effect": self.effect,
+                "aliased_with": self.aliased_with,
+                "separate_by": self.separate_by,
+                "reason": self.reason,
+                "gap": self.gap,
+                "noise_floor": self.noise_floor,
+                "baseline": self.baseline,
+                "ranking": [c.to_dict() for c in self.ranking],
+                "combination": self.combination,
+                "regimes": self.regimes,
+                "runs": self.runs,
+                "settings": self.settings,
+            }
+        )
 
     def to_pandas(self) -> pd.DataFrame:
         """The ranking as a table, one row per candidate (best first)."""
         rows = []
         for c in self.ranking:
-            row = {"effect": c.effect, "unit": c.unit,
-                   "heldout_rmse_before": c.heldout_rmse_before,
-                   "heldout_rmse_after": c.heldout_rmse_after,
-                   "shrinkage": c.shrinkage,
-                   "shrinkage_ci95_low": c.shrinkage_ci95[0],
-                   "shrinkage_ci95_high": c.shrinkage_ci95[1],
-                   "fraction_closed": c.fraction_closed, "aic": c.aic, "bic": c.bic}
+            row = {
+                "effect": c.effect,
+                "unit": c.unit,
+                "heldout_rmse_before": c.heldout_rmse_before,
+                "heldout_rmse_after": c.heldout_rmse_after,
+                "shrinkage": c.shrinkage,
+                "shrinkage_ci95_low": c.shrinkage_ci95[0],
+                "shrinkage_ci95_high": c.shrinkage_ci95[1],
+                "fraction_closed": c.fraction_closed,
+                "aic": c.aic,
+                "bic": c.bic,
+            }
             for name, p in c.parameters.items():
                 row[f"{name} [{p['unit']}]"] = p["value"]
                 row[f"{name}_ci95_low"] = p["ci95"][0]
@@ -683,9 +725,14 @@ class DiagnosisResult:
         for yi, c in zip(y, self.ranking):
             lo, hi = c.shrinkage_ci95
             color = "#d62728" if c.effect == self.effect else "#1f77b4"
-            ax.errorbar([c.shrinkage * 100], [yi],
-                        xerr=[[max(0.0, (c.shrinkage - lo) * 100)], [max(0.0, (hi - c.shrinkage) * 100)]],
-                        fmt="o", color=color, capsize=3)
+            ax.errorbar(
+                [c.shrinkage * 100],
+                [yi],
+                xerr=[[max(0.0, (c.shrinkage - lo) * 100)], [max(0.0, (hi - c.shrinkage) * 100)]],
+                fmt="o",
+                color=color,
+                capsize=3,
+            )
         ax.axvline(0, color="0.3", lw=0.8)
         ax.set_yticks(y, names)
         ax.set_xlabel("held-out RMSE shrinkage [%] (95 % bootstrap interval)")
@@ -704,8 +751,7 @@ class DiagnosisResult:
         ax.plot(x, r["measured"][q] * fac, ".", ms=2, color="0.4", label="measured")
         ax.plot(x, r["baseline"][q] * fac, "-", color="#1f77b4", label="thesis model")
         if r.get("best") is not None:
-            ax.plot(x, r["best"][q] * fac, "-", color="#d62728",
-                    label=f"+ {self.ranking[0].effect}")
+            ax.plot(x, r["best"][q] * fac, "-", color="#d62728", label=f"+ {self.ranking[0].effect}")
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"{q} [{unit}]")
         ax.legend()
@@ -743,8 +789,9 @@ def _regime_labels(kind: str, d: pd.DataFrame, q: str, force_edges=None) -> dict
         k = max(3, n // 20)
         slope = np.gradient(_smooth(T, k), clock) if n > 2 else np.zeros(n)
         tol = 0.05 * np.quantile(np.abs(slope), 0.95) if n > 2 else 0.0
-        out["phase"] = np.where(np.abs(slope) <= tol, "steady",
-                                np.where(slope > 0, "heating", "cooling")).astype(object)
+        out["phase"] = np.where(
+            np.abs(slope) <= tol, "steady", np.where(slope > 0, "heating", "cooling")
+        ).astype(object)
     elif kind == "dynamic":
         t = d["time"].to_numpy(float)
         v = d["voltage"].to_numpy(float)
@@ -773,14 +820,13 @@ def _regime_labels(kind: str, d: pd.DataFrame, q: str, force_edges=None) -> dict
         peak = int(np.argmax(sm))
         br = np.full(n, "loading", dtype=object)
         if n - peak > 2 and sm[peak] - sm[-1] > 0.25 * (sm[peak] - sm.min()):
-            br[peak + 1:] = "unloading"
+            br[peak + 1 :] = "unloading"
         out["branch"] = br
     elif kind == "curvature":
         c = d["cable"].to_numpy(float)
         mid = 0.5 * (np.nanmin(c) + np.nanmax(c))
         seg = "segment 1" if q == "kappa1" else "segment 2"
-        out["segment x bending"] = np.where(c <= mid, f"{seg}, low bend", f"{seg}, high bend"
-                                            ).astype(object)
+        out["segment x bending"] = np.where(c <= mid, f"{seg}, low bend", f"{seg}, high bend").astype(object)
     return out
 
 
@@ -820,13 +866,13 @@ def _between_run_spread(problem: _Problem, base_res) -> dict:
         # spread of the residuals (the model removes the input dependence)
         R = np.vstack([base_res[i][q] for i in range(len(frames))])
         var = float(np.mean(np.var(R, axis=0, ddof=1)))
-        out[q] = {"sd": math.sqrt(var) * fac, "unit": unit,
-                  "dof": (len(frames) - 1) * len(frames[0])}
+        out[q] = {"sd": math.sqrt(var) * fac, "unit": unit, "dof": (len(frames) - 1) * len(frames[0])}
     return out
 
 
-def pool_noise_estimates(run_vars, between_var: float, n_rows: int, median_dof: float,
-                         level: float = POOL_CONSISTENCY_LEVEL):
+def pool_noise_estimates(
+    run_vars, between_var: float, n_rows: int, median_dof: float, level: float = POOL_CONSISTENCY_LEVEL
+):
     """Pool the second-difference and between-run noise variances, if they agree.
 
     With ``n`` runs of ``m`` rows at the same inputs, the second-difference
@@ -917,8 +963,9 @@ def _complement(problem: _Problem, held) -> list[tuple[int, np.ndarray]]:
 # ---------------------------------------------------------------------------
 
 
-def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: int = 0,
-             workers: int | None = None) -> DiagnosisResult:
+def diagnose(
+    experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: int = 0, workers: int | None = None
+) -> DiagnosisResult:
     """Diagnose the gap between the thesis model and an experiment's runs.
 
     Parameters
@@ -958,8 +1005,7 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     base = Mods()
     base_pred = [problem.predict(i, base, spring_all) for i in range(n_runs)]
     base_res = [problem.resid(i, p) for i, p in enumerate(base_pred)]
-    per_run_sigma = {q: [second_difference_sigma(base_res[i][q])
-                         for i in range(n_runs)] for q in Q}
+    per_run_sigma = {q: [second_difference_sigma(base_res[i][q]) for i in range(n_runs)] for q in Q}
     spread = _between_run_spread(problem, base_res)
     noise_dof_q, noise_method = {}, {}
     for q in Q:
@@ -968,27 +1014,39 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
             resid = np.concatenate([base_res[i][q] for i in range(n_runs)])
             vals = np.array([max(float(np.std(resid)), 1e-300)])
         problem.sigma[q] = float(np.median(vals))
-        noise_dof_q[q] = SECOND_DIFF_EFFICIENCY * sum(max(len(d) - 2, 0) for d in problem.frames) \
+        noise_dof_q[q] = (
+            SECOND_DIFF_EFFICIENCY
+            * sum(max(len(d) - 2, 0) for d in problem.frames)
             * (MEDIAN_EFFICIENCY if n_runs >= 3 else 1.0)
+        )
         noise_method[q] = "second difference"
         if spread.get("available") and vals.size == n_runs:
             between_var = (spread[q]["sd"] / DISPLAY_UNITS.get(q, ("", 1.0))[1]) ** 2
-            pooled = pool_noise_estimates(np.asarray(per_run_sigma[q]) ** 2, between_var,
-                                          len(problem.frames[0]), noise_dof_q[q])
+            pooled = pool_noise_estimates(
+                np.asarray(per_run_sigma[q]) ** 2, between_var, len(problem.frames[0]), noise_dof_q[q]
+            )
             spread[q]["consistent"] = pooled is not None
             if pooled is not None:
                 problem.sigma[q], noise_dof_q[q] = math.sqrt(pooled[0]), pooled[1]
                 noise_method[q] = "second difference + between runs"
 
-    noise_floor = {"quantities": list(Q), "method": "second difference of baseline residuals "
-                   "(median over runs); pooled with the between-run spread where runs share their "
-                   "inputs and the two agree", "by_quantity": {}, "between_runs": spread}
+    noise_floor = {
+        "quantities": list(Q),
+        "method": "second difference of baseline residuals "
+        "(median over runs); pooled with the between-run spread where runs share their "
+        "inputs and the two agree",
+        "by_quantity": {},
+        "between_runs": spread,
+    }
     for q in Q:
         unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
         noise_floor["by_quantity"][q] = {
-            "sigma": problem.sigma[q] * fac, "unit": unit,
+            "sigma": problem.sigma[q] * fac,
+            "unit": unit,
             "per_run": [v * fac for v in per_run_sigma[q]],
-            "dof": noise_dof_q[q], "method": noise_method[q]}
+            "dof": noise_dof_q[q],
+            "method": noise_method[q],
+        }
 
     # --- baseline gap ------------------------------------------------------------------
     if problem.spring_nuisance:
@@ -998,14 +1056,22 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     z_runs = [problem.norm_resid(i, base, spring_all) for i in range(n_runs)]
     z_all = np.concatenate(z_runs)
     N = z_all.size
-    base_rms_noise = float(np.sqrt(np.mean(z_all ** 2)))
+    base_rms_noise = float(np.sqrt(np.mean(z_all**2)))
     nu = min(noise_dof_q.values())
     # Zero re-estimated from k >= 2 rest rows: off by about noise/sqrt(k). With
     # k = 1 nothing is re-estimated and the logged zero (a tare) is taken as exact.
-    ref_weights = [(len(problem.frames[i]) * len(problem.rereferenced) / N, len(problem.rest[i]))
-                   for i in range(n_runs) if len(problem.rest[i]) >= 2] if problem.rereferenced else []
-    limit = gap_limit([sum(len(d) for d in problem.frames)] * len(Q), [noise_dof_q[q] for q in Q],
-                      reference=ref_weights)
+    ref_weights = (
+        [
+            (len(problem.frames[i]) * len(problem.rereferenced) / N, len(problem.rest[i]))
+            for i in range(n_runs)
+            if len(problem.rest[i]) >= 2
+        ]
+        if problem.rereferenced
+        else []
+    )
+    limit = gap_limit(
+        [sum(len(d) for d in problem.frames)] * len(Q), [noise_dof_q[q] for q in Q], reference=ref_weights
+    )
     floor2 = 1.0 + sum(w / k for w, k in ref_weights)
     gap_significant = base_rms_noise > limit
     common_unit = _common_unit(Q)
@@ -1020,23 +1086,38 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     for q in Q:
         unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
         r = np.concatenate([base_res[i][q] for i in range(n_runs)])
-        base_by_q[q] = {"rmse": float(np.sqrt(np.mean(r ** 2))) * fac, "bias": float(np.mean(r)) * fac,
-                        "rmse_over_noise": float(np.sqrt(np.mean(r ** 2)) / problem.sigma[q]),
-                        "unit": unit}
+        base_by_q[q] = {
+            "rmse": float(np.sqrt(np.mean(r**2))) * fac,
+            "bias": float(np.mean(r)) * fac,
+            "rmse_over_noise": float(np.sqrt(np.mean(r**2)) / problem.sigma[q]),
+            "unit": unit,
+        }
     k_base = 1 if (kind == "sensing" and experiment.rig.spring_constant is None) else 0
-    base_sse = float(np.sum(z_all ** 2))
+    base_sse = float(np.sum(z_all**2))
     baseline = {
-        "rmse_over_noise": base_rms_noise, "n": int(N), "by_quantity": base_by_q,
-        "aic": base_sse + 2 * k_base, "bic": base_sse + k_base * math.log(N),
+        "rmse_over_noise": base_rms_noise,
+        "n": int(N),
+        "by_quantity": base_by_q,
+        "aic": base_sse + 2 * k_base,
+        "bic": base_sse + k_base * math.log(N),
         "spring_constant_N_per_m": spring_all,
-        "options": {"spring_constant": "rig" if experiment.rig.spring_constant is not None
-                    else ("identified on training runs" if kind == "sensing" else None)},
+        "options": {
+            "spring_constant": "rig"
+            if experiment.rig.spring_constant is not None
+            else ("identified on training runs" if kind == "sensing" else None)
+        },
     }
-    gap = {"rmse_over_noise": base_rms_noise, "limit": limit, "level": GAP_LEVEL,
-           "expected_rmse_over_noise_without_gap": math.sqrt(floor2),
-           "rest_rows": [int(len(r)) for r in problem.rest] if problem.rereferenced else None,
-           "n_points": int(N), "noise_dof": nu, "significant": bool(gap_significant),
-           "rule": "baseline RMSE/noise above sqrt of the {:.0%} quantile of F(N, nu)".format(GAP_LEVEL)}
+    gap = {
+        "rmse_over_noise": base_rms_noise,
+        "limit": limit,
+        "level": GAP_LEVEL,
+        "expected_rmse_over_noise_without_gap": math.sqrt(floor2),
+        "rest_rows": [int(len(r)) for r in problem.rest] if problem.rereferenced else None,
+        "n_points": int(N),
+        "noise_dof": nu,
+        "significant": bool(gap_significant),
+        "rule": f"baseline RMSE/noise above sqrt of the {GAP_LEVEL:.0%} quantile of F(N, nu)",
+    }
 
     # --- where: regimes and per-run statistics ---------------------------------
     force_edges = None
@@ -1062,38 +1143,56 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     for g, lab in lab_cat.items():
         if lab is None:
             continue
-        tot = float(np.sum(z_cat ** 2)) or 1.0
+        tot = float(np.sum(z_cat**2)) or 1.0
         for name in dict.fromkeys(lab):
             if not name:
                 continue
             m = lab == name
             zz = z_cat[m]
-            entry = {"group": g, "regime": str(name), "n": int(m.sum()),
-                     "rmse_over_noise": float(np.sqrt(np.mean(zz ** 2))),
-                     "bias_over_noise": float(np.mean(zz)),
-                     "share": float(np.sum(zz ** 2) / tot), "by_quantity": {}}
+            entry = {
+                "group": g,
+                "regime": str(name),
+                "n": int(m.sum()),
+                "rmse_over_noise": float(np.sqrt(np.mean(zz**2))),
+                "bias_over_noise": float(np.mean(zz)),
+                "share": float(np.sum(zz**2) / tot),
+                "by_quantity": {},
+            }
             for q in Q:
                 mq = m & (q_cat == q)
                 if mq.any():
                     unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
                     zq = z_cat[mq] * problem.sigma[q] * fac
-                    entry["by_quantity"][q] = {"n": int(mq.sum()), "rmse": float(np.sqrt(np.mean(zq ** 2))),
-                                               "bias": float(np.mean(zq)), "unit": unit}
+                    entry["by_quantity"][q] = {
+                        "n": int(mq.sum()),
+                        "rmse": float(np.sqrt(np.mean(zq**2))),
+                        "bias": float(np.mean(zq)),
+                        "unit": unit,
+                    }
             regimes.append(entry)
 
     run_stats = []
-    inputs = list(F.INPUTS[kind]) + (["time"] if kind != "dynamic" and any("time" in d for d in problem.frames) else [])
+    inputs = list(F.INPUTS[kind]) + (
+        ["time"] if kind != "dynamic" and any("time" in d for d in problem.frames) else []
+    )
     for i in range(n_runs):
         d = problem.frames[i]
-        entry = {"index": i, "name": str(getattr(runs[i], "path", i)).rsplit("/", 1)[-1],
-                 "n": int(len(d)), "by_quantity": {}}
+        entry = {
+            "index": i,
+            "name": str(getattr(runs[i], "path", i)).rsplit("/", 1)[-1],
+            "n": int(len(d)),
+            "by_quantity": {},
+        }
         for q in Q:
             unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
             r = base_res[i][q]
             entry["by_quantity"][q] = {
-                "rmse": float(np.sqrt(np.mean(r ** 2))) * fac, "bias": float(np.mean(r)) * fac,
-                "unit": unit, "noise_sigma": per_run_sigma[q][i] * fac,
-                "lag1_autocorrelation": _autocorr1(r), "durbin_watson": _durbin_watson(r),
+                "rmse": float(np.sqrt(np.mean(r**2))) * fac,
+                "bias": float(np.mean(r)) * fac,
+                "unit": unit,
+                "noise_sigma": per_run_sigma[q][i] * fac,
+                "lag1_autocorrelation": _autocorr1(r),
+                "durbin_watson": _durbin_watson(r),
                 "correlation_with_inputs": {c: _corr(r, d[c].to_numpy(float)) for c in inputs if c in d},
             }
         run_stats.append(entry)
@@ -1116,14 +1215,20 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         spring_f.append(spring)
         for i, m in held:
             zb = problem.norm_resid(i, base, spring, m)
-            before_fold[k] += np.sum(zb ** 2)
+            before_fold[k] += np.sum(zb**2)
             n_fold[k] += zb.size
             nm = int(m.sum())
             for j, q in enumerate(Q):
-                before_q[k, j] += np.sum((zb[j * nm:(j + 1) * nm] * problem.sigma[q]) ** 2)
+                before_q[k, j] += np.sum((zb[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
                 n_q[k, j] += nm
-        fold_info.append({"held_out": [{"run": i, "rows": [int(np.flatnonzero(m)[0]), int(np.flatnonzero(m)[-1])]}
-                                       for i, m in held]})
+        fold_info.append(
+            {
+                "held_out": [
+                    {"run": i, "rows": [int(np.flatnonzero(m)[0]), int(np.flatnonzero(m)[-1])]}
+                    for i, m in held
+                ]
+            }
+        )
 
     rng = np.random.default_rng(seed)
     boot_idx = rng.integers(0, K, size=(max(int(n_boot), 1), K))
@@ -1149,10 +1254,15 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
 
     def scored(eff, outcome) -> CandidateResult:
         after_fold, after_q, fold_vals, full = outcome
-        fold_rows = [{"fold": k, "rmse_before_noise": math.sqrt(before_fold[k] / n_fold[k]),
-                      "rmse_after_noise": math.sqrt(after_fold[k] / n_fold[k]),
-                      "parameters": {p.field: float(v) for p, v in zip(eff.params, fold_vals[k])}}
-                     for k in range(K)]
+        fold_rows = [
+            {
+                "fold": k,
+                "rmse_before_noise": math.sqrt(before_fold[k] / n_fold[k]),
+                "rmse_after_noise": math.sqrt(after_fold[k] / n_fold[k]),
+                "parameters": {p.field: float(v) for p, v in zip(eff.params, fold_vals[k])},
+            }
+            for k in range(K)
+        ]
         after_folds[eff.name] = after_fold
         best_values[eff.name] = full.values
         best_springs[eff.name] = full.spring
@@ -1161,14 +1271,16 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         b_after = after_fold[boot_idx].sum(axis=1)
         with np.errstate(all="ignore"):
             boot_shrink = 1.0 - np.sqrt(b_after / b_n) / np.sqrt(b_before / b_n)
-        frac = (b4 ** 2 - af ** 2) / (b4 ** 2 - floor2) if b4 ** 2 > floor2 else float("nan")
+        frac = (b4**2 - af**2) / (b4**2 - floor2) if b4**2 > floor2 else float("nan")
         kp = len(eff.params) + k_base
         by_q = {}
         for j, q in enumerate(Q):
             unit, fac = DISPLAY_UNITS.get(q, ("", 1.0))
-            by_q[q] = {"heldout_rmse_before": math.sqrt(before_q[:, j].sum() / n_q[:, j].sum()) * fac,
-                       "heldout_rmse_after": math.sqrt(after_q[:, j].sum() / n_q[:, j].sum()) * fac,
-                       "unit": unit}
+            by_q[q] = {
+                "heldout_rmse_before": math.sqrt(before_q[:, j].sum() / n_q[:, j].sum()) * fac,
+                "heldout_rmse_after": math.sqrt(after_q[:, j].sum() / n_q[:, j].sum()) * fac,
+                "unit": unit,
+            }
         if common_unit == "noise":
             rb, ra = b4, af
         else:
@@ -1176,28 +1288,45 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
             rb = math.sqrt(before_q.sum() / n_q.sum()) * fac
             ra = math.sqrt(after_q.sum() / n_q.sum()) * fac
         return CandidateResult(
-            effect=eff.name, heldout_rmse_before=rb, heldout_rmse_after=ra, unit=common_unit,
-            heldout_rmse_before_noise=b4, heldout_rmse_after_noise=af, shrinkage=shrink,
-            shrinkage_ci95=_ci(boot_shrink), fraction_closed=frac,
-            aic=full.sse + 2 * kp, bic=full.sse + kp * math.log(max(full.n, 1)),
-            parameters=_param_ci(full, eff), by_quantity=by_q, folds=fold_rows,
-            cause=eff.cause, separate_by=eff.separate_by, fit_success=full.success)
+            effect=eff.name,
+            heldout_rmse_before=rb,
+            heldout_rmse_after=ra,
+            unit=common_unit,
+            heldout_rmse_before_noise=b4,
+            heldout_rmse_after_noise=af,
+            shrinkage=shrink,
+            shrinkage_ci95=_ci(boot_shrink),
+            fraction_closed=frac,
+            aic=full.sse + 2 * kp,
+            bic=full.sse + kp * math.log(max(full.n, 1)),
+            parameters=_param_ci(full, eff),
+            by_quantity=by_q,
+            folds=fold_rows,
+            cause=eff.cause,
+            separate_by=eff.separate_by,
+            fit_success=full.success,
+        )
 
     for eff, outcome in zip(cands, run_jobs(cands)):
         cand_results.append(scored(eff, outcome))
     cand_results.sort(key=lambda c: (c.heldout_rmse_after_noise, c.effect))
 
     # --- verdict -----------------------------------------------------------------------
-    verdict, effect, aliased, reason = _verdict(cand_results, gap_significant, after_folds,
-                                                boot_idx, b_n, base_rms_noise, limit)
+    verdict, effect, aliased, reason = _verdict(
+        cand_results, gap_significant, after_folds, boot_idx, b_n, base_rms_noise, limit
+    )
     # Two effects at once: when no single candidate explains the gap, try pairs of
     # the candidates that each explain part of it (forward selection, one step).
     combination = None
     by_name = {e.name: e for e in cands}
     if verdict == "unexplained" and gap_significant:
-        pool = [c.effect for c in cand_results
-                if np.isfinite(c.fraction_closed) and c.fraction_closed >= MIN_PARTIAL_FRACTION
-                and c.shrinkage_ci95[0] > 0][:PAIR_POOL]
+        pool = [
+            c.effect
+            for c in cand_results
+            if np.isfinite(c.fraction_closed)
+            and c.fraction_closed >= MIN_PARTIAL_FRACTION
+            and c.shrinkage_ci95[0] > 0
+        ][:PAIR_POOL]
         pairs = [combine(by_name[a], by_name[b]) for a, b in itertools.combinations(pool, 2)]
         pairs = [e for e in pairs if e is not None]
         if pairs:
@@ -1207,8 +1336,11 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
             picked = _pair_verdict(combos, after_folds, boot_idx, b_n, order)
             if picked is not None:
                 verdict, effect, aliased, reason, combination = picked
-    separate = {c.effect: c.separate_by for c in cand_results if c.effect in ([effect] + aliased)} \
-        if verdict == "aliased" else {}
+    separate = (
+        {c.effect: c.separate_by for c in cand_results if c.effect in ([effect] + aliased)}
+        if verdict == "aliased"
+        else {}
+    )
 
     # --- series for plots -----------------------------------------------------------
     best = cand_results[0] if cand_results else None
@@ -1219,8 +1351,7 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
     series_runs = []
     for i in range(n_runs):
         d = problem.frames[i]
-        xcol = {"static": "temperature", "dynamic": "time", "sensing": "time",
-                "curvature": "cable"}[kind]
+        xcol = {"static": "temperature", "dynamic": "time", "sensing": "time", "curvature": "cable"}[kind]
         if xcol not in d:
             x, xlabel = np.arange(len(d)), "row"
         else:
@@ -1229,29 +1360,63 @@ def diagnose(experiment, runs=None, *, effects=None, n_boot: int = 1000, seed: i
         best_pred = None
         if best is not None:
             try:
-                best_pred = problem.predict(i, best_eff.mods(best_values[best.effect]),
-                                            best_springs[best.effect])
+                best_pred = problem.predict(
+                    i, best_eff.mods(best_values[best.effect]), best_springs[best.effect]
+                )
             except (TcamlabError, ArithmeticError):
                 best_pred = None
-        series_runs.append({"x": x, "xlabel": xlabel,
-                            "measured": {q: problem.measured(i, q) for q in Q},
-                            "baseline": base_pred[i], "best": best_pred})
-    series = {"runs": series_runs, "z": z_cat,
-              "labels": {g: v for g, v in lab_cat.items() if v is not None},
-              "regime_groups": [g for g, v in lab_cat.items() if v is not None]}
+        series_runs.append(
+            {
+                "x": x,
+                "xlabel": xlabel,
+                "measured": {q: problem.measured(i, q) for q in Q},
+                "baseline": base_pred[i],
+                "best": best_pred,
+            }
+        )
+    series = {
+        "runs": series_runs,
+        "z": z_cat,
+        "labels": {g: v for g, v in lab_cat.items() if v is not None},
+        "regime_groups": [g for g, v in lab_cat.items() if v is not None],
+    }
 
-    exp_info = {"name": getattr(experiment, "name", None), "title": getattr(experiment, "title", None),
-                "path": str(getattr(experiment, "path", "")), "kind": kind, "n_runs": n_runs}
-    settings = {"n_boot": int(n_boot), "seed": int(seed), "folds": K,
-                "fold_scheme": "leave one run out" if n_runs >= 2 else f"{K} contiguous blocks of one run",
-                "candidates": [e.name for e in cands], "gap_level": GAP_LEVEL,
-                "min_fraction_closed": MIN_FRACTION_CLOSED, "ci_level": CI_LEVEL,
-                "fold_details": fold_info}
-    return DiagnosisResult(kind=kind, experiment=exp_info, verdict=verdict, effect=effect,
-                           ranking=cand_results, aliased_with=aliased, separate_by=separate,
-                           noise_floor=noise_floor, baseline=baseline, regimes=regimes,
-                           runs=run_stats, gap=gap, reason=reason, settings=settings,
-                           combination=combination, _series=series)
+    exp_info = {
+        "name": getattr(experiment, "name", None),
+        "title": getattr(experiment, "title", None),
+        "path": str(getattr(experiment, "path", "")),
+        "kind": kind,
+        "n_runs": n_runs,
+    }
+    settings = {
+        "n_boot": int(n_boot),
+        "seed": int(seed),
+        "folds": K,
+        "fold_scheme": "leave one run out" if n_runs >= 2 else f"{K} contiguous blocks of one run",
+        "candidates": [e.name for e in cands],
+        "gap_level": GAP_LEVEL,
+        "min_fraction_closed": MIN_FRACTION_CLOSED,
+        "ci_level": CI_LEVEL,
+        "fold_details": fold_info,
+    }
+    return DiagnosisResult(
+        kind=kind,
+        experiment=exp_info,
+        verdict=verdict,
+        effect=effect,
+        ranking=cand_results,
+        aliased_with=aliased,
+        separate_by=separate,
+        noise_floor=noise_floor,
+        baseline=baseline,
+        regimes=regimes,
+        runs=run_stats,
+        gap=gap,
+        reason=reason,
+        settings=settings,
+        combination=combination,
+        _series=series,
+    )
 
 
 def _candidate_job(job):
@@ -1268,10 +1433,10 @@ def _candidate_job(job):
         mods = eff.mods(fit.values)
         for i, m in held:
             za = problem.norm_resid(i, mods, fit.spring, m)
-            after_fold[k] += np.sum(za ** 2)
+            after_fold[k] += np.sum(za**2)
             nm = int(m.sum())
             for j, q in enumerate(Q):
-                after_q[k, j] += np.sum((za[j * nm:(j + 1) * nm] * problem.sigma[q]) ** 2)
+                after_q[k, j] += np.sum((za[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
     full = _fit_effect(problem, eff, all_rows, spring_all)
     return after_fold, after_q, fold_vals, full
 
@@ -1292,19 +1457,30 @@ def _common_unit(Q) -> str:
 
 def _verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limit):
     if not gap_significant:
-        return ("none", None, [],
-                f"the baseline RMSE is {base_rms:.2f} x the noise floor, within the "
-                f"no-gap limit {limit:.2f}: the thesis model explains the data to within noise")
+        return (
+            "none",
+            None,
+            [],
+            f"the baseline RMSE is {base_rms:.2f} x the noise floor, within the "
+            f"no-gap limit {limit:.2f}: the thesis model explains the data to within noise",
+        )
     if not ranking:
         return "unexplained", None, [], "the gap is significant and there are no candidates"
     best = ranking[0]
-    ok = (np.isfinite(best.fraction_closed) and best.fraction_closed >= MIN_FRACTION_CLOSED
-          and best.shrinkage_ci95[0] > 0)
+    ok = (
+        np.isfinite(best.fraction_closed)
+        and best.fraction_closed >= MIN_FRACTION_CLOSED
+        and best.shrinkage_ci95[0] > 0
+    )
     if not ok:
-        return ("unexplained", None, [],
-                f"the baseline RMSE is {base_rms:.2f} x the noise floor (limit {limit:.2f}); the best "
-                f"candidate, {best.effect}, closes {_pct(best.fraction_closed)} of the gap on withheld "
-                f"data (needs {MIN_FRACTION_CLOSED:.0%} and a shrinkage interval above 0)")
+        return (
+            "unexplained",
+            None,
+            [],
+            f"the baseline RMSE is {base_rms:.2f} x the noise floor (limit {limit:.2f}); the best "
+            f"candidate, {best.effect}, closes {_pct(best.fraction_closed)} of the gap on withheld "
+            f"data (needs {MIN_FRACTION_CLOSED:.0%} and a shrinkage interval above 0)",
+        )
     aliased = []
     a_best = after_folds[best.effect][boot_idx].sum(axis=1)
     for c in ranking[1:]:
@@ -1315,14 +1491,22 @@ def _verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, lim
         if lo <= 0.0:
             aliased.append(c.effect)
     if aliased:
-        return ("aliased", best.effect, aliased,
-                f"{best.effect} closes {_pct(best.fraction_closed)} of the gap on withheld data, but "
-                f"{', '.join(aliased)} fit{'s' if len(aliased) == 1 else ''} the withheld runs "
-                "indistinguishably well")
-    return ("attributed", best.effect, [],
-            f"{best.effect} closes {_pct(best.fraction_closed)} of the gap above the noise floor on "
-            f"withheld data (held-out RMSE shrinks by {best.shrinkage:.0%}) and every other candidate "
-            "is clearly worse")
+        return (
+            "aliased",
+            best.effect,
+            aliased,
+            f"{best.effect} closes {_pct(best.fraction_closed)} of the gap on withheld data, but "
+            f"{', '.join(aliased)} fit{'s' if len(aliased) == 1 else ''} the withheld runs "
+            "indistinguishably well",
+        )
+    return (
+        "attributed",
+        best.effect,
+        [],
+        f"{best.effect} closes {_pct(best.fraction_closed)} of the gap above the noise floor on "
+        f"withheld data (held-out RMSE shrinks by {best.shrinkage:.0%}) and every other candidate "
+        "is clearly worse",
+    )
 
 
 def _pair_verdict(combos, after_folds, boot_idx, b_n, order):
@@ -1335,13 +1519,17 @@ def _pair_verdict(combos, after_folds, boot_idx, b_n, order):
     names the effect (the member that ranks higher alone); other qualifying
     pairs that fit the withheld runs indistinguishably well make it ``aliased``.
     """
+
     def boot(name):
         return after_folds[name][boot_idx].sum(axis=1)
 
     qualified = []
     for c in combos:
-        if not (np.isfinite(c.fraction_closed) and c.fraction_closed >= MIN_FRACTION_CLOSED
-                and c.shrinkage_ci95[0] > 0):
+        if not (
+            np.isfinite(c.fraction_closed)
+            and c.fraction_closed >= MIN_FRACTION_CLOSED
+            and c.shrinkage_ci95[0] > 0
+        ):
             continue
         a_pair = boot(c.effect)
         if all(_ci((boot(m) - a_pair) / b_n)[0] > 0 for m in c.effect.split("+")):
@@ -1355,15 +1543,26 @@ def _pair_verdict(combos, after_folds, boot_idx, b_n, order):
     rivals = [c for c in qualified[1:] if _ci((boot(c.effect) - a_best) / b_n)[0] <= 0]
     combination = {"effects": members, **best.to_dict()}
     both = " and ".join(members)
-    closes = (f"no single candidate closes {MIN_FRACTION_CLOSED:.0%} of the gap; {both} together "
-              f"close {_pct(best.fraction_closed)} of it on withheld data (held-out RMSE shrinks "
-              f"by {best.shrinkage:.0%}), and the pair beats either alone")
+    closes = (
+        f"no single candidate closes {MIN_FRACTION_CLOSED:.0%} of the gap; {both} together "
+        f"close {_pct(best.fraction_closed)} of it on withheld data (held-out RMSE shrinks "
+        f"by {best.shrinkage:.0%}), and the pair beats either alone"
+    )
     if rivals:
-        others = sorted(({m for c in rivals for m in c.effect.split("+")} | set(second)) - {primary},
-                        key=lambda m: order.get(m, len(order)))
-        return ("aliased", primary, others,
-                closes + "; but " + ", ".join(c.effect for c in rivals)
-                + " fit the withheld runs indistinguishably well", combination)
+        others = sorted(
+            ({m for c in rivals for m in c.effect.split("+")} | set(second)) - {primary},
+            key=lambda m: order.get(m, len(order)),
+        )
+        return (
+            "aliased",
+            primary,
+            others,
+            closes
+            + "; but "
+            + ", ".join(c.effect for c in rivals)
+            + " fit the withheld runs indistinguishably well",
+            combination,
+        )
     return "attributed", primary, [], closes, combination
 
 

@@ -89,97 +89,157 @@ def _e(name, kind, params, cause, source, separate_by, fixed=None):
     return Effect(name, kind, tuple(params), cause, source, separate_by, dict(fixed or {}))
 
 
-EFFECTS: dict[tuple[str, str], Effect] = {(e.kind, e.name): e for e in (
-    # -- static oven test ------------------------------------------------------
-    _e("shear-modulus-temperature", "static",
-       [EffectParam("shear_slope_extra", "Pa/K", 1e5, -2e6, 2e6)],
-       "the fiber's transverse shear modulus falls as it warms, lowering the untwisting "
-       "torque (2.13)", "thesis sec. 2.3.3 and 2.5.1; Haines et al., Science 343 (2014) [13]",
-       "a second load: the torque term scales with G, the spring term with the load"),
-    _e("youngs-modulus-temperature", "static",
-       [EffectParam("youngs_modulus_slope", "1/K", 1e-3, -5e-3, 5e-3)],
-       "the fiber's Young's modulus falls with temperature, softening the E terms of the "
-       "coil compliance f11", "thesis sec. 2.3.3 (left as future work); nylon 6,6 DMA data",
-       "a second load: an f11 change scales with the load, a torque change does not"),
-    _e("glass-transition", "static",
-       [EffectParam("glass_gain", "-", 0.5, 0.0, 20.0)],
-       "above the glass transition (about 45 degC for nylon 6,6) the radial thermal "
-       "expansion rises", "Haines et al. (2014) [13]; Yang and Li (2016) [24]",
-       "more oven steps between 35 and 60 degC to locate the knee",
-       {"glass_temperature": 45.0}),
-    _e("oven-thermal-lag", "static",
-       [EffectParam("lag_tau", "s", 60.0, 0.0, 3600.0)],
-       "the actuator lags the oven thermometer, so each reading sees an older, cooler "
-       "temperature", "thesis sec. 2.5.1 (thermometer in the vent hole)",
-       "longer dwell per oven step, or a cooling branch (the lag reverses sign)"),
-    _e("displacement-drift", "static",
-       [EffectParam("drift", "m/s", 1e-8, -1e-5, 1e-5)],
-       "the laser displacement sensor drifts slowly with time (warm-up, mount creep)",
-       "Wenglor OPT2006 data sheet (temperature drift)",
-       "a run held at constant temperature: drift keeps moving, the model does not"),
-    # -- dynamic voltage-step test ---------------------------------------------
-    _e("resistance-temperature", "dynamic",
-       [EffectParam("resistance_tc", "1/K", 1e-3, -1e-2, 1e-2)],
-       "the actuator's resistance changes with temperature, R(T) = R0 (1 + beta dT), "
-       "changing the Joule power", "thesis sec. 2.4 ('R will change'); Yip and Niemeyer [22]",
-       "log current and voltage: R(T) is then measured directly"),
-    _e("convective-heat-loss", "dynamic",
-       [EffectParam("heat_loss_tc", "1/K", 5e-3, -2e-2, 5e-2)],
-       "natural convection makes the heat loss grow faster than linearly with the "
-       "temperature rise", "Yip and Niemeyer [22]; natural-convection correlations",
-       "a second voltage: the loss term scales with dT^2, resistance with V^2 dT"),
-    _e("shear-modulus-temperature", "dynamic",
-       [EffectParam("shear_slope_extra", "Pa/K", 1e5, -2e6, 2e6)],
-       "the shear modulus falls with temperature during the pulse (2.13)",
-       "thesis sec. 2.3.3", "a static oven test of the same sample"),
-    _e("response-delay", "dynamic",
-       [EffectParam("delay", "s", 0.05, -0.5, 2.0)],
-       "a pure delay between the command and the response (driver, logging latency)",
-       "thesis sec. 2.5.2 (Arduino-driven motor driver)",
-       "log the command and the driver output on one clock"),
-    # -- sensing pull test -------------------------------------------------------
-    _e("initial-slack", "sensing",
-       [EffectParam("slack", "m", 0.5e-3, -2e-3, 10e-3)],
-       "the sensor is slack at the start: the actuator moves before the sensor carries "
-       "load", "thesis sec. 3.3 (large initial error of experiment 2)",
-       "pre-tension the sensor before logging"),
-    _e("hysteresis", "sensing",
-       [EffectParam("hysteresis", "m", 0.3e-3, -5e-3, 5e-3)],
-       "friction between coils makes unloading read differently from loading",
-       "Haines et al. (2014); Abbas and Zhao, TCS papers [25]",
-       "a full unloading branch (already separates it from slack)"),
-    _e("stress-relaxation", "sensing",
-       [EffectParam("relaxation", "-", 0.02, -0.2, 0.5)],
-       "the polymer relaxes during each 5 s dwell, so the force decays at fixed length",
-       "viscoelasticity of nylon 6,6; thesis sec. 3.3 protocol",
-       "longer dwells, or continuous pulling", {"relaxation_tau": 1.5}),
-    _e("ambient-temperature", "sensing",
-       [EffectParam("temperature_offset", "K", 2.0, -30.0, 30.0)],
-       "the sensor is warmer or cooler than when R0 was measured; silver's resistance "
-       "changes by 0.38 %/K", "thesis sec. 3.4 future work; CRC Handbook (silver TCR)",
-       "measure R0 right before the run, or log temperature"),
-    _e("stiffening-spring", "sensing",
-       [EffectParam("stiffening", "1/m", 5.0, -50.0, 200.0)],
-       "the coil stiffens as it opens (F = S delta (1 + q delta)), unlike the linear "
-       "F = S delta", "thesis sec. 3.2 assumes linearity [25]",
-       "pull further: the quadratic term grows with delta^2"),
-    # -- camera curvature test ---------------------------------------------------
-    _e("axial-compression", "curvature",
-       [EffectParam("compression", "-", 0.05, -0.5, 0.9)],
-       "part of the cable pull compresses the body axially instead of bending it, so "
-       "the bend is not circular", "thesis sec. 4.3",
-       "mark the body's length on camera, or pull at two rates"),
-    _e("camera-placement", "curvature",
-       [EffectParam("camera_offset", "1/m", 1.0, -50.0, 50.0)],
-       "a misplaced camera (perspective, reference frame) biases every measured "
-       "curvature by a constant", "thesis sec. 4.3",
-       "photograph a straight robot and a reference arc"),
-    _e("sensor-offset-error", "curvature",
-       [EffectParam("offset_error", "m", 0.3e-3, -4e-3, 4e-3)],
-       "the sensor sits at a different distance from the cable than the 9 mm assumed",
-       "thesis sec. 4.3 (d1 = 9 mm)",
-       "section the robot and measure d1, or bend it to a known curvature"),
-)}
+EFFECTS: dict[tuple[str, str], Effect] = {
+    (e.kind, e.name): e
+    for e in (
+        # -- static oven test ------------------------------------------------------
+        _e(
+            "shear-modulus-temperature",
+            "static",
+            [EffectParam("shear_slope_extra", "Pa/K", 1e5, -2e6, 2e6)],
+            "the fiber's transverse shear modulus falls as it warms, lowering the untwisting torque (2.13)",
+            "thesis sec. 2.3.3 and 2.5.1; Haines et al., Science 343 (2014) [13]",
+            "a second load: the torque term scales with G, the spring term with the load",
+        ),
+        _e(
+            "youngs-modulus-temperature",
+            "static",
+            [EffectParam("youngs_modulus_slope", "1/K", 1e-3, -5e-3, 5e-3)],
+            "the fiber's Young's modulus falls with temperature, softening the E terms of the "
+            "coil compliance f11",
+            "thesis sec. 2.3.3 (left as future work); nylon 6,6 DMA data",
+            "a second load: an f11 change scales with the load, a torque change does not",
+        ),
+        _e(
+            "glass-transition",
+            "static",
+            [EffectParam("glass_gain", "-", 0.5, 0.0, 20.0)],
+            "above the glass transition (about 45 degC for nylon 6,6) the radial thermal expansion rises",
+            "Haines et al. (2014) [13]; Yang and Li (2016) [24]",
+            "more oven steps between 35 and 60 degC to locate the knee",
+            {"glass_temperature": 45.0},
+        ),
+        _e(
+            "oven-thermal-lag",
+            "static",
+            [EffectParam("lag_tau", "s", 60.0, 0.0, 3600.0)],
+            "the actuator lags the oven thermometer, so each reading sees an older, cooler temperature",
+            "thesis sec. 2.5.1 (thermometer in the vent hole)",
+            "longer dwell per oven step, or a cooling branch (the lag reverses sign)",
+        ),
+        _e(
+            "displacement-drift",
+            "static",
+            [EffectParam("drift", "m/s", 1e-8, -1e-5, 1e-5)],
+            "the laser displacement sensor drifts slowly with time (warm-up, mount creep)",
+            "Wenglor OPT2006 data sheet (temperature drift)",
+            "a run held at constant temperature: drift keeps moving, the model does not",
+        ),
+        # -- dynamic voltage-step test ---------------------------------------------
+        _e(
+            "resistance-temperature",
+            "dynamic",
+            [EffectParam("resistance_tc", "1/K", 1e-3, -1e-2, 1e-2)],
+            "the actuator's resistance changes with temperature, R(T) = R0 (1 + beta dT), "
+            "changing the Joule power",
+            "thesis sec. 2.4 ('R will change'); Yip and Niemeyer [22]",
+            "log current and voltage: R(T) is then measured directly",
+        ),
+        _e(
+            "convective-heat-loss",
+            "dynamic",
+            [EffectParam("heat_loss_tc", "1/K", 5e-3, -2e-2, 5e-2)],
+            "natural convection makes the heat loss grow faster than linearly with the temperature rise",
+            "Yip and Niemeyer [22]; natural-convection correlations",
+            "a second voltage: the loss term scales with dT^2, resistance with V^2 dT",
+        ),
+        _e(
+            "shear-modulus-temperature",
+            "dynamic",
+            [EffectParam("shear_slope_extra", "Pa/K", 1e5, -2e6, 2e6)],
+            "the shear modulus falls with temperature during the pulse (2.13)",
+            "thesis sec. 2.3.3",
+            "a static oven test of the same sample",
+        ),
+        _e(
+            "response-delay",
+            "dynamic",
+            [EffectParam("delay", "s", 0.05, -0.5, 2.0)],
+            "a pure delay between the command and the response (driver, logging latency)",
+            "thesis sec. 2.5.2 (Arduino-driven motor driver)",
+            "log the command and the driver output on one clock",
+        ),
+        # -- sensing pull test -------------------------------------------------------
+        _e(
+            "initial-slack",
+            "sensing",
+            [EffectParam("slack", "m", 0.5e-3, -2e-3, 10e-3)],
+            "the sensor is slack at the start: the actuator moves before the sensor carries load",
+            "thesis sec. 3.3 (large initial error of experiment 2)",
+            "pre-tension the sensor before logging",
+        ),
+        _e(
+            "hysteresis",
+            "sensing",
+            [EffectParam("hysteresis", "m", 0.3e-3, -5e-3, 5e-3)],
+            "friction between coils makes unloading read differently from loading",
+            "Haines et al. (2014); Abbas and Zhao, TCS papers [25]",
+            "a full unloading branch (already separates it from slack)",
+        ),
+        _e(
+            "stress-relaxation",
+            "sensing",
+            [EffectParam("relaxation", "-", 0.02, -0.2, 0.5)],
+            "the polymer relaxes during each 5 s dwell, so the force decays at fixed length",
+            "viscoelasticity of nylon 6,6; thesis sec. 3.3 protocol",
+            "longer dwells, or continuous pulling",
+            {"relaxation_tau": 1.5},
+        ),
+        _e(
+            "ambient-temperature",
+            "sensing",
+            [EffectParam("temperature_offset", "K", 2.0, -30.0, 30.0)],
+            "the sensor is warmer or cooler than when R0 was measured; silver's resistance "
+            "changes by 0.38 %/K",
+            "thesis sec. 3.4 future work; CRC Handbook (silver TCR)",
+            "measure R0 right before the run, or log temperature",
+        ),
+        _e(
+            "stiffening-spring",
+            "sensing",
+            [EffectParam("stiffening", "1/m", 5.0, -50.0, 200.0)],
+            "the coil stiffens as it opens (F = S delta (1 + q delta)), unlike the linear F = S delta",
+            "thesis sec. 3.2 assumes linearity [25]",
+            "pull further: the quadratic term grows with delta^2",
+        ),
+        # -- camera curvature test ---------------------------------------------------
+        _e(
+            "axial-compression",
+            "curvature",
+            [EffectParam("compression", "-", 0.05, -0.5, 0.9)],
+            "part of the cable pull compresses the body axially instead of bending it, so "
+            "the bend is not circular",
+            "thesis sec. 4.3",
+            "mark the body's length on camera, or pull at two rates",
+        ),
+        _e(
+            "camera-placement",
+            "curvature",
+            [EffectParam("camera_offset", "1/m", 1.0, -50.0, 50.0)],
+            "a misplaced camera (perspective, reference frame) biases every measured curvature by a constant",
+            "thesis sec. 4.3",
+            "photograph a straight robot and a reference arc",
+        ),
+        _e(
+            "sensor-offset-error",
+            "curvature",
+            [EffectParam("offset_error", "m", 0.3e-3, -4e-3, 4e-3)],
+            "the sensor sits at a different distance from the cable than the 9 mm assumed",
+            "thesis sec. 4.3 (d1 = 9 mm)",
+            "section the robot and measure d1, or bend it to a known curvature",
+        ),
+    )
+}
 
 
 def combine(*effects: Effect) -> Effect | None:
@@ -200,10 +260,15 @@ def combine(*effects: Effect) -> Effect | None:
     fixed: dict = {}
     for e in effects:
         fixed.update(e.fixed)
-    return Effect("+".join(e.name for e in effects), effects[0].kind,
-                  tuple(p for e in effects for p in e.params),
-                  "; ".join(e.cause for e in effects), "; ".join(e.source for e in effects),
-                  "; ".join(e.separate_by for e in effects), fixed)
+    return Effect(
+        "+".join(e.name for e in effects),
+        effects[0].kind,
+        tuple(p for e in effects for p in e.params),
+        "; ".join(e.cause for e in effects),
+        "; ".join(e.source for e in effects),
+        "; ".join(e.separate_by for e in effects),
+        fixed,
+    )
 
 
 def effects_for(kind: str) -> list[Effect]:

@@ -14,8 +14,8 @@ displacement in mm.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 from scipy import optimize, stats
@@ -572,9 +572,7 @@ class SpringFitReport:
         for fit in self.fits:
             if fit.branch_label != "all":
                 continue
-            pts = ax.plot(
-                np.asarray(fit.displacement) * 1e3, fit.force, ".", ms=3, alpha=0.4, label=fit.run
-            )
+            pts = ax.plot(np.asarray(fit.displacement) * 1e3, fit.force, ".", ms=3, alpha=0.4, label=fit.run)
             xs = np.linspace(min(0.0, float(fit.displacement.min())), float(fit.displacement.max()), 50)
             ax.plot(xs * 1e3, fit.predict(xs), "-", lw=0.8, color=pts[0].get_color())
         xs = np.linspace(min(0.0, float(x_all.min())), float(x_all.max()), 50)
@@ -598,7 +596,9 @@ def _check_runs(runs) -> list[tuple[str, np.ndarray, np.ndarray]]:
             ) from None
         name = str(name)
         if name in seen:
-            raise InputError(f"fit_spring_runs: run name {name!r} appears twice", "give every run a unique name")
+            raise InputError(
+                f"fit_spring_runs: run name {name!r} appears twice", "give every run a unique name"
+            )
         seen.add(name)
         out.append((name, x, f))
     if not out:
@@ -656,12 +656,19 @@ def fit_spring_runs(
                 continue
             fits.append(fit_spring(bx, bf, intercept=intercept, robust=robust, branch_label=label, run=name))
     pooled = fit_spring(
-        np.concatenate(xs), np.concatenate(fs), intercept=intercept, robust=robust, branch_label="all", run="pooled"
+        np.concatenate(xs),
+        np.concatenate(fs),
+        intercept=intercept,
+        robust=robust,
+        branch_label="all",
+        run="pooled",
     )
     return SpringFitReport(fits=fits, pooled=pooled)
 
 
-def leave_one_out_spring(runs, exclude: str, *, intercept: bool = False, robust: bool = False, **kw) -> SpringFit:
+def leave_one_out_spring(
+    runs, exclude: str, *, intercept: bool = False, robust: bool = False, **kw
+) -> SpringFit:
     """Pooled fit over every run except ``exclude`` (cross-validation).
 
     Other keyword arguments of :func:`fit_spring_runs` (``by_branch``) are

@@ -125,7 +125,7 @@ class Mods:
     camera_offset: float = 0.0
     offset_error: float = 0.0
 
-    def replace(self, **changes) -> "Mods":
+    def replace(self, **changes) -> Mods:
         return dataclasses.replace(self, **changes)
 
 
@@ -152,8 +152,9 @@ def _lagged(temp: np.ndarray, clock: np.ndarray, tau: float) -> np.ndarray:
     return out
 
 
-def predict_static(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS,
-                   *, constant_g: bool = False) -> dict[str, np.ndarray]:
+def predict_static(
+    sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *, constant_g: bool = False
+) -> dict[str, np.ndarray]:
     """Static oven test: displacement from the first row against temperature.
 
     Parameters
@@ -176,23 +177,26 @@ def predict_static(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO
     temp = _lagged(data["temperature"].to_numpy(float), clock, mods.lag_tau)
     dT = temp - rig.ambient
     kw = sample.model_kwargs()
-    kw["shear_modulus_slope"] = (0.0 if constant_g else kw["shear_modulus_slope"]) \
-        + mods.shear_slope_extra
+    kw["shear_modulus_slope"] = (0.0 if constant_g else kw["shear_modulus_slope"]) + mods.shear_slope_extra
     if mods.glass_gain:
         above = np.maximum(0.0, temp - mods.glass_temperature)
         strain = dT + mods.glass_gain * above
         safe = np.where(np.abs(dT) > 1e-12, dT, 1.0)
-        kw["radial_cte"] = np.where(np.abs(dT) > 1e-12, sample.radial_cte * strain / safe,
-                                    sample.radial_cte)
-    delta = _static.displacement(dT, rig.force, youngs_modulus_slope=mods.youngs_modulus_slope,
-                                 **kw)
+        kw["radial_cte"] = np.where(np.abs(dT) > 1e-12, sample.radial_cte * strain / safe, sample.radial_cte)
+    delta = _static.displacement(dT, rig.force, youngs_modulus_slope=mods.youngs_modulus_slope, **kw)
     disp = delta - delta[0] + mods.drift * clock
     return {"displacement": disp}
 
 
-def predict_dynamic(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS,
-                    *, constant_g: bool = False, method: str = _dyn.METHOD
-                    ) -> dict[str, np.ndarray]:
+def predict_dynamic(
+    sample: Sample,
+    rig: Rig,
+    data: pd.DataFrame,
+    mods: Mods = NO_MODS,
+    *,
+    constant_g: bool = False,
+    method: str = _dyn.METHOD,
+) -> dict[str, np.ndarray]:
     """Voltage-step test: displacement (and temperature) against time.
 
     Parameters
@@ -210,13 +214,21 @@ def predict_dynamic(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = N
     t = data["time"].to_numpy(float)
     v = data["voltage"].to_numpy(float)
     kw = sample.model_kwargs()
-    kw["shear_modulus_slope"] = (0.0 if constant_g else kw["shear_modulus_slope"]) \
-        + mods.shear_slope_extra
-    res = _dyn.response(t, v, load=rig.load, damping=rig.damping,
-                        thermal_mass=rig.thermal_mass, heat_loss=rig.heat_loss,
-                        resistance=rig.resistance, ambient=rig.ambient,
-                        resistance_tc=mods.resistance_tc, heat_loss_tc=mods.heat_loss_tc,
-                        method=method, **kw)
+    kw["shear_modulus_slope"] = (0.0 if constant_g else kw["shear_modulus_slope"]) + mods.shear_slope_extra
+    res = _dyn.response(
+        t,
+        v,
+        load=rig.load,
+        damping=rig.damping,
+        thermal_mass=rig.thermal_mass,
+        heat_loss=rig.heat_loss,
+        resistance=rig.resistance,
+        ambient=rig.ambient,
+        resistance_tc=mods.resistance_tc,
+        heat_loss_tc=mods.heat_loss_tc,
+        method=method,
+        **kw,
+    )
     disp, temp = res.displacement, res.temperature
     if mods.delay:
         # Shift the output, not the held input: continuous in the delay, so fits work.
@@ -233,7 +245,7 @@ def _unloading_mask(resistance: np.ndarray) -> np.ndarray:
     peak = int(np.argmax(smooth))
     mask = np.zeros(n, dtype=bool)
     if n - peak > 2 and smooth[peak] - smooth[-1] > 0.25 * (smooth[peak] - smooth.min()):
-        mask[peak + 1:] = True
+        mask[peak + 1 :] = True
     return mask
 
 
@@ -249,9 +261,15 @@ def _time_in_dwell(resistance: np.ndarray, clock: np.ndarray) -> np.ndarray:
     return clock - clock[last]
 
 
-def predict_sensing(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *,
-                    spring_constant: float, initial_resistance: float
-                    ) -> dict[str, np.ndarray]:
+def predict_sensing(
+    sample: Sample,
+    rig: Rig,
+    data: pd.DataFrame,
+    mods: Mods = NO_MODS,
+    *,
+    spring_constant: float,
+    initial_resistance: float,
+) -> dict[str, np.ndarray]:
     """Pull test: displacement and force from resistance, (3.1)-(3.7), F = S delta.
 
     Parameters
@@ -278,7 +296,8 @@ def predict_sensing(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = N
     if mods.hysteresis:
         unloading = _unloading_mask(data["resistance"].to_numpy(float))
         delta = delta + mods.hysteresis * np.where(unloading, 1.0, -1.0) * np.clip(
-            delta / SLACK_RAMP, 0.0, 1.0)
+            delta / SLACK_RAMP, 0.0, 1.0
+        )
     force = spring_constant * delta * (1.0 + mods.stiffening * delta)
     if mods.relaxation:
         dwell = _time_in_dwell(data["resistance"].to_numpy(float), _clock(data))
@@ -287,9 +306,15 @@ def predict_sensing(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = N
     return {"displacement": disp, "force": force}
 
 
-def predict_curvature(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *,
-                      spring_constant: float, initial_resistances: tuple[float, float]
-                      ) -> dict[str, np.ndarray]:
+def predict_curvature(
+    sample: Sample,
+    rig: Rig,
+    data: pd.DataFrame,
+    mods: Mods = NO_MODS,
+    *,
+    spring_constant: float,
+    initial_resistances: tuple[float, float],
+) -> dict[str, np.ndarray]:
     """Camera test: segment curvatures from R1, R2 and the cable, (4.1).
 
     Parameters
@@ -312,8 +337,9 @@ def predict_curvature(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods =
     lengths = np.asarray(rig.segment_lengths, float)
     res = np.vstack([data["r1"].to_numpy(float), data["r2"].to_numpy(float)])
     cable = data["cable"].to_numpy(float)
-    _, elong = _curv.curvatures(res, cable, initial_resistances, spring_constant,
-                                rig.sensor_offset, lengths, **kw)
+    _, elong = _curv.curvatures(
+        res, cable, initial_resistances, spring_constant, rig.sensor_offset, lengths, **kw
+    )
     # Axial compression: a fraction a of the pull-in shortens the whole body
     # (cable and sensor lines alike) instead of bending it. The sensor length
     # from R already includes it; the bending share of each segment is its
@@ -329,11 +355,16 @@ def predict_curvature(sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods =
     return {"kappa1": kappa[0], "kappa2": kappa[1]}
 
 
-def predict(kind: str, sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS,
-            **options) -> dict[str, np.ndarray]:
+def predict(
+    kind: str, sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, **options
+) -> dict[str, np.ndarray]:
     """Dispatch to the prediction of one rig kind (see the module table)."""
-    fn = {"static": predict_static, "dynamic": predict_dynamic, "sensing": predict_sensing,
-          "curvature": predict_curvature}.get(kind)
+    fn = {
+        "static": predict_static,
+        "dynamic": predict_dynamic,
+        "sensing": predict_sensing,
+        "curvature": predict_curvature,
+    }.get(kind)
     if fn is None:
         raise ValueError(f"unknown kind {kind!r}")
     return fn(sample, rig, data, mods, **options)

@@ -42,9 +42,10 @@ import difflib
 import hashlib
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -324,7 +325,9 @@ def _did_you_mean(word: str, choices: list[str] | tuple[str, ...], n: int = 1) -
     matches = difflib.get_close_matches(word, list(choices), n=n, cutoff=0.6)
     if not matches:
         lowered = {c.lower(): c for c in choices}
-        matches = [lowered[m] for m in difflib.get_close_matches(word.lower(), list(lowered), n=n, cutoff=0.5)]
+        matches = [
+            lowered[m] for m in difflib.get_close_matches(word.lower(), list(lowered), n=n, cutoff=0.5)
+        ]
     return "; did you mean " + " or ".join(repr(m) for m in matches) + "?" if matches else ""
 
 
@@ -531,7 +534,9 @@ def _sniff(path: Path, shown: str) -> _Layout:
             raise InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
         raise InputError(
             f"{shown}: no header line found (only '#' comments and blank lines"
-            + (f" in the first {_MAX_PREAMBLE_LINES} lines)" if len(raw_lines) > _MAX_PREAMBLE_LINES else ")"),
+            + (
+                f" in the first {_MAX_PREAMBLE_LINES} lines)" if len(raw_lines) > _MAX_PREAMBLE_LINES else ")"
+            ),
             "a run needs a header line and data rows after any '#' comment lines",
         )
     head = b"".join(raw_lines)
@@ -553,7 +558,7 @@ def _sniff(path: Path, shown: str) -> _Layout:
     else:
         sep, decimal = ",", "."
     try:
-        headers = next(csv.reader([header_text], delimiter=sep, quotechar="\"", skipinitialspace=True))
+        headers = next(csv.reader([header_text], delimiter=sep, quotechar='"', skipinitialspace=True))
     except (csv.Error, StopIteration) as exc:
         raise InputError(f"{shown}: line {header_idx + 1}: cannot parse the header ({exc})") from None
     headers = [h.strip() for h in headers]
@@ -569,7 +574,7 @@ def _count_trailing_blank_lines(path: Path, size: int) -> int:
     stripped = tail.rstrip(b" \t\r\n")
     if len(stripped) == 0 and tail_len < size:
         return 0  # more than 4 KiB of whitespace: leave it to the NaN check
-    ws = tail[len(stripped):]
+    ws = tail[len(stripped) :]
     if not ws:
         return 0
     n_newlines = ws.count(b"\n")
@@ -612,9 +617,7 @@ def _read_frame(path: Path, shown: str, layout: _Layout, usecols: list[int], dty
     raise InputError(f"{shown}: cannot decode the file ({last_exc})", "save it as UTF-8") from None
 
 
-def _locate_bad_cell(
-    path: Path, shown: str, layout: _Layout, usecols: list[int]
-) -> pd.DataFrame:
+def _locate_bad_cell(path: Path, shown: str, layout: _Layout, usecols: list[int]) -> pd.DataFrame:
     """Slow path: read as text, find the first non-numeric cell or convert all.
 
     Cells holding only whitespace count as blank (NaN).
@@ -719,8 +722,9 @@ def _size_text(n: int) -> str:
     return f"{n / 1024**3:.2f} GiB"
 
 
-def _read_run(p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None,
-              drop_na: bool, max_bytes: int) -> RunData:
+def _read_run(
+    p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None, drop_na: bool, max_bytes: int
+) -> RunData:
     """:func:`read_run` without the translation of OSError."""
     if kind not in REQUIRED:
         raise InputError(f"{shown}: unknown run kind {kind!r}", "one of " + ", ".join(KINDS))
@@ -731,8 +735,7 @@ def _read_run(p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None,
     size = p.stat().st_size
     if size > max_bytes:
         raise InputError(
-            f"{shown}: file is {_size_text(size)}, larger than the limit of "
-            f"{_size_text(max_bytes)}",
+            f"{shown}: file is {_size_text(size)}, larger than the limit of {_size_text(max_bytes)}",
             "if the file really is this large, raise the limit with --max-bytes N "
             "(library: read_run(..., max_bytes=N))",
         )
@@ -741,8 +744,7 @@ def _read_run(p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None,
 
     columns = dict(columns or {})
     specs = {
-        canon: column_spec(kind, canon, spec, where=f"{shown}: [columns]")
-        for canon, spec in columns.items()
+        canon: column_spec(kind, canon, spec, where=f"{shown}: [columns]") for canon, spec in columns.items()
     }
 
     layout = _sniff(p, shown)
@@ -788,7 +790,7 @@ def _read_run(p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None,
     n_trailing = _count_trailing_blank_lines(p, size)
     if n_trailing:
         n_keep = len(raw) - n_trailing
-        tail_blank = raw.iloc[max(n_keep, 0):].isna().all(axis=1).all()
+        tail_blank = raw.iloc[max(n_keep, 0) :].isna().all(axis=1).all()
         if n_keep >= 0 and tail_blank:
             raw = raw.iloc[:n_keep]
     n_rows_raw = len(raw)

@@ -9,8 +9,8 @@ experiment file (see :data:`METRIC_UNITS_NOTE` for units and
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass
-from typing import Iterable, Mapping
 
 import numpy as np
 
@@ -330,4 +330,3 @@ def check_thresholds(
                 passed = compared <= limit_f
             checks.append(ThresholdCheck(key, quantity, value, limit_f, bool(passed)))
     return checks
-

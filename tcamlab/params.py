@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 from tcamlab.errors import ConfigError
 
@@ -83,7 +83,7 @@ class Sample:
         """Number of coils n = l cos(alpha0) / (pi D) [-] (section 2.3.2)."""
         return self.fiber_length * math.cos(self.alpha0) / (math.pi * self.coil_diameter)
 
-    def replace(self, **changes: float) -> "Sample":
+    def replace(self, **changes: float) -> Sample:
         """Return a copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
@@ -191,7 +191,7 @@ class Rig:
         """Weight of the hanging load, m g [N]."""
         return self.load * G_ACCEL
 
-    def replace(self, **changes) -> "Rig":
+    def replace(self, **changes) -> Rig:
         return dataclasses.replace(self, **changes)
 
 
@@ -272,10 +272,12 @@ class Preset:
 
 P = PresetValue
 
-_NYLON_E = P(3.45e9, "sec. 3.3 (Young's modulus of nylon 6,6, used for chapter 2 too: "
-                     "assumed, chapter 2 gives no E)")
-_RHO = P(8.1e-5, "sec. 2.5.1 |rho| = 8.1e-5 /K; sign taken positive (radial swelling), "
-                 "see README 'sign of rho'")
+_NYLON_E = P(
+    3.45e9, "sec. 3.3 (Young's modulus of nylon 6,6, used for chapter 2 too: assumed, chapter 2 gives no E)"
+)
+_RHO = P(
+    8.1e-5, "sec. 2.5.1 |rho| = 8.1e-5 /K; sign taken positive (radial swelling), see README 'sign of rho'"
+)
 _SLOPE = P(1.11e6, "sec. 2.3.3 text: 0.00111 GPa per degC (eq. 2.13 misprints the factor)")
 _VFMAX = P(0.887, "sec. 2.5.1, V_fmax = 0.887 [43]")
 _PLIES = P(2, "sec. 2.5.1: 2-ply thread, r_f = r/2")
@@ -339,9 +341,7 @@ THESIS_TCS = Preset(
     },
     rig={
         "ambient": P(20.0, "assumed: room temperature, as in sec. 2.5.2"),
-        "initial_resistance": P(
-            30.0, "assumed: thesis gives no R0; only R/R0 enters the model"
-        ),
+        "initial_resistance": P(30.0, "assumed: thesis gives no R0; only R/R0 enters the model"),
     },
 )
 
@@ -378,9 +378,7 @@ THESIS_ROBOT = Preset(
             (30e-3, 30e-3),
             "sec. 4.3: 60 mm robot in two halves (tip EcoFlex 00-10, base 00-30)",
         ),
-        "initial_resistance": P(
-            10.0, "assumed: resistance of one 30 mm segment at rest; only R/R0 enters"
-        ),
+        "initial_resistance": P(10.0, "assumed: resistance of one 30 mm segment at rest; only R/R0 enters"),
         "spring_constant": P(
             14.1, "assumed: the chapter-3 value scaled to a 30 mm segment (4.7 N/m x 90/30)"
         ),

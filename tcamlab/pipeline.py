@@ -12,9 +12,9 @@ import io as _stdio
 import json
 import os
 import tempfile
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 from urllib.parse import quote
 
 import pandas as pd
@@ -23,8 +23,16 @@ from tcamlab.config import Experiment, load_experiment
 from tcamlab.errors import ConfigError, InputError, TcamlabError
 from tcamlab.report.atomic import atomic_write_bytes, atomic_write_text
 
-__all__ = ["validate_experiment", "ValidateOutcome", "build_reports", "ReportOutcome",
-           "fit_spring_files", "neutralise_csv", "dumps_json", "FORMATS"]
+__all__ = [
+    "validate_experiment",
+    "ValidateOutcome",
+    "build_reports",
+    "ReportOutcome",
+    "fit_spring_files",
+    "neutralise_csv",
+    "dumps_json",
+    "FORMATS",
+]
 
 FORMATS = ("html", "pdf")
 
@@ -50,8 +58,7 @@ def neutralise_csv(df: pd.DataFrame) -> pd.DataFrame:
         series = out[col]
         if pd.api.types.is_numeric_dtype(series) or pd.api.types.is_bool_dtype(series):
             continue
-        out[col] = series.map(
-            lambda v: "'" + v if isinstance(v, str) and v.startswith(_FORMULA_START) else v)
+        out[col] = series.map(lambda v: "'" + v if isinstance(v, str) and v.startswith(_FORMULA_START) else v)
     out.columns = [("'" + c) if str(c)[:1] in ("=", "+", "-", "@") else c for c in out.columns]
     return out
 
@@ -84,10 +91,17 @@ def _parse_formats(formats: Sequence[str] | str) -> tuple[str, ...]:
     return tuple(formats)
 
 
-def validate_experiment(path, out_dir="reports", *, expected_kind: str | None = None,
-                        formats=FORMATS, mc_draws: int | None = None, drop_na: bool = False,
-                        max_bytes: int | None = None,
-                        command: str | None = None) -> ValidateOutcome:
+def validate_experiment(
+    path,
+    out_dir="reports",
+    *,
+    expected_kind: str | None = None,
+    formats=FORMATS,
+    mc_draws: int | None = None,
+    drop_na: bool = False,
+    max_bytes: int | None = None,
+    command: str | None = None,
+) -> ValidateOutcome:
     """Validate one experiment and write ``out_dir/NAME/{report.html, report.pdf,
     metrics.json, predictions.csv}``.
 
@@ -116,6 +130,7 @@ def validate_experiment(path, out_dir="reports", *, expected_kind: str | None = 
     ValidateOutcome
     """
     from tcamlab import validation
+
     formats = _parse_formats(formats)
     exp = load_experiment(path, expected_kind=expected_kind)
     kw = {} if mc_draws is None else {"mc_draws": mc_draws}
@@ -130,8 +145,10 @@ def _write_validation(result, target: Path, formats, command) -> list[Path]:
 
     # Compute everything first, then write: a failure leaves no partial report.
     doc = validation_document(result, command=command)
-    payload = {"metrics.json": dumps_json(result.to_dict()).encode(),
-               "predictions.csv": _csv_bytes(result.to_pandas())}
+    payload = {
+        "metrics.json": dumps_json(result.to_dict()).encode(),
+        "predictions.csv": _csv_bytes(result.to_pandas()),
+    }
     if "html" in formats:
         from tcamlab.report.html import render_html
 
@@ -233,10 +250,16 @@ def _headline(result) -> dict[str, str]:
     return out
 
 
-def build_reports(paths: Sequence | None = None, out_dir="reports", *,
-                  experiments_dir="experiments", mc_draws: int | None = None,
-                  drop_na: bool = False, max_bytes: int | None = None,
-                  progress: Callable[[str, int, int], None] | None = None) -> ReportOutcome:
+def build_reports(
+    paths: Sequence | None = None,
+    out_dir="reports",
+    *,
+    experiments_dir="experiments",
+    mc_draws: int | None = None,
+    drop_na: bool = False,
+    max_bytes: int | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> ReportOutcome:
     """Validate every experiment, write each report, ``index.html`` and one combined PDF.
 
     An experiment that fails to load or validate is listed in the index with
@@ -252,8 +275,10 @@ def build_reports(paths: Sequence | None = None, out_dir="reports", *,
         folder = Path(experiments_dir)
         paths = sorted(folder.glob("*.toml"))
         if not paths:
-            raise ConfigError(f"{folder}: no experiment files (*.toml) found",
-                              hint="pass experiment files or use --experiments DIR")
+            raise ConfigError(
+                f"{folder}: no experiment files (*.toml) found",
+                hint="pass experiment files or use --experiments DIR",
+            )
     out = Path(out_dir)
     entries, docs = [], []
     for i, p in enumerate(paths):
@@ -261,31 +286,57 @@ def build_reports(paths: Sequence | None = None, out_dir="reports", *,
         if progress:
             progress(p.name, i, len(paths))
         try:
-            outcome = validate_experiment(p, out, mc_draws=mc_draws, drop_na=drop_na,
-                                          max_bytes=max_bytes, command=None)
+            outcome = validate_experiment(
+                p, out, mc_draws=mc_draws, drop_na=drop_na, max_bytes=max_bytes, command=None
+            )
         except TcamlabError as exc:
-            entries.append(IndexEntry(name=p.stem, title=p.stem, kind="?", status="error",
-                                      metrics={}, link=None, error=exc.one_line()))
+            entries.append(
+                IndexEntry(
+                    name=p.stem,
+                    title=p.stem,
+                    kind="?",
+                    status="error",
+                    metrics={},
+                    link=None,
+                    error=exc.one_line(),
+                )
+            )
             continue
         res = outcome.result
-        entries.append(IndexEntry(
-            name=res.experiment.name, title=res.experiment.title, kind=res.kind,
-            status="pass" if res.passed else "fail", metrics=_headline(res),
-            link=f"{quote(res.experiment.name)}/report.html", error=None))
+        entries.append(
+            IndexEntry(
+                name=res.experiment.name,
+                title=res.experiment.title,
+                kind=res.kind,
+                status="pass" if res.passed else "fail",
+                metrics=_headline(res),
+                link=f"{quote(res.experiment.name)}/report.html",
+                error=None,
+            )
+        )
         docs.append(res.document)
     from tcamlab import __version__
 
-    index = IndexDocument(title="tcamlab validation reports", entries=entries,
-                          metadata={"tool": f"tcamlab {__version__}",
-                                    "experiments": str(len(entries))})
+    index = IndexDocument(
+        title="tcamlab validation reports",
+        entries=entries,
+        metadata={"tool": f"tcamlab {__version__}", "experiments": str(len(entries))},
+    )
     index_path = atomic_write_text(out / "index.html", render_index_html(index))
     pdf_path = atomic_write_bytes(out / "reports.pdf", render_combined_pdf(docs, index))
     return ReportOutcome(out, entries, index_path, pdf_path)
 
 
-def fit_spring_files(paths: Sequence, *, intercept: bool = False, robust: bool = False,
-                     by_branch: bool = True, plot_path=None, drop_na: bool = False,
-                     max_bytes: int | None = None):
+def fit_spring_files(
+    paths: Sequence,
+    *,
+    intercept: bool = False,
+    robust: bool = False,
+    by_branch: bool = True,
+    plot_path=None,
+    drop_na: bool = False,
+    max_bytes: int | None = None,
+):
     """Identify S of F = S delta from pull-test CSVs or sensing experiment files.
 
     Returns a :class:`tcamlab.fitting.SpringFitReport`; writes the fit and
@@ -304,12 +355,14 @@ def fit_spring_files(paths: Sequence, *, intercept: bool = False, robust: bool =
         if p.suffix.lower() == ".toml":
             exp = load_experiment(p, expected_kind="sensing")
             for r in exp.read_runs(**read_kw):
-                runs.append((r.path.stem, r.data["displacement"].to_numpy(float),
-                             r.data["force"].to_numpy(float)))
+                runs.append(
+                    (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float))
+                )
         else:
             r = tio.read_run(p, "sensing", **read_kw)
-            runs.append((r.path.stem, r.data["displacement"].to_numpy(float),
-                         r.data["force"].to_numpy(float)))
+            runs.append(
+                (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float))
+            )
     if not runs:
         raise InputError("fit-spring: no runs given", hint="pass CSV files or experiment files")
     names = [n for n, _, _ in runs]
@@ -317,9 +370,9 @@ def fit_spring_files(paths: Sequence, *, intercept: bool = False, robust: bool =
         runs = [(f"{i + 1}:{n}", x, f) for i, (n, x, f) in enumerate(runs)]
     report = fit_spring_runs(runs, intercept=intercept, robust=robust, by_branch=by_branch)
     if plot_path is not None:
-        from tcamlab.report.figures import figure_to_png, figure_to_svg
-
         import matplotlib
+
+        from tcamlab.report.figures import figure_to_png, figure_to_svg
 
         # Run names come from file names: '$' must not start matplotlib mathtext.
         with matplotlib.rc_context({"text.parse_math": False}):
@@ -350,7 +403,9 @@ def write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
 
     doc = diagnosis_document(result, experiment)
     target = Path(out_dir) / experiment.name
-    payload = {"diagnosis.json": dumps_json(result.to_dict()).encode(),
-               "diagnosis.html": render_html(doc).encode(),
-               "diagnosis.pdf": render_pdf(doc)}
+    payload = {
+        "diagnosis.json": dumps_json(result.to_dict()).encode(),
+        "diagnosis.html": render_html(doc).encode(),
+        "diagnosis.pdf": render_pdf(doc),
+    }
     return [atomic_write_bytes(target / name, data) for name, data in payload.items()]

@@ -115,9 +115,10 @@ import json
 import math
 import os
 import shlex
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -130,8 +131,7 @@ from tcamlab import io as tio
 from tcamlab.effects import Effect, get_effect
 from tcamlab.errors import ConfigError, TcamlabError
 from tcamlab.models import sensing as _sensing
-from tcamlab.params import (RIG_KEYS, SAMPLE_KEYS, THESIS_ROBOT, THESIS_TCA, THESIS_TCS, Rig,
-                            Sample)
+from tcamlab.params import RIG_KEYS, SAMPLE_KEYS, THESIS_ROBOT, THESIS_TCA, THESIS_TCS, Rig, Sample
 
 __all__ = [
     "SimulationResult",
@@ -201,8 +201,7 @@ DEFAULT_SCATTER: dict[str, dict[str, float]] = {
 }
 """Kind -> {SI field of Sample or Rig: relative sd} of the per-run scatter."""
 
-_PRESET_FOR = {"static": THESIS_TCA, "dynamic": THESIS_TCA, "sensing": THESIS_TCS,
-               "curvature": THESIS_ROBOT}
+_PRESET_FOR = {"static": THESIS_TCA, "dynamic": THESIS_TCA, "sensing": THESIS_TCS, "curvature": THESIS_ROBOT}
 
 _COLUMNS = {
     "static": ("time", "temperature", "displacement"),
@@ -229,11 +228,9 @@ _DECIMALS = {
 
 _RIG_FIELDS = {
     "static": ("load", "ambient"),
-    "dynamic": ("load", "ambient", "voltage", "pulse", "resistance", "thermal_mass",
-                "heat_loss", "damping"),
+    "dynamic": ("load", "ambient", "voltage", "pulse", "resistance", "thermal_mass", "heat_loss", "damping"),
     "sensing": ("ambient", "initial_resistance"),
-    "curvature": ("ambient", "initial_resistance", "spring_constant", "sensor_offset",
-                  "segment_lengths"),
+    "curvature": ("ambient", "initial_resistance", "spring_constant", "sensor_offset", "segment_lengths"),
 }
 """Rig fields written to the generated experiment file (never S for sensing)."""
 
@@ -286,8 +283,7 @@ experiment that separates sensor drift and thermal lag from temperature-only
 effects."""
 
 
-def protocol(kind: str, rig: Rig, rng: np.random.Generator, oven: str = "heating"
-             ) -> pd.DataFrame:
+def protocol(kind: str, rig: Rig, rng: np.random.Generator, oven: str = "heating") -> pd.DataFrame:
     """The exact programmed quantities of one run (SI, internal names).
 
     Parameters
@@ -315,16 +311,14 @@ def protocol(kind: str, rig: Rig, rng: np.random.Generator, oven: str = "heating
         if oven == "heat-cool":
             steps = np.concatenate([steps, steps[-2::-1]])
         elif oven != "heating":
-            raise ConfigError(f"unknown oven program {oven!r}",
-                              hint="one of " + ", ".join(OVEN_PROGRAMS))
+            raise ConfigError(f"unknown oven program {oven!r}", hint="one of " + ", ".join(OVEN_PROGRAMS))
         temp = steps + rng.normal(0.0, OVEN_REGULATION_SD_C, steps.size)
         return pd.DataFrame({"time": np.arange(steps.size) * OVEN_DWELL_S, "temperature": temp})
     if kind == "dynamic":
         n = int(round(DYNAMIC_DURATION_S * DYNAMIC_RATE_HZ))
         period_ms = int(round(1000 / DYNAMIC_RATE_HZ))
         u = rng.random(n)
-        jitter = np.where(u < TIMING_JITTER_PROB / 2, -1,
-                          np.where(u > 1 - TIMING_JITTER_PROB / 2, 1, 0))
+        jitter = np.where(u < TIMING_JITTER_PROB / 2, -1, np.where(u > 1 - TIMING_JITTER_PROB / 2, 1, 0))
         jitter[0] = 0
         ms = np.arange(n) * period_ms + jitter
         nominal = np.arange(n) / DYNAMIC_RATE_HZ
@@ -371,16 +365,21 @@ def _initial_resistances(rig: Rig, kind: str) -> tuple[float, ...]:
 def _options(kind: str, rig: Rig) -> dict[str, Any]:
     """Keyword options of :func:`tcamlab.forward.predict` for a run's (true) rig."""
     if kind == "sensing":
-        return {"spring_constant": float(rig.spring_constant),
-                "initial_resistance": _initial_resistances(rig, kind)[0]}
+        return {
+            "spring_constant": float(rig.spring_constant),
+            "initial_resistance": _initial_resistances(rig, kind)[0],
+        }
     if kind == "curvature":
-        return {"spring_constant": float(rig.spring_constant),
-                "initial_resistances": _initial_resistances(rig, kind)}
+        return {
+            "spring_constant": float(rig.spring_constant),
+            "initial_resistances": _initial_resistances(rig, kind),
+        }
     return {}
 
 
-def exact_inputs(kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame,
-                 mods: fw.Mods = fw.NO_MODS) -> pd.DataFrame:
+def exact_inputs(
+    kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame, mods: fw.Mods = fw.NO_MODS
+) -> pd.DataFrame:
     """The exact input columns of :func:`tcamlab.forward.predict` for a protocol.
 
     Static and dynamic inputs are the protocol itself. The sensing input is
@@ -395,20 +394,26 @@ def exact_inputs(kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame,
     kw = sample.sensor_kwargs()
     if kind == "sensing":
         if rig.spring_constant is None or rig.initial_resistance is None:
-            raise ConfigError("sensing simulation needs spring_constant_N_per_m and "
-                              "initial_resistance_ohm in the template's [rig]")
-        r = _sensing.forward(proto["elongation"].to_numpy(float),
-                             _initial_resistances(rig, kind)[0], rig.spring_constant, **kw)
+            raise ConfigError(
+                "sensing simulation needs spring_constant_N_per_m and "
+                "initial_resistance_ohm in the template's [rig]"
+            )
+        r = _sensing.forward(
+            proto["elongation"].to_numpy(float), _initial_resistances(rig, kind)[0], rig.spring_constant, **kw
+        )
         r = r * (1.0 + fw.SILVER_TCR * mods.temperature_offset)
         return pd.DataFrame({"time": proto["time"].to_numpy(float), "resistance": r})
     if rig.spring_constant is None or rig.initial_resistance is None:
-        raise ConfigError("curvature simulation needs spring_constant_N_per_m and "
-                          "initial_resistance_ohm in the template's [rig]")
+        raise ConfigError(
+            "curvature simulation needs spring_constant_N_per_m and "
+            "initial_resistance_ohm in the template's [rig]"
+        )
     cable = proto["cable"].to_numpy(float)
     lengths = np.asarray(rig.segment_lengths, float)
     if lengths.size != 2:
-        raise ConfigError("the curvature rig simulates a two-segment robot",
-                          hint="segment_lengths_mm = [tip, base]")
+        raise ConfigError(
+            "the curvature rig simulates a two-segment robot", hint="segment_lengths_mm = [tip, base]"
+        )
     kappa = _segment_curvatures(cable, rig)
     elong = kappa * (rig.sensor_offset / 2.0) * lengths[:, None]
     r0s = _initial_resistances(rig, kind)
@@ -416,9 +421,18 @@ def exact_inputs(kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame,
     for i, length in enumerate(lengths):
         ratio = length / sample.coil_length
         out[f"r{i + 1}"] = _sensing.forward(
-            elong[i], r0s[i], rig.spring_constant, kw["fiber_diameter"],
-            kw["fiber_length"] * ratio, length, kw["coil_diameter"], kw["twists"] * ratio,
-            kw["youngs_modulus"], kw["thread_plies"], kw["max_volume_fraction"])
+            elong[i],
+            r0s[i],
+            rig.spring_constant,
+            kw["fiber_diameter"],
+            kw["fiber_length"] * ratio,
+            length,
+            kw["coil_diameter"],
+            kw["twists"] * ratio,
+            kw["youngs_modulus"],
+            kw["thread_plies"],
+            kw["max_volume_fraction"],
+        )
     return pd.DataFrame(out)
 
 
@@ -444,13 +458,20 @@ def instrument_sd(kind: str, noise_scale: float = 1.0) -> dict[str, float]:
     laser = chain(LASER_NOISE_SD_M, LASER_QUANTUM_M, LASER_LOG_RESOLUTION_M)
     ohm = chain(OHMMETER_SD_OHM, OHMMETER_RESOLUTION_OHM)
     if kind == "static":
-        return {"time": 0.0, "temperature": chain(THERMOMETER_SD_C, THERMOMETER_RESOLUTION_C),
-                "displacement": laser}
+        return {
+            "time": 0.0,
+            "temperature": chain(THERMOMETER_SD_C, THERMOMETER_RESOLUTION_C),
+            "displacement": laser,
+        }
     if kind == "dynamic":
         return {"time": 0.0, "voltage": 0.0, "displacement": laser}
     if kind == "sensing":
-        return {"time": 0.0, "displacement": chain(0.0, ENCODER_RESOLUTION_M),
-                "force": chain(LOADCELL_SD_N, LOADCELL_QUANTUM_N), "resistance": ohm}
+        return {
+            "time": 0.0,
+            "displacement": chain(0.0, ENCODER_RESOLUTION_M),
+            "force": chain(LOADCELL_SD_N, LOADCELL_QUANTUM_N),
+            "resistance": ohm,
+        }
     cam = chain(CAMERA_SD_PER_M, CAMERA_RESOLUTION_PER_M)
     return {"cable": 0.0, "r1": ohm, "r2": ohm, "kappa1": cam, "kappa2": cam}
 
@@ -463,16 +484,22 @@ def _laser(disp: np.ndarray, rng: np.random.Generator, ns: float) -> np.ndarray:
     def codes(x):
         return np.clip(np.round((rest + x) / LASER_QUANTUM_M), 0, top)
 
-    tare = codes(np.full(LASER_TARE_SAMPLES, 0.0)
-                 + ns * rng.normal(0.0, LASER_NOISE_SD_M, LASER_TARE_SAMPLES)).mean()
+    tare = codes(
+        np.full(LASER_TARE_SAMPLES, 0.0) + ns * rng.normal(0.0, LASER_NOISE_SD_M, LASER_TARE_SAMPLES)
+    ).mean()
     reading = codes(disp + ns * rng.normal(0.0, LASER_NOISE_SD_M, disp.size))
     out = (reading - tare) * LASER_QUANTUM_M
     out[0] = 0.0
     return _quantise(out, LASER_LOG_RESOLUTION_M)
 
 
-def _measure(kind: str, inputs: pd.DataFrame, outputs: Mapping[str, np.ndarray],
-             rng: np.random.Generator, noise_scale: float) -> pd.DataFrame:
+def _measure(
+    kind: str,
+    inputs: pd.DataFrame,
+    outputs: Mapping[str, np.ndarray],
+    rng: np.random.Generator,
+    noise_scale: float,
+) -> pd.DataFrame:
     """Logged columns (internal names, SI) from the exact inputs and outputs."""
     ns = float(noise_scale)
 
@@ -481,41 +508,50 @@ def _measure(kind: str, inputs: pd.DataFrame, outputs: Mapping[str, np.ndarray],
 
     if kind == "static":
         temp = inputs["temperature"].to_numpy(float)
-        temp = _quantise(temp + ns * rng.normal(0.0, THERMOMETER_SD_C, temp.size),
-                         THERMOMETER_RESOLUTION_C)
+        temp = _quantise(temp + ns * rng.normal(0.0, THERMOMETER_SD_C, temp.size), THERMOMETER_RESOLUTION_C)
         disp = _laser(np.asarray(outputs["displacement"], float), rng, ns)
-        return pd.DataFrame({"time": inputs["time"].to_numpy(float), "temperature": temp,
-                             "displacement": disp})
+        return pd.DataFrame(
+            {"time": inputs["time"].to_numpy(float), "temperature": temp, "displacement": disp}
+        )
     if kind == "dynamic":
         disp = _laser(np.asarray(outputs["displacement"], float), rng, ns)
-        return pd.DataFrame({"time": inputs["time"].to_numpy(float),
-                             "voltage": inputs["voltage"].to_numpy(float), "displacement": disp})
+        return pd.DataFrame(
+            {
+                "time": inputs["time"].to_numpy(float),
+                "voltage": inputs["voltage"].to_numpy(float),
+                "displacement": disp,
+            }
+        )
     if kind == "sensing":
         disp = _quantise(outputs["displacement"], ENCODER_RESOLUTION_M)
         force = np.asarray(outputs["force"], float)
         reading = force + LOADCELL_OFFSET_N + ns * rng.normal(0.0, LOADCELL_SD_N, force.size)
-        code = np.clip(np.round((reading - LOADCELL_SPAN_N[0]) / LOADCELL_QUANTUM_N), 0,
-                       2**LOADCELL_BITS - 1)
+        code = np.clip(np.round((reading - LOADCELL_SPAN_N[0]) / LOADCELL_QUANTUM_N), 0, 2**LOADCELL_BITS - 1)
         force = code * LOADCELL_QUANTUM_N + LOADCELL_SPAN_N[0]
         res = ohmmeter(inputs["resistance"].to_numpy(float))
-        return pd.DataFrame({"time": inputs["time"].to_numpy(float), "displacement": disp,
-                             "force": force, "resistance": res})
+        return pd.DataFrame(
+            {"time": inputs["time"].to_numpy(float), "displacement": disp, "force": force, "resistance": res}
+        )
     r1 = ohmmeter(inputs["r1"].to_numpy(float))
     r2 = ohmmeter(inputs["r2"].to_numpy(float))
     out = {"cable": inputs["cable"].to_numpy(float), "r1": r1, "r2": r2}
     for q in ("kappa1", "kappa2"):
         k = np.asarray(outputs[q], float)
-        out[q] = _quantise(k + ns * rng.normal(0.0, CAMERA_SD_PER_M, k.size),
-                           CAMERA_RESOLUTION_PER_M)
+        out[q] = _quantise(k + ns * rng.normal(0.0, CAMERA_SD_PER_M, k.size), CAMERA_RESOLUTION_PER_M)
     return pd.DataFrame(out)
 
 
-_NOISY_INPUTS = {"static": ("temperature",), "dynamic": (), "sensing": ("resistance",),
-                 "curvature": ("r1", "r2")}
+_NOISY_INPUTS = {
+    "static": ("temperature",),
+    "dynamic": (),
+    "sensing": ("resistance",),
+    "curvature": ("r1", "r2"),
+}
 
 
-def noise_sd(kind: str, sample: Sample | None = None, rig: Rig | None = None, *,
-             noise_scale: float = 1.0) -> dict[str, float]:
+def noise_sd(
+    kind: str, sample: Sample | None = None, rig: Rig | None = None, *, noise_scale: float = 1.0
+) -> dict[str, float]:
     """Noise floor of each quantity of a rig kind (SI).
 
     For a measured output (displacement, force, kappa1, kappa2) it is the
@@ -594,13 +630,25 @@ def _normalised_rms(gap: Mapping[str, np.ndarray], sd: Mapping[str, float], quan
 
 
 def _primary(kind: str) -> tuple[str, ...] | None:
-    return {"static": ("displacement",), "dynamic": ("displacement",),
-            "curvature": ("kappa1", "kappa2"), "sensing": None}[kind]
+    return {
+        "static": ("displacement",),
+        "dynamic": ("displacement",),
+        "curvature": ("kappa1", "kappa2"),
+        "sensing": None,
+    }[kind]
 
 
-def scale_effect(kind: str, name: str, strength: float | Mapping[str, Any], sample: Sample,
-                 rig: Rig, proto: pd.DataFrame, sd: Mapping[str, float], *,
-                 also_valid_for: tuple = ()) -> dict[str, Any]:
+def scale_effect(
+    kind: str,
+    name: str,
+    strength: float | Mapping[str, Any],
+    sample: Sample,
+    rig: Rig,
+    proto: pd.DataFrame,
+    sd: Mapping[str, float],
+    *,
+    also_valid_for: tuple = (),
+) -> dict[str, Any]:
     """Find an effect's parameter for a strength in noise-sd units.
 
     Parameters
@@ -654,24 +702,31 @@ def scale_effect(kind: str, name: str, strength: float | Mapping[str, Any], samp
         mods = effect.mods(values)
         quantities = pick_quantities(float(values[0]))
         achieved = _normalised_rms(_gap(kind, sample, rig, proto, mods, opts), sd, quantities)
-        return {"name": name, "requested_strength": None,
-                "parameters": {p.field: float(v) for p, v in zip(effect.params, values)},
-                "fixed": dict(effect.fixed), "achieved_strength": achieved,
-                "quantities": list(quantities), "limited_by": None}
+        return {
+            "name": name,
+            "requested_strength": None,
+            "parameters": {p.field: float(v) for p, v in zip(effect.params, values)},
+            "fixed": dict(effect.fixed),
+            "achieved_strength": achieved,
+            "quantities": list(quantities),
+            "limited_by": None,
+        }
 
     target = abs(float(strength))
     direction = 1.0 if float(strength) >= 0 else -1.0
     bound = param.upper if direction > 0 else param.lower
     if direction * bound <= 0:
         sign = "negative" if direction < 0 else "positive"
-        raise ConfigError(f"effect {name!r} cannot take a {sign} parameter "
-                          f"(bounds {param.lower:g}..{param.upper:g})")
+        raise ConfigError(
+            f"effect {name!r} cannot take a {sign} parameter (bounds {param.lower:g}..{param.upper:g})"
+        )
     trial = direction * min(param.scale, abs(bound))
     quantities = pick_quantities(trial)
     limited = None
     if target == 0:
         value = 0.0
     else:
+
         def f(v):
             return metric_at(v, quantities) - target
 
@@ -706,26 +761,42 @@ def scale_effect(kind: str, name: str, strength: float | Mapping[str, Any], samp
             if abs(hi) >= abs(bound):
                 hi = bound
         if limited is None:
-            value = float(brentq(f, lo, hi, xtol=1e-14 * abs(param.scale), rtol=1e-10,
-                                 maxiter=200))
+            value = float(brentq(f, lo, hi, xtol=1e-14 * abs(param.scale), rtol=1e-10, maxiter=200))
         else:
             value = float(hi)
     achieved = metric_at(value, quantities) if value != 0 else 0.0
-    return {"name": name, "requested_strength": float(strength),
-            "parameters": {param.field: value}, "fixed": dict(effect.fixed),
-            "achieved_strength": float(achieved), "quantities": list(quantities),
-            "limited_by": limited}
+    return {
+        "name": name,
+        "requested_strength": float(strength),
+        "parameters": {param.field: value},
+        "fixed": dict(effect.fixed),
+        "achieved_strength": float(achieved),
+        "quantities": list(quantities),
+        "limited_by": limited,
+    }
 
 
 # --- scatter -------------------------------------------------------------------------
 
 _SAMPLE_FIELDS = set(Sample.__dataclass_fields__)
-_RIG_SCALARS = {"load", "ambient", "voltage", "pulse", "resistance", "thermal_mass", "heat_loss",
-                "damping", "initial_resistance", "spring_constant", "sensor_offset"}
+_RIG_SCALARS = {
+    "load",
+    "ambient",
+    "voltage",
+    "pulse",
+    "resistance",
+    "thermal_mass",
+    "heat_loss",
+    "damping",
+    "initial_resistance",
+    "spring_constant",
+    "sensor_offset",
+}
 
 
-def _scattered(kind: str, sample: Sample, rig: Rig, scatter: Mapping[str, float],
-               rng: np.random.Generator) -> tuple[Sample, Rig]:
+def _scattered(
+    kind: str, sample: Sample, rig: Rig, scatter: Mapping[str, float], rng: np.random.Generator
+) -> tuple[Sample, Rig]:
     """One run's true sample and rig: each listed field times (1 + N(0, rel sd))."""
     s_changes: dict[str, float] = {}
     r_changes: dict[str, Any] = {}
@@ -740,13 +811,14 @@ def _scattered(kind: str, sample: Sample, rig: Rig, scatter: Mapping[str, float]
             if base is None:
                 continue
             if fld == "initial_resistance" and kind == "curvature":
-                r_changes[fld] = tuple(float(base) * (1.0 + rel * rng.normal())
-                                       for _ in rig.segment_lengths)
+                r_changes[fld] = tuple(float(base) * (1.0 + rel * rng.normal()) for _ in rig.segment_lengths)
             else:
                 r_changes[fld] = base * (1.0 + rel * rng.normal())
         else:
-            raise ConfigError(f"scatter: unknown field {fld!r}",
-                              hint="SI field names of Sample or Rig, e.g. twists, coil_length")
+            raise ConfigError(
+                f"scatter: unknown field {fld!r}",
+                hint="SI field names of Sample or Rig, e.g. twists, coil_length",
+            )
     if kind == "curvature" and "coil_length" in s_changes:
         # The embedded sensor spans the segments: they change length with it.
         k = s_changes["coil_length"] / sample.coil_length
@@ -782,8 +854,9 @@ def _write_text(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def _experiment_doc(kind: str, exp, name: str, run_names: list[str], seed: int,
-                    command: str) -> dict[str, Any]:
+def _experiment_doc(
+    kind: str, exp, name: str, run_names: list[str], seed: int, command: str
+) -> dict[str, Any]:
     sample = exp.sample
     sample_table: dict[str, Any] = {}
     if exp.preset:
@@ -812,8 +885,7 @@ def _experiment_doc(kind: str, exp, name: str, run_names: list[str], seed: int,
         "title": exp.title,
         "runs": [f"../raw/{r}" for r in run_names],
         "notes": SYNTHETIC_NOTE,
-        "synthetic": {"generator": f"tcamlab simulate {__version__}", "seed": int(seed),
-                      "command": command},
+        "synthetic": {"generator": f"tcamlab simulate {__version__}", "seed": int(seed), "command": command},
         "sample": sample_table,
         "rig": rig_table,
     }
@@ -843,8 +915,17 @@ def _public_command(command: str) -> str:
 
 
 def _default_command(kind, template_arg, seed, out_dir, n_runs, noise_scale, name) -> str:
-    parts = ["tcamlab", "simulate", kind, "--experiment", str(template_arg), "--seed", str(seed),
-             "--out", str(out_dir)]
+    parts = [
+        "tcamlab",
+        "simulate",
+        kind,
+        "--experiment",
+        str(template_arg),
+        "--seed",
+        str(seed),
+        "--out",
+        str(out_dir),
+    ]
     if n_runs is not None:
         parts += ["--runs", str(n_runs)]
     if noise_scale != 1.0:
@@ -869,10 +950,20 @@ def _jsonable(obj):
 # --- simulate --------------------------------------------------------------------------
 
 
-def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, Any] | None = None,
-             n_runs: int | None = None, scatter: Mapping[str, float] | None = None,
-             noise_scale: float = 1.0, name: str | None = None,
-             command: str | None = None, oven: str = "heating") -> SimulationResult:
+def simulate(
+    kind: str,
+    template,
+    *,
+    seed: int,
+    out_dir,
+    effects: Mapping[str, Any] | None = None,
+    n_runs: int | None = None,
+    scatter: Mapping[str, float] | None = None,
+    noise_scale: float = 1.0,
+    name: str | None = None,
+    command: str | None = None,
+    oven: str = "heating",
+) -> SimulationResult:
     """Simulate an experiment of one rig kind and write it like a lab would.
 
     Parameters
@@ -935,15 +1026,20 @@ def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, A
     scatter = dict(DEFAULT_SCATTER[kind] if scatter is None else scatter)
     name = exp.name if name is None else str(name)
     out = Path(out_dir)
-    full_command = command if command is not None else _default_command(
-        kind, template_arg, seed, out_dir, n_runs, noise_scale, None if name == exp.name else name)
+    full_command = (
+        command
+        if command is not None
+        else _default_command(
+            kind, template_arg, seed, out_dir, n_runs, noise_scale, None if name == exp.name else name
+        )
+    )
     if kind == "static" and oven != "heating" and command is None:
         full_command += f" --oven {oven}"
     full_command_truth = full_command
     if effects and command is None:
         full_command_truth += "".join(
-            f" --effect {k}={v['value'] if isinstance(v, Mapping) else v}"
-            for k, v in effects.items())
+            f" --effect {k}={v['value'] if isinstance(v, Mapping) else v}" for k, v in effects.items()
+        )
 
     sample0, rig0 = exp.sample, exp.rig
     # One stream per run, drawn in a fixed order: protocol, scatter, then noise.
@@ -957,9 +1053,16 @@ def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, A
     effect_truth: dict[str, dict] = {}
     mods = fw.NO_MODS
     for ename, strength in (effects or {}).items():
-        info = scale_effect(kind, ename, strength, sample0, rig0, protos[0], sd,
-                            also_valid_for=tuple((s_k, r_k, p_k) for (s_k, r_k), p_k
-                                                 in zip(trues, protos)))
+        info = scale_effect(
+            kind,
+            ename,
+            strength,
+            sample0,
+            rig0,
+            protos[0],
+            sd,
+            also_valid_for=tuple((s_k, r_k, p_k) for (s_k, r_k), p_k in zip(trues, protos)),
+        )
         effect_truth[ename] = {k: v for k, v in info.items() if k != "name"}
         eff = get_effect(ename, kind)
         mods = eff.mods([info["parameters"][p.field] for p in eff.params], mods)
@@ -976,35 +1079,42 @@ def simulate(kind: str, template, *, seed: int, out_dir, effects: Mapping[str, A
         _write_text(path, _format_csv(kind, logged))
         run_names.append(fname)
         run_paths.append(path)
-        runs_truth.append({
-            "file": f"raw/{fname}",
-            "sample": sample_k.model_kwargs(),
-            "rig": {f: getattr(rig_k, f) for f in sorted(_RIG_SCALARS | {"segment_lengths"})},
-        })
+        runs_truth.append(
+            {
+                "file": f"raw/{fname}",
+                "sample": sample_k.model_kwargs(),
+                "rig": {f: getattr(rig_k, f) for f in sorted(_RIG_SCALARS | {"segment_lengths"})},
+            }
+        )
 
     exp_path = out / "experiments" / f"{name}.toml"
     doc = _experiment_doc(kind, exp, name, run_names, int(seed), _public_command(full_command))
     _config.write_experiment(exp_path, doc)
 
-    truth = _jsonable({
-        "kind": kind,
-        "name": name,
-        "seed": int(seed),
-        "generator": f"tcamlab simulate {__version__}",
-        "command": full_command_truth,
-        "template": str(template_arg),
-        "n_runs": n,
-        "noise_scale": float(noise_scale),
-        "effects": effect_truth,
-        "mods": {f: getattr(mods, f) for f in fw.Mods.__dataclass_fields__
-                 if getattr(mods, f) != getattr(fw.NO_MODS, f)},
-        "scatter": scatter,
-        "noise_sd": sd,
-        "instrument_sd": instrument_sd(kind, noise_scale),
-        "template_sample": sample0.model_kwargs(),
-        "template_rig": {f: getattr(rig0, f) for f in sorted(_RIG_SCALARS | {"segment_lengths"})},
-        "runs": runs_truth,
-    })
+    truth = _jsonable(
+        {
+            "kind": kind,
+            "name": name,
+            "seed": int(seed),
+            "generator": f"tcamlab simulate {__version__}",
+            "command": full_command_truth,
+            "template": str(template_arg),
+            "n_runs": n,
+            "noise_scale": float(noise_scale),
+            "effects": effect_truth,
+            "mods": {
+                f: getattr(mods, f)
+                for f in fw.Mods.__dataclass_fields__
+                if getattr(mods, f) != getattr(fw.NO_MODS, f)
+            },
+            "scatter": scatter,
+            "noise_sd": sd,
+            "instrument_sd": instrument_sd(kind, noise_scale),
+            "template_sample": sample0.model_kwargs(),
+            "template_rig": {f: getattr(rig0, f) for f in sorted(_RIG_SCALARS | {"segment_lengths"})},
+            "runs": runs_truth,
+        }
+    )
     truth_path = out / "truth" / f"{name}.truth.json"
     _write_text(truth_path, json.dumps(truth, indent=2) + "\n")
     return SimulationResult(exp_path, tuple(run_paths), truth_path, truth)

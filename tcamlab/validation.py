@@ -149,13 +149,23 @@ class ValidationResult:
             "title": exp.title,
             "kind": exp.kind,
             "synthetic": exp.synthetic,
-            "inputs": [{"file": r.path.name, "sha256": r.sha256, "rows": int(len(r.data)),
-                        "dropped_rows": int(r.n_dropped)} for r in self.runs],
+            "inputs": [
+                {
+                    "file": r.path.name,
+                    "sha256": r.sha256,
+                    "rows": int(len(r.data)),
+                    "dropped_rows": int(r.n_dropped),
+                }
+                for r in self.runs
+            ],
             "primary_model": self.primary,
-            "models": {v: {q: {"runs": {k: _json(m) for k, m in b["runs"].items()},
-                               "pooled": _json(b["pooled"])}
-                           for q, b in self.metrics[v].items()}
-                       for v in self.variants},
+            "models": {
+                v: {
+                    q: {"runs": {k: _json(m) for k, m in b["runs"].items()}, "pooled": _json(b["pooled"])}
+                    for q, b in self.metrics[v].items()
+                }
+                for v in self.variants
+            },
             "thresholds": [c.to_dict() for c in self.checks],
             "passed": self.passed,
             "notes": list(self.notes),
@@ -178,9 +188,14 @@ class ValidationResult:
 
 
 def _display_input(column: str) -> tuple[str, float]:
-    mapping = {"temperature": ("temperature_C", 1.0), "voltage": ("voltage_V", 1.0),
-               "resistance": ("resistance_ohm", 1.0), "cable": ("cable_mm", 1e3),
-               "r1": ("r1_ohm", 1.0), "r2": ("r2_ohm", 1.0)}
+    mapping = {
+        "temperature": ("temperature_C", 1.0),
+        "voltage": ("voltage_V", 1.0),
+        "resistance": ("resistance_ohm", 1.0),
+        "cable": ("cable_mm", 1e3),
+        "r1": ("r1_ohm", 1.0),
+        "r2": ("r2_ohm", 1.0),
+    }
     return mapping[column]
 
 
@@ -210,8 +225,7 @@ def _metrics(predictions, variants, quantities) -> dict:
         out[v] = {}
         for q in quantities:
             name, factor = DISPLAY[q]
-            pairs = [(p.data[q].to_numpy() * factor, p.predicted[v][q] * factor)
-                     for p in predictions]
+            pairs = [(p.data[q].to_numpy() * factor, p.predicted[v][q] * factor) for p in predictions]
             out[v][name] = {
                 "runs": {p.name: error_metrics(m, pr) for p, (m, pr) in zip(predictions, pairs)},
                 "pooled": pooled_metrics(pairs),
@@ -246,14 +260,16 @@ def _in_run(exp: Experiment, name: str, fn, *args, **kwargs):
             raise
         raise type(exc)(prefix + exc.message, exc.hint) from None
 
+
 def _static(exp: Experiment, runs, names):
     variants = ["G(T)", "constant-G"]
     preds = []
     for r, name in zip(runs, names):
         predicted = {
             "G(T)": _in_run(exp, name, forward.predict_static, exp.sample, exp.rig, r.data),
-            "constant-G": _in_run(exp, name, forward.predict_static, exp.sample, exp.rig,
-                                  r.data, constant_g=True),
+            "constant-G": _in_run(
+                exp, name, forward.predict_static, exp.sample, exp.rig, r.data, constant_g=True
+            ),
         }
         preds.append(RunPrediction(name, r.data, predicted))
     return variants, "G(T)", preds, [], {}
@@ -265,32 +281,39 @@ def _dynamic(exp: Experiment, runs, names, mc_draws, seed):
     preds, notes = [], []
     mc_summary = {}
     for r, name in zip(runs, names):
-        predicted = {"G(T)": _in_run(exp, name, forward.predict_dynamic, exp.sample, exp.rig,
-                                     r.data)}
+        predicted = {"G(T)": _in_run(exp, name, forward.predict_dynamic, exp.sample, exp.rig, r.data)}
         band = None
         t = r.data["time"].to_numpy(float)
         if mc_draws and exp.rig.uncertainty:
             grid = np.arange(t[0], t[-1] + MC_GRID / 2, MC_GRID)
             idx = np.searchsorted(t, grid, side="right") - 1
             volts = r.data["voltage"].to_numpy(float)[np.clip(idx, 0, t.size - 1)]
-            mc = _in_run(exp, name, dyn.monte_carlo, grid, volts, exp.sample, exp.rig,
-                         n_draws=mc_draws, seed=seed)
+            mc = _in_run(
+                exp, name, dyn.monte_carlo, grid, volts, exp.sample, exp.rig, n_draws=mc_draws, seed=seed
+            )
             lo, med, hi = (np.interp(t, mc.time, q) for q in mc.band())
             band = {"lower": lo, "median": med, "upper": hi}
             meas = r.data["displacement"].to_numpy(float)
             coverage = float(np.mean((meas >= lo) & (meas <= hi)))
-            mc_summary[name] = {"draws": mc_draws, "out_of_range": mc.n_invalid,
-                                "coverage_95": coverage}
+            mc_summary[name] = {"draws": mc_draws, "out_of_range": mc.n_invalid, "coverage_95": coverage}
             if mc.n_invalid:
                 notes.append(
                     f"{name}: {mc.n_invalid} of {mc_draws} Monte Carlo draws heated the "
                     f"actuator past the G_t' > 0 limit of eq. (2.13) and were left out of "
-                    f"the band")
+                    f"the band"
+                )
         preds.append(RunPrediction(name, r.data, predicted, band=band))
-    extras = {"monte_carlo": {
-        "distribution": "log-normal, moment-matched to the stated mean and sd",
-        "parameters": sorted(k for k in exp.rig.uncertainty if k in dyn.MC_PARAMS),
-        "runs": mc_summary}} if mc_summary else {}
+    extras = (
+        {
+            "monte_carlo": {
+                "distribution": "log-normal, moment-matched to the stated mean and sd",
+                "parameters": sorted(k for k in exp.rig.uncertainty if k in dyn.MC_PARAMS),
+                "runs": mc_summary,
+            }
+        }
+        if mc_summary
+        else {}
+    )
     if not mc_summary:
         notes.append("no [rig.uncertainty] given: no Monte Carlo prediction band")
     return ["G(T)"], "G(T)", preds, notes, extras
@@ -313,50 +336,84 @@ def _sensing(exp: Experiment, runs, names):
                 raise InputError(
                     f"{exp.path.name}: sensing validation needs a spring constant; with one run "
                     "it cannot be identified without using the run being validated",
-                    hint="set spring_constant_N_per_m in [rig], or add a second run")
+                    hint="set spring_constant_N_per_m in [rig], or add a second run",
+                )
             x = np.concatenate([o.data["displacement"].to_numpy(float) for o in others])
             f = np.concatenate([o.data["force"].to_numpy(float) for o in others])
             fit = fit_spring(x, f, run=f"without {name}")
             s_val = fit.spring_constant
             source = "identified leave-one-run-out from " + ", ".join(
-                n for j, n in enumerate(names) if j != i)
-        r0 = (exp.rig.initial_resistance if exp.rig.initial_resistance is not None
-              else float(r.data["resistance"].iloc[0]))
+                n for j, n in enumerate(names) if j != i
+            )
+        r0 = (
+            exp.rig.initial_resistance
+            if exp.rig.initial_resistance is not None
+            else float(r.data["resistance"].iloc[0])
+        )
         cond = _in_run(exp, name, sens.conditioning, s_val, **geo)
-        info = {"spring_constant_N_per_m": s_val, "spring_constant_source": source,
-                "initial_resistance_ohm": r0,
-                "initial_resistance_source": ("experiment file"
-                                              if exp.rig.initial_resistance is not None
-                                              else "first row of the run"),
-                "conditioning": cond.status, "margin_1_minus_S_f11": cond.margin}
+        info = {
+            "spring_constant_N_per_m": s_val,
+            "spring_constant_source": source,
+            "initial_resistance_ohm": r0,
+            "initial_resistance_source": (
+                "experiment file" if exp.rig.initial_resistance is not None else "first row of the run"
+            ),
+            "conditioning": cond.status,
+            "margin_1_minus_S_f11": cond.margin,
+        }
         spring[name] = info
         if cond.status != "ok":
             notes.append(f"{name}: sensing inversion {cond.describe()}")
-        predicted = {"thesis": _in_run(
-            exp, name, forward.predict_sensing, exp.sample, exp.rig, r.data,
-            spring_constant=s_val, initial_resistance=r0)}
+        predicted = {
+            "thesis": _in_run(
+                exp,
+                name,
+                forward.predict_sensing,
+                exp.sample,
+                exp.rig,
+                r.data,
+                spring_constant=s_val,
+                initial_resistance=r0,
+            )
+        }
         preds.append(RunPrediction(name, r.data, predicted, info=info))
     return ["thesis"], "thesis", preds, notes, {"spring_constant": spring}
 
 
 def _curvature(exp: Experiment, runs, names):
     if exp.rig.spring_constant is None:
-        raise InputError(f"{exp.path.name}: curvature validation needs the sensor's spring "
-                         "constant", hint="set spring_constant_N_per_m in [rig] (one segment)")
+        raise InputError(
+            f"{exp.path.name}: curvature validation needs the sensor's spring constant",
+            hint="set spring_constant_N_per_m in [rig] (one segment)",
+        )
     preds = []
     for r, name in zip(runs, names):
         r0 = (float(r.data["r1"].iloc[0]), float(r.data["r2"].iloc[0]))
-        predicted = {"thesis": _in_run(
-            exp, name, forward.predict_curvature, exp.sample, exp.rig, r.data,
-            spring_constant=exp.rig.spring_constant, initial_resistances=r0)}
-        preds.append(RunPrediction(name, r.data, predicted,
-                                   info={"initial_resistances_ohm": r0}))
+        predicted = {
+            "thesis": _in_run(
+                exp,
+                name,
+                forward.predict_curvature,
+                exp.sample,
+                exp.rig,
+                r.data,
+                spring_constant=exp.rig.spring_constant,
+                initial_resistances=r0,
+            )
+        }
+        preds.append(RunPrediction(name, r.data, predicted, info={"initial_resistances_ohm": r0}))
     return ["thesis"], "thesis", preds, [], {}
 
 
-def validate(experiment: Experiment, runs: list[RunData] | None = None, *,
-             mc_draws: int = MC_DRAWS, seed: int = 0, drop_na: bool = False,
-             max_bytes: int | None = None) -> ValidationResult:
+def validate(
+    experiment: Experiment,
+    runs: list[RunData] | None = None,
+    *,
+    mc_draws: int = MC_DRAWS,
+    seed: int = 0,
+    drop_na: bool = False,
+    max_bytes: int | None = None,
+) -> ValidationResult:
     """Validate the thesis model of ``experiment.kind`` against its runs.
 
     Parameters
@@ -386,8 +443,7 @@ def validate(experiment: Experiment, runs: list[RunData] | None = None, *,
     if kind == "static":
         variants, primary, preds, notes, extras = _static(experiment, runs, names)
     elif kind == "dynamic":
-        variants, primary, preds, notes, extras = _dynamic(experiment, runs, names, mc_draws,
-                                                           seed)
+        variants, primary, preds, notes, extras = _dynamic(experiment, runs, names, mc_draws, seed)
     elif kind == "sensing":
         variants, primary, preds, notes, extras = _sensing(experiment, runs, names)
     else:
@@ -398,5 +454,4 @@ def validate(experiment: Experiment, runs: list[RunData] | None = None, *,
     dropped = sum(r.n_dropped for r in runs)
     if dropped:
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
-    return ValidationResult(experiment, runs, preds, variants, primary, metrics, checks,
-                            notes, extras)
+    return ValidationResult(experiment, runs, preds, variants, primary, metrics, checks, notes, extras)

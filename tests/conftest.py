@@ -11,8 +11,7 @@ def tca():
 
 @pytest.fixture
 def tcs():
-    return THESIS_TCS.build_sample(), THESIS_TCS.build_rig(
-        spring_constant=THESIS_TCS_SPRING_CONSTANT.value)
+    return THESIS_TCS.build_sample(), THESIS_TCS.build_rig(spring_constant=THESIS_TCS_SPRING_CONSTANT.value)
 
 
 @pytest.fixture

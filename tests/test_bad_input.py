@@ -24,14 +24,21 @@ OUTPUTS = ("report.html", "report.pdf", "metrics.json", "predictions.csv")
 @pytest.fixture
 def lab(tmp_path):
     """A copy of the shipped experiments and raw logs."""
-    shutil.copytree(ROOT / "experiments", tmp_path / "experiments",
-                    ignore=shutil.ignore_patterns("templates"))
+    shutil.copytree(
+        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
+    )
     shutil.copytree(ROOT / "raw", tmp_path / "raw")
     return tmp_path
 
 
-def experiment(lab: Path, kind: str, name: str = "bad", runs: list[str] | None = None,
-               replace: dict[str, str] | None = None, append: str = "") -> Path:
+def experiment(
+    lab: Path,
+    kind: str,
+    name: str = "bad",
+    runs: list[str] | None = None,
+    replace: dict[str, str] | None = None,
+    append: str = "",
+) -> Path:
     """A copy of the shipped experiment of ``kind`` with other runs, values or tables."""
     text = (lab / "experiments" / f"{kind}.toml").read_text()
     if runs is not None:
@@ -47,8 +54,7 @@ def experiment(lab: Path, kind: str, name: str = "bad", runs: list[str] | None =
     return path
 
 
-SAMPLE_KEYS = ("fiber_diameter_mm", "coil_length_mm", "max_volume_fraction",
-               "shear_modulus_slope_MPa_per_K")
+SAMPLE_KEYS = ("fiber_diameter_mm", "coil_length_mm", "max_volume_fraction", "shear_modulus_slope_MPa_per_K")
 
 
 def shipped(lab: Path, kind: str, run: int = 1) -> str:
@@ -67,8 +73,9 @@ def others(kind: str) -> list[str]:
 
 
 def validate(kind, exp, out, *extra):
-    return runner.invoke(app, ["validate", kind, str(exp), "--out", str(out),
-                               "--format", "html", "--mc-draws", "20", *extra])
+    return runner.invoke(
+        app, ["validate", kind, str(exp), "--out", str(out), "--format", "html", "--mc-draws", "20", *extra]
+    )
 
 
 def assert_bad_input(result, *parts, hint=True):
@@ -98,37 +105,59 @@ CSV_CASES = {
     # id: (kind, file content, parts of the message)
     "empty": ("static", "", ["bad.csv", "file is empty"]),
     "blank_lines_only": ("static", "\n\n  \n", ["bad.csv", "file is empty"]),
-    "header_only": ("static", "time_s,temperature_C,displacement_mm\n",
-                    ["bad.csv", "line 1", "header only, no data rows"]),
-    "missing_column": ("static", "time_s,temperature_c,displacement_mm\n0,25,0\n1,26,-0.1\n2,27,-0.2\n",
-                       ["bad.csv", "line 1", "required column 'temperature_C'",
-                        "did you mean 'temperature_c'", "[columns]"]),
-    "non_numeric": ("static", "time_s,temperature_C,displacement_mm\n0,25,0\n1,26,abc\n2,27,-0.2\n",
-                    ["bad.csv", "line 3", "column 'displacement_mm'", "non-numeric value 'abc'"]),
-    "duplicated_time": ("static", "time_s,temperature_C,displacement_mm\n0,25,0\n1,26,-0.1\n1,27,-0.2\n",
-                        ["bad.csv", "line 4", "column 'time_s'", "duplicated time 1 s",
-                         "line 3"]),
-    "unsorted_time": ("dynamic", "time_s,voltage_V,displacement_mm\n"
-                      + "".join(f"{t},0,0\n" for t in (0, 1, 2, 3, 5, 4, 6, 7, 8, 9, 10)),
-                      ["bad.csv", "line 7", "decreasing time 4 s after 5 s"]),
-    "negative_resistance": ("sensing", "displacement_mm,force_N,resistance_ohm\n"
-                            "0,0,30\n1,0.01,30.5\n2,0.02,-31\n3,0.03,31.5\n",
-                            ["bad.csv", "line 4", "column 'resistance_ohm'",
-                             "negative resistance -31 ohm"]),
-    "below_absolute_zero": ("static", "temperature_C,displacement_mm\n25,0\n-300,-0.1\n27,-0.2\n",
-                            ["bad.csv", "line 3", "column 'temperature_C'",
-                             "below absolute zero"]),
-    "too_short": ("static", "temperature_C,displacement_mm\n25,0\n26,-0.1\n",
-                  ["bad.csv", "only 2 usable data rows", "needs at least 3",
-                   "record a longer run"]),
-    "too_short_dynamic": ("dynamic", "time_s,voltage_V,displacement_mm\n0,0,0\n0.1,10,0\n",
-                          ["bad.csv", "only 2 usable data rows", "needs at least 10"]),
-    "utf16": ("static", "temperature_C,displacement_mm\n25,0\n".encode("utf-16"),
-              ["bad.csv", "UTF-16", "UTF-8"]),
-    "binary": ("static", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR",
-               ["bad.csv", "not a text CSV file"]),
-    "unparsable_quote": ("static", 'temperature_C,displacement_mm\n25,0\n26,"-0.1\n27,-0.2\n',
-                         ["bad.csv"]),
+    "header_only": (
+        "static",
+        "time_s,temperature_C,displacement_mm\n",
+        ["bad.csv", "line 1", "header only, no data rows"],
+    ),
+    "missing_column": (
+        "static",
+        "time_s,temperature_c,displacement_mm\n0,25,0\n1,26,-0.1\n2,27,-0.2\n",
+        ["bad.csv", "line 1", "required column 'temperature_C'", "did you mean 'temperature_c'", "[columns]"],
+    ),
+    "non_numeric": (
+        "static",
+        "time_s,temperature_C,displacement_mm\n0,25,0\n1,26,abc\n2,27,-0.2\n",
+        ["bad.csv", "line 3", "column 'displacement_mm'", "non-numeric value 'abc'"],
+    ),
+    "duplicated_time": (
+        "static",
+        "time_s,temperature_C,displacement_mm\n0,25,0\n1,26,-0.1\n1,27,-0.2\n",
+        ["bad.csv", "line 4", "column 'time_s'", "duplicated time 1 s", "line 3"],
+    ),
+    "unsorted_time": (
+        "dynamic",
+        "time_s,voltage_V,displacement_mm\n"
+        + "".join(f"{t},0,0\n" for t in (0, 1, 2, 3, 5, 4, 6, 7, 8, 9, 10)),
+        ["bad.csv", "line 7", "decreasing time 4 s after 5 s"],
+    ),
+    "negative_resistance": (
+        "sensing",
+        "displacement_mm,force_N,resistance_ohm\n0,0,30\n1,0.01,30.5\n2,0.02,-31\n3,0.03,31.5\n",
+        ["bad.csv", "line 4", "column 'resistance_ohm'", "negative resistance -31 ohm"],
+    ),
+    "below_absolute_zero": (
+        "static",
+        "temperature_C,displacement_mm\n25,0\n-300,-0.1\n27,-0.2\n",
+        ["bad.csv", "line 3", "column 'temperature_C'", "below absolute zero"],
+    ),
+    "too_short": (
+        "static",
+        "temperature_C,displacement_mm\n25,0\n26,-0.1\n",
+        ["bad.csv", "only 2 usable data rows", "needs at least 3", "record a longer run"],
+    ),
+    "too_short_dynamic": (
+        "dynamic",
+        "time_s,voltage_V,displacement_mm\n0,0,0\n0.1,10,0\n",
+        ["bad.csv", "only 2 usable data rows", "needs at least 10"],
+    ),
+    "utf16": (
+        "static",
+        "temperature_C,displacement_mm\n25,0\n".encode("utf-16"),
+        ["bad.csv", "UTF-16", "UTF-8"],
+    ),
+    "binary": ("static", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", ["bad.csv", "not a text CSV file"]),
+    "unparsable_quote": ("static", 'temperature_C,displacement_mm\n25,0\n26,"-0.1\n27,-0.2\n', ["bad.csv"]),
 }
 
 
@@ -142,19 +171,18 @@ def test_broken_csv_is_a_one_line_error_and_no_report(lab, case):
     assert_no_report(out)
 
 
-@pytest.mark.parametrize("value, shown", [("", "blank or NaN cell"), ("NaN", "blank or NaN cell"),
-                                          ("  ", "blank or NaN cell")])
+@pytest.mark.parametrize(
+    "value, shown", [("", "blank or NaN cell"), ("NaN", "blank or NaN cell"), ("  ", "blank or NaN cell")]
+)
 def test_blank_or_nan_cell_needs_drop_na_and_is_counted(lab, value, shown):
     lines = shipped(lab, "static").splitlines()
     cells = lines[5].split(",")
     cells[2] = value
     lines[5] = ",".join(cells)
-    exp = experiment(lab, "static", runs=[write_run(lab, "\n".join(lines) + "\n"),
-                                          "static_run2.csv"])
+    exp = experiment(lab, "static", runs=[write_run(lab, "\n".join(lines) + "\n"), "static_run2.csv"])
     out = lab / "out"
     result = validate("static", exp, out)
-    assert_bad_input(result, "bad.csv", "line 6", "column 'displacement_mm'", shown,
-                     "--drop-na")
+    assert_bad_input(result, "bad.csv", "line 6", "column 'displacement_mm'", shown, "--drop-na")
     assert_no_report(out)
 
     result = validate("static", exp, out, "--drop-na", "--json")
@@ -190,8 +218,9 @@ def _run_rmse(doc: dict, run: str) -> float:
     return doc["models"]["G(T)"]["displacement_mm"]["runs"][run]["rmse"]
 
 
-@pytest.mark.parametrize("variant", ["semicolon_decimal_comma", "semicolon_point", "bom",
-                                     "latin1", "crlf_comments"])
+@pytest.mark.parametrize(
+    "variant", ["semicolon_decimal_comma", "semicolon_point", "bom", "latin1", "crlf_comments"]
+)
 def test_accepted_dialects_give_the_same_result(lab, variant):
     text = shipped(lab, "static")
     if variant == "semicolon_decimal_comma":
@@ -219,8 +248,14 @@ def test_pull_force_of_the_wrong_sign(lab):
     name = write_run(lab, df.to_csv(index=False))
     exp = experiment(lab, "sensing", runs=[name, "sensing_run2.csv"])
     out = lab / "out"
-    assert_bad_input(validate("sensing", exp, out), "bad.csv", "column 'force_N'",
-                     "negative force", "should be positive", "scale = -1")
+    assert_bad_input(
+        validate("sensing", exp, out),
+        "bad.csv",
+        "column 'force_N'",
+        "negative force",
+        "should be positive",
+        "scale = -1",
+    )
     assert_no_report(out)
     result = runner.invoke(app, ["fit-spring", str(lab / "raw" / name)])
     assert_bad_input(result, "bad.csv", "negative force")
@@ -257,25 +292,51 @@ def test_toml_with_utf8_bom_is_read(lab):
 
 
 TOML_CASES = {
-    "unknown_key": (None, lambda t: t.replace("coil_length_mm", "coil_lenght_mm"),
-                    ["unknown key 'sample.coil_lenght_mm'", "did you mean 'coil_length_mm'",
-                           "allowed keys"]),
-    "missing_key": (None, lambda t: re.sub(r'(?m)^title = .*\n', "", t),
-                    ["missing required key 'title'", 'title = "']),
-    "wrong_type": (None, lambda t: t.replace("load_g = 50.0", 'load_g = "fifty"'),
-                   ["rig.load_g: expected a number, got 'fifty'", "without quotes"]),
-    "coil_longer_than_fiber": (dict(replace={"coil_length_mm": "120"}), None,
-                               ["[sample]", "coil_length", "fiber_length"]),
-    "negative_diameter": (dict(replace={"fiber_diameter_mm": "-0.17"}), None,
-                          ["[sample]", "fiber_diameter", "positive"]),
-    "volume_fraction_above_one": (dict(replace={"max_volume_fraction": "1.2"}), None,
-                                  ["[sample]", "max_volume_fraction", "exceeds 1"]),
-    "run_missing": (dict(runs=["static_run1.csv", "nope.csv"]), None,
-                    ["runs[1]", "'../raw/nope.csv' not found", "relative to the experiment file"]),
-    "run_is_a_folder": (None, lambda t: re.sub(r"runs = \[[^\]]*\]", 'runs = ["../raw"]', t),
-                        ["runs[0]", "is a folder"]),
-    "run_with_nul": (None, lambda t: re.sub(r"runs = \[[^\]]*\]", lambda m: 'runs = ["../raw/a\\u0000.csv"]', t),
-                     ["runs[0]", "not a file name"]),
+    "unknown_key": (
+        None,
+        lambda t: t.replace("coil_length_mm", "coil_lenght_mm"),
+        ["unknown key 'sample.coil_lenght_mm'", "did you mean 'coil_length_mm'", "allowed keys"],
+    ),
+    "missing_key": (
+        None,
+        lambda t: re.sub(r"(?m)^title = .*\n", "", t),
+        ["missing required key 'title'", 'title = "'],
+    ),
+    "wrong_type": (
+        None,
+        lambda t: t.replace("load_g = 50.0", 'load_g = "fifty"'),
+        ["rig.load_g: expected a number, got 'fifty'", "without quotes"],
+    ),
+    "coil_longer_than_fiber": (
+        dict(replace={"coil_length_mm": "120"}),
+        None,
+        ["[sample]", "coil_length", "fiber_length"],
+    ),
+    "negative_diameter": (
+        dict(replace={"fiber_diameter_mm": "-0.17"}),
+        None,
+        ["[sample]", "fiber_diameter", "positive"],
+    ),
+    "volume_fraction_above_one": (
+        dict(replace={"max_volume_fraction": "1.2"}),
+        None,
+        ["[sample]", "max_volume_fraction", "exceeds 1"],
+    ),
+    "run_missing": (
+        dict(runs=["static_run1.csv", "nope.csv"]),
+        None,
+        ["runs[1]", "'../raw/nope.csv' not found", "relative to the experiment file"],
+    ),
+    "run_is_a_folder": (
+        None,
+        lambda t: re.sub(r"runs = \[[^\]]*\]", 'runs = ["../raw"]', t),
+        ["runs[0]", "is a folder"],
+    ),
+    "run_with_nul": (
+        None,
+        lambda t: re.sub(r"runs = \[[^\]]*\]", lambda m: 'runs = ["../raw/a\\u0000.csv"]', t),
+        ["runs[0]", "not a file name"],
+    ),
 }
 
 
@@ -287,17 +348,21 @@ def test_bad_experiment_file(lab, case):
         exp.write_text(edit(exp.read_text()))
     out = lab / "out"
     result = validate("static", exp, out)
-    assert_bad_input(result, "bad.toml", *parts, hint=case not in ("coil_longer_than_fiber",
-                                                                   "negative_diameter",
-                                                                   "volume_fraction_above_one"))
+    assert_bad_input(
+        result,
+        "bad.toml",
+        *parts,
+        hint=case not in ("coil_longer_than_fiber", "negative_diameter", "volume_fraction_above_one"),
+    )
     assert_no_report(out)
 
 
 @pytest.mark.parametrize("subcommand", ["dynamic", "sensing", "curvature"])
 def test_kind_not_matching_the_subcommand(lab, subcommand):
     result = validate(subcommand, lab / "experiments/static.toml", lab / "out")
-    assert_bad_input(result, "static.toml", "this is a 'static' experiment",
-                     f"not '{subcommand}'", "'static' subcommand")
+    assert_bad_input(
+        result, "static.toml", "this is a 'static' experiment", f"not '{subcommand}'", "'static' subcommand"
+    )
     assert not (lab / "out").exists()
 
 
@@ -305,30 +370,28 @@ def test_kind_not_matching_the_subcommand(lab, subcommand):
 
 
 def test_sensing_with_s_f11_above_one_names_experiment_and_run(lab):
-    exp = experiment(lab, "sensing", name="stiff",
-                     replace={"spring_constant_N_per_m": "50.0"})
+    exp = experiment(lab, "sensing", name="stiff", replace={"spring_constant_N_per_m": "50.0"})
     out = lab / "out"
-    text = assert_bad_input(validate("sensing", exp, out), "stiff.toml, run sensing_run1",
-                            "no physical root", "S f11 = ", ">= 1")
+    text = assert_bad_input(
+        validate("sensing", exp, out), "stiff.toml, run sensing_run1", "no physical root", "S f11 = ", ">= 1"
+    )
     assert "nan" not in text.lower()
     assert_no_report(out, "stiff")
 
 
 def test_static_with_nonpositive_gt_names_experiment_and_run(lab):
-    exp = experiment(lab, "static", name="soft",
-                     replace={"shear_modulus_slope_MPa_per_K": "50"})
+    exp = experiment(lab, "static", name="soft", replace={"shear_modulus_slope_MPa_per_K": "50"})
     out = lab / "out"
-    assert_bad_input(validate("static", exp, out), "soft.toml, run static_run1",
-                     "G_t'", "non-positive", "constant-G")
+    assert_bad_input(
+        validate("static", exp, out), "soft.toml, run static_run1", "G_t'", "non-positive", "constant-G"
+    )
     assert_no_report(out, "soft")
 
 
 def test_dynamic_with_nonpositive_gt_names_experiment_and_run(lab):
-    exp = experiment(lab, "dynamic", name="soft",
-                     replace={"shear_modulus_slope_MPa_per_K": "30"})
+    exp = experiment(lab, "dynamic", name="soft", replace={"shear_modulus_slope_MPa_per_K": "30"})
     out = lab / "out"
-    assert_bad_input(validate("dynamic", exp, out), "soft.toml, run dynamic_run1",
-                     "G_t'", "reaches zero")
+    assert_bad_input(validate("dynamic", exp, out), "soft.toml, run dynamic_run1", "G_t'", "reaches zero")
     assert_no_report(out, "soft")
 
 
@@ -351,8 +414,13 @@ def test_max_bytes_option_refuses_larger_files(lab, monkeypatch, command):
         assert "larger than the limit of 1000 bytes" in result.output
         assert "larger than the limit" in (lab / "out/index.html").read_text()
     else:
-        assert_bad_input(result, "sensing_run1.csv", "file is 72712 bytes",
-                         "larger than the limit of 1000 bytes", "--max-bytes")
+        assert_bad_input(
+            result,
+            "sensing_run1.csv",
+            "file is 72712 bytes",
+            "larger than the limit of 1000 bytes",
+            "--max-bytes",
+        )
     assert_no_report(lab / "out", "sensing")
     # a limit above the file size lets it through; suffixes K/M/G work
     ok = runner.invoke(app, args + ["--max-bytes", "10M"])
@@ -360,8 +428,7 @@ def test_max_bytes_option_refuses_larger_files(lab, monkeypatch, command):
 
 
 def test_max_bytes_must_be_positive(lab):
-    result = runner.invoke(app, ["fit-spring", str(lab / "raw/sensing_run1.csv"),
-                                 "--max-bytes", "-5"])
+    result = runner.invoke(app, ["fit-spring", str(lab / "raw/sensing_run1.csv"), "--max-bytes", "-5"])
     assert result.exit_code == 2
     assert "Traceback" not in result.output and "--max-bytes" in result.output
 

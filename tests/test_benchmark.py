@@ -22,8 +22,9 @@ def _check_outputs(out, res):
 
 
 def test_quick_benchmark_tiny_subset(tmp_path):
-    res = run_benchmark(tmp_path, quick=True, seeds=1, kinds=("curvature",),
-                        effects=["camera-placement"], workers=1)
+    res = run_benchmark(
+        tmp_path, quick=True, seeds=1, kinds=("curvature",), effects=["camera-placement"], workers=1
+    )
     assert len(res.results) == 2  # one effect case + one null case
     _check_outputs(tmp_path, res)
     single = [r for r in res.results if r["case"] == "single"][0]
@@ -35,10 +36,17 @@ def test_quick_benchmark_tiny_subset(tmp_path):
 
 def test_dask_path_with_local_cluster(tmp_path):
     distributed = pytest.importorskip("dask.distributed")
-    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
-                                  dashboard_address=None) as cluster:
-        res = run_benchmark(tmp_path, quick=True, seeds=1, kinds=("curvature",),
-                            effects=["sensor-offset-error"], scheduler=cluster.scheduler_address)
+    with distributed.LocalCluster(
+        n_workers=1, processes=False, threads_per_worker=1, dashboard_address=None
+    ) as cluster:
+        res = run_benchmark(
+            tmp_path,
+            quick=True,
+            seeds=1,
+            kinds=("curvature",),
+            effects=["sensor-offset-error"],
+            scheduler=cluster.scheduler_address,
+        )
     assert res.settings["executor"] == "dask"
     assert len(res.results) == 2
     _check_outputs(tmp_path, res)
@@ -57,19 +65,49 @@ def test_task_lists():
 
 def test_scoring_rules():
     def single(truth, verdict, effect, ranking, s=3.0):
-        return {"case": "single", "kind": "static", "effects": {truth: s}, "seed": 1,
-                "verdict": verdict, "effect": effect, "aliased_with": [], "ranking": ranking,
-                "shrinkage": {e: 0.6 for e in ranking}, "fitted": {}, "truth_values": {},
-                "fraction_closed": {e: 0.9 for e in ranking}, "heldout_rmse_before_noise": 4.0,
-                "seconds": 1.0}
+        return {
+            "case": "single",
+            "kind": "static",
+            "effects": {truth: s},
+            "seed": 1,
+            "verdict": verdict,
+            "effect": effect,
+            "aliased_with": [],
+            "ranking": ranking,
+            "shrinkage": {e: 0.6 for e in ranking},
+            "fitted": {},
+            "truth_values": {},
+            "fraction_closed": {e: 0.9 for e in ranking},
+            "heldout_rmse_before_noise": 4.0,
+            "seconds": 1.0,
+        }
+
     results = [
         single("a", "attributed", "a", ["a", "b", "c"]),
         single("a", "aliased", "b", ["b", "a", "c"]),
         single("a", "unexplained", None, ["a", "b"]),
-        {"case": "null", "kind": "static", "effects": {}, "seed": 2, "verdict": "attributed",
-         "effect": "b", "aliased_with": [], "ranking": ["b"], "seconds": 1.0},
-        {"case": "pair", "kind": "static", "effects": {"a": 5.0, "b": 5.0}, "seed": 3,
-         "verdict": "attributed", "effect": "c", "aliased_with": [], "ranking": ["c"], "seconds": 1.0},
+        {
+            "case": "null",
+            "kind": "static",
+            "effects": {},
+            "seed": 2,
+            "verdict": "attributed",
+            "effect": "b",
+            "aliased_with": [],
+            "ranking": ["b"],
+            "seconds": 1.0,
+        },
+        {
+            "case": "pair",
+            "kind": "static",
+            "effects": {"a": 5.0, "b": 5.0},
+            "seed": 3,
+            "verdict": "attributed",
+            "effect": "c",
+            "aliased_with": [],
+            "ranking": ["c"],
+            "seconds": 1.0,
+        },
     ]
     s = score(results)
     acc = s["accuracy_by_strength"]["3.0"]

@@ -41,8 +41,9 @@ def test_every_command_has_help_with_an_example():
 @pytest.fixture
 def lab(tmp_path):
     """A copy of the shipped experiments and raw logs."""
-    shutil.copytree(ROOT / "experiments", tmp_path / "experiments",
-                    ignore=shutil.ignore_patterns("templates"))
+    shutil.copytree(
+        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
+    )
     shutil.copytree(ROOT / "raw", tmp_path / "raw")
     return tmp_path
 
@@ -64,8 +65,10 @@ class _Counter(HTMLParser):
 def test_validate_writes_every_output(lab, kind):
     before = _hashes(lab / "raw")
     out = lab / "reports"
-    result = runner.invoke(app, ["validate", kind, str(lab / "experiments" / f"{kind}.toml"),
-                                 "--out", str(out), "--mc-draws", "200"])
+    result = runner.invoke(
+        app,
+        ["validate", kind, str(lab / "experiments" / f"{kind}.toml"), "--out", str(out), "--mc-draws", "200"],
+    )
     assert result.exit_code == 0, result.output
     folder = out / kind
     for name in ("report.html", "report.pdf", "metrics.json", "predictions.csv"):
@@ -89,8 +92,19 @@ def test_validate_writes_every_output(lab, kind):
 
 def test_static_sample_shows_gt_beats_constant_g(lab):
     out = lab / "reports"
-    result = runner.invoke(app, ["validate", "static", str(lab / "experiments/static.toml"),
-                                 "--out", str(out), "--json", "--format", "html"])
+    result = runner.invoke(
+        app,
+        [
+            "validate",
+            "static",
+            str(lab / "experiments/static.toml"),
+            "--out",
+            str(out),
+            "--json",
+            "--format",
+            "html",
+        ],
+    )
     assert result.exit_code == 0
     doc = json.loads(result.output)
     gt = doc["models"]["G(T)"]["displacement_mm"]["pooled"]["rmse"]
@@ -108,8 +122,7 @@ def test_validate_kind_mismatch_is_a_one_line_error(lab):
 def test_threshold_failure_exits_1(lab):
     exp = lab / "experiments/static.toml"
     exp.write_text(exp.read_text() + "\n[thresholds]\nrmse_mm = 1e-6\n")
-    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(lab / "r"),
-                                 "--format", "html"])
+    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(lab / "r"), "--format", "html"])
     assert result.exit_code == 1
     assert "FAIL" in result.output
 
@@ -128,7 +141,9 @@ def test_report_builds_index_and_combined_pdf(lab, monkeypatch):
 
 def test_report_lists_a_broken_experiment_and_builds_the_rest(lab, monkeypatch):
     monkeypatch.chdir(lab)
-    (lab / "experiments/broken.toml").write_text('kind = "static"\ntitle = "x"\nruns = ["nope.csv"]\n[sample]\npreset = "thesis-tca"\n')
+    (lab / "experiments/broken.toml").write_text(
+        'kind = "static"\ntitle = "x"\nruns = ["nope.csv"]\n[sample]\npreset = "thesis-tca"\n'
+    )
     result = runner.invoke(app, ["report", "--mc-draws", "50"])
     assert result.exit_code == 2
     assert "error broken" in result.output
@@ -140,11 +155,16 @@ def test_reports_are_byte_identical_on_rerun(lab):
     outs = []
     for k in range(2):
         out = lab / f"r{k}"
-        result = runner.invoke(app, ["validate", "sensing", str(lab / "experiments/sensing.toml"),
-                                     "--out", str(out)])
+        result = runner.invoke(
+            app, ["validate", "sensing", str(lab / "experiments/sensing.toml"), "--out", str(out)]
+        )
         assert result.exit_code == 0
-        outs.append({n: (out / "sensing" / n).read_bytes()
-                     for n in ("report.html", "report.pdf", "metrics.json", "predictions.csv")})
+        outs.append(
+            {
+                n: (out / "sensing" / n).read_bytes()
+                for n in ("report.html", "report.pdf", "metrics.json", "predictions.csv")
+            }
+        )
     assert outs[0] == outs[1]
 
 
@@ -152,11 +172,11 @@ def test_fit_spring_json_recovers_the_simulated_spring_constant(lab):
     import tomllib
 
     truth_s = tomllib.loads((ROOT / "experiments/templates/sensing.toml").read_text())["rig"][
-        "spring_constant_N_per_m"]
+        "spring_constant_N_per_m"
+    ]
     runs = sorted((lab / "raw").glob("sensing_run*.csv"))
     assert len(runs) >= 2
-    result = runner.invoke(app, ["fit-spring", *map(str, runs), "--json",
-                                 "--plot", str(lab / "fit.svg")])
+    result = runner.invoke(app, ["fit-spring", *map(str, runs), "--json", "--plot", str(lab / "fit.svg")])
     assert result.exit_code == 0, result.output
     doc = json.loads(result.output)
     assert doc["spring_constant_N_per_m"] == pytest.approx(truth_s, rel=0.02)
@@ -178,22 +198,47 @@ def test_foreign_headers_and_units_through_columns_alone(lab):
     import pandas as pd
 
     src = pd.read_csv(lab / "raw/static_run1.csv")
-    foreign = pd.DataFrame({"Temp (F)": src["temperature_C"] * 9 / 5 + 32,
-                            "laser": (src["displacement_mm"] + 2.5) / 0.01})
+    foreign = pd.DataFrame(
+        {"Temp (F)": src["temperature_C"] * 9 / 5 + 32, "laser": (src["displacement_mm"] + 2.5) / 0.01}
+    )
     foreign.to_csv(lab / "raw/foreign.csv", index=False)
     text = (lab / "experiments/static.toml").read_text()
     import re
 
     text = re.sub(r"runs = \[[^\]]*\]", 'runs = ["../raw/foreign.csv"]', text, flags=re.S)
-    text += ('\n[columns]\ntemperature_C = { from = "Temp (F)", unit = "degF" }\n'
-             'displacement_mm = { from = "laser", scale = 0.01, offset = -2.5 }\n')
+    text += (
+        '\n[columns]\ntemperature_C = { from = "Temp (F)", unit = "degF" }\n'
+        'displacement_mm = { from = "laser", scale = 0.01, offset = -2.5 }\n'
+    )
     (lab / "experiments/foreign.toml").write_text(text)
-    result = runner.invoke(app, ["validate", "static", str(lab / "experiments/foreign.toml"),
-                                 "--out", str(lab / "r"), "--json", "--format", "html"])
+    result = runner.invoke(
+        app,
+        [
+            "validate",
+            "static",
+            str(lab / "experiments/foreign.toml"),
+            "--out",
+            str(lab / "r"),
+            "--json",
+            "--format",
+            "html",
+        ],
+    )
     assert result.exit_code == 0, result.output
     doc = json.loads(result.output)
-    ref = runner.invoke(app, ["validate", "static", str(lab / "experiments/static.toml"),
-                              "--out", str(lab / "r2"), "--json", "--format", "html"])
+    ref = runner.invoke(
+        app,
+        [
+            "validate",
+            "static",
+            str(lab / "experiments/static.toml"),
+            "--out",
+            str(lab / "r2"),
+            "--json",
+            "--format",
+            "html",
+        ],
+    )
     run1 = json.loads(ref.output)["models"]["G(T)"]["displacement_mm"]["runs"]["static_run1"]
     got = doc["models"]["G(T)"]["displacement_mm"]["runs"]["foreign"]
     assert got["rmse"] == pytest.approx(run1["rmse"], rel=1e-6)
@@ -208,29 +253,66 @@ def test_effects_list_and_version():
 
 
 def test_simulate_writes_an_experiment_that_validates(tmp_path):
-    result = runner.invoke(app, ["simulate", "static", "--experiment",
-                                 str(ROOT / "experiments/templates/static.toml"), "--seed", "5",
-                                 "--out", str(tmp_path), "--runs", "2"])
+    result = runner.invoke(
+        app,
+        [
+            "simulate",
+            "static",
+            "--experiment",
+            str(ROOT / "experiments/templates/static.toml"),
+            "--seed",
+            "5",
+            "--out",
+            str(tmp_path),
+            "--runs",
+            "2",
+        ],
+    )
     assert result.exit_code == 0, result.output
     exp = tmp_path / "experiments/static.toml"
     assert exp.exists()
-    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(tmp_path / "r"),
-                                 "--format", "html"])
+    result = runner.invoke(
+        app, ["validate", "static", str(exp), "--out", str(tmp_path / "r"), "--format", "html"]
+    )
     assert result.exit_code == 0, result.output
 
 
 def test_simulate_unknown_effect_is_a_clear_error(tmp_path):
-    result = runner.invoke(app, ["simulate", "static", "--experiment",
-                                 str(ROOT / "experiments/templates/static.toml"), "--seed", "1",
-                                 "--out", str(tmp_path), "--effect", "glass-transitoin=3"])
+    result = runner.invoke(
+        app,
+        [
+            "simulate",
+            "static",
+            "--experiment",
+            str(ROOT / "experiments/templates/static.toml"),
+            "--seed",
+            "1",
+            "--out",
+            str(tmp_path),
+            "--effect",
+            "glass-transitoin=3",
+        ],
+    )
     assert result.exit_code == 2
     assert "glass-transition" in result.output
 
 
 def test_diagnose_command_on_a_simulated_experiment(tmp_path):
-    result = runner.invoke(app, ["simulate", "curvature", "--experiment",
-                                 str(ROOT / "experiments/templates/curvature.toml"), "--seed", "4",
-                                 "--out", str(tmp_path), "--effect", "camera-placement=10"])
+    result = runner.invoke(
+        app,
+        [
+            "simulate",
+            "curvature",
+            "--experiment",
+            str(ROOT / "experiments/templates/curvature.toml"),
+            "--seed",
+            "4",
+            "--out",
+            str(tmp_path),
+            "--effect",
+            "camera-placement=10",
+        ],
+    )
     assert result.exit_code == 0, result.output
     exp = tmp_path / "experiments/curvature.toml"
     result = runner.invoke(app, ["diagnose", str(exp), "--json", "--out", str(tmp_path / "d")])
@@ -244,9 +326,24 @@ def test_diagnose_command_on_a_simulated_experiment(tmp_path):
 
 
 def test_benchmark_diagnose_command_on_a_tiny_subset(tmp_path):
-    result = runner.invoke(app, ["benchmark", "diagnose", "--quick", "--seeds", "1",
-                                 "--kind", "curvature", "--effect", "camera-placement",
-                                 "--workers", "1", "--out", str(tmp_path)])
+    result = runner.invoke(
+        app,
+        [
+            "benchmark",
+            "diagnose",
+            "--quick",
+            "--seeds",
+            "1",
+            "--kind",
+            "curvature",
+            "--effect",
+            "camera-placement",
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert "strength 3.0x: top-1 1.00" in result.output
     assert (tmp_path / "benchmark.json").exists() and (tmp_path / "benchmark.md").exists()

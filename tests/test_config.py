@@ -134,7 +134,9 @@ def test_sample_keys_convert_with_params_factors(lab):
 
 def test_rig_keys_convert_with_params_factors(lab):
     values = {key: 2.5 for key in RIG_KEYS if key != "segment_lengths_mm"}
-    body = HEAD + '[sample]\npreset = "thesis-tcs"\n[rig]\n' + "".join(f"{k} = {v}\n" for k, v in values.items())
+    body = (
+        HEAD + '[sample]\npreset = "thesis-tcs"\n[rig]\n' + "".join(f"{k} = {v}\n" for k, v in values.items())
+    )
     exp = load_experiment(write_toml(lab, body))
     for key, v in values.items():
         si, factor = RIG_KEYS[key]
@@ -158,8 +160,9 @@ def test_synthetic_table(lab):
     assert exp.synthetic == {"generator": "tcamlab.simulate", "seed": 7, "command": None}
 
 
-@pytest.mark.parametrize("kind, preset", [("curvature", "thesis-robot"), ("sensing", "thesis-tcs"),
-                                           ("static", "thesis-tca")])
+@pytest.mark.parametrize(
+    "kind, preset", [("curvature", "thesis-robot"), ("sensing", "thesis-tcs"), ("static", "thesis-tca")]
+)
 def test_other_kinds(lab, kind, preset):
     body = f'kind = "{kind}"\ntitle = "x"\nruns = ["../raw/step1.csv"]\n[sample]\npreset = "{preset}"\n'
     exp = load_experiment(write_toml(lab, body), expected_kind=kind)
@@ -208,8 +211,16 @@ def test_write_round_trip(lab):
 
 
 def test_dumps_toml_types():
-    data = {"a": 1, "b": 1e-300, "c": float("inf"), "d": True, "e": [1, 2.5], "f": ["x", "y z"],
-            "g h": "quoted key", "t": {"u": {"v": 1}}}
+    data = {
+        "a": 1,
+        "b": 1e-300,
+        "c": float("inf"),
+        "d": True,
+        "e": [1, 2.5],
+        "f": ["x", "y z"],
+        "g h": "quoted key",
+        "t": {"u": {"v": 1}},
+    }
     back = tomllib.loads(dumps_toml(data))
     assert back == data
     assert math.isnan(tomllib.loads(dumps_toml({"n": float("nan")}))["n"])
@@ -240,17 +251,28 @@ def test_toml_syntax_error_keeps_line_and_column(lab):
     "body, parts",
     [
         (HEAD.replace("title", "titel"), ["unknown key 'titel'", "did you mean 'title'"]),
-        (HEAD + "[sample]\npreset = \"thesis-tca\"\nfiber_diam_mm = 0.2\n",
-         ["unknown key 'sample.fiber_diam_mm'", "did you mean 'fiber_diameter_mm'"]),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\nfiber_diam_mm = 0.2\n',
+            ["unknown key 'sample.fiber_diam_mm'", "did you mean 'fiber_diameter_mm'"],
+        ),
         (HEAD + "[rig]\nload_gram = 5\n", ["'rig.load_gram'", "did you mean 'load_g'"]),
         (HEAD + "[rig.uncertainty]\ndamping = 0.1\n", ["'rig.uncertainty.damping'", "[rig.uncertainty]"]),
-        (HEAD + '[synthetic]\ngenerator = "x"\nseed = 1\nsed = 2\n', ["'synthetic.sed'", "did you mean 'seed'"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = { from = "t", units = "ms" }\n',
-         ["columns.time_s.units", "did you mean 'unit'"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntme_s = "t"\n',
-         ["columns", "'tme_s' is not a column of a dynamic run", "did you mean 'time_s'"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\nforce_N = "F"\n',
-         ["'force_N' is not a column of a dynamic run"]),
+        (
+            HEAD + '[synthetic]\ngenerator = "x"\nseed = 1\nsed = 2\n',
+            ["'synthetic.sed'", "did you mean 'seed'"],
+        ),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = { from = "t", units = "ms" }\n',
+            ["columns.time_s.units", "did you mean 'unit'"],
+        ),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntme_s = "t"\n',
+            ["columns", "'tme_s' is not a column of a dynamic run", "did you mean 'time_s'"],
+        ),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\nforce_N = "F"\n',
+            ["'force_N' is not a column of a dynamic run"],
+        ),
     ],
 )
 def test_unknown_keys(lab, body, parts):
@@ -266,8 +288,10 @@ def test_unknown_keys(lab, body, parts):
         ('kind = "dynamic"\ntitle = "x"\n', ["missing required key 'runs'"]),
         ('kind = "dynamic"\ntitle = "x"\nruns = []\n', ["runs: needs at least one entry"]),
         (HEAD + '[synthetic]\ngenerator = "x"\n', ["missing required key 'synthetic.seed'"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = { unit = "ms" }\n',
-         ["columns.time_s.from", "missing"]),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = { unit = "ms" }\n',
+            ["columns.time_s.from", "missing"],
+        ),
     ],
 )
 def test_missing_keys(lab, body, parts):
@@ -277,8 +301,11 @@ def test_missing_keys(lab, body, parts):
 
 def test_no_preset_lists_missing_sample_keys(lab):
     p = write_toml(lab, HEAD + "[sample]\nfiber_diameter_mm = 0.4\ntwists = 700\n")
-    err = raises_config([str(p), "no preset", "missing:", "fiber_length_mm", "coil_length_mm",
-                         "youngs_modulus_GPa"], load_experiment, p)
+    err = raises_config(
+        [str(p), "no preset", "missing:", "fiber_length_mm", "coil_length_mm", "youngs_modulus_GPa"],
+        load_experiment,
+        p,
+    )
     assert "twists," not in str(err).split("missing:")[1]
     assert "preset" in err.hint
     p2 = write_toml(lab, HEAD, "nosample.toml")
@@ -294,23 +321,42 @@ def test_no_preset_lists_missing_sample_keys(lab):
         (HEAD + '[rig]\nsegment_lengths_mm = [30, "x"]\n', ["rig.segment_lengths_mm[1]: expected a number"]),
         ('kind = "dynamic"\ntitle = 3\nruns = ["../raw/step1.csv"]\n', ["title: expected a string, got 3"]),
         ('kind = "dynamic"\ntitle = "x"\nruns = "../raw/step1.csv"\n', ["runs: expected a list"]),
-        ('kind = "dynamik"\ntitle = "x"\nruns = ["../raw/step1.csv"]\n',
-         ["kind: expected one of", "'dynamik'", "did you mean 'dynamic'"]),
+        (
+            'kind = "dynamik"\ntitle = "x"\nruns = ["../raw/step1.csv"]\n',
+            ["kind: expected one of", "'dynamik'", "did you mean 'dynamic'"],
+        ),
         (HEAD + '[sample]\npreset = "thesis-tcx"\n', ["sample.preset", "did you mean 'thesis-tc"]),
-        (HEAD + "[sample]\npreset = \"thesis-tca\"\nthread_plies = 2.5\n",
-         ["sample.thread_plies: expected an integer, got 2.5"]),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\nthread_plies = 2.5\n',
+            ["sample.thread_plies: expected an integer, got 2.5"],
+        ),
         (HEAD + '[synthetic]\ngenerator = "x"\nseed = "1"\n', ["synthetic.seed: expected an integer"]),
         (HEAD + "sample = 3\n", ["sample: expected a table"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[thresholds]\nrmse_mm = "small"\n',
-         ["thresholds.rmse_mm: expected a number, got 'small'"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[thresholds]\nrmse_mm = nan\n',
-         ["thresholds.rmse_mm: expected a finite number"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[rig]\nload_g = inf\n', ["rig.load_g: expected a finite number"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = 3\n', ["columns.time_s: expected a header"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = { from = "t", scale = "2" }\n',
-         ["columns.time_s.scale: expected a number"]),
-        (HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntemperature_C = { from = "T", unit = "mm" }\n',
-         ["columns.temperature_C.unit", "'mm' is a length unit"]),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[thresholds]\nrmse_mm = "small"\n',
+            ["thresholds.rmse_mm: expected a number, got 'small'"],
+        ),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[thresholds]\nrmse_mm = nan\n',
+            ["thresholds.rmse_mm: expected a finite number"],
+        ),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[rig]\nload_g = inf\n',
+            ["rig.load_g: expected a finite number"],
+        ),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = 3\n',
+            ["columns.time_s: expected a header"],
+        ),
+        (
+            HEAD + '[sample]\npreset = "thesis-tca"\n[columns]\ntime_s = { from = "t", scale = "2" }\n',
+            ["columns.time_s.scale: expected a number"],
+        ),
+        (
+            HEAD
+            + '[sample]\npreset = "thesis-tca"\n[columns]\ntemperature_C = { from = "T", unit = "mm" }\n',
+            ["columns.temperature_C.unit", "'mm' is a length unit"],
+        ),
     ],
 )
 def test_wrong_types(lab, body, parts):

@@ -24,17 +24,21 @@ rig = pytest.importorskip("tcamlab.rig")
 
 
 def _simulate(tmp_path, kind, effects, seed, n_runs=None):
-    sim = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=seed, out_dir=tmp_path,
-                       effects=effects, n_runs=n_runs)
+    sim = rig.simulate(
+        kind, TEMPLATES / f"{kind}.toml", seed=seed, out_dir=tmp_path, effects=effects, n_runs=n_runs
+    )
     return load_experiment(sim.experiment_path)
 
 
-@pytest.mark.parametrize("kind, effect, seed", [
-    ("static", "glass-transition", 11),
-    ("sensing", "initial-slack", 12),
-    ("dynamic", "response-delay", 13),
-    ("curvature", "camera-placement", 14),
-])
+@pytest.mark.parametrize(
+    "kind, effect, seed",
+    [
+        ("static", "glass-transition", 11),
+        ("sensing", "initial-slack", 12),
+        ("dynamic", "response-delay", 13),
+        ("curvature", "camera-placement", 14),
+    ],
+)
 def test_withheld_effect_is_attributed(tmp_path, kind, effect, seed):
     exp = _simulate(tmp_path, kind, {effect: 10.0}, seed)
     res = diagnose(exp, n_boot=300)
@@ -89,9 +93,11 @@ def test_diagnosis_never_imports_the_rig():
     src = inspect.getsource(diagnosis)
     assert "tcamlab.rig" not in src and "import rig" not in src
     assert "truth" not in src.lower()
-    code = ("import sys, tcamlab.diagnosis, tcamlab.report.diagnosis_report; "
-            "bad = [m for m in sys.modules if m == 'tcamlab.rig' or m == 'tcamlab.benchmark']; "
-            "sys.exit(1 if bad else 0)")
+    code = (
+        "import sys, tcamlab.diagnosis, tcamlab.report.diagnosis_report; "
+        "bad = [m for m in sys.modules if m == 'tcamlab.rig' or m == 'tcamlab.benchmark']; "
+        "sys.exit(1 if bad else 0)"
+    )
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
@@ -101,17 +107,40 @@ def test_json_has_documented_keys_and_no_nan(tmp_path):
     d = res.to_dict()
     text = json.dumps(d, allow_nan=False)
     assert json.loads(text)["schema_version"] == diagnosis.SCHEMA_VERSION
-    for key in ("verdict", "effect", "ranking", "regimes", "noise_floor", "runs", "baseline",
-                "aliased_with", "separate_by", "kind", "experiment", "schema_version"):
+    for key in (
+        "verdict",
+        "effect",
+        "ranking",
+        "regimes",
+        "noise_floor",
+        "runs",
+        "baseline",
+        "aliased_with",
+        "separate_by",
+        "kind",
+        "experiment",
+        "schema_version",
+    ):
         assert key in d
     for c in d["ranking"]:
-        for key in ("effect", "heldout_rmse_before", "heldout_rmse_after", "unit", "shrinkage",
-                    "shrinkage_ci95", "fraction_closed", "aic", "bic", "parameters"):
+        for key in (
+            "effect",
+            "heldout_rmse_before",
+            "heldout_rmse_after",
+            "unit",
+            "shrinkage",
+            "shrinkage_ci95",
+            "fraction_closed",
+            "aic",
+            "bic",
+            "parameters",
+        ):
             assert key in c
         for p in c["parameters"].values():
             assert set(p) >= {"value", "ci95", "unit"}
     assert [c["heldout_rmse_after"] for c in d["ranking"]] == sorted(
-        c["heldout_rmse_after"] for c in d["ranking"])
+        c["heldout_rmse_after"] for c in d["ranking"]
+    )
     assert d["ranking"][0]["unit"] == "1/mm"
     table = res.to_pandas()
     assert list(table["effect"]) == [c["effect"] for c in d["ranking"]]
@@ -158,7 +187,7 @@ def test_pooled_noise_is_unbiased_with_the_stated_dof(n_runs, n_rows):
     # reports (var = 2 sigma^4 / nu).
     rng = np.random.default_rng(42)
     x = np.linspace(0.0, 1.0, n_rows)
-    gap = 2.0 * x ** 2
+    gap = 2.0 * x**2
     est, dofs = [], []
     for _ in range(4000):
         R = gap + rng.normal(0.0, 0.5, (n_runs, n_rows))
@@ -174,7 +203,7 @@ def test_pooled_noise_is_unbiased_with_the_stated_dof(n_runs, n_rows):
     nu = dofs[0]
     assert nu > (n_runs - 1) * n_rows  # better than either estimate alone
     assert np.mean(est) == pytest.approx(0.25, rel=0.02)
-    assert np.var(est) == pytest.approx(2 * 0.25 ** 2 / nu, rel=0.12)
+    assert np.var(est) == pytest.approx(2 * 0.25**2 / nu, rel=0.12)
 
 
 def test_pooled_noise_refuses_disagreeing_estimates():
@@ -188,8 +217,12 @@ def test_pooled_noise_refuses_disagreeing_estimates():
 @pytest.mark.skipif(not os.environ.get("TCAMLAB_TIMING"), reason="set TCAMLAB_TIMING=1 to time")
 @pytest.mark.parametrize("kind", ["static", "dynamic", "sensing", "curvature"])
 def test_timing_five_runs(tmp_path, kind):
-    effect = {"static": "glass-transition", "dynamic": "response-delay",
-              "sensing": "initial-slack", "curvature": "camera-placement"}[kind]
+    effect = {
+        "static": "glass-transition",
+        "dynamic": "response-delay",
+        "sensing": "initial-slack",
+        "curvature": "camera-placement",
+    }[kind]
     exp = _simulate(tmp_path, kind, {effect: 3.0}, 61, n_runs=5)
     runs = exp.read_runs()
     diagnose(exp, runs, effects=[effect], n_boot=10)  # warm-up (JIT)

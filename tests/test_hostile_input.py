@@ -32,8 +32,9 @@ SCRIPT = "<script>alert(1)<script>"
 
 @pytest.fixture
 def lab(tmp_path):
-    shutil.copytree(ROOT / "experiments", tmp_path / "experiments",
-                    ignore=shutil.ignore_patterns("templates"))
+    shutil.copytree(
+        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
+    )
     shutil.copytree(ROOT / "raw", tmp_path / "raw")
     return tmp_path
 
@@ -79,7 +80,7 @@ def _hostile_static(lab: Path, runs: list[str], **fields) -> Path:
     listed = ", ".join(f"'../raw/{r}'" for r in runs)  # literal strings: no escapes
     text = re.sub(r"runs = \[[^\]]*\]", lambda m: f"runs = [{listed}]", text, flags=re.S)
     for key, value in fields.items():
-        text = re.sub(rf"(?m)^{key} = .*$", lambda m: f"{key} = {value}", text)
+        text = re.sub(rf"(?m)^{key} = .*$", lambda m, key=key, value=value: f"{key} = {value}", text)
     p = lab / "experiments" / "hostile.toml"
     p.write_text(text)
     return p
@@ -94,19 +95,30 @@ def _copy_run(lab: Path, name: str, src: str = "static_run1.csv") -> str:
 
 
 def test_markup_in_title_notes_and_run_names_is_escaped_in_html_and_pdf(lab):
-    runs = [_copy_run(lab, f"{SCRIPT}.csv"),
-            _copy_run(lab, "a--><script>b.csv", "static_run2.csv"),
-            _copy_run(lab, "$\\frac$ _x.csv", "static_run3.csv"),   # mathtext, if parsed
-            _copy_run(lab, "_hidden.csv", "static_run3.csv")]       # legend drops '_' labels
-    exp = _hostile_static(lab, runs, title='"<script>alert(\'title\')</script> T"',
-                          notes='"<img src=x onerror=alert(1)> & <script>n</script>"')
+    runs = [
+        _copy_run(lab, f"{SCRIPT}.csv"),
+        _copy_run(lab, "a--><script>b.csv", "static_run2.csv"),
+        _copy_run(lab, "$\\frac$ _x.csv", "static_run3.csv"),  # mathtext, if parsed
+        _copy_run(lab, "_hidden.csv", "static_run3.csv"),
+    ]  # legend drops '_' labels
+    exp = _hostile_static(
+        lab,
+        runs,
+        title="\"<script>alert('title')</script> T\"",
+        notes='"<img src=x onerror=alert(1)> & <script>n</script>"',
+    )
     out = lab / "out"
     result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(out)])
     assert result.exit_code == 0, result.output
     html = (out / "hostile/report.html").read_text()
-    page = assert_inert(html, "<script>alert('title')</script> T",
-                        "<img src=x onerror=alert(1)> & <script>n</script>",
-                        SCRIPT, "a--><script>b", "$\\frac$ _x")
+    page = assert_inert(
+        html,
+        "<script>alert('title')</script> T",
+        "<img src=x onerror=alert(1)> & <script>n</script>",
+        SCRIPT,
+        "a--><script>b",
+        "$\\frac$ _x",
+    )
     assert "img" not in page.tags
     # matplotlib's SVG comments carry legend text; they must stay comments
     assert all("<script" not in c for c in page.comments)
@@ -130,20 +142,19 @@ def test_markup_in_a_mapped_column_header(lab, monkeypatch):
     exp = _hostile_static(lab, ["mapped.csv"])
     exp.write_text(exp.read_text() + '\n[columns]\ntemperature_C = "<script>T</script>"\n')
     out = lab / "out"
-    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(out),
-                                 "--format", "html"])
+    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(out), "--format", "html"])
     assert result.exit_code == 0, result.output
     assert_inert((out / "hostile/report.html").read_text())
 
     # the same header missing from the file: the error in index.html is escaped text
-    (lab / "raw/mapped.csv").write_text(df.rename(columns={"<script>T</script>": "T"})
-                                        .to_csv(index=False))
+    (lab / "raw/mapped.csv").write_text(df.rename(columns={"<script>T</script>": "T"}).to_csv(index=False))
     monkeypatch.chdir(lab)
     result = runner.invoke(app, ["report", "experiments/hostile.toml", "--out", "r"])
     assert result.exit_code == 2
     assert "column '<script>T</script>' (for temperature_C) not found" in result.output
-    assert_inert((lab / "r/index.html").read_text(),
-                 "column '<script>T</script>' (for temperature_C) not found")
+    assert_inert(
+        (lab / "r/index.html").read_text(), "column '<script>T</script>' (for temperature_C) not found"
+    )
 
 
 def test_markup_in_experiment_names_and_titles_in_the_index(lab, monkeypatch):
@@ -151,8 +162,17 @@ def test_markup_in_experiment_names_and_titles_in_the_index(lab, monkeypatch):
     for name in ("x?y#z.toml", "javascript:alert(1).toml"):
         shutil.copy(exp, lab / "experiments" / name)
     monkeypatch.chdir(lab)
-    result = runner.invoke(app, ["report", "experiments/hostile.toml", "experiments/x?y#z.toml",
-                                 "experiments/javascript:alert(1).toml", "--out", "r"])
+    result = runner.invoke(
+        app,
+        [
+            "report",
+            "experiments/hostile.toml",
+            "experiments/x?y#z.toml",
+            "experiments/javascript:alert(1).toml",
+            "--out",
+            "r",
+        ],
+    )
     assert result.exit_code == 0, result.output
     index = (lab / "r/index.html").read_text()
     assert_inert(index, "<script>x</script>")
@@ -170,8 +190,7 @@ def test_run_names_in_predictions_csv_are_neutralised(lab, prefix):
     _copy_run(lab, f"{name}.csv")
     exp = _hostile_static(lab, [f"{name}.csv", "static_run2.csv"])
     out = lab / "out"
-    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(out),
-                                 "--format", "html"])
+    result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(out), "--format", "html"])
     assert result.exit_code == 0, result.output
     with open(out / "hostile/predictions.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -191,8 +210,9 @@ def test_run_names_in_predictions_csv_are_neutralised(lab, prefix):
 def test_neutralise_csv_keeps_numbers_and_headers_safe():
     import pandas as pd
 
-    df = pd.DataFrame({"run": ["=1+1", "-x", "ok", "@a", "\tb"], "v": [-1.5, 2.0, -0.0, 3.0, 4.0],
-                       "=bad": [1, 2, 3, 4, 5]})
+    df = pd.DataFrame(
+        {"run": ["=1+1", "-x", "ok", "@a", "\tb"], "v": [-1.5, 2.0, -0.0, 3.0, 4.0], "=bad": [1, 2, 3, 4, 5]}
+    )
     out = neutralise_csv(df)
     assert list(out["run"]) == ["'=1+1", "'-x", "ok", "'@a", "'\tb"]
     assert list(out["v"]) == [-1.5, 2.0, -0.0, 3.0, 4.0]
@@ -204,7 +224,7 @@ def test_neutralise_csv_keeps_numbers_and_headers_safe():
 
 def test_huge_file_is_refused_by_the_default_limit_without_being_read(lab):
     big = lab / "raw/huge.csv"
-    with open(big, "wb") as fh:   # sparse: 3 GiB on paper, nothing on disk
+    with open(big, "wb") as fh:  # sparse: 3 GiB on paper, nothing on disk
         fh.write(b"temperature_C,displacement_mm\n")
         fh.truncate(3 * 1024**3)
     exp = _hostile_static(lab, ["huge.csv"])
@@ -219,10 +239,31 @@ def test_huge_file_is_refused_by_the_default_limit_without_being_read(lab):
 
 # --- property-based fuzzing of the readers ---------------------------------------------------
 
-_SEEDS = {k: (ROOT / "raw" / f"{k}_run1.csv").read_bytes().splitlines(keepends=True)[:40]
-          for k in tio.KINDS}
-_ODD = ["", " ", "nan", "NaN", "inf", "-inf", "1e400", "-1e400", "1e308", "abc", "1,5", '"',
-        "#", "\x00", "\ufeff", "\u00b0", "-0", "0x1", "1e", "--1", "9" * 330, "\U0001f600"]
+_SEEDS = {k: (ROOT / "raw" / f"{k}_run1.csv").read_bytes().splitlines(keepends=True)[:40] for k in tio.KINDS}
+_ODD = [
+    "",
+    " ",
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e400",
+    "-1e400",
+    "1e308",
+    "abc",
+    "1,5",
+    '"',
+    "#",
+    "\x00",
+    "\ufeff",
+    "\u00b0",
+    "-0",
+    "0x1",
+    "1e",
+    "--1",
+    "9" * 330,
+    "\U0001f600",
+]
 
 
 @st.composite
@@ -232,15 +273,17 @@ def mutated_csv(draw):
     lines = [line.decode() for line in _SEEDS[kind]]
     header, rows = lines[0].rstrip("\n").split(","), [r.rstrip("\n").split(",") for r in lines[1:]]
     for _ in range(draw(st.integers(0, 4))):
-        op = draw(st.sampled_from(["cell", "swap", "dup_header", "drop_col", "drop_rows",
-                                   "dup_row", "reverse", "rename"]))
+        op = draw(
+            st.sampled_from(
+                ["cell", "swap", "dup_header", "drop_col", "drop_rows", "dup_row", "reverse", "rename"]
+            )
+        )
         if op == "cell" and rows:
             r = draw(st.integers(0, len(rows) - 1))
             if not rows[r]:
                 continue
             c = draw(st.integers(0, len(rows[r]) - 1))
-            rows[r][c] = draw(st.one_of(st.sampled_from(_ODD), st.text(max_size=5),
-                                        st.floats().map(repr)))
+            rows[r][c] = draw(st.one_of(st.sampled_from(_ODD), st.text(max_size=5), st.floats().map(repr)))
         elif op == "swap" and len(header) > 1:
             i, j = draw(st.permutations(range(len(header))))[:2]
             header[i], header[j] = header[j], header[i]
@@ -251,7 +294,7 @@ def mutated_csv(draw):
         elif op == "drop_col":
             c = draw(st.integers(0, len(header) - 1))
             header.pop(c)
-            rows = [r[:c] + r[c + 1:] for r in rows]
+            rows = [r[:c] + r[c + 1 :] for r in rows]
         elif op == "drop_rows":
             rows = rows[: draw(st.integers(0, len(rows)))]
         elif op == "dup_row" and rows:
@@ -288,8 +331,9 @@ def _check_run(run: tio.RunData, kind: str) -> None:
     assert np.isfinite(df.to_numpy()).all()
 
 
-@settings(max_examples=250, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@settings(
+    max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
+)
 @given(mutated_csv())
 def test_fuzz_csv_loads_or_raises_a_tcamlab_error(case):
     kind, data, drop_na = case
@@ -305,19 +349,67 @@ def test_fuzz_csv_loads_or_raises_a_tcamlab_error(case):
 
 
 _TOML_SEEDS = {p.stem: p.read_text() for p in sorted((ROOT / "experiments").glob("*.toml"))}
-_KEYS = ["kind", "title", "runs", "notes", "preset", "coil_length_mm", "fiber_diameter_mm",
-         "max_volume_fraction", "thread_plies", "load_g", "ambient_C", "spring_constant_N_per_m",
-         "segment_lengths_mm", "bogus", "titel", "rmse_mm", "r2_min", "from", "unit", "scale",
-         "time_s", "force_N", "seed", "generator"]
+_KEYS = [
+    "kind",
+    "title",
+    "runs",
+    "notes",
+    "preset",
+    "coil_length_mm",
+    "fiber_diameter_mm",
+    "max_volume_fraction",
+    "thread_plies",
+    "load_g",
+    "ambient_C",
+    "spring_constant_N_per_m",
+    "segment_lengths_mm",
+    "bogus",
+    "titel",
+    "rmse_mm",
+    "r2_min",
+    "from",
+    "unit",
+    "scale",
+    "time_s",
+    "force_N",
+    "seed",
+    "generator",
+]
 _TOML_VALUES = st.one_of(
-    st.sampled_from(['""', '"static"', '"sensing"', '"thesis-tca"', '"thesis-tcs"', "0", "-1",
-                     "1e400", "nan", "inf", "-inf", "true", "[]", "[1, 2]", '["../raw/x.csv"]',
-                     '["../raw/static_run1.csv"]', '["../raw/sensing_run1.csv", "../raw/sensing_run2.csv"]',
-                     "{}", '{ from = "x", unit = "ms" }', '{ from = "t", scale = 0 }',
-                     "1979-05-27", "9223372036854775807", '"\\u0000"', '"<script>"', "[[1]]",
-                     '["../raw"]', '["/"]', '["../raw/\\u0000"]']),
+    st.sampled_from(
+        [
+            '""',
+            '"static"',
+            '"sensing"',
+            '"thesis-tca"',
+            '"thesis-tcs"',
+            "0",
+            "-1",
+            "1e400",
+            "nan",
+            "inf",
+            "-inf",
+            "true",
+            "[]",
+            "[1, 2]",
+            '["../raw/x.csv"]',
+            '["../raw/static_run1.csv"]',
+            '["../raw/sensing_run1.csv", "../raw/sensing_run2.csv"]',
+            "{}",
+            '{ from = "x", unit = "ms" }',
+            '{ from = "t", scale = 0 }',
+            "1979-05-27",
+            "9223372036854775807",
+            '"\\u0000"',
+            '"<script>"',
+            "[[1]]",
+            '["../raw"]',
+            '["/"]',
+            '["../raw/\\u0000"]',
+        ]
+    ),
     st.floats(allow_nan=False, allow_infinity=False).map(repr),
-    st.integers(-10**20, 10**20).map(str),
+    st.integers(-(10**20), 10**20).map(str),
 )
 
 
@@ -341,14 +433,21 @@ def toml_texts(draw):
                 lines[i] = lines[i][: draw(st.integers(0, len(lines[i])))]
         data = ("\n".join(lines) + "\n").encode()
     else:
-        top = [f"{k} = {draw(_TOML_VALUES)}"
-               for k in draw(st.lists(st.sampled_from(["kind", "title", "runs", "notes", "bogus"]),
-                                      unique=True))]
+        top = [
+            f"{k} = {draw(_TOML_VALUES)}"
+            for k in draw(st.lists(st.sampled_from(["kind", "title", "runs", "notes", "bogus"]), unique=True))
+        ]
         tables = []
-        for table in draw(st.lists(st.sampled_from(["sample", "rig", "rig.uncertainty", "columns",
-                                                    "thresholds", "synthetic"]), unique=True)):
-            body = [f"{k} = {draw(_TOML_VALUES)}"
-                    for k in draw(st.lists(st.sampled_from(_KEYS), unique=True, max_size=4))]
+        for table in draw(
+            st.lists(
+                st.sampled_from(["sample", "rig", "rig.uncertainty", "columns", "thresholds", "synthetic"]),
+                unique=True,
+            )
+        ):
+            body = [
+                f"{k} = {draw(_TOML_VALUES)}"
+                for k in draw(st.lists(st.sampled_from(_KEYS), unique=True, max_size=4))
+            ]
             tables.append("\n".join([f"[{table}]"] + body))
         data = "\n".join(top + tables).encode()
     if draw(st.integers(0, 5)) == 0:
@@ -362,13 +461,15 @@ def fuzz_lab(tmp_path_factory):
     """experiments/ (empty) and raw/ with the first two runs of each kind."""
     root = tmp_path_factory.mktemp("fuzz")
     (root / "experiments").mkdir()
-    shutil.copytree(ROOT / "raw", root / "raw",
-                    ignore=lambda _, names: [n for n in names if "run3" in n])
+    shutil.copytree(ROOT / "raw", root / "raw", ignore=lambda _, names: [n for n in names if "run3" in n])
     return root
 
 
-@settings(max_examples=250, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=250,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 @given(case=toml_texts())
 def test_fuzz_toml_loads_or_raises_a_tcamlab_error(fuzz_lab, case):
     data, expected = case

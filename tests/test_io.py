@@ -183,8 +183,10 @@ def test_static_unit_conversion_in_columns(tmp_path, header, unit, raw, expected
     base = {"time_s": [0, 1, 2], "temperature_C": [20, 60, 100], "displacement_mm": [0, -1, -2]}
     base[canon] = raw
     headers = {c: (header if c == canon else c) for c in base}
-    text = ",".join(headers.values()) + "\n" + "".join(
-        ",".join(str(base[c][k]) for c in base) + "\n" for k in range(3)
+    text = (
+        ",".join(headers.values())
+        + "\n"
+        + "".join(",".join(str(base[c][k]) for c in base) + "\n" for k in range(3))
     )
     run = read_run(write(tmp_path, text), "static", {canon: {"from": header, "unit": unit}})
     np.testing.assert_allclose(run.data[VARIABLE_MAP[canon][0]], expected_si, rtol=RTOL, atol=1e-12)
@@ -272,8 +274,16 @@ def test_raw_file_bytes_unchanged(tmp_path):
     before = p.read_bytes()
     h_before = sha256_file(p)
     mtime = p.stat().st_mtime_ns
-    run = read_run(p, "dynamic", {"time_s": {"from": "reltime", "unit": "ms"}, "voltage_V": "volts",
-                                 "displacement_mm": "laser", "temperature_C": {"from": "Temp (F)", "unit": "degF"}})
+    run = read_run(
+        p,
+        "dynamic",
+        {
+            "time_s": {"from": "reltime", "unit": "ms"},
+            "voltage_V": "volts",
+            "displacement_mm": "laser",
+            "temperature_C": {"from": "Temp (F)", "unit": "degF"},
+        },
+    )
     assert p.read_bytes() == before
     assert sha256_file(p) == h_before == run.sha256 == hashlib.sha256(before).hexdigest()
     assert p.stat().st_mtime_ns == mtime
@@ -283,8 +293,12 @@ def test_large_file_parses(tmp_path):
     n = 200_000
     t = np.arange(n) / 1000.0
     df = pd.DataFrame(
-        {"time_s": t, "voltage_V": np.where(t % 2 < 1, 10.0, 0.0), "displacement_mm": -0.5 * np.sin(t),
-         "temperature_C": 20 + np.cos(t)}
+        {
+            "time_s": t,
+            "voltage_V": np.where(t % 2 < 1, 10.0, 0.0),
+            "displacement_mm": -0.5 * np.sin(t),
+            "temperature_C": 20 + np.cos(t),
+        }
     )
     p = tmp_path / "big.csv"
     df.to_csv(p, index=False, float_format="%.6f")
@@ -338,11 +352,23 @@ def test_unknown_columns_key_and_bad_unit(tmp_path):
     p = write(tmp_path, dynamic_text())
     raises_input(["'force_N' is not a column of a dynamic run"], read_run, p, "dynamic", {"force_N": "F"})
     raises_input(["did you mean 'time_s'"], read_run, p, "dynamic", {"tme_s": "t"})
-    raises_input(["'ms' is a time unit", "temperature"], read_run, p, "dynamic",
-                 {"temperature_C": {"from": "T", "unit": "ms"}})
-    raises_input(["unknown unit 'msec'"], read_run, p, "dynamic", {"time_s": {"from": "time_s", "unit": "msec"}})
-    raises_input(["unknown key 'units'", "did you mean 'unit'"], read_run, p, "dynamic",
-                 {"time_s": {"from": "time_s", "units": "ms"}})
+    raises_input(
+        ["'ms' is a time unit", "temperature"],
+        read_run,
+        p,
+        "dynamic",
+        {"temperature_C": {"from": "T", "unit": "ms"}},
+    )
+    raises_input(
+        ["unknown unit 'msec'"], read_run, p, "dynamic", {"time_s": {"from": "time_s", "unit": "msec"}}
+    )
+    raises_input(
+        ["unknown key 'units'", "did you mean 'unit'"],
+        read_run,
+        p,
+        "dynamic",
+        {"time_s": {"from": "time_s", "units": "ms"}},
+    )
 
 
 def test_unknown_kind(tmp_path):
@@ -379,12 +405,13 @@ def test_comment_after_header_is_reported(tmp_path):
 
 def test_blank_cells_error_and_drop_na(tmp_path):
     lines = dynamic_text(14).splitlines()
-    lines[3] = "0.2,10,"          # blank cell, line 4
-    lines[6] = "0.5,NaN,-0.05"     # NaN, line 7
-    lines[9] = ""                  # blank line, line 10
+    lines[3] = "0.2,10,"  # blank cell, line 4
+    lines[6] = "0.5,NaN,-0.05"  # NaN, line 7
+    lines[9] = ""  # blank line, line 10
     p = write(tmp_path, "\n".join(lines) + "\n")
-    err = raises_input([str(p), "line 4", "column 'displacement_mm'", "blank or NaN", "3 rows"], read_run, p,
-                       "dynamic")
+    err = raises_input(
+        [str(p), "line 4", "column 'displacement_mm'", "blank or NaN", "3 rows"], read_run, p, "dynamic"
+    )
     assert "drop_na" in err.hint
     run = read_run(p, "dynamic", drop_na=True)
     assert run.n_rows_raw == 14
@@ -432,15 +459,21 @@ def test_file_too_large(tmp_path):
 def test_negative_resistance(tmp_path):
     p = write(tmp_path, "displacement_mm,force_N,resistance_ohm\n0,0,30\n1,0.1,-30.5\n2,0.2,31\n")
     raises_input([str(p), "line 3", "column 'resistance_ohm'", "negative resistance"], read_run, p, "sensing")
-    p2 = write(tmp_path, "cable_mm,r1_ohm,r2_ohm,kappa1_per_mm,kappa2_per_mm\n0,10,10,0,0\n1,10,-1,0,0\n",
-               "curv.csv")
+    p2 = write(
+        tmp_path, "cable_mm,r1_ohm,r2_ohm,kappa1_per_mm,kappa2_per_mm\n0,10,10,0,0\n1,10,-1,0,0\n", "curv.csv"
+    )
     raises_input([str(p2), "line 3", "column 'r2_ohm'"], read_run, p2, "curvature")
 
 
 def test_temperature_below_absolute_zero(tmp_path):
     p = write(tmp_path, "T,displacement_mm\n20,0\n-10,-1\n40,-2\n")
-    raises_input([str(p), "line 3", "column 'T' (temperature_C)", "below absolute zero"], read_run, p, "static",
-                 {"temperature_C": {"from": "T", "unit": "K"}})
+    raises_input(
+        [str(p), "line 3", "column 'T' (temperature_C)", "below absolute zero"],
+        read_run,
+        p,
+        "static",
+        {"temperature_C": {"from": "T", "unit": "K"}},
+    )
 
 
 def test_pull_force_of_wrong_sign(tmp_path):
@@ -491,9 +524,35 @@ def test_messages_are_one_line_with_hint(tmp_path):
 
 _cells = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True, width=64).map(repr),
-    st.integers(-10**6, 10**6).map(str),
-    st.sampled_from(["", " ", "NaN", "nan", "NA", "inf", "-inf", "1e400", "abc", "#", '"', "1,5", ";", "\t",
-                     "0x10", "1_000", "--1", "+2", ".5", "5.", "1e-3", "°", "\u00e4", "\x00"]),
+    st.integers(-(10**6), 10**6).map(str),
+    st.sampled_from(
+        [
+            "",
+            " ",
+            "NaN",
+            "nan",
+            "NA",
+            "inf",
+            "-inf",
+            "1e400",
+            "abc",
+            "#",
+            '"',
+            "1,5",
+            ";",
+            "\t",
+            "0x10",
+            "1_000",
+            "--1",
+            "+2",
+            ".5",
+            "5.",
+            "1e-3",
+            "°",
+            "\u00e4",
+            "\x00",
+        ]
+    ),
     st.text(max_size=4),
 )
 
@@ -501,7 +560,9 @@ _cells = st.one_of(
 @st.composite
 def _csv_texts(draw):
     kind = draw(st.sampled_from(sorted(REQUIRED)))
-    cols = list(REQUIRED[kind]) + draw(st.lists(st.sampled_from(OPTIONAL[kind] + ("junk",)), max_size=2, unique=True))
+    cols = list(REQUIRED[kind]) + draw(
+        st.lists(st.sampled_from(OPTIONAL[kind] + ("junk",)), max_size=2, unique=True)
+    )
     if draw(st.booleans()):
         cols = draw(st.permutations(cols))
     if draw(st.integers(0, 9)) == 0:

@@ -94,9 +94,7 @@ finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinit
 @settings(max_examples=200, deadline=None)
 @given(
     st.integers(min_value=1, max_value=40).flatmap(
-        lambda n: st.tuples(
-            hnp.arrays(float, n, elements=finite), hnp.arrays(float, n, elements=finite)
-        )
+        lambda n: st.tuples(hnp.arrays(float, n, elements=finite), hnp.arrays(float, n, elements=finite))
     )
 )
 def test_metric_inequalities(pair):

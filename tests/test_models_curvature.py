@@ -2,16 +2,16 @@
 
 import numpy as np
 import pytest
+from conftest import geometry
 
 from tcamlab.models import curvature, sensing
-
-from conftest import geometry
 
 
 def test_segment_curvature_hand_value():
     # C1 = 31 mm, C = 29 mm, d1 = 9 mm: kappa = 2 / (29 * 9) per mm
     assert curvature.segment_curvature(31e-3, 29e-3, 9e-3) == pytest.approx(
-        2.0 / (29.0 * 9.0) * 1e3, rel=1e-14)
+        2.0 / (29.0 * 9.0) * 1e3, rel=1e-14
+    )
 
 
 def test_circular_arcs_are_recovered(robot):
@@ -27,11 +27,17 @@ def test_circular_arcs_are_recovered(robot):
     r = np.empty_like(elong)
     for i, length in enumerate(lengths):
         ratio = length / sample.coil_length
-        r[i] = sensing.forward(elong[i], rig.initial_resistance, rig.spring_constant,
-                               **dict(kw, fiber_length=kw["fiber_length"] * ratio,
-                                      coil_length=length, twists=kw["twists"] * ratio))
+        r[i] = sensing.forward(
+            elong[i],
+            rig.initial_resistance,
+            rig.spring_constant,
+            **dict(
+                kw, fiber_length=kw["fiber_length"] * ratio, coil_length=length, twists=kw["twists"] * ratio
+            ),
+        )
     kappa, got_elong = curvature.curvatures(
-        r, cable, [rig.initial_resistance] * 2, rig.spring_constant, d1, lengths, **kw)
+        r, cable, [rig.initial_resistance] * 2, rig.spring_constant, d1, lengths, **kw
+    )
     np.testing.assert_allclose(got_elong, elong, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(kappa, kappa_true, rtol=1e-8, atol=1e-9)
 

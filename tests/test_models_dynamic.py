@@ -8,9 +8,15 @@ from tcamlab.models import dynamic, static, thermal
 
 
 def kwargs(sample, rig, **over):
-    kw = dict(sample.model_kwargs(), load=rig.load, damping=rig.damping,
-              thermal_mass=rig.thermal_mass, heat_loss=rig.heat_loss,
-              resistance=rig.resistance, ambient=rig.ambient)
+    kw = dict(
+        sample.model_kwargs(),
+        load=rig.load,
+        damping=rig.damping,
+        thermal_mass=rig.thermal_mass,
+        heat_loss=rig.heat_loss,
+        resistance=rig.resistance,
+        ambient=rig.ambient,
+    )
     kw.update(over)
     return kw
 
@@ -23,7 +29,8 @@ def test_starts_at_rest_at_static_equilibrium(tca):
     np.testing.assert_allclose(res.displacement, 0.0, atol=1e-12)
     np.testing.assert_allclose(res.temperature, rig.ambient, atol=1e-12)
     assert res.extension0 == pytest.approx(
-        static.displacement(0.0, rig.force, **sample.model_kwargs()), rel=1e-12)
+        static.displacement(0.0, rig.force, **sample.model_kwargs()), rel=1e-12
+    )
 
 
 @pytest.mark.parametrize("method", ["dp5", "RK45"])
@@ -33,13 +40,13 @@ def test_held_voltage_settles_at_static_displacement(tca, method, slope):
     # choose V for a 100 K rise, inside the G_t' > 0 range (10 V would give ~280 K)
     volts = np.sqrt(100.0 * rig.resistance * rig.heat_loss)
     t = np.arange(0.0, 60.0 + 1e-9, 0.01)
-    res = dynamic.response(t, volts, **kwargs(sample, rig, shear_modulus_slope=slope),
-                           method=method)
+    res = dynamic.response(t, volts, **kwargs(sample, rig, shear_modulus_slope=slope), method=method)
     t_inf = thermal.steady_state_temperature(volts, rig.resistance, rig.heat_loss, rig.ambient)
     assert res.temperature[-1] == pytest.approx(t_inf, rel=1e-6)
     kw = dict(sample.model_kwargs(), shear_modulus_slope=slope)
-    expected = (static.displacement(t_inf - rig.ambient, rig.force, **kw)
-                - static.displacement(0.0, rig.force, **kw))
+    expected = static.displacement(t_inf - rig.ambient, rig.force, **kw) - static.displacement(
+        0.0, rig.force, **kw
+    )
     assert res.displacement[-1] == pytest.approx(expected, rel=1e-5)
     assert expected < 0  # contraction
 
@@ -49,8 +56,9 @@ def test_fast_path_agrees_with_solve_ivp_on_the_thesis_pulse(tca):
     t = np.arange(0.0, 10.0 + 1e-9, 0.001)
     v = np.where(t < 1.0 - 1e-9, 10.0, 0.0)
     fast = dynamic.response(t, v, **kwargs(sample, rig))
-    ref = dynamic.response(t, v, **kwargs(sample, rig), method="DOP853", rtol=1e-11,
-                           atol=(1e-9, 1e-14, 1e-13))
+    ref = dynamic.response(
+        t, v, **kwargs(sample, rig), method="DOP853", rtol=1e-11, atol=(1e-9, 1e-14, 1e-13)
+    )
     np.testing.assert_allclose(fast.displacement, ref.displacement, rtol=0, atol=1e-9)
     assert fast.displacement.min() < -1e-4  # the pulse contracts the TCA
 

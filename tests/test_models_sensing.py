@@ -4,13 +4,13 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from conftest import geometry
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tcamlab.errors import ModelDomainError
 from tcamlab.models import sensing, static
 from tcamlab.params import THESIS_TCS
-
-from conftest import geometry
 
 
 def test_diameter_from_resistance_hand_value():
@@ -51,11 +51,11 @@ def test_solution_satisfies_equation_3_6(tcs):
     r = np.array([30.3, 31.0])
     delta, _ = sensing.invert(r, 30.0, rig.spring_constant, **kw)
     d = sensing.diameter_from_resistance(r, 30.0, sample.fiber_diameter)
-    g = static.sample_shear_modulus(sample.fiber_diameter, sample.fiber_length, sample.twists,
-                                    sample.youngs_modulus)
+    g = static.sample_shear_modulus(
+        sample.fiber_diameter, sample.fiber_length, sample.twists, sample.youngs_modulus
+    )
     s = sample.sin_alpha0 + delta / sample.fiber_length
-    f11, f12 = static.compliances(s, d, sample.fiber_length, sample.n_coils, g,
-                                  sample.youngs_modulus)
+    f11, f12 = static.compliances(s, d, sample.fiber_length, sample.n_coils, g, sample.youngs_modulus)
     tau = sensing.torque(d, sample.fiber_diameter, sample.twists, sample.fiber_length, g)
     np.testing.assert_allclose(delta * (1 - rig.spring_constant * f11), -f12 * tau, rtol=1e-10)
     assert np.all(delta > 0) and delta[1] > delta[0]

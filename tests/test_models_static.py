@@ -4,7 +4,8 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tcamlab.errors import ModelDomainError
 from tcamlab.models import static
@@ -36,8 +37,9 @@ def test_transverse_shear_modulus_hand_value_at_60_degrees():
 
 def test_thesis_tca_shear_modulus_allows_the_oven_range(tca):
     sample, _ = tca
-    g = static.sample_shear_modulus(sample.fiber_diameter, sample.fiber_length, sample.twists,
-                                    sample.youngs_modulus)
+    g = static.sample_shear_modulus(
+        sample.fiber_diameter, sample.fiber_length, sample.twists, sample.youngs_modulus
+    )
     # G_t' of (2.13) must stay positive over the 25-150 degC oven test at T_a = 20 degC.
     assert static.max_temperature_rise(g, 1.11e6) > 130.0
 
@@ -77,7 +79,8 @@ def test_compliances_hand_value_at_zero_pitch():
 
 def test_n_coils():
     assert static.n_coils(0.095, 0.02, 0.36e-3) == pytest.approx(
-        0.095 * math.sqrt(1 - (0.02 / 0.095) ** 2) / (math.pi * 0.36e-3), rel=1e-14)
+        0.095 * math.sqrt(1 - (0.02 / 0.095) ** 2) / (math.pi * 0.36e-3), rel=1e-14
+    )
 
 
 @pytest.mark.parametrize("method", ["jit", "numpy"])
@@ -91,13 +94,19 @@ def test_solvers_agree(tca, method, slope):
     got = static.displacement(dT, force, **kw, method=method)
     # residual of (2.10)-(2.11) at the returned root, computed independently
     s = sample.sin_alpha0 + got / sample.fiber_length
-    g = static.sample_shear_modulus(sample.fiber_diameter, sample.fiber_length, sample.twists,
-                                    sample.youngs_modulus)
+    g = static.sample_shear_modulus(
+        sample.fiber_diameter, sample.fiber_length, sample.twists, sample.youngs_modulus
+    )
     d = sample.fiber_diameter * (1 + sample.radial_cte * dT)
-    f11, f12 = static.compliances(s, d, sample.fiber_length, sample.n_coils, g,
-                                  sample.youngs_modulus)
-    tau = static.torque(dT, static.shear_modulus_at(dT, g, slope), sample.fiber_diameter,
-                        sample.twists, sample.fiber_length, sample.radial_cte)
+    f11, f12 = static.compliances(s, d, sample.fiber_length, sample.n_coils, g, sample.youngs_modulus)
+    tau = static.torque(
+        dT,
+        static.shear_modulus_at(dT, g, slope),
+        sample.fiber_diameter,
+        sample.twists,
+        sample.fiber_length,
+        sample.radial_cte,
+    )
     np.testing.assert_allclose(got, f11 * force - f12 * tau, rtol=0, atol=1e-13)
 
 
@@ -108,14 +117,22 @@ def test_zero_temperature_rise_gives_the_spring_extension(tca, slope):
     delta = float(static.displacement(0.0, rig.force, **kw))
     # delta must satisfy delta = f11(alpha) F exactly at the solved pitch angle
     s = sample.sin_alpha0 + delta / sample.fiber_length
-    g = static.sample_shear_modulus(sample.fiber_diameter, sample.fiber_length, sample.twists,
-                                    sample.youngs_modulus)
-    f11, _ = static.compliances(s, sample.fiber_diameter, sample.fiber_length, sample.n_coils,
-                                g, sample.youngs_modulus)
+    g = static.sample_shear_modulus(
+        sample.fiber_diameter, sample.fiber_length, sample.twists, sample.youngs_modulus
+    )
+    f11, _ = static.compliances(
+        s, sample.fiber_diameter, sample.fiber_length, sample.n_coils, g, sample.youngs_modulus
+    )
     assert delta == pytest.approx(f11 * rig.force, rel=1e-10)
     # small force: linear spring with the compliance at alpha0
-    f11_0, _ = static.compliances(sample.sin_alpha0, sample.fiber_diameter, sample.fiber_length,
-                                  sample.n_coils, g, sample.youngs_modulus)
+    f11_0, _ = static.compliances(
+        sample.sin_alpha0,
+        sample.fiber_diameter,
+        sample.fiber_length,
+        sample.n_coils,
+        g,
+        sample.youngs_modulus,
+    )
     small = 1e-6
     assert float(static.displacement(0.0, small, **kw)) == pytest.approx(f11_0 * small, rel=1e-5)
 
@@ -132,8 +149,7 @@ def test_heating_thesis_tca_under_load_contracts(tca):
     sample, rig = tca
     temps = np.arange(0.0, 131.0, 5.0)
     for slope in (0.0, 1.11e6):
-        d = static.displacement(temps, rig.force, **dict(sample.model_kwargs(),
-                                                         shear_modulus_slope=slope))
+        d = static.displacement(temps, rig.force, **dict(sample.model_kwargs(), shear_modulus_slope=slope))
         assert np.all(np.diff(d) < 0), "extension must fall as temperature rises"
         assert d[-1] < d[0] - 1e-4  # more than 0.1 mm of contraction over 130 K
 
@@ -158,8 +174,9 @@ def test_internal_force_balances_the_load_at_equilibrium(tca):
 
 def test_full_output_returns_solver_result(tca):
     sample, rig = tca
-    delta, res = static.displacement(np.array([0.0, 50.0]), rig.force, **sample.model_kwargs(),
-                                     full_output=True, method="numpy")
+    delta, res = static.displacement(
+        np.array([0.0, 50.0]), rig.force, **sample.model_kwargs(), full_output=True, method="numpy"
+    )
     assert res.converged.all() and res.iterations < 20
     assert np.allclose(res.root, sample.sin_alpha0 + delta / sample.fiber_length, rtol=1e-14)
 
@@ -187,13 +204,11 @@ def test_no_equilibrium_is_a_domain_error(tca):
 def test_property_finite_and_monotone(dT, force, twists, coil_mm):
     # Constant G: heating always shortens. (With G(T) the torque G_t'(T) rho dT
     # peaks near dT = G_t / (2 k), so "hotter is shorter" need not hold there.)
-    s = THESIS_TCA.build_sample(twists=twists, coil_length=coil_mm * 1e-3,
-                                shear_modulus_slope=0.0)
+    s = THESIS_TCA.build_sample(twists=twists, coil_length=coil_mm * 1e-3, shear_modulus_slope=0.0)
     kw = s.model_kwargs()
     g = static.sample_shear_modulus(s.fiber_diameter, s.fiber_length, twists, s.youngs_modulus)
     dT = min(dT, 0.9 * float(g) / 1.11e6)
-    d = static.displacement(np.array([dT, dT, dT + 1.0]),
-                            np.array([force, force * 1.1, force]), **kw)
+    d = static.displacement(np.array([dT, dT, dT + 1.0]), np.array([force, force * 1.1, force]), **kw)
     assert np.all(np.isfinite(d))
     assert d[1] > d[0]  # more load, longer
     assert d[2] < d[0]  # hotter, shorter

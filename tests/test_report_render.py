@@ -106,8 +106,11 @@ def _make_doc() -> Document:
             ),
             Section(heading="Empty section"),
         ],
-        metadata={"tool": "tcamlab 0.1.0", "command": 'tcamlab report --out "<x>"',
-                  "input.sha256": "ab" * 32},
+        metadata={
+            "tool": "tcamlab 0.1.0",
+            "command": 'tcamlab report --out "<x>"',
+            "input.sha256": "ab" * 32,
+        },
         synthetic_banner="SYNTHETIC DATA <not measured>",
     )
 
@@ -176,9 +179,11 @@ def test_figure_svg_is_inlinable_and_deterministic():
 
 
 def test_figures_module_import_is_cheap():
-    code = ("import sys, tcamlab.report, tcamlab.report.figures, tcamlab.report.document;"
-            "bad=[m for m in ('matplotlib','reportlab','jinja2') if m in sys.modules];"
-            "assert not bad, bad")
+    code = (
+        "import sys, tcamlab.report, tcamlab.report.figures, tcamlab.report.document;"
+        "bad=[m for m in ('matplotlib','reportlab','jinja2') if m in sys.modules];"
+        "assert not bad, bad"
+    )
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
@@ -265,12 +270,18 @@ def test_index_html():
     index = IndexDocument(
         title="Batch <2024>",
         entries=[
-            IndexEntry("run-01", "Static <fit>", "static", "pass", {"rmse": "0.012"},
-                       link="run-01/report.html"),
-            IndexEntry("run-02", "Dynamic", "dynamic", "fail", {"rmse": "0.5", "lag": "3 s"},
-                       link="javascript:alert(1)"),
-            IndexEntry("run-03", "Broken", "static", "error", {}, link=None,
-                       error="InputError: bad row <7>"),
+            IndexEntry(
+                "run-01", "Static <fit>", "static", "pass", {"rmse": "0.012"}, link="run-01/report.html"
+            ),
+            IndexEntry(
+                "run-02",
+                "Dynamic",
+                "dynamic",
+                "fail",
+                {"rmse": "0.5", "lag": "3 s"},
+                link="javascript:alert(1)",
+            ),
+            IndexEntry("run-03", "Broken", "static", "error", {}, link=None, error="InputError: bad row <7>"),
         ],
         metadata={"tool": "tcamlab"},
     )
@@ -341,10 +352,10 @@ def test_output_identical_across_processes(html, pdf):
         "print(hashlib.sha256(render_pdf(d)).hexdigest())"
     )
     env = dict(os.environ, PYTHONHASHSEED="12345")
-    out = subprocess.run([sys.executable, "-c", code, here], check=True, env=env,
-                         capture_output=True, text=True).stdout.split()
-    assert out == [hashlib.sha256(html.encode()).hexdigest(),
-                   hashlib.sha256(pdf).hexdigest()]
+    out = subprocess.run(
+        [sys.executable, "-c", code, here], check=True, env=env, capture_output=True, text=True
+    ).stdout.split()
+    assert out == [hashlib.sha256(html.encode()).hexdigest(), hashlib.sha256(pdf).hexdigest()]
 
 
 def test_pdf_long_table_splits_with_header_repeated():
@@ -359,10 +370,13 @@ def test_pdf_long_table_splits_with_header_repeated():
 def test_combined_pdf(doc, pdf):
     other = Document("Second report", sections=[Section("Only", paragraphs=["hello"])])
     other_pdf = render_pdf(other)
-    index = IndexDocument("All runs", [
-        IndexEntry("a", EVIL_TITLE, "static", "pass", {"rmse": "0.1"}, link="a.html"),
-        IndexEntry("b", "Second report", "static", "error", {}, error="boom <x>"),
-    ])
+    index = IndexDocument(
+        "All runs",
+        [
+            IndexEntry("a", EVIL_TITLE, "static", "pass", {"rmse": "0.1"}, link="a.html"),
+            IndexEntry("b", "Second report", "static", "error", {}, error="boom <x>"),
+        ],
+    )
     combined = render_combined_pdf([doc, other], index)
     reader = _reader(combined)
     n_parts = len(_reader(pdf).pages) + len(_reader(other_pdf).pages)

@@ -31,17 +31,20 @@ OUTPUTS = ("report.html", "report.pdf", "metrics.json", "predictions.csv")
 
 @pytest.fixture
 def lab(tmp_path):
-    shutil.copytree(ROOT / "experiments", tmp_path / "experiments",
-                    ignore=shutil.ignore_patterns("templates"))
+    shutil.copytree(
+        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
+    )
     shutil.copytree(ROOT / "raw", tmp_path / "raw")
     return tmp_path
 
 
 def tree_hashes(folder: Path) -> dict[str, tuple[str, int]]:
     """Relative path -> (sha256, mode) of every file below folder."""
-    return {str(p.relative_to(folder)): (hashlib.sha256(p.read_bytes()).hexdigest(),
-                                         p.stat().st_mode)
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): (hashlib.sha256(p.read_bytes()).hexdigest(), p.stat().st_mode)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def leftovers(folder: Path) -> list[Path]:
@@ -52,14 +55,31 @@ def leftovers(folder: Path) -> list[Path]:
 
 
 COMMANDS = {
-    **{f"validate-{k}": ["validate", k, "experiments/{k}.toml".format(k=k), "--out", "out",
-                         "--mc-draws", "20"] for k in KINDS},
-    "validate-drop-na": ["validate", "static", "experiments/static.toml", "--out", "out",
-                         "--drop-na", "--format", "html"],
+    **{
+        f"validate-{k}": ["validate", k, f"experiments/{k}.toml", "--out", "out", "--mc-draws", "20"]
+        for k in KINDS
+    },
+    "validate-drop-na": [
+        "validate",
+        "static",
+        "experiments/static.toml",
+        "--out",
+        "out",
+        "--drop-na",
+        "--format",
+        "html",
+    ],
     "validate-bad-kind": ["validate", "sensing", "experiments/static.toml", "--out", "out"],
     "report": ["report", "--out", "out", "--mc-draws", "20"],
-    "fit-spring": ["fit-spring", "raw/sensing_run1.csv", "raw/sensing_run2.csv",
-                   "experiments/sensing.toml", "--plot", "out/fit.svg", "--json"],
+    "fit-spring": [
+        "fit-spring",
+        "raw/sensing_run1.csv",
+        "raw/sensing_run2.csv",
+        "experiments/sensing.toml",
+        "--plot",
+        "out/fit.svg",
+        "--json",
+    ],
     "fit-spring-bad": ["fit-spring", "raw/static_run1.csv"],
 }
 
@@ -69,12 +89,10 @@ def test_no_command_writes_to_raw_or_experiments(lab, monkeypatch, name):
     monkeypatch.chdir(lab)
     before_raw, before_exp = tree_hashes(lab / "raw"), tree_hashes(lab / "experiments")
     result = runner.invoke(app, COMMANDS[name])
-    assert result.exit_code == (2 if name.endswith("bad") or name.endswith("bad-kind") else 0), \
-        result.output
+    assert result.exit_code == (2 if name.endswith("bad") or name.endswith("bad-kind") else 0), result.output
     assert tree_hashes(lab / "raw") == before_raw
     assert tree_hashes(lab / "experiments") == before_exp
-    assert sorted(p.name for p in (lab / "raw").iterdir()) == sorted(
-        p.split("/")[-1] for p in before_raw)
+    assert sorted(p.name for p in (lab / "raw").iterdir()) == sorted(p.split("/")[-1] for p in before_raw)
 
 
 # --- atomic writes -------------------------------------------------------------------------
@@ -85,15 +103,30 @@ def test_killed_validate_leaves_no_partial_report_and_no_temp_files(lab):
     nothing new or the old complete report, never a fragment or a temp file."""
     out = lab / "out"
     # an older, complete report of the same experiment must survive untouched
-    ok = runner.invoke(app, ["validate", "dynamic", str(lab / "experiments/dynamic.toml"),
-                             "--out", str(out), "--mc-draws", "10"])
+    ok = runner.invoke(
+        app,
+        ["validate", "dynamic", str(lab / "experiments/dynamic.toml"), "--out", str(out), "--mc-draws", "10"],
+    )
     assert ok.exit_code == 0, ok.output
     old = tree_hashes(out)
     proc = subprocess.Popen(
-        [sys.executable, "-m", "tcamlab", "validate", "dynamic", "experiments/dynamic.toml",
-         "--out", "out", "--mc-draws", "20000"],
-        cwd=lab, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        env={**os.environ, "PYTHONPATH": str(ROOT)})
+        [
+            sys.executable,
+            "-m",
+            "tcamlab",
+            "validate",
+            "dynamic",
+            "experiments/dynamic.toml",
+            "--out",
+            "out",
+            "--mc-draws",
+            "20000",
+        ],
+        cwd=lab,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
     try:
         time.sleep(3.0)
         assert proc.poll() is None, "validation finished before it could be killed"
@@ -160,17 +193,16 @@ def test_failure_while_writing_keeps_the_old_report_whole(lab, monkeypatch):
 
 
 def _all_outputs(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file()}
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def _run_everything(lab: Path, out: str) -> dict[str, bytes]:
-    for args in (["report", "--out", out, "--mc-draws", "30"],
-                 ["fit-spring", "raw/sensing_run1.csv", "raw/sensing_run2.csv",
-                  "--plot", f"{out}/fit.svg"],
-                 ["fit-spring", "raw/sensing_run1.csv", "--plot", f"{out}/fit.png"],
-                 ["validate", "dynamic", "experiments/dynamic.toml", "--out", f"{out}/v",
-                  "--mc-draws", "30"]):
+    for args in (
+        ["report", "--out", out, "--mc-draws", "30"],
+        ["fit-spring", "raw/sensing_run1.csv", "raw/sensing_run2.csv", "--plot", f"{out}/fit.svg"],
+        ["fit-spring", "raw/sensing_run1.csv", "--plot", f"{out}/fit.png"],
+        ["validate", "dynamic", "experiments/dynamic.toml", "--out", f"{out}/v", "--mc-draws", "30"],
+    ):
         result = runner.invoke(app, args)
         assert result.exit_code == 0, result.output
     return _all_outputs(lab / out)
@@ -194,13 +226,20 @@ def test_outputs_hold_no_absolute_paths(lab, tmp_path_factory):
     elsewhere = tmp_path_factory.mktemp("cwd")
     out = lab / "out"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    for args in (["validate", "static", str(lab / "experiments/static.toml"), "--out", str(out)],
-                 ["report", str(lab / "experiments/sensing.toml"),
-                  str(lab / "experiments/curvature.toml"), "--out", str(out)],
-                 ["fit-spring", str(lab / "raw/sensing_run1.csv"), "--plot",
-                  str(out / "fit.svg")]):
-        proc = subprocess.run([sys.executable, "-m", "tcamlab", *args], cwd=elsewhere, env=env,
-                              capture_output=True, text=True)
+    for args in (
+        ["validate", "static", str(lab / "experiments/static.toml"), "--out", str(out)],
+        [
+            "report",
+            str(lab / "experiments/sensing.toml"),
+            str(lab / "experiments/curvature.toml"),
+            "--out",
+            str(out),
+        ],
+        ["fit-spring", str(lab / "raw/sensing_run1.csv"), "--plot", str(out / "fit.svg")],
+    ):
+        proc = subprocess.run(
+            [sys.executable, "-m", "tcamlab", *args], cwd=elsewhere, env=env, capture_output=True, text=True
+        )
         assert proc.returncode == 0, proc.stderr
     from pypdf import PdfReader
 

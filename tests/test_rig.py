@@ -28,11 +28,15 @@ def template(kind):
 def model_options(kind, exp):
     """Options of forward.predict as the pipeline would know them (S from the template)."""
     if kind == "sensing":
-        return {"spring_constant": template(kind).rig.spring_constant,
-                "initial_resistance": exp.rig.initial_resistance}
+        return {
+            "spring_constant": template(kind).rig.spring_constant,
+            "initial_resistance": exp.rig.initial_resistance,
+        }
     if kind == "curvature":
-        return {"spring_constant": exp.rig.spring_constant,
-                "initial_resistances": (exp.rig.initial_resistance,) * 2}
+        return {
+            "spring_constant": exp.rig.spring_constant,
+            "initial_resistances": (exp.rig.initial_resistance,) * 2,
+        }
     return {}
 
 
@@ -47,8 +51,7 @@ def residuals(kind, exp, mods=fw.NO_MODS, **options):
     """{quantity: residuals pooled over runs} of the thesis model on the experiment's data."""
     out = {q: [] for q in fw.OUTPUTS[kind]}
     for run in exp.read_runs():
-        pred = fw.predict(kind, exp.sample, exp.rig, run.data, mods,
-                          **(options or model_options(kind, exp)))
+        pred = fw.predict(kind, exp.sample, exp.rig, run.data, mods, **(options or model_options(kind, exp)))
         for q in out:
             out[q].append(run.data[q].to_numpy(float) - np.asarray(pred[q], float))
     return {q: np.concatenate(v) for q, v in out.items()}
@@ -62,8 +65,7 @@ def files_of(res):
 def clean(tmp_path_factory):
     """Effect-free experiments of every kind (seed 11)."""
     out = tmp_path_factory.mktemp("clean")
-    return {kind: rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=11, out_dir=out)
-            for kind in KINDS}
+    return {kind: rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=11, out_dir=out) for kind in KINDS}
 
 
 # --- templates and config ----------------------------------------------------------
@@ -74,7 +76,7 @@ def test_templates_load_without_runs(kind):
     exp = template(kind)
     assert exp.kind == kind and exp.runs == ()
     assert "synthetic" in exp.title
-    with pytest.raises(Exception):
+    with pytest.raises(Exception):  # noqa: B017 (any refusal will do)
         load_experiment(TEMPLATES / f"{kind}.toml")  # runs = [] is refused by default
 
 
@@ -160,10 +162,8 @@ def test_shipped_sample_data_is_reproducible(tmp_path):
         shipped = ROOT / "experiments" / f"{kind}.toml"
         if not shipped.exists():
             pytest.skip("sample data not generated")
-        cmd = (f"tcamlab simulate {kind} --experiment experiments/templates/{kind}.toml "
-               "--seed 1 --out .")
-        res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=1, out_dir=tmp_path,
-                           command=cmd)
+        cmd = f"tcamlab simulate {kind} --experiment experiments/templates/{kind}.toml --seed 1 --out ."
+        res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=1, out_dir=tmp_path, command=cmd)
         assert res.experiment_path.read_bytes() == shipped.read_bytes()
         for p in res.run_paths:
             assert p.read_bytes() == (ROOT / "raw" / p.name).read_bytes(), p.name
@@ -177,18 +177,25 @@ def test_experiment_and_csvs_do_not_reveal_effects(tmp_path, kind):
     names = [e.name for e in effects_for(kind)]
     active = {names[-1]: 4.0}
     cmd = f"tcamlab simulate {kind} --seed 2 --effect {names[-1]}=4"
-    eff = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=2, out_dir=tmp_path / "e",
-                       effects=active, command=cmd)
-    none = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=2, out_dir=tmp_path / "n",
-                        command=f"tcamlab simulate {kind} --seed 2")
+    eff = rig.simulate(
+        kind, TEMPLATES / f"{kind}.toml", seed=2, out_dir=tmp_path / "e", effects=active, command=cmd
+    )
+    none = rig.simulate(
+        kind,
+        TEMPLATES / f"{kind}.toml",
+        seed=2,
+        out_dir=tmp_path / "n",
+        command=f"tcamlab simulate {kind} --seed 2",
+    )
     # The experiment file is the same as without the effect ...
     assert eff.experiment_path.read_bytes() == none.experiment_path.read_bytes()
     # ... and neither it nor the CSVs name an effect or its parameters.
     info = eff.truth["effects"][names[-1]]
     texts = [eff.experiment_path.read_text()] + [p.read_text() for p in eff.run_paths]
     words = names + [f for e in effects_for(kind) for f in e.param_names] + ["effect"]
-    values = [repr(v) for v in info["parameters"].values()] + [f"{v:.6g}" for v in
-                                                             info["parameters"].values()]
+    values = [repr(v) for v in info["parameters"].values()] + [
+        f"{v:.6g}" for v in info["parameters"].values()
+    ]
     for text in texts:
         low = text.lower()
         for w in words + values:
@@ -222,8 +229,7 @@ def test_noise_floor_with_more_seeds(tmp_path, kind):
     """The noise sd is the floor on average, not only for one lucky seed."""
     ratios = {q: [] for q in fw.OUTPUTS[kind]}
     for seed in (21, 22):
-        res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=seed,
-                           out_dir=tmp_path / str(seed))
+        res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=seed, out_dir=tmp_path / str(seed))
         exp = load_experiment(res.experiment_path)
         sd = rig.noise_sd(kind, exp.sample, true_rig(kind, exp))
         for q, r in residuals(kind, exp).items():
@@ -242,14 +248,16 @@ def test_noise_sd_contents():
     assert q == pytest.approx(10e-3 / 1023)
     assert st["displacement"] >= math.sqrt(5e-6**2 + q**2 / 12)
     assert rig.noise_sd("dynamic")["displacement"] == pytest.approx(
-        rig.instrument_sd("dynamic")["displacement"])
+        rig.instrument_sd("dynamic")["displacement"]
+    )
     assert rig.noise_sd("curvature")["kappa1"] > 0.2
     assert rig.noise_sd("static", noise_scale=2.0)["temperature"] > 0.39
 
 
 def test_noise_scale_zero_leaves_only_quantisation(tmp_path):
-    res = rig.simulate("curvature", TEMPLATES / "curvature.toml", seed=1, out_dir=tmp_path,
-                       noise_scale=0.0, scatter={})
+    res = rig.simulate(
+        "curvature", TEMPLATES / "curvature.toml", seed=1, out_dir=tmp_path, noise_scale=0.0, scatter={}
+    )
     exp = load_experiment(res.experiment_path)
     for q, r in residuals("curvature", exp).items():
         # resistance rounding to 1 mohm is all that is left
@@ -263,8 +271,7 @@ CASES = [(k, e.name) for k in KINDS for e in effects_for(k)]
 
 @pytest.mark.parametrize("kind,name", CASES)
 def test_strength_is_in_noise_sd(tmp_path, kind, name):
-    res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=7, out_dir=tmp_path,
-                       effects={name: 5.0})
+    res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=7, out_dir=tmp_path, effects={name: 5.0})
     info = res.truth["effects"][name]
     achieved = info["achieved_strength"]
     if info["limited_by"] is None:
@@ -286,8 +293,13 @@ def test_strength_is_in_noise_sd(tmp_path, kind, name):
 
 
 def test_explicit_value_and_two_effects(tmp_path):
-    res = rig.simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path,
-                       effects={"glass-transition": {"value": 0.2}, "displacement-drift": 3.0})
+    res = rig.simulate(
+        "static",
+        TEMPLATES / "static.toml",
+        seed=1,
+        out_dir=tmp_path,
+        effects={"glass-transition": {"value": 0.2}, "displacement-drift": 3.0},
+    )
     eff = res.truth["effects"]
     assert eff["glass-transition"]["parameters"] == {"glass_gain": 0.2}
     assert eff["glass-transition"]["achieved_strength"] > 0
@@ -340,8 +352,8 @@ def test_bad_arguments_are_config_errors(tmp_path):
     with pytest.raises(ConfigError):
         rig.simulate("static", TEMPLATES / "dynamic.toml", seed=1, out_dir=tmp_path)
     with pytest.raises(ConfigError):
-        rig.simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path,
-                     effects={"no-such-effect": 1.0})
+        rig.simulate(
+            "static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path, effects={"no-such-effect": 1.0}
+        )
     with pytest.raises(ConfigError):
-        rig.simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path,
-                     scatter={"colour": 0.1})
+        rig.simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path, scatter={"colour": 0.1})

@@ -38,8 +38,7 @@ _A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
 _A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
 _A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
 _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
-_E1, _E3, _E4, _E5, _E6, _E7 = (71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200,
-                                22 / 525, -1 / 40)
+_E1, _E3, _E4, _E5, _E6, _E7 = (71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
 
 
 @njit(cache=True, fastmath=False)
@@ -55,7 +54,7 @@ def rhs(T, x, v, volt, p, out):
     r = p[P_RHO] * dT
     one_r = 1.0 + r
     d0 = p[P_D0]
-    tau = g_tau * p[P_PHI0] * np.pi * d0 ** 4 * one_r ** 3 * r / (32.0 * p[P_L])
+    tau = g_tau * p[P_PHI0] * np.pi * d0**4 * one_r**3 * r / (32.0 * p[P_L])
     s = p[P_S0] + x / p[P_L]
     if s <= 0.0 or s >= 1.0:
         return ERR_PITCH
@@ -65,8 +64,12 @@ def rhs(T, x, v, volt, p, out):
     c2 = 1.0 - s2
     gt = p[P_GT]
     e = p[P_E]
-    f11 = (p[P_A0] * k4 * c2 * c2 / gt + p[P_B0] * k2 * c2 / (2.0 * gt)
-           + 2.0 * p[P_A0] * k4 * s2 * c2 / e + p[P_B0] * k2 * s2 / (2.0 * e))
+    f11 = (
+        p[P_A0] * k4 * c2 * c2 / gt
+        + p[P_B0] * k2 * c2 / (2.0 * gt)
+        + 2.0 * p[P_A0] * k4 * s2 * c2 / e
+        + p[P_B0] * k2 * s2 / (2.0 * e)
+    )
     f12 = p[P_C0] * k4 * c2 / gt
     f_int = (x + f12 * tau) / f11
     out[2] = (p[P_FEXT] - p[P_DAMP] * v - f_int) / p[P_MASS]
@@ -95,27 +98,27 @@ def _dp5_step(y, h, volt, p, k, ytmp, ynew, atol, rtol):
     if st != OK:
         return st, 0.0
     for i in range(3):
-        ytmp[i] = y[i] + h * (_A51 * k[0, i] + _A52 * k[1, i] + _A53 * k[2, i]
-                              + _A54 * k[3, i])
+        ytmp[i] = y[i] + h * (_A51 * k[0, i] + _A52 * k[1, i] + _A53 * k[2, i] + _A54 * k[3, i])
     st = rhs(ytmp[0], ytmp[1], ytmp[2], volt, p, k[4])
     if st != OK:
         return st, 0.0
     for i in range(3):
-        ytmp[i] = y[i] + h * (_A61 * k[0, i] + _A62 * k[1, i] + _A63 * k[2, i]
-                              + _A64 * k[3, i] + _A65 * k[4, i])
+        ytmp[i] = y[i] + h * (
+            _A61 * k[0, i] + _A62 * k[1, i] + _A63 * k[2, i] + _A64 * k[3, i] + _A65 * k[4, i]
+        )
     st = rhs(ytmp[0], ytmp[1], ytmp[2], volt, p, k[5])
     if st != OK:
         return st, 0.0
     for i in range(3):
-        ynew[i] = y[i] + h * (_B1 * k[0, i] + _B3 * k[2, i] + _B4 * k[3, i]
-                              + _B5 * k[4, i] + _B6 * k[5, i])
+        ynew[i] = y[i] + h * (_B1 * k[0, i] + _B3 * k[2, i] + _B4 * k[3, i] + _B5 * k[4, i] + _B6 * k[5, i])
     st = rhs(ynew[0], ynew[1], ynew[2], volt, p, k[6])
     if st != OK:
         return st, 0.0
     err = 0.0
     for i in range(3):
-        e = h * (_E1 * k[0, i] + _E3 * k[2, i] + _E4 * k[3, i] + _E5 * k[4, i]
-                 + _E6 * k[5, i] + _E7 * k[6, i])
+        e = h * (
+            _E1 * k[0, i] + _E3 * k[2, i] + _E4 * k[3, i] + _E5 * k[4, i] + _E6 * k[5, i] + _E7 * k[6, i]
+        )
         sc = atol[i] + rtol * max(abs(y[i]), abs(ynew[i]))
         q = abs(e) / sc
         if q > err:
@@ -178,7 +181,6 @@ def integrate_many(t, volt, y0s, ps, atol, rtol, store_every, out_T, out_x, stat
     """Integrate one trajectory per row of ``ps`` in parallel (Monte Carlo)."""
     n = ps.shape[0]
     for i in prange(n):
-        st, at, _ = integrate(t, volt, y0s[i], ps[i], atol, rtol, store_every,
-                              out_T[i], out_x[i])
+        st, at, _ = integrate(t, volt, y0s[i], ps[i], atol, rtol, store_every, out_T[i], out_x[i])
         status[i] = st
         fail_at[i] = at

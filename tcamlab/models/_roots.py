@@ -10,8 +10,8 @@ root Newton happens to find.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -110,7 +110,7 @@ def bracketed_newton(
     residual = np.full(n, np.nan)
     active = idx_all
     it = 0
-    for it in range(1, maxiter + 1):
+    for it in range(1, maxiter + 1):  # noqa: B007 (its last value is reported)
         # While every element is still iterating, a slice avoids fancy-index copies.
         sel = slice(None) if active.size == n else active
         xa = x[sel].copy()

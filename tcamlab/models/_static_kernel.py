@@ -32,8 +32,9 @@ def _h(s, l, s0, F, tau, A, B, C, g, e):
 
 
 @njit(cache=True, parallel=True)
-def solve(n, dT, F, g_t, g_tau, d0, l, s0, ncoil, twists, rho, e_fab, e_slope,
-          xtol, rtol, maxiter, out_s, status):
+def solve(
+    n, dT, F, g_t, g_tau, d0, l, s0, ncoil, twists, rho, e_fab, e_slope, xtol, rtol, maxiter, out_s, status
+):
     for i in prange(n):
         dti = _at(dT, i)
         x = _at(rho, i) * dti
@@ -41,12 +42,11 @@ def solve(n, dT, F, g_t, g_tau, d0, l, s0, ncoil, twists, rho, e_fab, e_slope,
         li = _at(l, i)
         ni = _at(ncoil, i)
         gi = _at(g_t, i)
-        tau = (_at(g_tau, i) * 2.0 * np.pi * _at(twists, i) * np.pi * d0i ** 4
-               * (1.0 + x) ** 3 * x / (32.0 * li))
+        tau = _at(g_tau, i) * 2.0 * np.pi * _at(twists, i) * np.pi * d0i**4 * (1.0 + x) ** 3 * x / (32.0 * li)
         d = d0i * (1.0 + x)
-        A = 8.0 * ni / (np.pi ** 3 * d ** 4) * (li / ni) ** 3
-        B = 8.0 * ni / (np.pi * d ** 2) * (li / ni)
-        C = 8.0 * ni / (np.pi ** 2 * d ** 4) * (li / ni) ** 2
+        A = 8.0 * ni / (np.pi**3 * d**4) * (li / ni) ** 3
+        B = 8.0 * ni / (np.pi * d**2) * (li / ni)
+        C = 8.0 * ni / (np.pi**2 * d**4) * (li / ni) ** 2
         e = _at(e_fab, i) * (1.0 - _at(e_slope, i) * dti)
         Fi = _at(F, i)
         s0i = _at(s0, i)

@@ -126,19 +126,30 @@ def curvatures(
     if res.shape[0] != lengths.size or len(initial_resistances) != lengths.size:
         raise ModelDomainError(
             f"curvature model: {res.shape[0]} resistance series for {lengths.size} segments",
-            hint="segment_lengths_mm needs one length per resistance column")
+            hint="segment_lengths_mm needs one length per resistance column",
+        )
     if abs(lengths.sum() - coil_length) > 1e-6 * coil_length:
         raise ModelDomainError(
             f"curvature model: segment lengths sum to {lengths.sum() * 1e3:g} mm but the "
             f"sensor is {coil_length * 1e3:g} mm long",
-            hint="segment_lengths_mm must add up to coil_length_mm")
+            hint="segment_lengths_mm must add up to coil_length_mm",
+        )
     elong = np.empty_like(res)
     for i, length in enumerate(lengths):
         ratio = length / coil_length
         elong[i], _ = _sensing.invert(
-            res[i], initial_resistances[i], spring_constant, fiber_diameter,
-            fiber_length * ratio, length, coil_diameter, twists * ratio, youngs_modulus,
-            thread_plies, max_volume_fraction)
+            res[i],
+            initial_resistances[i],
+            spring_constant,
+            fiber_diameter,
+            fiber_length * ratio,
+            length,
+            coil_diameter,
+            twists * ratio,
+            youngs_modulus,
+            thread_plies,
+            max_volume_fraction,
+        )
     cab = cable_lengths(elong, cable, lengths)
     kappa = segment_curvature(lengths[:, None] + elong, cab, sensor_offset)
     return kappa, elong

@@ -41,8 +41,16 @@ ATOL = (1e-6, 1e-10, 1e-9)
 METHOD = "dp5"
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau", "BDF")
 
-__all__ = ["response", "DynamicResult", "monte_carlo", "MonteCarloResult",
-           "lognormal_draws", "RTOL", "ATOL", "METHOD"]
+__all__ = [
+    "response",
+    "DynamicResult",
+    "monte_carlo",
+    "MonteCarloResult",
+    "lognormal_draws",
+    "RTOL",
+    "ATOL",
+    "METHOD",
+]
 
 
 @dataclass
@@ -80,9 +88,14 @@ class DynamicResult:
 
     def to_pandas(self) -> pd.DataFrame:
         """Frame with SI columns time, voltage, temperature, displacement."""
-        return pd.DataFrame({"time": self.time, "voltage": self.voltage,
-                             "temperature": self.temperature,
-                             "displacement": self.displacement})
+        return pd.DataFrame(
+            {
+                "time": self.time,
+                "voltage": self.voltage,
+                "temperature": self.temperature,
+                "displacement": self.displacement,
+            }
+        )
 
     def plot(self, ax=None):
         """Displacement [mm] against time [s] on ``ax`` (a new figure if None)."""
@@ -96,15 +109,35 @@ class DynamicResult:
         return ax
 
 
-def _pack(fiber_diameter, fiber_length, coil_length, coil_diameter, twists, youngs_modulus,
-          thread_plies, max_volume_fraction, radial_cte, shear_modulus_slope, load, damping,
-          thermal_mass, heat_loss, resistance, ambient, resistance_tc, heat_loss_tc):
+def _pack(
+    fiber_diameter,
+    fiber_length,
+    coil_length,
+    coil_diameter,
+    twists,
+    youngs_modulus,
+    thread_plies,
+    max_volume_fraction,
+    radial_cte,
+    shear_modulus_slope,
+    load,
+    damping,
+    thermal_mass,
+    heat_loss,
+    resistance,
+    ambient,
+    resistance_tc,
+    heat_loss_tc,
+):
     """Parameter vector of the kernel (layout in _dynamic_kernel)."""
     from tcamlab.models import _dynamic_kernel as K
 
     p = np.zeros(K.N_PARAMS)
-    g_t = float(_static.sample_shear_modulus(fiber_diameter, fiber_length, twists,
-                                             youngs_modulus, thread_plies, max_volume_fraction))
+    g_t = float(
+        _static.sample_shear_modulus(
+            fiber_diameter, fiber_length, twists, youngs_modulus, thread_plies, max_volume_fraction
+        )
+    )
     n = float(_static.n_coils(fiber_length, coil_length, coil_diameter))
     a0, b0, c0 = _static._compliance_coefficients(fiber_diameter, fiber_length, n)
     p[K.P_MASS], p[K.P_DAMP] = load, damping
@@ -115,8 +148,13 @@ def _pack(fiber_diameter, fiber_length, coil_length, coil_diameter, twists, youn
     p[K.P_E], p[K.P_PHI0] = youngs_modulus, 2.0 * np.pi * twists
     p[K.P_A0], p[K.P_B0], p[K.P_C0] = float(a0), float(b0), float(c0)
     p[K.P_FEXT] = load * G_ACCEL
-    for name, value in (("load", load), ("damping", damping), ("thermal_mass", thermal_mass),
-                        ("heat_loss", heat_loss), ("resistance", resistance)):
+    for name, value in (
+        ("load", load),
+        ("damping", damping),
+        ("thermal_mass", thermal_mass),
+        ("heat_loss", heat_loss),
+        ("resistance", resistance),
+    ):
         if not value > 0:
             raise ModelDomainError(f"dynamic model: {name} = {value} must be positive")
     return p
@@ -148,8 +186,7 @@ def _raise_status(status, where, t, p):
     if status == K.ERR_NONFINITE:
         raise IntegrationError(f"dynamic model: non-finite state at {at}")
     raise IntegrationError(
-        f"dynamic model: step size collapsed at {at} (tolerances not met after "
-        f"2^{K.MAX_HALVINGS} sub-steps)",
+        f"dynamic model: step size collapsed at {at} (tolerances not met after 2^{K.MAX_HALVINGS} sub-steps)",
         hint="loosen rtol/atol or check the parameters",
     )
 
@@ -237,14 +274,42 @@ def response(
         The integrator failed.
     """
     t, v = _check_grid(time, voltage)
-    p = _pack(fiber_diameter, fiber_length, coil_length, coil_diameter, twists, youngs_modulus,
-              thread_plies, max_volume_fraction, radial_cte, shear_modulus_slope, load,
-              damping, thermal_mass, heat_loss, resistance, ambient, resistance_tc,
-              heat_loss_tc)
-    x0 = float(_static.displacement(0.0, load * G_ACCEL, fiber_diameter, fiber_length,
-                                    coil_length, coil_diameter, twists, youngs_modulus,
-                                    thread_plies, max_volume_fraction, radial_cte,
-                                    shear_modulus_slope))
+    p = _pack(
+        fiber_diameter,
+        fiber_length,
+        coil_length,
+        coil_diameter,
+        twists,
+        youngs_modulus,
+        thread_plies,
+        max_volume_fraction,
+        radial_cte,
+        shear_modulus_slope,
+        load,
+        damping,
+        thermal_mass,
+        heat_loss,
+        resistance,
+        ambient,
+        resistance_tc,
+        heat_loss_tc,
+    )
+    x0 = float(
+        _static.displacement(
+            0.0,
+            load * G_ACCEL,
+            fiber_diameter,
+            fiber_length,
+            coil_length,
+            coil_diameter,
+            twists,
+            youngs_modulus,
+            thread_plies,
+            max_volume_fraction,
+            radial_cte,
+            shear_modulus_slope,
+        )
+    )
     y0 = np.array([float(ambient), x0, 0.0])
     atol_arr = np.asarray(atol, float)
     if method == "dp5":
@@ -266,8 +331,7 @@ def _python_rhs(p):
     """The right-hand side as plain Python (reference path for solve_ivp)."""
     from tcamlab.models import _dynamic_kernel as K
 
-    m, b, cth, lam, res, ta = (p[K.P_MASS], p[K.P_DAMP], p[K.P_CTH], p[K.P_LAM], p[K.P_RES],
-                               p[K.P_TA])
+    m, b, cth, lam, res, ta = (p[K.P_MASS], p[K.P_DAMP], p[K.P_CTH], p[K.P_LAM], p[K.P_RES], p[K.P_TA])
     beta, gamma, s0, l, d0 = p[K.P_BETA], p[K.P_GAMMA], p[K.P_S0], p[K.P_L], p[K.P_D0]
     rho, gt, slope, e, phi0 = p[K.P_RHO], p[K.P_GT], p[K.P_SLOPE], p[K.P_E], p[K.P_PHI0]
     a0, b0, c0, fext = p[K.P_A0], p[K.P_B0], p[K.P_C0], p[K.P_FEXT]
@@ -281,7 +345,8 @@ def _python_rhs(p):
             raise ModelDomainError(
                 f"dynamic model: temperature exceeds T_a + {gt / slope:.1f} K, where G_t' "
                 "of eq. (2.13) reaches zero",
-                hint="lower the voltage or pulse length, or use the constant-G model")
+                hint="lower the voltage or pulse length, or use the constant-G model",
+            )
         r = rho * dT
         tau = g_tau * phi0 * np.pi * d0**4 * (1 + r) ** 3 * r / (32 * l)
         s = s0 + x / l
@@ -289,8 +354,12 @@ def _python_rhs(p):
         k4 = k2 * k2
         s2 = s * s
         c2 = 1 - s2
-        f11 = (a0 * k4 * c2 * c2 / gt + b0 * k2 * c2 / (2 * gt)
-               + 2 * a0 * k4 * s2 * c2 / e + b0 * k2 * s2 / (2 * e))
+        f11 = (
+            a0 * k4 * c2 * c2 / gt
+            + b0 * k2 * c2 / (2 * gt)
+            + 2 * a0 * k4 * s2 * c2 / e
+            + b0 * k2 * s2 / (2 * e)
+        )
         f12 = c0 * k4 * c2 / gt
         return [tdot, vel, (fext - b * vel - (x + f12 * tau) / f11) / m]
 
@@ -311,14 +380,23 @@ def _solve_ivp(t, v, y0, p, method, rtol, atol):
     nfev = 0
     raws = []
     for i0, i1 in zip(bounds[:-1], bounds[1:]):
-        sol = solve_ivp(f, (t[i0], t[i1]), y, method=method, t_eval=t[i0:i1 + 1],
-                        rtol=rtol, atol=atol, args=(float(v[i0]),))
+        sol = solve_ivp(
+            f,
+            (t[i0], t[i1]),
+            y,
+            method=method,
+            t_eval=t[i0 : i1 + 1],
+            rtol=rtol,
+            atol=atol,
+            args=(float(v[i0]),),
+        )
         if not sol.success:
             raise IntegrationError(
                 f"dynamic model: solve_ivp ({method}) failed between t = {t[i0]:.4g} s and "
-                f"{t[i1]:.4g} s: {sol.message}")
-        out_T[i0:i1 + 1] = sol.y[0]
-        out_x[i0:i1 + 1] = sol.y[1]
+                f"{t[i1]:.4g} s: {sol.message}"
+            )
+        out_T[i0 : i1 + 1] = sol.y[0]
+        out_x[i0 : i1 + 1] = sol.y[1]
         y = sol.y[:, -1].copy()
         nfev += sol.nfev
         raws.append(sol)
@@ -400,15 +478,26 @@ class MonteCarloResult:
 
             ax = Figure().add_subplot()
         q = self.band()
-        ax.fill_between(self.time, q[0] * 1e3, q[-1] * 1e3, alpha=0.3,
-                        label="95% Monte Carlo band")
+        ax.fill_between(self.time, q[0] * 1e3, q[-1] * 1e3, alpha=0.3, label="95% Monte Carlo band")
         ax.set_xlabel("time [s]")
         ax.set_ylabel("displacement [mm]")
         return ax
 
 
-def monte_carlo(time, voltage, sample, rig, *, n_draws=1000, seed=0, uncertainty=None,
-                shear_modulus_slope=None, store_every=1, rtol=1e-6, atol=(1e-4, 1e-8, 1e-7)):
+def monte_carlo(
+    time,
+    voltage,
+    sample,
+    rig,
+    *,
+    n_draws=1000,
+    seed=0,
+    uncertainty=None,
+    shear_modulus_slope=None,
+    store_every=1,
+    rtol=1e-6,
+    atol=(1e-4, 1e-8, 1e-7),
+):
     """Prediction band from parameter uncertainty, by Monte Carlo (parallel, JIT).
 
     Parameters
@@ -444,15 +533,21 @@ def monte_carlo(time, voltage, sample, rig, *, n_draws=1000, seed=0, uncertainty
     rng = np.random.default_rng(seed)
     unc = dict(rig.uncertainty if uncertainty is None else uncertainty)
     base = {name: float(getattr(rig, name)) for name in MC_PARAMS}
-    draws = {name: lognormal_draws(base[name], float(unc.get(name, 0.0)), n_draws, rng)
-             for name in MC_PARAMS}
+    draws = {name: lognormal_draws(base[name], float(unc.get(name, 0.0)), n_draws, rng) for name in MC_PARAMS}
     skw = sample.model_kwargs()
     if shear_modulus_slope is not None:
         skw["shear_modulus_slope"] = shear_modulus_slope
-    p0 = _pack(**skw, load=base["load"], damping=base["damping"],
-               thermal_mass=base["thermal_mass"], heat_loss=base["heat_loss"],
-               resistance=base["resistance"], ambient=rig.ambient, resistance_tc=0.0,
-               heat_loss_tc=0.0)
+    p0 = _pack(
+        **skw,
+        load=base["load"],
+        damping=base["damping"],
+        thermal_mass=base["thermal_mass"],
+        heat_loss=base["heat_loss"],
+        resistance=base["resistance"],
+        ambient=rig.ambient,
+        resistance_tc=0.0,
+        heat_loss_tc=0.0,
+    )
     ps = np.tile(p0, (n_draws, 1))
     ps[:, K.P_MASS] = draws["load"]
     ps[:, K.P_DAMP] = draws["damping"]
@@ -467,8 +562,9 @@ def monte_carlo(time, voltage, sample, rig, *, n_draws=1000, seed=0, uncertainty
     out_x = np.empty((n_draws, n_store))
     status = np.zeros(n_draws, dtype=np.int64)
     fail_at = np.zeros(n_draws, dtype=np.int64)
-    K.integrate_many(t, v, y0s, ps, np.asarray(atol, float), float(rtol), int(store_every),
-                     out_T, out_x, status, fail_at)
+    K.integrate_many(
+        t, v, y0s, ps, np.asarray(atol, float), float(rtol), int(store_every), out_T, out_x, status, fail_at
+    )
     if np.any((status == K.ERR_NONFINITE) | (status == K.ERR_STEPS)):
         k = int(np.flatnonzero((status == K.ERR_NONFINITE) | (status == K.ERR_STEPS))[0])
         _raise_status(int(status[k]), int(fail_at[k]), t, ps[k])

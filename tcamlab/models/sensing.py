@@ -35,8 +35,16 @@ from tcamlab.errors import ModelDomainError
 from tcamlab.models import static as _static
 from tcamlab.models._roots import MAXITER, bracketed_newton
 
-__all__ = ["diameter_from_resistance", "resistance_from_diameter", "torque",
-           "invert", "forward", "conditioning", "Conditioning", "ILL_CONDITIONED_MARGIN"]
+__all__ = [
+    "diameter_from_resistance",
+    "resistance_from_diameter",
+    "torque",
+    "invert",
+    "forward",
+    "conditioning",
+    "Conditioning",
+    "ILL_CONDITIONED_MARGIN",
+]
 
 ILL_CONDITIONED_MARGIN = 0.05
 """Margin 1 - S f11(alpha0) below which the inversion is flagged ill-conditioned:
@@ -67,15 +75,18 @@ def diameter_from_resistance(resistance, initial_resistance, fiber_diameter):
     """
     r = np.asarray(resistance, float)
     if np.any(~(r > 0)):
-        raise ModelDomainError("sensing model: resistance must be positive",
-                               hint="check the resistance column and its unit")
+        raise ModelDomainError(
+            "sensing model: resistance must be positive", hint="check the resistance column and its unit"
+        )
     return np.asarray(fiber_diameter, float) * np.sqrt(np.asarray(initial_resistance, float) / r)
 
 
 def resistance_from_diameter(diameter, initial_resistance, fiber_diameter):
     """Inverse of :func:`diameter_from_resistance`: R = R0 (d0 / d)^2 [ohm]."""
-    return np.asarray(initial_resistance, float) * (
-        np.asarray(fiber_diameter, float) / np.asarray(diameter, float)) ** 2
+    return (
+        np.asarray(initial_resistance, float)
+        * (np.asarray(fiber_diameter, float) / np.asarray(diameter, float)) ** 2
+    )
 
 
 def torque(diameter, fiber_diameter, twists, fiber_length, shear_modulus):
@@ -101,8 +112,15 @@ def torque(diameter, fiber_diameter, twists, fiber_length, shear_modulus):
     """
     d = np.asarray(diameter, float)
     j = np.pi * d**4 / 32.0
-    return (np.asarray(shear_modulus, float) * j * 2.0 * np.pi * np.asarray(twists, float)
-            * (1.0 - np.asarray(fiber_diameter, float) / d) / np.asarray(fiber_length, float))
+    return (
+        np.asarray(shear_modulus, float)
+        * j
+        * 2.0
+        * np.pi
+        * np.asarray(twists, float)
+        * (1.0 - np.asarray(fiber_diameter, float) / d)
+        / np.asarray(fiber_length, float)
+    )
 
 
 @dataclass(frozen=True)
@@ -129,27 +147,51 @@ class Conditioning:
 
     def describe(self) -> str:
         if self.status == "ok":
-            return (f"well posed: S f11 = {1 - self.margin:.3f} "
-                    f"(margin {self.margin:.3f}, noise amplification {self.amplification:.2g}x)")
+            return (
+                f"well posed: S f11 = {1 - self.margin:.3f} "
+                f"(margin {self.margin:.3f}, noise amplification {self.amplification:.2g}x)"
+            )
         if self.status == "ill-conditioned":
-            return (f"ill-conditioned: S f11 = {1 - self.margin:.4f} is within "
-                    f"{self.margin:.4f} of 1; resistance noise is amplified "
-                    f"{self.amplification:.3g}x into displacement")
-        return (f"no physical root: S f11 = {1 - self.margin:.4f} >= 1, so no displacement "
-                f"continuous from R = R0 solves (3.6); S exceeds the model's spring stiffness "
-                f"{self.spring_stiffness_model:.4g} N/m")
+            return (
+                f"ill-conditioned: S f11 = {1 - self.margin:.4f} is within "
+                f"{self.margin:.4f} of 1; resistance noise is amplified "
+                f"{self.amplification:.3g}x into displacement"
+            )
+        return (
+            f"no physical root: S f11 = {1 - self.margin:.4f} >= 1, so no displacement "
+            f"continuous from R = R0 solves (3.6); S exceeds the model's spring stiffness "
+            f"{self.spring_stiffness_model:.4g} N/m"
+        )
 
 
-def _geometry(fiber_diameter, fiber_length, coil_length, coil_diameter, twists,
-              youngs_modulus, thread_plies, max_volume_fraction):
-    g_t = _static.sample_shear_modulus(fiber_diameter, fiber_length, twists, youngs_modulus,
-                                       thread_plies, max_volume_fraction)
+def _geometry(
+    fiber_diameter,
+    fiber_length,
+    coil_length,
+    coil_diameter,
+    twists,
+    youngs_modulus,
+    thread_plies,
+    max_volume_fraction,
+):
+    g_t = _static.sample_shear_modulus(
+        fiber_diameter, fiber_length, twists, youngs_modulus, thread_plies, max_volume_fraction
+    )
     n = _static.n_coils(fiber_length, coil_length, coil_diameter)
     return g_t, n
 
 
-def conditioning(spring_constant, fiber_diameter, fiber_length, coil_length, coil_diameter,
-                 twists, youngs_modulus, thread_plies=2, max_volume_fraction=0.887):
+def conditioning(
+    spring_constant,
+    fiber_diameter,
+    fiber_length,
+    coil_length,
+    coil_diameter,
+    twists,
+    youngs_modulus,
+    thread_plies=2,
+    max_volume_fraction=0.887,
+):
     """Margin of the sensing equation at rest, m0 = 1 - S f11(alpha0) (section 3.2).
 
     Parameters
@@ -169,10 +211,19 @@ def conditioning(spring_constant, fiber_diameter, fiber_length, coil_length, coi
     -------
     Conditioning
     """
-    g_t, n = _geometry(fiber_diameter, fiber_length, coil_length, coil_diameter, twists,
-                       youngs_modulus, thread_plies, max_volume_fraction)
-    f11, _ = _static.compliances(coil_length / fiber_length, fiber_diameter, fiber_length, n,
-                                 g_t, youngs_modulus)
+    g_t, n = _geometry(
+        fiber_diameter,
+        fiber_length,
+        coil_length,
+        coil_diameter,
+        twists,
+        youngs_modulus,
+        thread_plies,
+        max_volume_fraction,
+    )
+    f11, _ = _static.compliances(
+        coil_length / fiber_length, fiber_diameter, fiber_length, n, g_t, youngs_modulus
+    )
     margin = float(1.0 - spring_constant * f11)
     if margin <= 0:
         status = "no-physical-root"
@@ -180,8 +231,7 @@ def conditioning(spring_constant, fiber_diameter, fiber_length, coil_length, coi
         status = "ill-conditioned"
     else:
         status = "ok"
-    return Conditioning(margin, float(1.0 / margin) if margin != 0 else np.inf, status,
-                        float(1.0 / f11))
+    return Conditioning(margin, float(1.0 / margin) if margin != 0 else np.inf, status, float(1.0 / f11))
 
 
 def invert(
@@ -242,17 +292,34 @@ def invert(
         If S f11(alpha0) >= 1 (no physical root: see :func:`conditioning`) or
         a resistance lies below what the coil can reach in compression.
     """
-    cond = conditioning(spring_constant, fiber_diameter, fiber_length, coil_length,
-                        coil_diameter, twists, youngs_modulus, thread_plies, max_volume_fraction)
+    cond = conditioning(
+        spring_constant,
+        fiber_diameter,
+        fiber_length,
+        coil_length,
+        coil_diameter,
+        twists,
+        youngs_modulus,
+        thread_plies,
+        max_volume_fraction,
+    )
     if cond.status == "no-physical-root":
-        raise ModelDomainError("sensing model: " + cond.describe(),
-                               hint="check the spring constant and the sample geometry")
+        raise ModelDomainError(
+            "sensing model: " + cond.describe(), hint="check the spring constant and the sample geometry"
+        )
     r = np.asarray(resistance, float)
     shape = np.broadcast_shapes(r.shape, np.shape(initial_resistance))
-    d = np.broadcast_to(diameter_from_resistance(r, initial_resistance, fiber_diameter),
-                        shape).ravel()
-    g_t, n = _geometry(fiber_diameter, fiber_length, coil_length, coil_diameter, twists,
-                       youngs_modulus, thread_plies, max_volume_fraction)
+    d = np.broadcast_to(diameter_from_resistance(r, initial_resistance, fiber_diameter), shape).ravel()
+    g_t, n = _geometry(
+        fiber_diameter,
+        fiber_length,
+        coil_length,
+        coil_diameter,
+        twists,
+        youngs_modulus,
+        thread_plies,
+        max_volume_fraction,
+    )
     tau = torque(d, fiber_diameter, twists, fiber_length, g_t)
     l = float(fiber_length)
     s0 = float(coil_length) / l
@@ -263,8 +330,10 @@ def invert(
     def h(delta, i):
         s = s0 + delta / l
         f11, df11, f12, df12 = _static._f11_f12(s, a[i], b[i], c[i], g_t, E)
-        return (delta * (1.0 - S * f11) + f12 * tau[i],
-                1.0 - S * f11 - delta * S * df11 / l + tau[i] * df12 / l)
+        return (
+            delta * (1.0 - S * f11) + f12 * tau[i],
+            1.0 - S * f11 - delta * S * df11 / l + tau[i] * df12 / l,
+        )
 
     delta = np.zeros(d.size)
     stretched = tau < 0
@@ -276,13 +345,20 @@ def invert(
         hi = np.full(idx.size, l * (1.0 - s0) * (1.0 - 1e-12))
         f11_0, _, f12_0, _ = _static._f11_f12(s0, a[idx], b[idx], c[idx], g_t, E)
         guess = np.clip(-f12_0 * tau[idx] / (1.0 - S * f11_0), 0.0, hi)
-        res = bracketed_newton(lambda x, j: h(x, idx[j]), np.zeros(idx.size), hi, guess,
-                               xtol=xtol, rtol=rtol, maxiter=maxiter, what="sensing delta")
+        res = bracketed_newton(
+            lambda x, j: h(x, idx[j]),
+            np.zeros(idx.size),
+            hi,
+            guess,
+            xtol=xtol,
+            rtol=rtol,
+            maxiter=maxiter,
+            what="sensing delta",
+        )
         delta[idx] = res.root
     compressed = tau > 0
     if np.any(compressed):
-        delta[compressed] = _invert_compressed(h, np.flatnonzero(compressed), l, s0, xtol,
-                                               rtol, maxiter)
+        delta[compressed] = _invert_compressed(h, np.flatnonzero(compressed), l, s0, xtol, rtol, maxiter)
     delta = delta.reshape(shape)
     if full_output:
         return delta, S * delta, res
@@ -313,8 +389,16 @@ def _invert_compressed(h, idx, l, s0, xtol, rtol, maxiter):
             "than any compression of the coil explains (no physical root)",
             hint="check initial_resistance_ohm (R0) and the resistance column",
         )
-    res = bracketed_newton(lambda x, j: h(x, idx[j]), lo, hi, 0.5 * (lo + hi),
-                           xtol=xtol, rtol=rtol, maxiter=maxiter, what="sensing delta")
+    res = bracketed_newton(
+        lambda x, j: h(x, idx[j]),
+        lo,
+        hi,
+        0.5 * (lo + hi),
+        xtol=xtol,
+        rtol=rtol,
+        maxiter=maxiter,
+        what="sensing delta",
+    )
     return res.root
 
 
@@ -364,10 +448,17 @@ def forward(
     d0 = float(fiber_diameter)
     s = float(coil_length) / l + dl / l
     if np.any((s <= 0) | (s >= 1)):
-        raise ModelDomainError("sensing forward map: displacement puts the pitch angle "
-                               "outside (0, 90) deg")
-    g_t, n = _geometry(fiber_diameter, fiber_length, coil_length, coil_diameter, twists,
-                       youngs_modulus, thread_plies, max_volume_fraction)
+        raise ModelDomainError("sensing forward map: displacement puts the pitch angle outside (0, 90) deg")
+    g_t, n = _geometry(
+        fiber_diameter,
+        fiber_length,
+        coil_length,
+        coil_diameter,
+        twists,
+        youngs_modulus,
+        thread_plies,
+        max_volume_fraction,
+    )
     # Coefficients at unit diameter: f11 = P/d^4 + Q/d^2, f12 = U/d^4.
     a1, b1, c1 = _static._compliance_coefficients(1.0, l, n)
     s2 = s * s
@@ -391,15 +482,29 @@ def forward(
     neg = dl < 0
     if pos.any():
         idx = np.flatnonzero(pos)
-        res = bracketed_newton(lambda x, j: q(x, idx[j]), np.full(idx.size, 0.5),
-                               np.ones(idx.size), None, xtol=xtol, rtol=rtol,
-                               maxiter=maxiter, what="sensing diameter")
+        res = bracketed_newton(
+            lambda x, j: q(x, idx[j]),
+            np.full(idx.size, 0.5),
+            np.ones(idx.size),
+            None,
+            xtol=xtol,
+            rtol=rtol,
+            maxiter=maxiter,
+            what="sensing diameter",
+        )
         u[idx] = res.root
     if neg.any():
         idx = np.flatnonzero(neg)
-        res = bracketed_newton(lambda x, j: q(x, idx[j]), np.ones(idx.size),
-                               np.full(idx.size, 2.0), None, xtol=xtol, rtol=rtol,
-                               maxiter=maxiter, what="sensing diameter")
+        res = bracketed_newton(
+            lambda x, j: q(x, idx[j]),
+            np.ones(idx.size),
+            np.full(idx.size, 2.0),
+            None,
+            xtol=xtol,
+            rtol=rtol,
+            maxiter=maxiter,
+            what="sensing diameter",
+        )
         u[idx] = res.root
     r0 = np.broadcast_to(np.asarray(initial_resistance, float), shape).ravel()
     return (r0 / u**2).reshape(shape)

@@ -117,15 +117,19 @@ def transverse_shear_modulus(youngs_modulus, volume_fraction, bias_angle):
     """
     a = np.asarray(bias_angle, float)
     c = np.cos(a)
-    num = 4.0 * np.asarray(volume_fraction, float) * np.asarray(youngs_modulus, float) * (
-        a / 2.0 - np.sin(2.0 * a) / 4.0
-    ) ** 2
+    num = (
+        4.0
+        * np.asarray(volume_fraction, float)
+        * np.asarray(youngs_modulus, float)
+        * (a / 2.0 - np.sin(2.0 * a) / 4.0) ** 2
+    )
     den = np.pi * (2.0 + np.pi) * (2.0 / 3.0 - c + c**3 / 3.0) * (1.0 - c)
     return num / den
 
 
-def sample_shear_modulus(fiber_diameter, fiber_length, twists, youngs_modulus,
-                         thread_plies=2, max_volume_fraction=0.887):
+def sample_shear_modulus(
+    fiber_diameter, fiber_length, twists, youngs_modulus, thread_plies=2, max_volume_fraction=0.887
+):
     """G_t of a sample from its fabrication geometry, (2.12) with V_f and alpha_f.
 
     Parameters
@@ -201,9 +205,7 @@ def shear_modulus_at(delta_T, shear_modulus, shear_modulus_slope):
     ModelDomainError
         Where G_t' <= 0: the linear softening law has left its range.
     """
-    g = np.asarray(shear_modulus, float) - np.asarray(shear_modulus_slope, float) * np.asarray(
-        delta_T, float
-    )
+    g = np.asarray(shear_modulus, float) - np.asarray(shear_modulus_slope, float) * np.asarray(delta_T, float)
     if np.any(g <= 0):
         dt_max = float(np.min(max_temperature_rise(shear_modulus, shear_modulus_slope)))
         worst = float(np.max(delta_T))
@@ -245,8 +247,15 @@ def torque(delta_T, shear_modulus, fiber_diameter, twists, fiber_length, radial_
     x = np.asarray(radial_cte, float) * np.asarray(delta_T, float)
     d0 = np.asarray(fiber_diameter, float)
     phi0 = 2.0 * np.pi * np.asarray(twists, float)
-    return (np.asarray(shear_modulus, float) * phi0 * np.pi * d0**4 * (1.0 + x) ** 3 * x
-            / (32.0 * np.asarray(fiber_length, float)))
+    return (
+        np.asarray(shear_modulus, float)
+        * phi0
+        * np.pi
+        * d0**4
+        * (1.0 + x) ** 3
+        * x
+        / (32.0 * np.asarray(fiber_length, float))
+    )
 
 
 def n_coils(fiber_length, coil_length, coil_diameter):
@@ -267,8 +276,7 @@ def n_coils(fiber_length, coil_length, coil_diameter):
         n [-].
     """
     s0 = np.asarray(coil_length, float) / np.asarray(fiber_length, float)
-    return np.asarray(fiber_length, float) * np.sqrt(1.0 - s0**2) / (
-        np.pi * np.asarray(coil_diameter, float))
+    return np.asarray(fiber_length, float) * np.sqrt(1.0 - s0**2) / (np.pi * np.asarray(coil_diameter, float))
 
 
 def _take(arr, idx):
@@ -291,7 +299,7 @@ def _f11_f12(s, a, b, c, g, e):
     s2 = s * s
     c2 = 1.0 - s2
     f11 = a * c2 * c2 / g + b * c2 / (2.0 * g) + 2.0 * a * s2 * c2 / e + b * s2 / (2.0 * e)
-    df11 = (-4.0 * a * s * c2 / g - b * s / g + 4.0 * a * s * (c2 - s2) / e + b * s / e)
+    df11 = -4.0 * a * s * c2 / g - b * s / g + 4.0 * a * s * (c2 - s2) / e + b * s / e
     f12 = c * c2 / g
     df12 = -2.0 * c * s / g
     return f11, df11, f12, df12
@@ -323,8 +331,14 @@ def compliances(sin_alpha, fiber_diameter, fiber_length, n_coils, shear_modulus,
         Torque compliance [m/(N m)] = [1/N].
     """
     a, b, c = _compliance_coefficients(fiber_diameter, fiber_length, np.asarray(n_coils, float))
-    f11, _, f12, _ = _f11_f12(np.asarray(sin_alpha, float), a, b, c,
-                              np.asarray(shear_modulus, float), np.asarray(youngs_modulus, float))
+    f11, _, f12, _ = _f11_f12(
+        np.asarray(sin_alpha, float),
+        a,
+        b,
+        c,
+        np.asarray(shear_modulus, float),
+        np.asarray(youngs_modulus, float),
+    )
     return f11, f12
 
 
@@ -414,10 +428,24 @@ def displacement(
     ConvergenceError
         If the iteration limit is reached.
     """
-    raw = [np.asarray(v, float) for v in (
-        delta_T, force, fiber_diameter, fiber_length, coil_length, coil_diameter,
-        twists, youngs_modulus, thread_plies, max_volume_fraction, radial_cte,
-        shear_modulus_slope, youngs_modulus_slope)]
+    raw = [
+        np.asarray(v, float)
+        for v in (
+            delta_T,
+            force,
+            fiber_diameter,
+            fiber_length,
+            coil_length,
+            coil_diameter,
+            twists,
+            youngs_modulus,
+            thread_plies,
+            max_volume_fraction,
+            radial_cte,
+            shear_modulus_slope,
+            youngs_modulus_slope,
+        )
+    ]
     shape = np.broadcast_shapes(*(a.shape for a in raw))
     # Scalars stay scalars (the common case: one sample, arrays of dT and F),
     # so the iteration indexes only what varies.
@@ -427,33 +455,52 @@ def displacement(
     g_t = sample_shear_modulus(d0, l, N, E_fab, plies, vfmax)
     E = E_fab * (1.0 - e_slope * dT)
     if np.any(E <= 0):
-        raise ModelDomainError("static model: Young's modulus E (1 - c dT) is not positive",
-                               hint="the E(T) slope is too large for this temperature range")
+        raise ModelDomainError(
+            "static model: Young's modulus E (1 - c dT) is not positive",
+            hint="the E(T) slope is too large for this temperature range",
+        )
     g_tau = shear_modulus_at(dT, g_t, slope)
     tau = torque(dT, g_tau, d0, N, l, rho)
     s0 = L / l
     n = n_coils(l, L, D)
     if method == "jit":
-        return _displacement_jit(shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fab,
-                                 e_slope, xtol, rtol, maxiter, full_output)
+        return _displacement_jit(
+            shape,
+            size,
+            dT,
+            F,
+            g_t,
+            g_tau,
+            d0,
+            l,
+            s0,
+            n,
+            N,
+            rho,
+            E_fab,
+            e_slope,
+            xtol,
+            rtol,
+            maxiter,
+            full_output,
+        )
     if method != "numpy":
         raise ValueError(f"unknown method {method!r}; use 'jit' or 'numpy'")
     d = d0 * (1.0 + rho * dT)
     a, b, c = _compliance_coefficients(d, l, n)
 
     def h(s, i):
-        f11, df11, f12, df12 = _f11_f12(s, _take(a, i), _take(b, i), _take(c, i),
-                                        _take(g_t, i), _take(E, i))
+        f11, df11, f12, df12 = _f11_f12(s, _take(a, i), _take(b, i), _take(c, i), _take(g_t, i), _take(E, i))
         li, Fi, ti = _take(l, i), _take(F, i), _take(tau, i)
-        return (li * (s - _take(s0, i)) - Fi * f11 + ti * f12,
-                li - Fi * df11 + ti * df12)
+        return (li * (s - _take(s0, i)) - Fi * f11 + ti * f12, li - Fi * df11 + ti * df12)
 
     # Linearised first guess: delta ~ f11(s0) F - f12(s0) tau.
     f11_0, _, f12_0, _ = _f11_f12(s0, a, b, c, g_t, E)
     guess = np.broadcast_to(np.clip(s0 + (f11_0 * F - f12_0 * tau) / l, 0.0, 1.0), (size,))
     try:
-        res = bracketed_newton(h, np.zeros(size), np.ones(size), guess,
-                               xtol=xtol, rtol=rtol, maxiter=maxiter, what="sin(alpha)")
+        res = bracketed_newton(
+            h, np.zeros(size), np.ones(size), guess, xtol=xtol, rtol=rtol, maxiter=maxiter, what="sin(alpha)"
+        )
     except ConvergenceError as exc:
         if "no sign change" in exc.message:
             raise ModelDomainError(
@@ -468,8 +515,9 @@ def displacement(
     return delta
 
 
-def _displacement_jit(shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fab, e_slope,
-                      xtol, rtol, maxiter, full_output):
+def _displacement_jit(
+    shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fab, e_slope, xtol, rtol, maxiter, full_output
+):
     from tcamlab.models import _static_kernel as K
 
     def vec(a):
@@ -477,25 +525,46 @@ def _displacement_jit(shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fa
 
     out = np.empty(size)
     status = np.zeros(size, dtype=np.int64)
-    K.solve(size, vec(dT), vec(F), vec(g_t), vec(g_tau), vec(d0), vec(l), vec(s0), vec(n),
-            vec(N), vec(rho), vec(E_fab), vec(e_slope), float(xtol), float(rtol), int(maxiter),
-            out, status)
+    K.solve(
+        size,
+        vec(dT),
+        vec(F),
+        vec(g_t),
+        vec(g_tau),
+        vec(d0),
+        vec(l),
+        vec(s0),
+        vec(n),
+        vec(N),
+        vec(rho),
+        vec(E_fab),
+        vec(e_slope),
+        float(xtol),
+        float(rtol),
+        int(maxiter),
+        out,
+        status,
+    )
     if np.any(status == K.NO_BRACKET):
         k = int(np.flatnonzero(status == K.NO_BRACKET)[0])
         raise ModelDomainError(
             "static model: no equilibrium pitch angle in [0, 90] deg for "
             f"{int((status == K.NO_BRACKET).sum())} of {size} (temperature, force) points "
             f"(first at index {k})",
-            hint="the coil would close or straighten completely; check load and sample")
+            hint="the coil would close or straighten completely; check load and sample",
+        )
     if np.any(status == K.NO_CONVERGENCE):
         raise ConvergenceError(
             f"static model: {int((status != K.OK).sum())} of {size} points did not converge "
-            f"in {maxiter} iterations", hint="loosen xtol/rtol")
+            f"in {maxiter} iterations",
+            hint="loosen xtol/rtol",
+        )
     l_arr = np.asarray(l, float)
     delta = (l_arr * (out - np.asarray(s0, float))).reshape(shape)
     if full_output:
-        return delta, RootResult(root=out, iterations=int(maxiter), converged=status == K.OK,
-                                 residual=np.full(size, np.nan))
+        return delta, RootResult(
+            root=out, iterations=int(maxiter), converged=status == K.OK, residual=np.full(size, np.nan)
+        )
     return delta
 
 
@@ -536,10 +605,12 @@ def internal_force(
     """
     delta = np.asarray(delta, float)
     dT = np.asarray(delta_T, float)
-    g_t = sample_shear_modulus(fiber_diameter, fiber_length, twists, youngs_modulus,
-                               thread_plies, max_volume_fraction)
-    tau = torque(dT, shear_modulus_at(dT, g_t, shear_modulus_slope), fiber_diameter, twists,
-                 fiber_length, radial_cte)
+    g_t = sample_shear_modulus(
+        fiber_diameter, fiber_length, twists, youngs_modulus, thread_plies, max_volume_fraction
+    )
+    tau = torque(
+        dT, shear_modulus_at(dT, g_t, shear_modulus_slope), fiber_diameter, twists, fiber_length, radial_cte
+    )
     l = np.asarray(fiber_length, float)
     s = np.asarray(coil_length, float) / l + delta / l
     if np.any((s < 0) | (s > 1)):

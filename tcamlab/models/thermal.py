@@ -40,8 +40,7 @@ def steady_state_temperature(voltage, resistance, heat_loss, ambient):
         T_inf = T_a + V^2 / (R lambda) [degC].
     """
     v = np.asarray(voltage, float)
-    return np.asarray(ambient, float) + v * v / (np.asarray(resistance, float)
-                                                 * np.asarray(heat_loss, float))
+    return np.asarray(ambient, float) + v * v / (np.asarray(resistance, float) * np.asarray(heat_loss, float))
 
 
 def time_constant(thermal_mass, heat_loss):
@@ -98,8 +97,7 @@ def temperature(time, voltage, resistance, thermal_mass, heat_loss, ambient, ini
         raise ModelDomainError("thermal model: time must be a non-empty 1-D array")
     if np.any(np.diff(t) <= 0):
         raise ModelDomainError("thermal model: time must be strictly increasing")
-    for name, value in (("resistance", resistance), ("thermal_mass", thermal_mass),
-                        ("heat_loss", heat_loss)):
+    for name, value in (("resistance", resistance), ("thermal_mass", thermal_mass), ("heat_loss", heat_loss)):
         if not float(value) > 0:
             raise ModelDomainError(f"thermal model: {name} = {value} must be positive")
     t_inf = steady_state_temperature(v[:-1], resistance, heat_loss, ambient)

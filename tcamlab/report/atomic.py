@@ -55,9 +55,7 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
             mode = target.stat().st_mode & 0o7777
         except FileNotFoundError:
             mode = _default_mode()
-        fd, tmp_name = tempfile.mkstemp(
-            dir=target.parent, prefix=f".{target.name}.", suffix=".tmp"
-        )
+        fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     except OSError as exc:
         raise TcamlabError(
             f"cannot write {target}: {exc.strerror or exc}",

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 CELL_STATUSES = (None, "pass", "fail", "warn")
 INDEX_STATUSES = ("pass", "fail", "error")
@@ -58,9 +59,7 @@ class Cell:
 
     def __post_init__(self) -> None:
         if self.status not in CELL_STATUSES:
-            raise ValueError(
-                f"Cell status must be one of {CELL_STATUSES}, got {self.status!r}"
-            )
+            raise ValueError(f"Cell status must be one of {CELL_STATUSES}, got {self.status!r}")
         if not isinstance(self.text, str):
             object.__setattr__(self, "text", str(self.text))
 
@@ -145,7 +144,7 @@ class Section:
     paragraphs: Sequence[str] = field(default_factory=list)
     tables: Sequence[Table] = field(default_factory=list)
     figures: Sequence[Figure] = field(default_factory=list)
-    subsections: Sequence["Section"] = field(default_factory=list)
+    subsections: Sequence[Section] = field(default_factory=list)
     notes: Sequence[str] = field(default_factory=list)
 
 
@@ -181,8 +180,7 @@ class IndexEntry:
     def __post_init__(self) -> None:
         if self.status not in INDEX_STATUSES:
             raise ValueError(
-                f"IndexEntry {self.name!r}: status must be one of "
-                f"{INDEX_STATUSES}, got {self.status!r}"
+                f"IndexEntry {self.name!r}: status must be one of {INDEX_STATUSES}, got {self.status!r}"
             )
 
 

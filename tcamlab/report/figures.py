@@ -17,7 +17,8 @@ from __future__ import annotations
 import contextlib
 import io
 import re
-from typing import TYPE_CHECKING, Any, Iterator
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -55,8 +56,18 @@ STYLE: dict[str, Any] = {
     "text.usetex": False,
 }
 
-_PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd",
-            "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"]
+_PALETTE = [
+    "#1f77b4",
+    "#d62728",
+    "#2ca02c",
+    "#ff7f0e",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+]
 
 
 def _rc(extra: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -78,7 +89,7 @@ def report_style(**extra: Any) -> Iterator[None]:
         yield
 
 
-def new_figure(width_in: float = 6.4, height_in: float = 3.6) -> "tuple[Figure, Axes]":
+def new_figure(width_in: float = 6.4, height_in: float = 3.6) -> tuple[Figure, Axes]:
     """A new figure with one axes, attached to an Agg canvas (no pyplot)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -131,7 +142,7 @@ def _prefix_ids(svg: str, prefix: str) -> str:
     return svg
 
 
-def _freeze_layout(fig: "Figure") -> None:
+def _freeze_layout(fig: Figure) -> None:
     """Run the figure's layout engine once, then keep that layout.
 
     Constrained layout can move axes by a few ulps on every draw, which
@@ -148,7 +159,7 @@ def _freeze_layout(fig: "Figure") -> None:
     fig._tcamlab_layout_frozen = True
 
 
-def figure_to_svg(fig: "Figure", index: int = 0) -> str:
+def figure_to_svg(fig: Figure, index: int = 0) -> str:
     """Render *fig* as an SVG fragment ready to inline in HTML.
 
     The output is deterministic (fixed hash salt, no date, no metadata
@@ -167,7 +178,7 @@ def figure_to_svg(fig: "Figure", index: int = 0) -> str:
     return _prefix_ids(svg, f"svg{index}-").strip() + "\n"
 
 
-def figure_to_png(fig: "Figure", dpi: int = 150) -> bytes:
+def figure_to_png(fig: Figure, dpi: int = 150) -> bytes:
     """Render *fig* as PNG bytes (deterministic: no software/date chunks)."""
     _freeze_layout(fig)
     buf = io.BytesIO()
@@ -176,7 +187,7 @@ def figure_to_png(fig: "Figure", dpi: int = 150) -> bytes:
     return buf.getvalue()
 
 
-def figure_size_in(fig: "Figure") -> tuple[float, float]:
+def figure_size_in(fig: Figure) -> tuple[float, float]:
     """(width, height) of *fig* in inches."""
     w, h = fig.get_size_inches()
     return float(w), float(h)

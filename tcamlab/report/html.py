@@ -77,13 +77,15 @@ def _section_view(section: Section, path: tuple[int, ...], counter: _Counter) ->
     for fig in section.figures:
         counter.figures += 1
         n = counter.figures
-        figures.append({
-            "id": f"figure-{n}",
-            "number": n,
-            "caption": fig.caption,
-            "alt": fig.alt or fig.caption,
-            "svg": Markup(figure_to_svg(fig.figure, index=n)),
-        })
+        figures.append(
+            {
+                "id": f"figure-{n}",
+                "number": n,
+                "caption": fig.caption,
+                "alt": fig.alt or fig.caption,
+                "svg": Markup(figure_to_svg(fig.figure, index=n)),
+            }
+        )
     tables = [_table_view(t, counter) for t in section.tables]
     return {
         "id": "sec-" + "-".join(str(i) for i in path),
@@ -95,8 +97,7 @@ def _section_view(section: Section, path: tuple[int, ...], counter: _Counter) ->
         "tables": tables,
         "figures": figures,
         "subsections": [
-            _section_view(sub, path + (i,), counter)
-            for i, sub in enumerate(section.subsections, start=1)
+            _section_view(sub, path + (i,), counter) for i, sub in enumerate(section.subsections, start=1)
         ],
     }
 
@@ -108,15 +109,17 @@ def _metadata_view(metadata) -> list[tuple[str, str]]:
 def render_html(doc: Document) -> str:
     """Render one report as a complete, self-contained HTML page."""
     counter = _Counter()
-    sections = [
-        _section_view(s, (i,), counter) for i, s in enumerate(doc.sections, start=1)
-    ]
-    return _env().get_template("report.html").render(
-        title=doc.title,
-        subtitle=doc.subtitle,
-        banner=doc.synthetic_banner,
-        sections=sections,
-        metadata=_metadata_view(doc.metadata),
+    sections = [_section_view(s, (i,), counter) for i, s in enumerate(doc.sections, start=1)]
+    return (
+        _env()
+        .get_template("report.html")
+        .render(
+            title=doc.title,
+            subtitle=doc.subtitle,
+            banner=doc.synthetic_banner,
+            sections=sections,
+            metadata=_metadata_view(doc.metadata),
+        )
     )
 
 
@@ -125,19 +128,25 @@ def render_index_html(index: IndexDocument) -> str:
     metric_names = index.metric_names()
     entries = []
     for e in index.entries:
-        entries.append({
-            "name": e.name,
-            "title": e.title,
-            "kind": e.kind,
-            "status": e.status,
-            "link": safe_href(e.link),
-            "error": e.error,
-            "metrics": [str(e.metrics[m]) if m in e.metrics else None for m in metric_names],
-        })
-    return _env().get_template("index.html").render(
-        title=index.title,
-        metric_names=metric_names,
-        entries=entries,
-        counts=index.status_counts(),
-        metadata=_metadata_view(index.metadata),
+        entries.append(
+            {
+                "name": e.name,
+                "title": e.title,
+                "kind": e.kind,
+                "status": e.status,
+                "link": safe_href(e.link),
+                "error": e.error,
+                "metrics": [str(e.metrics[m]) if m in e.metrics else None for m in metric_names],
+            }
+        )
+    return (
+        _env()
+        .get_template("index.html")
+        .render(
+            title=index.title,
+            metric_names=metric_names,
+            entries=entries,
+            counts=index.status_counts(),
+            metadata=_metadata_view(index.metadata),
+        )
     )

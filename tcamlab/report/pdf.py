@@ -16,17 +16,18 @@ import contextlib
 import io
 import os
 import re
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
 from xml.sax.saxutils import escape as _xml_escape
 
 from .document import (
+    MISSING,
     Cell,
     Document,
     Figure,
     IndexDocument,
-    MISSING,
     Section,
     Table,
     safe_href,
@@ -115,33 +116,54 @@ class _Styles:
 
         f = _fonts()
         self.fonts = f
-        body = ParagraphStyle("body", fontName=f.regular, fontSize=9.5, leading=13,
-                              spaceAfter=5)
+        body = ParagraphStyle("body", fontName=f.regular, fontSize=9.5, leading=13, spaceAfter=5)
         self.body = body
-        self.title = ParagraphStyle("title", parent=body, fontName=f.bold, fontSize=20,
-                                    leading=24, spaceAfter=4)
-        self.subtitle = ParagraphStyle("subtitle", parent=body, fontSize=11.5, leading=15,
-                                       textColor=colors.HexColor("#5b6670"), spaceAfter=8)
+        self.title = ParagraphStyle(
+            "title", parent=body, fontName=f.bold, fontSize=20, leading=24, spaceAfter=4
+        )
+        self.subtitle = ParagraphStyle(
+            "subtitle",
+            parent=body,
+            fontSize=11.5,
+            leading=15,
+            textColor=colors.HexColor("#5b6670"),
+            spaceAfter=8,
+        )
         self.headings = [
-            ParagraphStyle(f"h{i}", parent=body, fontName=f.bold, fontSize=size,
-                           leading=size * 1.25, spaceBefore=before, spaceAfter=4,
-                           keepWithNext=1)
-            for i, (size, before) in enumerate([(15, 14), (12.5, 10), (11, 8), (10, 6)],
-                                               start=1)
+            ParagraphStyle(
+                f"h{i}",
+                parent=body,
+                fontName=f.bold,
+                fontSize=size,
+                leading=size * 1.25,
+                spaceBefore=before,
+                spaceAfter=4,
+                keepWithNext=1,
+            )
+            for i, (size, before) in enumerate([(15, 14), (12.5, 10), (11, 8), (10, 6)], start=1)
         ]
-        self.caption = ParagraphStyle("caption", parent=body, fontSize=8.5, leading=11,
-                                      textColor=colors.HexColor("#3d4750"), spaceAfter=8)
-        self.table_caption = ParagraphStyle("tcaption", parent=self.caption, spaceAfter=3,
-                                            keepWithNext=1)
-        self.note = ParagraphStyle("note", parent=body, textColor=colors.HexColor("#4d3800"),
-                                   spaceAfter=0)
-        self.banner = ParagraphStyle("banner", parent=body, fontName=f.bold, fontSize=10.5,
-                                     leading=14, textColor=colors.HexColor("#7c2d12"),
-                                     spaceAfter=0)
+        self.caption = ParagraphStyle(
+            "caption",
+            parent=body,
+            fontSize=8.5,
+            leading=11,
+            textColor=colors.HexColor("#3d4750"),
+            spaceAfter=8,
+        )
+        self.table_caption = ParagraphStyle("tcaption", parent=self.caption, spaceAfter=3, keepWithNext=1)
+        self.note = ParagraphStyle("note", parent=body, textColor=colors.HexColor("#4d3800"), spaceAfter=0)
+        self.banner = ParagraphStyle(
+            "banner",
+            parent=body,
+            fontName=f.bold,
+            fontSize=10.5,
+            leading=14,
+            textColor=colors.HexColor("#7c2d12"),
+            spaceAfter=0,
+        )
         self._cell_cache: dict[tuple[float, str | None, bool], Any] = {}
 
-    def cell(self, size: float, status: str | None = None, header: bool = False,
-             mono: bool = False):
+    def cell(self, size: float, status: str | None = None, header: bool = False, mono: bool = False):
         from reportlab.lib import colors
         from reportlab.lib.styles import ParagraphStyle
 
@@ -152,9 +174,15 @@ class _Styles:
             if header or status:
                 font = self.fonts.bold if not mono else font
             colour = colors.HexColor(_STATUS_COLOURS[status][1]) if status else colors.black
-            style = ParagraphStyle(f"cell{len(self._cell_cache)}", fontName=font,
-                                   fontSize=size, leading=size * 1.22, textColor=colour,
-                                   spaceAfter=0, spaceBefore=0)
+            style = ParagraphStyle(
+                f"cell{len(self._cell_cache)}",
+                fontName=font,
+                fontSize=size,
+                leading=size * 1.22,
+                textColor=colour,
+                spaceAfter=0,
+                spaceBefore=0,
+            )
             self._cell_cache[key] = style
         return style
 
@@ -211,10 +239,10 @@ def _label(text: str):
     return _RunningLabel()
 
 
-def _boxed(paragraph: Any, ctx: _Ctx, background: str, border: str,
-           left_bar_only: bool) -> Any:
+def _boxed(paragraph: Any, ctx: _Ctx, background: str, border: str, left_bar_only: bool) -> Any:
     from reportlab.lib import colors
-    from reportlab.platypus import Table as RLTable, TableStyle
+    from reportlab.platypus import Table as RLTable
+    from reportlab.platypus import TableStyle
 
     box = RLTable([[paragraph]], colWidths=[ctx.width], hAlign="LEFT")
     cmds = [
@@ -234,8 +262,9 @@ def _boxed(paragraph: Any, ctx: _Ctx, background: str, border: str,
     return box
 
 
-def _col_widths(header: Sequence[str], texts: Sequence[Sequence[str]], width: float,
-               size: float, bold: str, regular: str) -> list[float]:
+def _col_widths(
+    header: Sequence[str], texts: Sequence[Sequence[str]], width: float, size: float, bold: str, regular: str
+) -> list[float]:
     """Column widths from measured text, scaled down to fit *width*."""
     from reportlab.pdfbase.pdfmetrics import stringWidth
 
@@ -250,8 +279,7 @@ def _col_widths(header: Sequence[str], texts: Sequence[Sequence[str]], width: fl
         for row in texts:
             t = row[j][:80]
             widest = max(widest, stringWidth(t, regular, size))
-            word_min = max(word_min, max((stringWidth(w, regular, size)
-                                          for w in t.split()), default=0.0))
+            word_min = max(word_min, max((stringWidth(w, regular, size) for w in t.split()), default=0.0))
         natural.append(min(widest, 260.0) + pad)
         minimal.append(min(word_min, 120.0) + pad)
     if sum(natural) <= width:
@@ -273,10 +301,12 @@ def _cell_markup(cell: Cell) -> str:
     return text
 
 
-def _grid_table(header: Sequence[str], rows: Sequence[Sequence[Cell]], ctx: _Ctx,
-                mono_cols: Iterable[int] = ()) -> Any:
+def _grid_table(
+    header: Sequence[str], rows: Sequence[Sequence[Cell]], ctx: _Ctx, mono_cols: Iterable[int] = ()
+) -> Any:
     from reportlab.lib import colors
-    from reportlab.platypus import Paragraph, Table as RLTable, TableStyle
+    from reportlab.platypus import Paragraph, TableStyle
+    from reportlab.platypus import Table as RLTable
 
     st = ctx.styles
     ncols = len(header)
@@ -295,16 +325,13 @@ def _grid_table(header: Sequence[str], rows: Sequence[Sequence[Cell]], ctx: _Ctx
     for i, row in enumerate(rows, start=1):
         line = []
         for j, cell in enumerate(row):
-            line.append(Paragraph(_cell_markup(cell),
-                                  st.cell(size, cell.status, mono=j in mono)))
+            line.append(Paragraph(_cell_markup(cell), st.cell(size, cell.status, mono=j in mono)))
             if cell.status:
-                cmds.append(("BACKGROUND", (j, i), (j, i),
-                             colors.HexColor(_STATUS_COLOURS[cell.status][0])))
+                cmds.append(("BACKGROUND", (j, i), (j, i), colors.HexColor(_STATUS_COLOURS[cell.status][0])))
         data.append(line)
     texts = [[c.text for c in row] for row in rows]
     widths = _col_widths(header, texts, ctx.width, size, st.fonts.bold, st.fonts.regular)
-    table = RLTable(data, colWidths=widths, repeatRows=1,
-                    hAlign="LEFT")
+    table = RLTable(data, colWidths=widths, repeatRows=1, hAlign="LEFT")
     table.setStyle(TableStyle(cmds))
     table.spaceBefore = 2
     table.spaceAfter = 10
@@ -346,8 +373,7 @@ def _figure_flowables(fig: Figure, ctx: _Ctx) -> list[Any]:
     return [KeepTogether([image, Paragraph(caption, ctx.styles.caption)])]
 
 
-def _section_flowables(section: Section, path: tuple[int, ...], level: int,
-                       ctx: _Ctx) -> list[Any]:
+def _section_flowables(section: Section, path: tuple[int, ...], level: int, ctx: _Ctx) -> list[Any]:
     from reportlab.platypus import Paragraph
 
     st = ctx.styles
@@ -356,8 +382,11 @@ def _section_flowables(section: Section, path: tuple[int, ...], level: int,
     heading = Paragraph(f"{number}&nbsp;&nbsp;{esc(section.heading)}", style)
     out: list[Any] = [_outlined(heading, f"{number} {section.heading}", level, ctx)]
     for note in section.notes:
-        out.append(_boxed(Paragraph(f"<b>Note:</b> {esc(note)}", st.note), ctx,
-                          "#fff4d6", "#d69e00", left_bar_only=True))
+        out.append(
+            _boxed(
+                Paragraph(f"<b>Note:</b> {esc(note)}", st.note), ctx, "#fff4d6", "#d69e00", left_bar_only=True
+            )
+        )
     for para in section.paragraphs:
         out.append(Paragraph(esc(para), st.body))
     for table in section.tables:
@@ -376,8 +405,10 @@ def _metadata_flowables(metadata, level: int, ctx: _Ctx) -> list[Any]:
         return []
     heading = Paragraph("Provenance", ctx.styles.headings[0])
     rows = [[Cell(str(k)), Cell(str(v))] for k, v in metadata.items()]
-    return [_outlined(heading, "Provenance", level, ctx),
-            _grid_table(["Key", "Value"], rows, ctx, mono_cols=(1,))]
+    return [
+        _outlined(heading, "Provenance", level, ctx),
+        _grid_table(["Key", "Value"], rows, ctx, mono_cols=(1,)),
+    ]
 
 
 def _document_flowables(doc: Document, ctx: _Ctx) -> list[Any]:
@@ -390,8 +421,15 @@ def _document_flowables(doc: Document, ctx: _Ctx) -> list[Any]:
     if doc.subtitle:
         out.append(Paragraph(esc(doc.subtitle), st.subtitle))
     if doc.synthetic_banner:
-        out.append(_boxed(Paragraph(esc(doc.synthetic_banner), st.banner), ctx,
-                          "#fff1e6", "#c2410c", left_bar_only=False))
+        out.append(
+            _boxed(
+                Paragraph(esc(doc.synthetic_banner), st.banner),
+                ctx,
+                "#fff1e6",
+                "#c2410c",
+                left_bar_only=False,
+            )
+        )
     for i, section in enumerate(doc.sections, start=1):
         out.extend(_section_flowables(section, (i,), 1, ctx))
     out.extend(_metadata_flowables(doc.metadata, 1, ctx))
@@ -405,16 +443,24 @@ def _index_flowables(index: IndexDocument, ctx: _Ctx) -> list[Any]:
     out: list[Any] = [_label(index.title)]
     out.append(_outlined(Paragraph(esc(index.title), st.title), index.title, 0, ctx))
     counts = index.status_counts()
-    out.append(Paragraph(
-        f"{counts['pass']} pass, {counts['fail']} fail, {counts['error']} error", st.subtitle))
+    out.append(
+        Paragraph(f"{counts['pass']} pass, {counts['fail']} fail, {counts['error']} error", st.subtitle)
+    )
     metric_names = index.metric_names()
     header = ["Name", "Title", "Kind", "Status", *metric_names, "Error"]
     rows = []
     for e in index.entries:
-        metrics = [Cell(str(e.metrics[m])) if m in e.metrics else Cell(MISSING)
-                   for m in metric_names]
-        rows.append([Cell(e.name), Cell(e.title), Cell(e.kind), _index_status(e.status),
-                     *metrics, Cell(e.error or "")])
+        metrics = [Cell(str(e.metrics[m])) if m in e.metrics else Cell(MISSING) for m in metric_names]
+        rows.append(
+            [
+                Cell(e.name),
+                Cell(e.title),
+                Cell(e.kind),
+                _index_status(e.status),
+                *metrics,
+                Cell(e.error or ""),
+            ]
+        )
     if rows or header:
         out.append(_grid_table(header, rows, ctx))
     out.extend(_metadata_flowables(index.metadata, 1, ctx))
@@ -489,10 +535,21 @@ def _build(make_flowables: Callable[[_Ctx], list[Any]], title: str, subject: str
     def run(total: int | None) -> tuple[bytes, int]:
         buf = io.BytesIO()
         doc = _Doc(
-            buf, pagesize=A4, leftMargin=18 * mm, rightMargin=18 * mm,
-            topMargin=16 * mm, bottomMargin=18 * mm, invariant=1,
-            title=title, author="tcamlab", creator="tcamlab", producer="tcamlab",
-            subject=subject, keywords=[], lang="en", displayDocTitle=1,
+            buf,
+            pagesize=A4,
+            leftMargin=18 * mm,
+            rightMargin=18 * mm,
+            topMargin=16 * mm,
+            bottomMargin=18 * mm,
+            invariant=1,
+            title=title,
+            author="tcamlab",
+            creator="tcamlab",
+            producer="tcamlab",
+            subject=subject,
+            keywords=[],
+            lang="en",
+            displayDocTitle=1,
             keepTogetherClass=_keep_class(),
         )
         doc._tcam_label = title

@@ -33,10 +33,12 @@ def f11_f12(s, d, length, n, G, E):
     c2 = 1 - s * s
     s2 = s * s
     ln = length / n
-    f11 = (8 * n / (math.pi**3 * d**4) * ln**3 * c2 * c2 / G
-           + 8 * n / (math.pi * d**2) * ln * c2 / (2 * G)
-           + 8 * n / (math.pi**3 * d**4) * ln**3 * 2 * s2 * c2 / E
-           + 8 * n / (math.pi * d**2) * ln * s2 / (2 * E))
+    f11 = (
+        8 * n / (math.pi**3 * d**4) * ln**3 * c2 * c2 / G
+        + 8 * n / (math.pi * d**2) * ln * c2 / (2 * G)
+        + 8 * n / (math.pi**3 * d**4) * ln**3 * 2 * s2 * c2 / E
+        + 8 * n / (math.pi * d**2) * ln * s2 / (2 * E)
+    )
     f12 = 8 * n / (math.pi**2 * d**4) * ln**2 * c2 / G
     return f11, f12
 
@@ -70,10 +72,10 @@ def sensing_delta(R, R0, S, d0, length, L, D, turns, E, plies, vfmax):
     return brentq(h, 0.0, length * (1 - s0) * (1 - 1e-12), xtol=1e-18, rtol=1e-15)
 
 
-TCA = dict(d0=0.17e-3, length=0.095, L=0.020, D=0.36e-3, turns=150.0, E=3.45e9, plies=2,
-           vfmax=0.887, rho=8.1e-5)
-TCS = dict(d0=0.4e-3, length=0.328, L=0.090, D=0.8e-3, turns=750.0, E=3.45e9, plies=2,
-           vfmax=0.887)
+TCA = dict(
+    d0=0.17e-3, length=0.095, L=0.020, D=0.36e-3, turns=150.0, E=3.45e9, plies=2, vfmax=0.887, rho=8.1e-5
+)
+TCS = dict(d0=0.4e-3, length=0.328, L=0.090, D=0.8e-3, turns=750.0, E=3.45e9, plies=2, vfmax=0.887)
 
 
 def main():
@@ -81,11 +83,16 @@ def main():
     for dT in (0.0, 10.0, 55.0, 100.0, 130.0):
         for F in (0.0, 0.05 * G_ACCEL, 0.8):
             for slope in (0.0, 1.11e6):
-                out["static"].append({"dT": dT, "F": F, "slope": slope,
-                                      "delta": static_displacement(dT, F, slope=slope, **TCA)})
+                out["static"].append(
+                    {
+                        "dT": dT,
+                        "F": F,
+                        "slope": slope,
+                        "delta": static_displacement(dT, F, slope=slope, **TCA),
+                    }
+                )
     for R in (30.05, 30.5, 31.0, 31.7):
-        out["sensing"].append({"R": R, "R0": 30.0, "S": 4.7,
-                               "delta": sensing_delta(R, 30.0, 4.7, **TCS)})
+        out["sensing"].append({"R": R, "R0": 30.0, "S": 4.7, "delta": sensing_delta(R, 30.0, 4.7, **TCS)})
     G = shear_modulus(3.45e9, 2, 0.887, 0.17e-3, 150.0, 0.095)
     for s in (0.0, 0.21, 0.5, 0.9):
         f11, f12 = f11_f12(s, 0.17e-3, 0.095, 82.0, G, 3.45e9)
