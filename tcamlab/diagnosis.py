@@ -76,10 +76,9 @@ import numpy as np
 import pandas as pd
 from scipy import optimize, stats
 
-from tcamlab import forward as F
-from tcamlab.effects import Effect, combine, effects_for, get_effect
+from tcamlab.effects import Effect, Mods, combine, effects_for, get_effect
 from tcamlab.errors import ConfigError, TcamlabError
-from tcamlab.forward import Mods
+from tcamlab.kinds import get_kind, predict, rest_rows
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -138,23 +137,9 @@ exact. Re-estimating it from model predictions at rest was tried and biases
 the sensing displacement (the inverted model is not symmetric about R0).
 Add ``"displacement"`` here for logs whose first row is a single noisy reading."""
 
-SHARED_INPUTS: dict[str, tuple[str, ...]] = {
-    "static": ("temperature",),
-    "dynamic": ("voltage",),
-    "sensing": ("resistance",),
-    "curvature": ("cable",),
-}
-"""Inputs that set a row's operating point: runs whose values of these agree
-row by row (within 2 % of their range) are replicates, and the spread of their
-residuals across runs measures the noise. The curvature rig's r1, r2 are
-measured responses of the commanded cable, so only the cable counts there."""
-
 POOL_CONSISTENCY_LEVEL = 0.99
 """Two-sided level of the F test that admits the between-run variance into
 the noise floor (:func:`pool_noise_estimates`)."""
-
-REST_TOLERANCE = 0.02
-"""Inputs within this fraction of their range of the first row count as "at rest"."""
 
 FAIL_RESIDUAL = 1.0e3
 """Normalised residual returned for every point of a model evaluation outside
@@ -269,14 +254,6 @@ def _ci(samples: np.ndarray) -> list[float]:
     return [float(np.quantile(s, a)), float(np.quantile(s, 1.0 - a))]
 
 
-def _smooth(x: np.ndarray, k: int) -> np.ndarray:
-    k = max(1, min(int(k), x.size))
-    if k <= 1:
-        return x.astype(float)
-    pad = np.pad(x.astype(float), (k // 2, k - 1 - k // 2), mode="edge")
-    return np.convolve(pad, np.ones(k) / k, mode="valid")
-
-
 # ---------------------------------------------------------------------------
 # the model wrapper: predictions and normalised residuals
 # ---------------------------------------------------------------------------
@@ -287,62 +264,41 @@ class _Problem:
 
     def __init__(self, experiment, runs):
         self.kind = experiment.kind
+        self.k = get_kind(self.kind)
         self.sample = experiment.sample
         self.rig = experiment.rig
-        self.quantities = tuple(F.OUTPUTS[self.kind])
+        self.quantities = tuple(self.k.outputs)
         self.frames: list[pd.DataFrame] = [r.data for r in runs]
         self.names = [getattr(r, "path", None) for r in runs]
         self.sigma = {q: 1.0 for q in self.quantities}
         for i, d in enumerate(self.frames):
-            missing = [c for c in F.INPUTS[self.kind] + self.quantities if c not in d]
+            missing = [c for c in self.k.inputs + self.quantities if c not in d]
             if missing:
                 raise ConfigError(f"diagnosis: run {i} has no column(s) {', '.join(missing)}")
         self._fixed_opts = [self._run_options(i) for i in range(len(self.frames))]
         # Logged displacement is relative to the (noisy) first row: its zero is
         # re-estimated from the leading rows at rest under every model evaluated.
         self.rereferenced = tuple(q for q in self.quantities if q in ZERO_REFERENCED)
-        self.rest = [_rest_rows(self.kind, d) for d in self.frames]
-        self.spring_nuisance = self.kind == "sensing" and self.rig.spring_constant is None
+        self.rest = [rest_rows(self.k, d) for d in self.frames]
+        self.spring_nuisance = self.k.needs_training and self.rig.spring_constant is None
 
     # options -------------------------------------------------------------
     def _run_options(self, i: int) -> dict:
-        d = self.frames[i]
-        if self.kind == "sensing":
-            r0 = self.rig.initial_resistance
-            return {"initial_resistance": float(r0 if r0 is not None else d["resistance"].iloc[0])}
-        if self.kind == "curvature":
-            r0 = self.rig.initial_resistance
-            if self.rig.spring_constant is None:
-                raise ConfigError(
-                    "diagnosis: a curvature experiment needs rig.spring_constant_N_per_m",
-                    "set spring_constant_N_per_m in [rig] (or use preset thesis-robot)",
-                )
-            cable = d["cable"].to_numpy(float)
-            rest = np.flatnonzero(np.abs(cable - cable[0]) > 1e-12)
-            k = int(rest[0]) if rest.size else cable.size
-            k = max(1, k)
-            if r0 is not None:
-                r0s = (float(r0), float(r0))
-            else:
-                r0s = (float(d["r1"].iloc[:k].mean()), float(d["r2"].iloc[:k].mean()))
-            return {"spring_constant": float(self.rig.spring_constant), "initial_resistances": r0s}
-        return {}
+        """The kind's per-run constants (R0 ...), without a spring constant to identify."""
+        where = "diagnosis"
+        return dict(self.k.run_options(self.sample, self.rig, self.frames[i], where=where).options)
 
     def spring_for(self, rows: Sequence[tuple[int, np.ndarray]]) -> float | None:
-        """Sensing S: the rig's, or fitted on the given (training) rows."""
-        if self.kind != "sensing":
+        """The spring constant identified on the given (training) rows, where the kind needs one."""
+        if not self.spring_nuisance:
             return None
-        if self.rig.spring_constant is not None:
-            return float(self.rig.spring_constant)
-        from tcamlab.fitting import fit_spring
-
-        x = np.concatenate([self.frames[i]["displacement"].to_numpy(float)[m] for i, m in rows])
-        f = np.concatenate([self.frames[i]["force"].to_numpy(float)[m] for i, m in rows])
-        return float(fit_spring(x, f).spring_constant)
+        training = [(self.frames[i], m) for i, m in rows]
+        ro = self.k.run_options(self.sample, self.rig, self.frames[rows[0][0]], training=training)
+        return float(ro.options["spring_constant"])
 
     def options(self, i: int, spring: float | None) -> dict:
         opts = dict(self._fixed_opts[i])
-        if self.kind == "sensing":
+        if spring is not None:
             opts["spring_constant"] = spring
         return opts
 
@@ -350,7 +306,7 @@ class _Problem:
     def predict(self, i: int, mods: Mods, spring: float | None) -> dict[str, np.ndarray]:
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out = F.predict(self.kind, self.sample, self.rig, self.frames[i], mods, **self.options(i, spring))
+            out = predict(self.kind, self.sample, self.rig, self.frames[i], mods, **self.options(i, spring))
         for q in self.quantities:
             if not np.all(np.isfinite(out[q])):
                 raise ArithmeticError("non-finite prediction")
@@ -382,26 +338,6 @@ class _Problem:
             r = res[q] / self.sigma[q]
             parts.append(r if mask is None else r[mask])
         return np.concatenate(parts)
-
-
-def _rest_rows(kind: str, d: pd.DataFrame) -> np.ndarray:
-    """Leading rows whose inputs stay at their first value (within 2 % of their range)."""
-    n = len(d)
-    first_move = n
-    for c in F.INPUTS[kind]:
-        if c == "time" or c not in d:
-            continue
-        x = d[c].to_numpy(float)
-        span = float(np.nanmax(x) - np.nanmin(x))
-        moved = np.flatnonzero(np.abs(x - x[0]) > REST_TOLERANCE * span) if span > 0 else np.array([], int)
-        if moved.size:
-            first_move = min(first_move, int(moved[0]))
-    return np.arange(max(first_move, 1))
-
-
-# ---------------------------------------------------------------------------
-# fitting one effect
-# ---------------------------------------------------------------------------
 
 
 @dataclass
@@ -771,65 +707,6 @@ def _axes(ax):
 # ---------------------------------------------------------------------------
 
 
-def _regime_labels(kind: str, d: pd.DataFrame, q: str, force_edges=None) -> dict[str, np.ndarray]:
-    """Regime labels of every row of one run for one quantity: {group: labels}."""
-    n = len(d)
-    out: dict[str, np.ndarray] = {}
-    if kind == "static":
-        T = d["temperature"].to_numpy(float)
-        edges = [25, 50, 75, 100, 125, 150]
-        band = np.full(n, "", dtype=object)
-        lo_edge = np.concatenate(([-np.inf], edges))
-        for a, b in zip(lo_edge[:-1], lo_edge[1:]):
-            lbl = f"<{b} degC" if not np.isfinite(a) else f"{a}-{b} degC"
-            band[(T >= a) & (T < b)] = lbl
-        band[T >= edges[-1]] = f">={edges[-1]} degC"
-        out["temperature band"] = band
-        clock = d["time"].to_numpy(float) if "time" in d else np.arange(n, dtype=float)
-        k = max(3, n // 20)
-        slope = np.gradient(_smooth(T, k), clock) if n > 2 else np.zeros(n)
-        tol = 0.05 * np.quantile(np.abs(slope), 0.95) if n > 2 else 0.0
-        out["phase"] = np.where(
-            np.abs(slope) <= tol, "steady", np.where(slope > 0, "heating", "cooling")
-        ).astype(object)
-    elif kind == "dynamic":
-        t = d["time"].to_numpy(float)
-        v = d["voltage"].to_numpy(float)
-        on = np.abs(v) > 0.01 * max(np.abs(v).max(), 1e-12)
-        lab = np.full(n, "steady", dtype=object)
-        lab[on] = "heating"
-        if on.any():
-            # after each pulse ends, the next 3 s are cooling
-            ends = np.flatnonzero(on[:-1] & ~on[1:]) + 1
-            for e in ends:
-                m = (~on) & (t >= t[e - 1]) & (t <= t[e - 1] + 3.0)
-                m[:e] = False
-                lab[m] = "cooling"
-        out["phase"] = lab
-    elif kind == "sensing":
-        f = d["force"].to_numpy(float)
-        e = force_edges
-        band = np.full(n, "", dtype=object)
-        idx = np.clip(np.searchsorted(e, f, side="right") - 1, 0, 3)
-        names = [f"F quartile {j + 1}" for j in range(4)]
-        band[:] = [names[j] for j in idx]
-        out["force band"] = band
-        r = d["resistance"].to_numpy(float)
-        k = max(1, min(9, n // 10))
-        sm = _smooth(r, k)
-        peak = int(np.argmax(sm))
-        br = np.full(n, "loading", dtype=object)
-        if n - peak > 2 and sm[peak] - sm[-1] > 0.25 * (sm[peak] - sm.min()):
-            br[peak + 1 :] = "unloading"
-        out["branch"] = br
-    elif kind == "curvature":
-        c = d["cable"].to_numpy(float)
-        mid = 0.5 * (np.nanmin(c) + np.nanmax(c))
-        seg = "segment 1" if q == "kappa1" else "segment 2"
-        out["segment x bending"] = np.where(c <= mid, f"{seg}, low bend", f"{seg}, high bend").astype(object)
-    return out
-
-
 def _autocorr1(r: np.ndarray) -> float:
     r = r - r.mean()
     den = float(np.sum(r * r))
@@ -855,7 +732,7 @@ def _between_run_spread(problem: _Problem, base_res) -> dict:
     n = {len(d) for d in frames}
     if len(n) != 1:
         return {"available": False, "reason": "runs differ in length"}
-    for c in SHARED_INPUTS[problem.kind]:
+    for c in problem.k.shared_inputs:
         X = np.vstack([d[c].to_numpy(float) for d in frames])
         span = float(np.ptp(X)) or 1.0
         if np.max(np.abs(X - X.mean(axis=0))) > 0.02 * span:
@@ -1092,7 +969,7 @@ def diagnose(
             "rmse_over_noise": float(np.sqrt(np.mean(r**2)) / problem.sigma[q]),
             "unit": unit,
         }
-    k_base = 1 if (kind == "sensing" and experiment.rig.spring_constant is None) else 0
+    k_base = 1 if problem.spring_nuisance else 0
     base_sse = float(np.sum(z_all**2))
     baseline = {
         "rmse_over_noise": base_rms_noise,
@@ -1104,7 +981,7 @@ def diagnose(
         "options": {
             "spring_constant": "rig"
             if experiment.rig.spring_constant is not None
-            else ("identified on training runs" if kind == "sensing" else None)
+            else ("identified on training runs" if problem.k.needs_training else None)
         },
     }
     gap = {
@@ -1120,17 +997,13 @@ def diagnose(
     }
 
     # --- where: regimes and per-run statistics ---------------------------------
-    force_edges = None
-    if kind == "sensing":
-        fall = np.concatenate([problem.measured(i, "force") for i in range(n_runs)])
-        force_edges = np.quantile(fall, [0, 0.25, 0.5, 0.75, 1.0])
     labels: dict[str, list] = {}
     zs: list[np.ndarray] = []
     qlab: list[np.ndarray] = []
     for i in range(n_runs):
         d = problem.frames[i]
         for q in Q:
-            lab = _regime_labels(kind, d, q, force_edges)
+            lab = problem.k.regimes(d, q, problem.frames)
             r = base_res[i][q]
             zs.append(r / problem.sigma[q])
             qlab.append(np.full(len(d), q, dtype=object))
@@ -1172,9 +1045,9 @@ def diagnose(
             regimes.append(entry)
 
     run_stats = []
-    inputs = list(F.INPUTS[kind]) + (
-        ["time"] if kind != "dynamic" and any("time" in d for d in problem.frames) else []
-    )
+    inputs = list(problem.k.inputs)
+    if "time" not in inputs and any("time" in d for d in problem.frames):
+        inputs.append("time")
     for i in range(n_runs):
         d = problem.frames[i]
         entry = {
@@ -1351,7 +1224,7 @@ def diagnose(
     series_runs = []
     for i in range(n_runs):
         d = problem.frames[i]
-        xcol = {"static": "temperature", "dynamic": "time", "sensing": "time", "curvature": "cable"}[kind]
+        xcol = problem.k.x_column
         if xcol not in d:
             x, xlabel = np.arange(len(d)), "row"
         else:

@@ -1,22 +1,112 @@
 """The unmodelled-effect library.
 
 Each :class:`Effect` is a nested augmentation of the thesis model for one rig
-kind: it sets one or two fields of :class:`tcamlab.forward.Mods`, and at
+kind: it sets one or two fields of :class:`Mods`, and at
 strength (parameter) zero the thesis model comes back. The virtual rig uses
 them to make data with a known cause; the diagnosis fits each of them as a
-candidate explanation of a gap. Both go through :func:`tcamlab.forward.predict`,
+candidate explanation of a gap. Both go through :func:`tcamlab.kinds.predict`,
 so there is one implementation of each physical term.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from tcamlab.forward import Mods
+__all__ = [
+    "Mods",
+    "NO_MODS",
+    "SLACK_RAMP",
+    "EffectParam",
+    "Effect",
+    "EFFECTS",
+    "combine",
+    "effects_for",
+    "get_effect",
+    "mods_for",
+]
 
-__all__ = ["EffectParam", "Effect", "EFFECTS", "combine", "effects_for", "get_effect", "mods_for"]
+
+SLACK_RAMP = 0.2e-3
+"""Sensor elongation over which a slack offset is phased in [m]: below it the
+inverted elongation is within noise of zero and the slack state is unknown."""
+
+
+@dataclass(frozen=True)
+class Mods:
+    """Physical terms beyond the thesis model (all zero: the thesis model).
+
+    Attributes
+    ----------
+    shear_slope_extra : float
+        Added to the sample's G_t slope k of (2.13) [Pa/K].
+    youngs_modulus_slope : float
+        c in E' = E (1 - c dT) in the E terms of f11 [1/K].
+    glass_gain : float
+        Extra radial expansion above the glass transition, as a multiple of
+        rho: strain = rho (dT + g max(0, T - T_g)) [-].
+    glass_temperature : float
+        T_g [degC] (about 45 degC for nylon 6,6).
+    lag_tau : float
+        Time constant of the actuator behind the oven thermometer [s] (in
+        samples when a static log has no time column).
+    drift : float
+        Displacement sensor drift [m/s] (per sample without a time column).
+    resistance_tc : float
+        beta in R(T) = R (1 + beta dT) of the heating circuit [1/K].
+    heat_loss_tc : float
+        gamma in lambda(T) = lambda (1 + gamma dT) [1/K] (convection).
+    delay : float
+        Pure delay between command and response [s].
+    slack : float
+        Displacement taken up before the sensor carries load [m].
+    hysteresis : float
+        Half-width of the loading/unloading loop in displacement [m]
+        (positive: unloading reads longer than loading).
+    relaxation : float
+        Fraction of force lost during a dwell [-].
+    relaxation_tau : float
+        Time constant of that loss [s].
+    temperature_offset : float
+        Sensor temperature above the one R0 was taken at [K]; acts on R
+        through silver's TCR.
+    stiffening : float
+        q in F = S delta (1 + q delta) [1/m].
+    compression : float
+        Fraction of the cable pull-in taken up by axial compression of the
+        body instead of bending [-].
+    camera_offset : float
+        Curvature offset of a misplaced camera [1/m].
+    offset_error : float
+        Error of the sensor-to-cable distance d1 [m].
+    """
+
+    shear_slope_extra: float = 0.0
+    youngs_modulus_slope: float = 0.0
+    glass_gain: float = 0.0
+    glass_temperature: float = 45.0
+    lag_tau: float = 0.0
+    drift: float = 0.0
+    resistance_tc: float = 0.0
+    heat_loss_tc: float = 0.0
+    delay: float = 0.0
+    slack: float = 0.0
+    hysteresis: float = 0.0
+    relaxation: float = 0.0
+    relaxation_tau: float = 1.5
+    temperature_offset: float = 0.0
+    stiffening: float = 0.0
+    compression: float = 0.0
+    camera_offset: float = 0.0
+    offset_error: float = 0.0
+
+    def replace(self, **changes) -> Mods:
+        return dataclasses.replace(self, **changes)
+
+
+NO_MODS = Mods()
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from tcamlab.errors import ConvergenceError, InputError
+from tcamlab.signals import mad_scale, split_branches
 
 __all__ = [
     "SpringFit",
@@ -31,7 +32,6 @@ __all__ = [
     "split_branches",
 ]
 
-_MAD_TO_SD = 1.482602218505602
 """1 / Phi^-1(3/4): scales a median absolute deviation to a normal sd."""
 
 _HINT_SET_S = "set spring_constant_N_per_m in [rig]"
@@ -272,10 +272,6 @@ def _ols(x: np.ndarray, f: np.ndarray, intercept: bool):
     return s, c, se_s, se_c, resid
 
 
-def _mad_scale(r: np.ndarray) -> float:
-    return _MAD_TO_SD * float(np.median(np.abs(r - np.median(r))))
-
-
 def _robust(x: np.ndarray, f: np.ndarray, intercept: bool, s0: float, c0: float, resid0: np.ndarray):
     """(S, c, se_S, se_c, residuals) of a soft_l1 M-estimate started at OLS."""
     n = x.size
@@ -283,7 +279,7 @@ def _robust(x: np.ndarray, f: np.ndarray, intercept: bool, s0: float, c0: float,
     # f_scale: the noise level of the inliers, from the OLS residuals; a floor
     # keeps it positive when most points lie exactly on a line.
     floor = 1e-12 * max(float(np.max(np.abs(f))), 1e-300)
-    f_scale = max(_mad_scale(resid0), floor)
+    f_scale = max(mad_scale(resid0), floor)
 
     if intercept:
         design = np.column_stack([x, np.ones_like(x)])
@@ -420,108 +416,6 @@ def fit_spring(
 # --------------------------------------------------------------------------
 # branches
 # --------------------------------------------------------------------------
-
-
-def _rolling_median(x: np.ndarray, window: int) -> np.ndarray:
-    """Centred rolling median, the window shrinking at the ends."""
-    import pandas as pd
-
-    return pd.Series(x).rolling(window, center=True, min_periods=1).median().to_numpy()
-
-
-def split_branches(displacement, time=None, *, window: int = 5) -> dict[str, np.ndarray]:
-    """Boolean masks of the loading and unloading branches of a pull test.
-
-    A pull test raises the displacement (possibly in steps with dwells) and
-    may lower it again. The displacement is smoothed by a centred rolling
-    median of ``window`` samples (kills spikes); the loading branch runs to
-    the *end* of the top plateau (all samples within a noise tolerance of
-    the maximum that are contiguous with it), the unloading branch is
-    everything after it. A top "plateau" shorter than the window is a sharp
-    peak flattened by the median; the turning point is then the raw maximum
-    near it. The tolerance is 5 robust noise sds (MAD of the
-    raw minus smoothed signal), at least 1e-3 of the displacement range.
-
-    There is no unloading branch when fewer than 3 samples follow the top
-    plateau or the smoothed displacement drops by less than the tolerance
-    after it; then only ``{"loading": all True}`` is returned.
-
-    Parameters
-    ----------
-    displacement : array_like
-        Displacement log [any length unit], in time order unless ``time``
-        is given.
-    time : array_like, optional
-        Sample times; when given the samples are put in time order first
-        (the masks refer to the original sample order).
-    window : int
-        Rolling-median window [samples], made odd.
-
-    Returns
-    -------
-    dict of str to ndarray of bool
-        ``{"loading": mask}`` or ``{"loading": mask, "unloading": mask}``;
-        the masks are disjoint and cover every sample.
-
-    Raises
-    ------
-    InputError
-        Empty or non-finite displacement, or ``time`` of another length or
-        non-finite.
-    """
-    x = np.asarray(displacement, dtype=float).ravel()
-    n = x.size
-    if n == 0:
-        raise InputError("split_branches: displacement is empty", "pass the displacement log")
-    if not np.all(np.isfinite(x)):
-        raise InputError(
-            "split_branches: displacement contains non-finite values",
-            "drop or interpolate missing samples first",
-        )
-    order = np.arange(n)
-    if time is not None:
-        t = np.asarray(time, dtype=float).ravel()
-        if t.size != n or not np.all(np.isfinite(t)):
-            raise InputError(
-                f"split_branches: time has {t.size} values (or non-finite ones) for {n} displacements",
-                "pass one finite time per displacement sample",
-            )
-        order = np.argsort(t, kind="stable")
-        x = x[order]
-
-    loading = np.ones(n, dtype=bool)
-    if n < 4:
-        return {"loading": loading}
-
-    w = max(1, int(window))
-    w = w + 1 if w % 2 == 0 else w
-    w = min(w, n if n % 2 == 1 else n - 1)
-    smooth = _rolling_median(x, w)
-    noise = _mad_scale(x - smooth)
-    span = float(np.ptp(smooth))
-    tol = max(5.0 * noise, 1e-3 * span, np.finfo(float).tiny)
-
-    i_max = int(np.argmax(smooth))
-    top = smooth[i_max]
-    below = np.flatnonzero(smooth[i_max:] < top - tol)
-    # end of the top plateau: last sample before the first clear drop
-    i_end = i_max + int(below[0]) - 1 if below.size else n - 1
-    before = np.flatnonzero(smooth[:i_max] < top - tol)
-    i_start = int(before[-1]) + 1 if before.size else 0
-    if below.size and i_end - i_start < w:
-        # a sharp peak, not a dwell: the median flattens it over ~w samples,
-        # so put the turning point at the raw maximum near the flat top
-        lo = max(0, i_start - w // 2)
-        i_end = lo + int(np.argmax(x[lo : i_end + 1]))
-    after = n - 1 - i_end
-    drop = top - float(smooth[i_end + 1 :].min()) if after > 0 else 0.0
-    if after < 3 or drop < tol:
-        return {"loading": loading}
-
-    in_order = np.arange(n) <= i_end
-    loading = np.empty(n, dtype=bool)
-    loading[order] = in_order
-    return {"loading": loading, "unloading": ~loading}
 
 
 # --------------------------------------------------------------------------

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from tcamlab import kinds as _kinds
 from tcamlab.errors import InputError
 
 __all__ = [
@@ -153,27 +154,17 @@ r1/r2 [ohm], kappa1/kappa2 [1/m].
 INTERNAL_TO_CANONICAL: dict[str, str] = {v[0]: k for k, v in VARIABLE_MAP.items()}
 """Internal column name -> canonical CSV column name."""
 
-KINDS: tuple[str, ...] = ("static", "dynamic", "sensing", "curvature")
-"""The kinds of run tcamlab knows."""
+KINDS: tuple[str, ...] = _kinds.KINDS
+"""The kinds of run tcamlab knows (:mod:`tcamlab.kinds`)."""
 
-REQUIRED: dict[str, tuple[str, ...]] = {
-    "static": ("temperature_C", "displacement_mm"),
-    "dynamic": ("time_s", "voltage_V", "displacement_mm"),
-    "sensing": ("displacement_mm", "force_N", "resistance_ohm"),
-    "curvature": ("cable_mm", "r1_ohm", "r2_ohm", "kappa1_per_mm", "kappa2_per_mm"),
-}
-"""Kind -> canonical columns a run of that kind must have."""
+REQUIRED: dict[str, tuple[str, ...]] = {k.name: k.required_columns for k in _kinds.REGISTRY.values()}
+"""Kind -> canonical columns a run of that kind must have (from the kind registry)."""
 
-OPTIONAL: dict[str, tuple[str, ...]] = {
-    "static": ("time_s",),
-    "dynamic": ("temperature_C", "current_A", "resistance_ohm"),
-    "sensing": ("time_s", "temperature_C"),
-    "curvature": ("time_s",),
-}
-"""Kind -> canonical columns a run of that kind may have."""
+OPTIONAL: dict[str, tuple[str, ...]] = {k.name: k.optional_columns for k in _kinds.REGISTRY.values()}
+"""Kind -> canonical columns a run of that kind may have (from the kind registry)."""
 
-MIN_ROWS: dict[str, int] = {"static": 3, "dynamic": 10, "sensing": 3, "curvature": 2}
-"""Kind -> fewest data rows a run needs to be fitted."""
+MIN_ROWS: dict[str, int] = {k.name: k.min_rows for k in _kinds.REGISTRY.values()}
+"""Kind -> fewest data rows a run needs to be fitted (from the kind registry)."""
 
 DEFAULT_MAX_BYTES: int = 2 * 1024**3
 """Largest CSV file :func:`read_run` reads unless told otherwise [bytes] (2 GiB)."""
@@ -894,7 +885,7 @@ def _read_run(
         if displacement_zero != 0.0:
             data["displacement"] = data["displacement"] - displacement_zero
 
-    if kind == "sensing":
+    if "force" in _kinds.REGISTRY[kind].tension_outputs:
         _check_pull_force(shown, data, selected)
 
     frame = pd.DataFrame(data)

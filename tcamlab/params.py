@@ -22,6 +22,9 @@ from tcamlab.errors import ConfigError
 G_ACCEL = 9.80665
 """Standard gravity [m/s^2]."""
 
+SILVER_TCR = 3.8e-3
+"""Temperature coefficient of resistance of silver [1/K] (CRC Handbook)."""
+
 
 @dataclass(frozen=True)
 class Sample:

@@ -2,7 +2,7 @@
 
 :func:`simulate` makes an experiment (CSV runs and an experiment file) of one
 rig kind from a template experiment file. The *measured* columns are the
-prediction of :func:`tcamlab.forward.predict` -- with the active effect terms
+prediction of :func:`tcamlab.kinds.predict` -- with the active effect terms
 of :mod:`tcamlab.effects` -- evaluated on the *exact* protocol inputs, then
 passed through the measurement chain (noise, ADC quantisation, display
 resolution). The logged inputs (temperature, resistance, ...) go through
@@ -102,7 +102,7 @@ sum_i kappa_i (d1/2) L_i = c and kappa_tip / kappa_base = 1.5; the sensor
 part stretches by delta_i = kappa_i (d1/2) L_i and reads
 R_i = sensing.forward(delta_i) for a segment sensor whose fiber length and
 twists are the whole sensor's scaled by L_i / L (S = rig.spring_constant).
-The camera's ground truth is :func:`tcamlab.forward.predict_curvature` of the
+The camera's ground truth is :func:`tcamlab.kinds.curvature.predict` of the
 exact R_i and cable, so the model is exact without effects.
 
 Effect strengths are in multiples of the noise floor of the primary measured
@@ -126,12 +126,12 @@ from scipy.optimize import brentq
 
 from tcamlab import __version__
 from tcamlab import config as _config
-from tcamlab import forward as fw
 from tcamlab import io as tio
-from tcamlab.effects import Effect, get_effect
+from tcamlab.effects import NO_MODS, Effect, Mods, get_effect
 from tcamlab.errors import ConfigError, TcamlabError
+from tcamlab.kinds import REGISTRY, get_kind, predict
 from tcamlab.models import sensing as _sensing
-from tcamlab.params import RIG_KEYS, SAMPLE_KEYS, THESIS_ROBOT, THESIS_TCA, THESIS_TCS, Rig, Sample
+from tcamlab.params import RIG_KEYS, SAMPLE_KEYS, SILVER_TCR, Rig, Sample
 
 __all__ = [
     "SimulationResult",
@@ -190,51 +190,11 @@ DOMAIN_BACKOFF = 0.9
 (2.13) for a steeper shear-modulus slope), the parameter is set to this fraction
 of the largest valid value and the achieved strength is recorded."""
 
-DEFAULT_RUNS = {"static": 3, "dynamic": 3, "sensing": 3, "curvature": 3}
-"""Runs per simulated experiment unless ``n_runs`` is given."""
+DEFAULT_RUNS = {k.name: k.default_runs for k in REGISTRY.values()}
+"""Runs per simulated experiment unless ``n_runs`` is given (from the kind registry)."""
 
-DEFAULT_SCATTER: dict[str, dict[str, float]] = {
-    "static": {"twists": 2e-3, "coil_length": 2e-3},
-    "dynamic": {"twists": 2e-3, "coil_length": 2e-3},
-    "sensing": {"twists": 5e-4, "coil_length": 5e-4},
-    "curvature": {"twists": 5e-4, "coil_length": 5e-4},
-}
-"""Kind -> {SI field of Sample or Rig: relative sd} of the per-run scatter."""
-
-_PRESET_FOR = {"static": THESIS_TCA, "dynamic": THESIS_TCA, "sensing": THESIS_TCS, "curvature": THESIS_ROBOT}
-
-_COLUMNS = {
-    "static": ("time", "temperature", "displacement"),
-    "dynamic": ("time", "voltage", "displacement"),
-    "sensing": ("time", "displacement", "force", "resistance"),
-    "curvature": ("cable", "r1", "r2", "kappa1", "kappa2"),
-}
-"""Logged columns (internal names) per kind, in file order."""
-
-_DECIMALS = {
-    "time_s": {"static": 0, "dynamic": 3, "sensing": 1, "curvature": 1},
-    "temperature_C": 1,
-    "displacement_mm": {"static": 3, "dynamic": 3, "sensing": 2, "curvature": 2},
-    "voltage_V": 3,
-    "force_N": 6,
-    "resistance_ohm": 3,
-    "cable_mm": 2,
-    "r1_ohm": 3,
-    "r2_ohm": 3,
-    "kappa1_per_mm": 6,
-    "kappa2_per_mm": 6,
-}
-"""Decimals written per canonical column (the instrument's resolution or finer)."""
-
-_RIG_FIELDS = {
-    "static": ("load", "ambient"),
-    "dynamic": ("load", "ambient", "voltage", "pulse", "resistance", "thermal_mass", "heat_loss", "damping"),
-    "sensing": ("ambient", "initial_resistance"),
-    "curvature": ("ambient", "initial_resistance", "spring_constant", "sensor_offset", "segment_lengths"),
-}
-"""Rig fields written to the generated experiment file (never S for sensing)."""
-
-_HIDDEN_RIG = {"sensing": ("spring_constant",)}
+DEFAULT_SCATTER: dict[str, dict[str, float]] = {k.name: dict(k.default_scatter) for k in REGISTRY.values()}
+"""Kind -> {SI field of Sample or Rig: relative sd} of the per-run scatter (from the kind registry)."""
 
 SYNTHETIC_NOTE = (
     "Synthetic data made by the tcamlab virtual rig (tcamlab.rig): the thesis model "
@@ -272,8 +232,7 @@ class SimulationResult:
 
 
 def _check_kind(kind: str) -> None:
-    if kind not in DEFAULT_RUNS:
-        raise ConfigError(f"unknown rig kind {kind!r}", hint="one of " + ", ".join(DEFAULT_RUNS))
+    get_kind(kind)
 
 
 OVEN_PROGRAMS = ("heating", "heat-cool")
@@ -362,25 +321,15 @@ def _initial_resistances(rig: Rig, kind: str) -> tuple[float, ...]:
     return (float(r0),)
 
 
-def _options(kind: str, rig: Rig) -> dict[str, Any]:
-    """Keyword options of :func:`tcamlab.forward.predict` for a run's (true) rig."""
-    if kind == "sensing":
-        return {
-            "spring_constant": float(rig.spring_constant),
-            "initial_resistance": _initial_resistances(rig, kind)[0],
-        }
-    if kind == "curvature":
-        return {
-            "spring_constant": float(rig.spring_constant),
-            "initial_resistances": _initial_resistances(rig, kind),
-        }
-    return {}
+def _options(kind: str, sample: Sample, rig: Rig, data: pd.DataFrame) -> dict[str, Any]:
+    """Keyword options of :func:`tcamlab.kinds.predict` for a run's (true) rig, by the kind's rule."""
+    return dict(get_kind(kind).run_options(sample, rig, data).options)
 
 
 def exact_inputs(
-    kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame, mods: fw.Mods = fw.NO_MODS
+    kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS
 ) -> pd.DataFrame:
-    """The exact input columns of :func:`tcamlab.forward.predict` for a protocol.
+    """The exact input columns of :func:`tcamlab.kinds.predict` for a protocol.
 
     Static and dynamic inputs are the protocol itself. The sensing input is
     the resistance of the sensor stretched by the programmed elongation
@@ -401,7 +350,7 @@ def exact_inputs(
         r = _sensing.forward(
             proto["elongation"].to_numpy(float), _initial_resistances(rig, kind)[0], rig.spring_constant, **kw
         )
-        r = r * (1.0 + fw.SILVER_TCR * mods.temperature_offset)
+        r = r * (1.0 + SILVER_TCR * mods.temperature_offset)
         return pd.DataFrame({"time": proto["time"].to_numpy(float), "resistance": r})
     if rig.spring_constant is None or rig.initial_resistance is None:
         raise ConfigError(
@@ -541,14 +490,6 @@ def _measure(
     return pd.DataFrame(out)
 
 
-_NOISY_INPUTS = {
-    "static": ("temperature",),
-    "dynamic": (),
-    "sensing": ("resistance",),
-    "curvature": ("r1", "r2"),
-}
-
-
 def noise_sd(
     kind: str, sample: Sample | None = None, rig: Rig | None = None, *, noise_scale: float = 1.0
 ) -> dict[str, float]:
@@ -578,7 +519,7 @@ def noise_sd(
         Quantity (internal name) -> sd [SI].
     """
     _check_kind(kind)
-    preset = _PRESET_FOR[kind]
+    preset = get_kind(kind).preset
     sample = preset.build_sample() if sample is None else sample
     if rig is None:
         rig = preset.build_rig()
@@ -590,14 +531,14 @@ def noise_sd(
             rig = rig.replace(spring_constant=THESIS_TCS_SPRING_CONSTANT.value)
     inst = instrument_sd(kind, noise_scale)
     out = dict(inst)
-    noisy = _NOISY_INPUTS[kind]
+    noisy = get_kind(kind).noisy_inputs
     if not noisy:
         return out
     proto = protocol(kind, rig, np.random.default_rng(0))
     inputs = exact_inputs(kind, sample, rig, proto)
-    opts = _options(kind, rig)
-    base = fw.predict(kind, sample, rig, inputs, **opts)
-    var = {q: np.zeros(len(inputs)) for q in fw.OUTPUTS[kind]}
+    opts = _options(kind, sample, rig, inputs)
+    base = predict(kind, sample, rig, inputs, **opts)
+    var = {q: np.zeros(len(inputs)) for q in get_kind(kind).outputs}
     first = np.zeros(len(inputs))
     first[0] = 1.0
     for col in noisy:
@@ -605,10 +546,10 @@ def noise_sd(
         for mask in (first, 1.0 - first):
             pert = inputs.copy()
             pert[col] = pert[col].to_numpy(float) + h * mask
-            moved = fw.predict(kind, sample, rig, pert, **opts)
+            moved = predict(kind, sample, rig, pert, **opts)
             for q in var:
                 var[q] += (np.asarray(moved[q]) - np.asarray(base[q])) ** 2
-    for q in fw.OUTPUTS[kind]:
+    for q in get_kind(kind).outputs:
         out[q] = float(math.sqrt(inst[q] ** 2 + float(np.mean(var[q]))))
     return out
 
@@ -619,23 +560,14 @@ def noise_sd(
 def _gap(kind, sample, rig, proto, mods, opts) -> dict[str, np.ndarray]:
     """Effect prediction minus baseline prediction, on the exact inputs the effect makes."""
     inputs = exact_inputs(kind, sample, rig, proto, mods)
-    eff = fw.predict(kind, sample, rig, inputs, mods, **opts)
-    base = fw.predict(kind, sample, rig, inputs, fw.NO_MODS, **opts)
-    return {q: np.asarray(eff[q], float) - np.asarray(base[q], float) for q in fw.OUTPUTS[kind]}
+    eff = predict(kind, sample, rig, inputs, mods, **opts)
+    base = predict(kind, sample, rig, inputs, NO_MODS, **opts)
+    return {q: np.asarray(eff[q], float) - np.asarray(base[q], float) for q in get_kind(kind).outputs}
 
 
 def _normalised_rms(gap: Mapping[str, np.ndarray], sd: Mapping[str, float], quantities) -> float:
     """sqrt of the mean over quantities and rows of (gap / sd)^2."""
     return float(math.sqrt(np.mean(np.concatenate([(gap[q] / sd[q]) ** 2 for q in quantities]))))
-
-
-def _primary(kind: str) -> tuple[str, ...] | None:
-    return {
-        "static": ("displacement",),
-        "dynamic": ("displacement",),
-        "curvature": ("kappa1", "kappa2"),
-        "sensing": None,
-    }[kind]
 
 
 def scale_effect(
@@ -677,21 +609,21 @@ def scale_effect(
         ``limited_by`` (None, ``"bound"`` or ``"domain"``).
     """
     effect: Effect = get_effect(name, kind)
-    opts = _options(kind, rig)
+    opts = _options(kind, sample, rig, proto)
     param = effect.params[0]
 
     def metric_at(value, quantities):
         mods = effect.mods([value])
         for s_k, r_k, p_k in also_valid_for:
-            _gap(kind, s_k, r_k, p_k, mods, _options(kind, r_k))  # raises outside the domain
+            _gap(kind, s_k, r_k, p_k, mods, _options(kind, s_k, r_k, p_k))  # raises outside the domain
         return _normalised_rms(_gap(kind, sample, rig, proto, mods, opts), sd, quantities)
 
     def pick_quantities(value):
-        prim = _primary(kind)
+        prim = get_kind(kind).strength_quantities
         if prim is not None:
             return prim
         gap = _gap(kind, sample, rig, proto, effect.mods([value]), opts)
-        scores = [(_normalised_rms(gap, sd, (q,)), q) for q in fw.OUTPUTS[kind]]
+        scores = [(_normalised_rms(gap, sd, (q,)), q) for q in get_kind(kind).outputs]
         best = max(scores, key=lambda s: s[0])
         return (best[1],)
 
@@ -834,11 +766,10 @@ def _lab(value: float, factor: float) -> float:
 
 
 def _format_csv(kind: str, logged: pd.DataFrame) -> str:
-    canon = tio.internal_to_canonical(logged[list(_COLUMNS[kind])])
+    canon = tio.internal_to_canonical(logged[list(get_kind(kind).logged_columns)])
     cols = []
     for name in canon.columns:
-        dec = _DECIMALS[name]
-        dec = dec[kind] if isinstance(dec, dict) else dec
+        dec = get_kind(kind).decimals[name]
         vals = np.round(canon[name].to_numpy(float), dec) + 0.0
         cols.append([f"{v:.{dec}f}" for v in vals])
     lines = [",".join(canon.columns)]
@@ -866,7 +797,7 @@ def _experiment_doc(
         sample_table[key] = int(v) if key == "thread_plies" else _lab(v, factor)
     si_to_key = {si: (key, factor) for key, (si, factor) in RIG_KEYS.items()}
     rig_table: dict[str, Any] = {}
-    for fld in _RIG_FIELDS[kind]:
+    for fld in get_kind(kind).written_rig_fields:
         v = getattr(exp.rig, fld)
         if v is None:
             continue
@@ -874,7 +805,7 @@ def _experiment_doc(
         rig_table[key] = [_lab(x, factor) for x in v] if isinstance(v, tuple) else _lab(v, factor)
     unc = {}
     for fld, v in sorted(exp.rig.uncertainty.items()):
-        if fld in _HIDDEN_RIG.get(kind, ()) or fld not in si_to_key:
+        if fld in get_kind(kind).hidden_rig_fields or fld not in si_to_key:
             continue
         key, factor = si_to_key[fld]
         unc[key] = [_lab(x, factor) for x in v] if isinstance(v, tuple) else _lab(v, factor)
@@ -1051,7 +982,7 @@ def simulate(
         sd = noise_sd(kind, sample0, rig0)  # strengths still refer to the nominal floor
 
     effect_truth: dict[str, dict] = {}
-    mods = fw.NO_MODS
+    mods = NO_MODS
     for ename, strength in (effects or {}).items():
         info = scale_effect(
             kind,
@@ -1072,7 +1003,7 @@ def simulate(
         rng = rngs[k]
         sample_k, rig_k = trues[k]
         inputs = exact_inputs(kind, sample_k, rig_k, protos[k], mods)
-        outputs = fw.predict(kind, sample_k, rig_k, inputs, mods, **_options(kind, rig_k))
+        outputs = predict(kind, sample_k, rig_k, inputs, mods, **_options(kind, sample_k, rig_k, inputs))
         logged = _measure(kind, inputs, outputs, rng, noise_scale)
         fname = f"{name}_run{k + 1}.csv"
         path = out / "raw" / fname
@@ -1104,8 +1035,8 @@ def simulate(
             "effects": effect_truth,
             "mods": {
                 f: getattr(mods, f)
-                for f in fw.Mods.__dataclass_fields__
-                if getattr(mods, f) != getattr(fw.NO_MODS, f)
+                for f in Mods.__dataclass_fields__
+                if getattr(mods, f) != getattr(NO_MODS, f)
             },
             "scatter": scatter,
             "noise_sd": sd,

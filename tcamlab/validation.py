@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from tcamlab import forward
 from tcamlab.config import Experiment
-from tcamlab.errors import ConvergenceError, InputError, IntegrationError, ModelDomainError
+from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.io import RunData
+from tcamlab.kinds import Kind, get_kind
 from tcamlab.metrics import check_thresholds, error_metrics, pooled_metrics
 
 __all__ = ["ValidationResult", "RunPrediction", "validate", "DISPLAY", "MC_DRAWS"]
@@ -34,8 +34,6 @@ DISPLAY = {
 
 MC_DRAWS = 1000
 """Monte Carlo draws for the dynamic prediction band."""
-MC_GRID = 0.01
-"""Time step of the Monte Carlo band grid [s] (interpolated onto the log)."""
 
 
 @dataclass
@@ -104,12 +102,12 @@ class ValidationResult:
 
     @property
     def quantities(self) -> tuple[str, ...]:
-        return forward.OUTPUTS[self.kind]
+        return get_kind(self.kind).outputs
 
     def to_pandas(self) -> pd.DataFrame:
         """One row per logged sample: run, inputs, measured and predicted (lab units)."""
         frames = []
-        inputs = [c for c in forward.INPUTS[self.kind] if c != "time"]
+        inputs = [c for c in get_kind(self.kind).inputs if c != "time"]
         for p in self.predictions:
             out = {"run": p.name, "row": np.arange(1, len(p.data) + 1)}
             if "time" in p.data:
@@ -261,148 +259,37 @@ def _in_run(exp: Experiment, name: str, fn, *args, **kwargs):
         raise type(exc)(prefix + exc.message, exc.hint) from None
 
 
-def _static(exp: Experiment, runs, names):
-    variants = ["G(T)", "constant-G"]
+def _training(runs, names, i):
+    """The other runs, all rows: what a run's spring constant may be identified on."""
+    others = [j for j in range(len(runs)) if j != i]
+    data = [(runs[j].data, np.ones(len(runs[j].data), dtype=bool)) for j in others]
+    return data, [names[j] for j in others]
+
+
+def _predict_runs(exp: Experiment, kind: Kind, runs, names) -> list[RunPrediction]:
+    """Every model variant of the kind on every run, with the kind's per-run constants."""
     preds = []
-    for r, name in zip(runs, names):
-        predicted = {
-            "G(T)": _in_run(exp, name, forward.predict_static, exp.sample, exp.rig, r.data),
-            "constant-G": _in_run(
-                exp, name, forward.predict_static, exp.sample, exp.rig, r.data, constant_g=True
-            ),
-        }
-        preds.append(RunPrediction(name, r.data, predicted))
-    return variants, "G(T)", preds, [], {}
-
-
-def _dynamic(exp: Experiment, runs, names, mc_draws, seed):
-    from tcamlab.models import dynamic as dyn
-
-    preds, notes = [], []
-    mc_summary = {}
-    for r, name in zip(runs, names):
-        predicted = {"G(T)": _in_run(exp, name, forward.predict_dynamic, exp.sample, exp.rig, r.data)}
-        band = None
-        t = r.data["time"].to_numpy(float)
-        if mc_draws and exp.rig.uncertainty:
-            grid = np.arange(t[0], t[-1] + MC_GRID / 2, MC_GRID)
-            idx = np.searchsorted(t, grid, side="right") - 1
-            volts = r.data["voltage"].to_numpy(float)[np.clip(idx, 0, t.size - 1)]
-            mc = _in_run(
-                exp, name, dyn.monte_carlo, grid, volts, exp.sample, exp.rig, n_draws=mc_draws, seed=seed
-            )
-            lo, med, hi = (np.interp(t, mc.time, q) for q in mc.band())
-            band = {"lower": lo, "median": med, "upper": hi}
-            meas = r.data["displacement"].to_numpy(float)
-            coverage = float(np.mean((meas >= lo) & (meas <= hi)))
-            mc_summary[name] = {"draws": mc_draws, "out_of_range": mc.n_invalid, "coverage_95": coverage}
-            if mc.n_invalid:
-                notes.append(
-                    f"{name}: {mc.n_invalid} of {mc_draws} Monte Carlo draws heated the "
-                    f"actuator past the G_t' > 0 limit of eq. (2.13) and were left out of "
-                    f"the band"
-                )
-        preds.append(RunPrediction(name, r.data, predicted, band=band))
-    extras = (
-        {
-            "monte_carlo": {
-                "distribution": "log-normal, moment-matched to the stated mean and sd",
-                "parameters": sorted(k for k in exp.rig.uncertainty if k in dyn.MC_PARAMS),
-                "runs": mc_summary,
-            }
-        }
-        if mc_summary
-        else {}
-    )
-    if not mc_summary:
-        notes.append("no [rig.uncertainty] given: no Monte Carlo prediction band")
-    return ["G(T)"], "G(T)", preds, notes, extras
-
-
-def _sensing(exp: Experiment, runs, names):
-    from tcamlab.fitting import fit_spring
-    from tcamlab.models import sensing as sens
-
-    preds, notes = [], []
-    spring = {}
-    geo = exp.sample.sensor_kwargs()
     for i, (r, name) in enumerate(zip(runs, names)):
-        if exp.rig.spring_constant is not None:
-            s_val = exp.rig.spring_constant
-            source = exp.provenance.get("spring_constant", "experiment file")
-        else:
-            others = [o for j, o in enumerate(runs) if j != i]
-            if not others:
-                raise InputError(
-                    f"{exp.path.name}: sensing validation needs a spring constant; with one run "
-                    "it cannot be identified without using the run being validated",
-                    hint="set spring_constant_N_per_m in [rig], or add a second run",
-                )
-            x = np.concatenate([o.data["displacement"].to_numpy(float) for o in others])
-            f = np.concatenate([o.data["force"].to_numpy(float) for o in others])
-            fit = fit_spring(x, f, run=f"without {name}")
-            s_val = fit.spring_constant
-            source = "identified leave-one-run-out from " + ", ".join(
-                n for j, n in enumerate(names) if j != i
-            )
-        r0 = (
-            exp.rig.initial_resistance
-            if exp.rig.initial_resistance is not None
-            else float(r.data["resistance"].iloc[0])
+        training, training_runs = _training(runs, names, i)
+        ro = _in_run(
+            exp,
+            name,
+            kind.run_options,
+            exp.sample,
+            exp.rig,
+            r.data,
+            training=training,
+            training_runs=training_runs,
+            where=exp.path.name,
+            provenance=exp.provenance,
+            for_report=True,
         )
-        cond = _in_run(exp, name, sens.conditioning, s_val, **geo)
-        info = {
-            "spring_constant_N_per_m": s_val,
-            "spring_constant_source": source,
-            "initial_resistance_ohm": r0,
-            "initial_resistance_source": (
-                "experiment file" if exp.rig.initial_resistance is not None else "first row of the run"
-            ),
-            "conditioning": cond.status,
-            "margin_1_minus_S_f11": cond.margin,
-        }
-        spring[name] = info
-        if cond.status != "ok":
-            notes.append(f"{name}: sensing inversion {cond.describe()}")
         predicted = {
-            "thesis": _in_run(
-                exp,
-                name,
-                forward.predict_sensing,
-                exp.sample,
-                exp.rig,
-                r.data,
-                spring_constant=s_val,
-                initial_resistance=r0,
-            )
+            v: _in_run(exp, name, kind.predict, exp.sample, exp.rig, r.data, **ro.options, **extra)
+            for v, extra in kind.variants.items()
         }
-        preds.append(RunPrediction(name, r.data, predicted, info=info))
-    return ["thesis"], "thesis", preds, notes, {"spring_constant": spring}
-
-
-def _curvature(exp: Experiment, runs, names):
-    if exp.rig.spring_constant is None:
-        raise InputError(
-            f"{exp.path.name}: curvature validation needs the sensor's spring constant",
-            hint="set spring_constant_N_per_m in [rig] (one segment)",
-        )
-    preds = []
-    for r, name in zip(runs, names):
-        r0 = (float(r.data["r1"].iloc[0]), float(r.data["r2"].iloc[0]))
-        predicted = {
-            "thesis": _in_run(
-                exp,
-                name,
-                forward.predict_curvature,
-                exp.sample,
-                exp.rig,
-                r.data,
-                spring_constant=exp.rig.spring_constant,
-                initial_resistances=r0,
-            )
-        }
-        preds.append(RunPrediction(name, r.data, predicted, info={"initial_resistances_ohm": r0}))
-    return ["thesis"], "thesis", preds, [], {}
+        preds.append(RunPrediction(name, r.data, predicted, info=dict(ro.info)))
+    return preds
 
 
 def validate(
@@ -439,16 +326,17 @@ def validate(
         kw = {} if max_bytes is None else {"max_bytes": max_bytes}
         runs = experiment.read_runs(drop_na=drop_na, **kw)
     names = _run_names(runs)
-    kind = experiment.kind
-    if kind == "static":
-        variants, primary, preds, notes, extras = _static(experiment, runs, names)
-    elif kind == "dynamic":
-        variants, primary, preds, notes, extras = _dynamic(experiment, runs, names, mc_draws, seed)
-    elif kind == "sensing":
-        variants, primary, preds, notes, extras = _sensing(experiment, runs, names)
-    else:
-        variants, primary, preds, notes, extras = _curvature(experiment, runs, names)
-    metrics = _metrics(preds, variants, forward.OUTPUTS[kind])
+    kind = get_kind(experiment.kind)
+    preds = _predict_runs(experiment, kind, runs, names)
+    notes, extras = kind.validation_extras(
+        experiment,
+        preds,
+        mc_draws=mc_draws,
+        seed=seed,
+        call=lambda name, fn, *a, **k: _in_run(experiment, name, fn, *a, **k),
+    )
+    variants, primary = list(kind.variants), kind.primary
+    metrics = _metrics(preds, variants, kind.outputs)
     pooled = {q: b["pooled"] for q, b in metrics[primary].items()}
     checks = check_thresholds(pooled, experiment.thresholds)
     dropped = sum(r.n_dropped for r in runs)

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tcamlab import forward as fw
 from tcamlab import rig
 from tcamlab.config import load_experiment
-from tcamlab.effects import effects_for
+from tcamlab.effects import NO_MODS, Mods, effects_for
 from tcamlab.io import read_run
+from tcamlab.kinds import get_kind, predict
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "experiments" / "templates"
@@ -47,11 +47,11 @@ def true_rig(kind, exp):
     return exp.rig
 
 
-def residuals(kind, exp, mods=fw.NO_MODS, **options):
+def residuals(kind, exp, mods=NO_MODS, **options):
     """{quantity: residuals pooled over runs} of the thesis model on the experiment's data."""
-    out = {q: [] for q in fw.OUTPUTS[kind]}
+    out = {q: [] for q in get_kind(kind).outputs}
     for run in exp.read_runs():
-        pred = fw.predict(kind, exp.sample, exp.rig, run.data, mods, **(options or model_options(kind, exp)))
+        pred = predict(kind, exp.sample, exp.rig, run.data, mods, **(options or model_options(kind, exp)))
         for q in out:
             out[q].append(run.data[q].to_numpy(float) - np.asarray(pred[q], float))
     return {q: np.concatenate(v) for q, v in out.items()}
@@ -93,8 +93,8 @@ def test_written_files_load_back(clean, kind):
     assert "synthetic" in exp.notes.lower()
     for p in res.run_paths:
         run = read_run(p, kind)
-        assert set(fw.OUTPUTS[kind]) <= set(run.data.columns)
-        assert set(fw.INPUTS[kind]) <= set(run.data.columns)
+        assert set(get_kind(kind).outputs) <= set(run.data.columns)
+        assert set(get_kind(kind).inputs) <= set(run.data.columns)
     assert [Path(p).resolve() for p in res.run_paths] == list(exp.runs)
     raw = tomllib.loads(res.experiment_path.read_text())
     assert all(r.startswith("../raw/") for r in raw["runs"])
@@ -227,7 +227,7 @@ def test_thesis_model_fits_effect_free_data_within_noise(clean, kind):
 @pytest.mark.parametrize("kind", KINDS)
 def test_noise_floor_with_more_seeds(tmp_path, kind):
     """The noise sd is the floor on average, not only for one lucky seed."""
-    ratios = {q: [] for q in fw.OUTPUTS[kind]}
+    ratios = {q: [] for q in get_kind(kind).outputs}
     for seed in (21, 22):
         res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=seed, out_dir=tmp_path / str(seed))
         exp = load_experiment(res.experiment_path)
@@ -286,7 +286,7 @@ def test_strength_is_in_noise_sd(tmp_path, kind, name):
     expected = math.sqrt(1.0 + achieved**2)
     assert 0.7 * expected < gap < 1.3 * expected, (gap, expected)
     # The active effect's model explains the data to the noise again.
-    mods = fw.Mods().replace(**info["parameters"], **info["fixed"])
+    mods = Mods().replace(**info["parameters"], **info["fixed"])
     res_m = residuals(kind, exp, mods)
     z = np.concatenate([res_m[q] / sd[q] for q in info["quantities"]])
     assert math.sqrt(np.mean(z**2)) < 1.5

@@ -191,3 +191,13 @@ def figure_size_in(fig: Figure) -> tuple[float, float]:
     """(width, height) of *fig* in inches."""
     w, h = fig.get_size_inches()
     return float(w), float(h)
+
+
+def legend_label(name: str) -> str:
+    """A run name (a file stem, so user text) made safe as a matplotlib legend label.
+
+    matplotlib hides artists whose label starts with '_' from the legend; a
+    leading space keeps such runs visible. Mathtext ('$...$') is switched off
+    where report figures are drawn.
+    """
+    return " " + name if name.startswith("_") else name

@@ -7,21 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from tcamlab.kinds import get_kind
 from tcamlab.report.document import Cell, Document, Figure, Section, Table
-from tcamlab.report.figures import new_figure
+from tcamlab.report.figures import legend_label, new_figure
 
 __all__ = ["validation_document", "parameter_table", "synthetic_banner", "input_table"]
-
-_KIND_TEXT = {
-    "static": "static oven test (thesis section 2.5.1): displacement against temperature, "
-    "constant-G model (2.12) and G(T) model (2.13)",
-    "dynamic": "voltage-step test (thesis section 2.5.2): displacement against time, "
-    "model (2.14)-(2.19) with a Monte Carlo band from the parameter uncertainties",
-    "sensing": "sensing pull test (thesis section 3.3): displacement and force predicted from "
-    "resistance, (3.1)-(3.7) with F = S delta",
-    "curvature": "camera curvature test (thesis section 4.3): segment curvatures predicted "
-    "from R1, R2 by (4.1)",
-}
 
 _SI_UNITS = {
     "fiber_diameter": ("mm", 1e3),
@@ -48,13 +38,6 @@ _SI_UNITS = {
     "segment_lengths": ("mm", 1e3),
 }
 
-_RIG_FIELDS_BY_KIND = {
-    "static": ("load", "ambient"),
-    "dynamic": ("load", "ambient", "voltage", "pulse", "resistance", "thermal_mass", "heat_loss", "damping"),
-    "sensing": ("ambient", "initial_resistance", "spring_constant"),
-    "curvature": ("ambient", "spring_constant", "sensor_offset", "segment_lengths"),
-}
-
 
 def _fmt_value(value, factor):
     if value is None:
@@ -70,7 +53,7 @@ def parameter_table(experiment) -> Table:
     for name, value in experiment.sample.model_kwargs().items():
         unit, factor = _SI_UNITS[name]
         rows.append(["sample", name, _fmt_value(value, factor), unit, experiment.provenance.get(name, "–")])
-    for name in _RIG_FIELDS_BY_KIND[experiment.kind]:
+    for name in get_kind(experiment.kind).report_rig_fields:
         unit, factor = _SI_UNITS[name]
         value = getattr(experiment.rig, name)
         sd = experiment.rig.uncertainty.get(name)
@@ -152,16 +135,6 @@ def _threshold_table(result) -> Table | None:
     )
 
 
-def _run_label(name: str) -> str:
-    """A run name (a file stem, so user text) made safe as a matplotlib legend label.
-
-    matplotlib hides artists whose label starts with '_' from the legend; a
-    leading space keeps such runs visible. Mathtext ('$...$') is switched off
-    where the figures are drawn (see :func:`_figures`).
-    """
-    return " " + name if name.startswith("_") else name
-
-
 def _figures(result) -> list[Figure]:
     """The report's figures, drawn with mathtext off: run names are file names and a
     '$' in one must be shown as it is, not parsed (or fail to parse) as TeX."""
@@ -172,123 +145,7 @@ def _figures(result) -> list[Figure]:
 
 
 def _draw_figures(result) -> list[Figure]:
-    kind = result.kind
-    figs = []
-    if kind == "static":
-        fig, ax = new_figure()
-        for p in result.predictions:
-            t = p.data["temperature"].to_numpy()
-            (line,) = ax.plot(
-                t, p.data["displacement"] * 1e3, "o", ms=3, label=f"{_run_label(p.name)} measured"
-            )
-            ax.plot(
-                t,
-                p.predicted["G(T)"]["displacement"] * 1e3,
-                "-",
-                color=line.get_color(),
-                label=f"{_run_label(p.name)} G(T) model",
-            )
-            ax.plot(
-                t,
-                p.predicted["constant-G"]["displacement"] * 1e3,
-                "--",
-                color=line.get_color(),
-                alpha=0.7,
-                label=f"{_run_label(p.name)} constant-G model",
-            )
-        ax.set_xlabel("temperature [°C]")
-        ax.set_ylabel("displacement [mm]")
-        ax.legend(fontsize=6, ncol=2)
-        figs.append(
-            Figure(
-                fig,
-                "Displacement against temperature: measured (points), G(T) "
-                "model (solid) and constant-G model (dashed), as in thesis "
-                "figure 2.7.",
-                alt="static validation plot",
-            )
-        )
-    elif kind == "dynamic":
-        fig, ax = new_figure()
-        for p in result.predictions:
-            t = p.data["time"].to_numpy()
-            if p.band is not None:
-                ax.fill_between(t, p.band["lower"] * 1e3, p.band["upper"] * 1e3, alpha=0.15)
-            (line,) = ax.plot(
-                t, p.data["displacement"] * 1e3, ".", ms=1.5, label=f"{_run_label(p.name)} measured"
-            )
-            ax.plot(
-                t,
-                p.predicted["G(T)"]["displacement"] * 1e3,
-                "-",
-                color=line.get_color(),
-                lw=1,
-                label=f"{_run_label(p.name)} model",
-            )
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("displacement [mm]")
-        ax.legend(fontsize=6, ncol=2)
-        figs.append(
-            Figure(
-                fig,
-                "Displacement against time under the voltage pulse: "
-                "measured (points), model (line) and 95% Monte Carlo band "
-                "(shaded), as in thesis figure 2.9.",
-                alt="dynamic plot",
-            )
-        )
-    elif kind == "sensing":
-        for q, unit, factor, label in (
-            ("force", "N", 1.0, "Force"),
-            ("displacement", "mm", 1e3, "Displacement"),
-        ):
-            fig, ax = new_figure()
-            for p in result.predictions:
-                r = p.data["resistance"].to_numpy()
-                (line,) = ax.plot(r, p.data[q] * factor, "o", ms=2, label=f"{_run_label(p.name)} measured")
-                ax.plot(
-                    r,
-                    p.predicted["thesis"][q] * factor,
-                    "-",
-                    color=line.get_color(),
-                    lw=1,
-                    label=f"{_run_label(p.name)} model",
-                )
-            ax.set_xlabel("resistance [ohm]")
-            ax.set_ylabel(f"{q} [{unit}]")
-            ax.legend(fontsize=6, ncol=2)
-            figs.append(
-                Figure(
-                    fig,
-                    f"{label} against resistance: measured and predicted (thesis figures 3.3/3.4).",
-                    alt=f"sensing {q} plot",
-                )
-            )
-    else:
-        fig, ax = new_figure()
-        for p in result.predictions:
-            c = p.data["cable"].to_numpy() * 1e3
-            for q, marker in (("kappa1", "o"), ("kappa2", "s")):
-                (line,) = ax.plot(c, p.data[q] * 1e-3, marker, ms=3, label=f"{_run_label(p.name)} {q} camera")
-                ax.plot(
-                    c,
-                    p.predicted["thesis"][q] * 1e-3,
-                    "-",
-                    color=line.get_color(),
-                    lw=1,
-                    label=f"{_run_label(p.name)} {q} model",
-                )
-        ax.set_xlabel("cable pull [mm]")
-        ax.set_ylabel("curvature [1/mm]")
-        ax.legend(fontsize=6, ncol=2)
-        figs.append(
-            Figure(
-                fig,
-                "Segment curvatures against cable pull: camera (markers) and "
-                "model from R1, R2 (lines), as in thesis figure 4.8.",
-                alt="curvature plot",
-            )
-        )
+    figs = get_kind(result.kind).figures(result)
     # residuals of the primary model
     fig, ax = new_figure(6.4, 2.8)
     from tcamlab.validation import DISPLAY
@@ -297,59 +154,13 @@ def _draw_figures(result) -> list[Figure]:
         name, factor = DISPLAY[q]
         for p in result.predictions:
             res = (p.predicted[result.primary][q] - p.data[q].to_numpy()) * factor
-            ax.plot(np.arange(res.size), res, ".", ms=2, label=f"{_run_label(p.name)} {name}")
+            ax.plot(np.arange(res.size), res, ".", ms=2, label=f"{legend_label(p.name)} {name}")
     ax.axhline(0.0, color="0.3", lw=0.8)
     ax.set_xlabel("row")
     ax.set_ylabel("predicted − measured")
     ax.legend(fontsize=6, ncol=2)
     figs.append(Figure(fig, f"Residuals of the {result.primary} model by row.", alt="residual plot"))
     return figs
-
-
-def _extras_section(result) -> Section | None:
-    if result.kind == "sensing":
-        rows = [
-            [
-                name,
-                i["spring_constant_N_per_m"],
-                i["spring_constant_source"],
-                i["initial_resistance_ohm"],
-                i["initial_resistance_source"],
-                Cell(i["conditioning"], "pass" if i["conditioning"] == "ok" else "warn"),
-                i["margin_1_minus_S_f11"],
-            ]
-            for name, i in result.extras["spring_constant"].items()
-        ]
-        return Section(
-            "Spring constant and conditioning",
-            tables=[
-                Table(
-                    ["run", "S [N/m]", "S from", "R0 [ohm]", "R0 from", "conditioning", "1 − S f11"],
-                    rows,
-                    caption="Spring constant used for each run (never identified on the run "
-                    "it validates) and the margin of the sensing equation",
-                )
-            ],
-        )
-    if result.kind == "dynamic" and result.extras.get("monte_carlo"):
-        mc = result.extras["monte_carlo"]
-        rows = [[name, s["draws"], s["out_of_range"], s["coverage_95"]] for name, s in mc["runs"].items()]
-        return Section(
-            "Monte Carlo prediction band",
-            paragraphs=[
-                f"Parameters drawn: {', '.join(mc['parameters'])}; distribution: "
-                f"{mc['distribution']} (keeps every parameter positive although the stated sd "
-                f"of lambda exceeds its value)."
-            ],
-            tables=[
-                Table(
-                    ["run", "draws", "out of range", "coverage of the 95% band"],
-                    rows,
-                    caption="Monte Carlo band per run",
-                )
-            ],
-        )
-    return None
 
 
 def validation_document(result, *, command: str | None = None) -> Document:
@@ -365,13 +176,13 @@ def validation_document(result, *, command: str | None = None) -> Document:
     )
     summary = Section(
         "Summary",
-        paragraphs=[f"Kind: {_KIND_TEXT[exp.kind]}.", f"{len(result.runs)} run(s); {verdict}."]
+        paragraphs=[f"Kind: {get_kind(exp.kind).description}.", f"{len(result.runs)} run(s); {verdict}."]
         + ([f"Notes: {exp.notes}"] if exp.notes else []),
         tables=summary_tables,
         notes=list(result.notes),
     )
     sections = [summary, Section("Model against measurement", figures=_figures(result))]
-    extra = _extras_section(result)
+    extra = get_kind(result.kind).extras_section(result)
     if extra:
         sections.append(extra)
     sections.append(Section("Parameters", tables=[parameter_table(exp)]))

@@ -1,0 +1,244 @@
+"""The rig-kind registry: everything that differs between rig kinds, one module per kind.
+
+Each module of this package defines one :class:`Kind` (``KIND``). Code
+elsewhere looks a kind up with :func:`get_kind` instead of branching on its
+name, so an unknown kind fails here, once, with a :class:`ConfigError`, and a
+new rig kind is one new module (plus its preset, templates and sample data)
+added to :data:`REGISTRY`. ``tests/test_kinds.py`` checks, in the manner of
+python-control's ``kwargs_test.py``, that every registered kind fills in
+every part consistently.
+
+==========  ============================  ==============================
+kind        inputs                        predicted
+==========  ============================  ==============================
+static      temperature (time)            displacement
+dynamic     time, voltage                 displacement (temperature)
+sensing     resistance (time)             displacement, force
+curvature   cable, r1, r2                 kappa1, kappa2
+==========  ============================  ==============================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import ConfigError
+from tcamlab.params import Preset, Rig, Sample
+
+__all__ = [
+    "Kind",
+    "RunOptions",
+    "REGISTRY",
+    "KINDS",
+    "get_kind",
+    "predict",
+    "no_extras",
+    "no_section",
+    "rest_rows",
+]
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """The per-run constants a prediction needs beyond sample and rig, and where they came from.
+
+    Attributes
+    ----------
+    options : dict
+        Keyword options of the kind's ``predict`` (e.g. ``spring_constant``
+        [N/m], ``initial_resistance`` [ohm]).
+    info : dict
+        The same values in lab units with their sources, for the report.
+    """
+
+    options: dict[str, Any] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One rig kind: its data contract, its model and its virtual rig.
+
+    Attributes
+    ----------
+    name : str
+        The ``kind`` of experiment files.
+    description : str
+        One sentence for reports: the test, its thesis section and the models.
+    required_columns, optional_columns : tuple of str
+        Canonical CSV columns (``tcamlab.io.VARIABLE_MAP`` keys) a run must / may have.
+    min_rows : int
+        Fewest data rows a run needs to be fitted.
+    inputs, outputs : tuple of str
+        Internal (SI) columns the model reads and the columns it predicts.
+    tension_outputs : tuple of str
+        Outputs logged as a tension, positive when loaded (checked for the sign on reading).
+    variants : mapping of str to dict
+        Model variants validated -> extra ``predict`` options; the first is
+        the primary model, the one thresholds apply to.
+    predict : callable
+        ``predict(sample, rig, data, mods=NO_MODS, **options) -> {quantity: ndarray}`` [SI].
+    run_options : callable
+        ``run_options(rig, data, training, label) -> RunOptions``: the one rule
+        choosing S and R0 for a run, shared by validation, diagnosis and the
+        virtual rig. ``training`` is a list of (DataFrame, row mask) the
+        spring constant may be identified on (never the run's own rows).
+    needs_training : bool
+        Whether ``run_options`` identifies a constant from training data when
+        the rig does not state it (sensing S).
+    validation_extras : callable
+        ``validation_extras(experiment, predictions, *, mc_draws, seed, call)
+        -> (notes, extras)``: what validation adds for this kind (the dynamic
+        Monte Carlo band, the sensing spring-constant table); ``call(run, fn,
+        *args)`` runs a model and names the run in its errors.
+    x_column : str
+        Internal column the diagnosis plots residuals against.
+    regimes : callable
+        ``regimes(data, quantity, frames) -> {group: labels per row}``; ``frames``
+        are all runs of the experiment (for bands over their pooled values).
+    shared_inputs : tuple of str
+        Inputs that set a row's operating point (runs agreeing on them are replicates).
+    report_rig_fields : tuple of str
+        Rig fields listed in the report's parameter table.
+    figures : callable
+        ``figures(result) -> list of report Figure`` for a ValidationResult.
+    extras_section : callable
+        ``extras_section(result) -> report Section or None``: the kind's own
+        section of the validation report (from ``validation_extras``).
+    preset : Preset
+        The thesis preset of this rig's sample and rig.
+    logged_columns : tuple of str
+        Internal columns the virtual rig writes, in file order.
+    decimals : mapping of str to int
+        Decimals the virtual rig writes per canonical column.
+    written_rig_fields : tuple of str
+        Rig fields the virtual rig writes to its experiment file.
+    hidden_rig_fields : tuple of str
+        Rig fields the virtual rig never writes (sensing S: to be identified).
+    default_runs : int
+        Runs per simulated experiment.
+    default_scatter : mapping of str to float
+        SI field of Sample or Rig -> relative sd of the per-run scatter.
+    noisy_inputs : tuple of str
+        Logged inputs whose noise propagates into the model's outputs.
+    strength_quantities : tuple of str or None
+        Quantities an effect strength refers to (None: whichever the effect moves most).
+    """
+
+    name: str
+    description: str
+    required_columns: tuple[str, ...]
+    optional_columns: tuple[str, ...]
+    min_rows: int
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    tension_outputs: tuple[str, ...]
+    variants: Mapping[str, Mapping[str, Any]]
+    predict: Callable[..., dict]
+    run_options: Callable[..., RunOptions]
+    needs_training: bool
+    validation_extras: Callable[..., tuple[list, dict]]
+    x_column: str
+    regimes: Callable[..., dict]
+    shared_inputs: tuple[str, ...]
+    report_rig_fields: tuple[str, ...]
+    figures: Callable[..., list]
+    extras_section: Callable[..., Any]
+    preset: Preset
+    logged_columns: tuple[str, ...]
+    decimals: Mapping[str, int]
+    written_rig_fields: tuple[str, ...]
+    hidden_rig_fields: tuple[str, ...]
+    default_runs: int
+    default_scatter: Mapping[str, float]
+    noisy_inputs: tuple[str, ...]
+    strength_quantities: tuple[str, ...] | None
+
+    @property
+    def primary(self) -> str:
+        """The primary model variant."""
+        return next(iter(self.variants))
+
+
+REST_TOLERANCE = 0.02
+"""Inputs within this fraction of their range of the first row count as "at rest"."""
+
+
+def no_extras(experiment, predictions, **_) -> tuple[list, dict]:
+    """``validation_extras`` of a kind that adds nothing to its validation."""
+    return [], {}
+
+
+def no_section(result) -> None:
+    """``extras_section`` of a kind whose validation report has no section of its own."""
+    return None
+
+
+def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
+    """Indices of the leading rows whose inputs stay at their first value.
+
+    An input is at rest while it is within :data:`REST_TOLERANCE` of its range
+    of the first row's value; time does not count. At least the first row.
+    """
+    first_move = len(data)
+    for c in kind.inputs:
+        if c == "time" or c not in data:
+            continue
+        x = data[c].to_numpy(float)
+        span = float(np.nanmax(x) - np.nanmin(x))
+        moved = np.flatnonzero(np.abs(x - x[0]) > REST_TOLERANCE * span) if span > 0 else np.array([], int)
+        if moved.size:
+            first_move = min(first_move, int(moved[0]))
+    return np.arange(max(first_move, 1))
+
+
+def _registry() -> dict[str, Kind]:
+    from tcamlab.kinds import curvature, dynamic, sensing, static
+
+    return {m.KIND.name: m.KIND for m in (static, dynamic, sensing, curvature)}
+
+
+REGISTRY: dict[str, Kind] = _registry()
+"""Kind name -> :class:`Kind`, in the order reports list them."""
+
+KINDS: tuple[str, ...] = tuple(REGISTRY)
+"""The kinds of run tcamlab knows."""
+
+
+def get_kind(name: str) -> Kind:
+    """The registered :class:`Kind` called ``name``; the one place an unknown kind fails.
+
+    Raises
+    ------
+    ConfigError
+        ``name`` is not a registered kind.
+    """
+    try:
+        return REGISTRY[name]
+    except (KeyError, TypeError):
+        raise ConfigError(f"unknown kind {name!r}", hint="one of " + ", ".join(KINDS)) from None
+
+
+def predict(kind: str, sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, **options) -> dict:
+    """Predict a run's measured columns with the model of ``kind`` (see the module table).
+
+    Parameters
+    ----------
+    kind : str
+        Registered kind.
+    sample, rig :
+        Sample and rig [SI].
+    data : DataFrame
+        The run's input columns [SI, internal names].
+    mods : Mods
+        Effect terms (all zero: the thesis model).
+    **options
+        The kind's per-run options (:attr:`Kind.run_options`, :attr:`Kind.variants`).
+    """
+    return get_kind(kind).predict(sample, rig, data, mods, **options)

@@ -1,0 +1,177 @@
+"""Camera curvature test of the two-segment robot (thesis section 4.3).
+
+R1 and R2 give each segment's sensor elongation by the sensing inversion of
+chapter 3; with the cable pull they give the segment curvatures by (4.1).
+Effect terms of :class:`tcamlab.effects.Mods` that act here: compression,
+camera_offset, offset_error.
+
+The per-run rule (:func:`run_options`), shared by validation, diagnosis and
+the virtual rig: S is the rig's (one segment; it must be stated), and each
+segment's R0 is the rig's ``initial_resistance`` if stated, else the mean of
+that channel over the run's leading rows at rest.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import InputError, ModelDomainError
+from tcamlab.kinds import Kind, RunOptions, no_extras, no_section, rest_rows
+from tcamlab.models import curvature as _curv
+from tcamlab.params import THESIS_ROBOT, Rig, Sample
+from tcamlab.report.document import Figure
+from tcamlab.report.figures import legend_label, new_figure
+
+
+def predict(
+    sample: Sample,
+    rig: Rig,
+    data: pd.DataFrame,
+    mods: Mods = NO_MODS,
+    *,
+    spring_constant: float,
+    initial_resistances: tuple[float, float],
+) -> dict[str, np.ndarray]:
+    """Camera test: segment curvatures from R1, R2 and the cable, (4.1).
+
+    Parameters
+    ----------
+    data : DataFrame
+        ``cable`` [m], ``r1``, ``r2`` [ohm].
+    spring_constant : float
+        S of one segment [N/m].
+    initial_resistances : (float, float)
+        R0 of each segment [ohm].
+    mods : Mods
+        compression, camera_offset, offset_error.
+
+    Returns
+    -------
+    dict
+        ``kappa1``, ``kappa2`` [1/m].
+    """
+    kw = sample.sensor_kwargs()
+    lengths = np.asarray(rig.segment_lengths, float)
+    res = np.vstack([data["r1"].to_numpy(float), data["r2"].to_numpy(float)])
+    cable = data["cable"].to_numpy(float)
+    _, elong = _curv.curvatures(
+        res, cable, initial_resistances, spring_constant, rig.sensor_offset, lengths, **kw
+    )
+    # Axial compression: a fraction a of the pull-in shortens the whole body
+    # (cable and sensor lines alike) instead of bending it. The sensor length
+    # from R already includes it; the bending share of each segment is its
+    # sensor elongation plus the squeeze.
+    squeeze = mods.compression * cable * lengths[:, None] / lengths.sum()
+    bend = _curv.cable_lengths(elong + squeeze, (1.0 - mods.compression) * cable, lengths)
+    cab = bend - squeeze
+    d1 = rig.sensor_offset + mods.offset_error
+    if d1 <= 0:
+        raise ModelDomainError("curvature model: sensor offset d1 must stay positive")
+    kappa = _curv.segment_curvature(lengths[:, None] + elong, cab, d1)
+    kappa = kappa + mods.camera_offset
+    return {"kappa1": kappa[0], "kappa2": kappa[1]}
+
+
+def initial_resistances(rig: Rig, data: pd.DataFrame) -> tuple[tuple[float, float], str]:
+    """R0 of each segment [ohm] and where they came from (the module's rule)."""
+    r0 = rig.initial_resistance
+    if r0 is not None:
+        pair = tuple(float(x) for x in r0) if isinstance(r0, tuple) else (float(r0), float(r0))
+        return pair, "experiment file"
+    rows = rest_rows(KIND, data)
+    pair = tuple(float(data[c].to_numpy(float)[rows].mean()) for c in ("r1", "r2"))
+    return pair, "first row of the run" if rows.size == 1 else f"mean of the {rows.size} rows at rest"
+
+
+def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, where: str = "", **_) -> RunOptions:
+    """S (stated in the rig) and each segment's R0 by the module's rule."""
+    if rig.spring_constant is None:
+        raise InputError(
+            f"{where}: curvature validation needs the sensor's spring constant",
+            hint="set spring_constant_N_per_m in [rig] (one segment)",
+        )
+    r0s, source = initial_resistances(rig, data)
+    options = {"spring_constant": float(rig.spring_constant), "initial_resistances": r0s}
+    return RunOptions(options, {"initial_resistances_ohm": r0s, "initial_resistances_source": source})
+
+
+def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarray]:
+    """Low or high bend (below or above the middle cable pull) of the quantity's segment."""
+    c = data["cable"].to_numpy(float)
+    mid = 0.5 * (np.nanmin(c) + np.nanmax(c))
+    seg = "segment 1" if quantity == "kappa1" else "segment 2"
+    labels = np.where(c <= mid, f"{seg}, low bend", f"{seg}, high bend").astype(object)
+    return {"segment x bending": labels}
+
+
+def figures(result) -> list[Figure]:
+    """Segment curvatures against cable pull, as thesis figure 4.8."""
+    fig, ax = new_figure()
+    for p in result.predictions:
+        c = p.data["cable"].to_numpy() * 1e3
+        name = legend_label(p.name)
+        for q, marker in (("kappa1", "o"), ("kappa2", "s")):
+            (line,) = ax.plot(c, p.data[q] * 1e-3, marker, ms=3, label=f"{name} {q} camera")
+            ax.plot(
+                c,
+                p.predicted["thesis"][q] * 1e-3,
+                "-",
+                color=line.get_color(),
+                lw=1,
+                label=f"{name} {q} model",
+            )
+    ax.set_xlabel("cable pull [mm]")
+    ax.set_ylabel("curvature [1/mm]")
+    ax.legend(fontsize=6, ncol=2)
+    caption = (
+        "Segment curvatures against cable pull: camera (markers) and model from R1, R2 "
+        "(lines), as in thesis figure 4.8."
+    )
+    return [Figure(fig, caption, alt="curvature plot")]
+
+
+KIND = Kind(
+    name="curvature",
+    description="camera curvature test (thesis section 4.3): segment curvatures predicted from R1, R2 by (4.1)",
+    required_columns=("cable_mm", "r1_ohm", "r2_ohm", "kappa1_per_mm", "kappa2_per_mm"),
+    optional_columns=("time_s",),
+    min_rows=2,
+    inputs=("cable", "r1", "r2"),
+    outputs=("kappa1", "kappa2"),
+    tension_outputs=(),
+    variants={"thesis": {}},
+    predict=predict,
+    run_options=run_options,
+    needs_training=False,
+    validation_extras=no_extras,
+    x_column="cable",
+    regimes=regimes,
+    # r1, r2 are measured responses of the commanded cable, so only the cable counts.
+    shared_inputs=("cable",),
+    report_rig_fields=("ambient", "spring_constant", "sensor_offset", "segment_lengths"),
+    figures=figures,
+    extras_section=no_section,
+    preset=THESIS_ROBOT,
+    logged_columns=("cable", "r1", "r2", "kappa1", "kappa2"),
+    decimals={
+        "cable_mm": 2,
+        "r1_ohm": 3,
+        "r2_ohm": 3,
+        "kappa1_per_mm": 6,
+        "kappa2_per_mm": 6,
+    },
+    written_rig_fields=(
+        "ambient",
+        "initial_resistance",
+        "spring_constant",
+        "sensor_offset",
+        "segment_lengths",
+    ),
+    hidden_rig_fields=(),
+    default_runs=3,
+    default_scatter={"twists": 5e-4, "coil_length": 5e-4},
+    noisy_inputs=("r1", "r2"),
+    strength_quantities=("kappa1", "kappa2"),
+)

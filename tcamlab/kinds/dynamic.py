@@ -1,0 +1,247 @@
+"""Dynamic voltage-step test (thesis section 2.5.2): displacement against time.
+
+The model is (2.14)-(2.19): the electro-thermal balance (2.18) heats the
+actuator, whose mass-spring-damper follows the static force (2.15). Effect
+terms of :class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
+resistance_tc, heat_loss_tc, delay. Validation adds a Monte Carlo band from
+the stated uncertainties of C_th, lambda and b.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.kinds import Kind, RunOptions
+from tcamlab.models import dynamic as _dyn
+from tcamlab.params import THESIS_TCA, Rig, Sample
+from tcamlab.report.document import Figure, Section, Table
+from tcamlab.report.figures import legend_label, new_figure
+
+MC_GRID = 0.01
+"""Time step of the Monte Carlo band grid [s] (interpolated onto the log)."""
+
+COOLING_WINDOW_S = 3.0
+"""Rows up to this long after a pulse ends are labelled "cooling" by the diagnosis [s]."""
+
+
+def predict(
+    sample: Sample,
+    rig: Rig,
+    data: pd.DataFrame,
+    mods: Mods = NO_MODS,
+    *,
+    constant_g: bool = False,
+    method: str = _dyn.METHOD,
+) -> dict[str, np.ndarray]:
+    """Voltage-step test: displacement (and temperature) against time.
+
+    Parameters
+    ----------
+    data : DataFrame
+        ``time`` [s], ``voltage`` [V].
+    mods : Mods
+        shear_slope_extra, resistance_tc, heat_loss_tc, delay.
+
+    Returns
+    -------
+    dict
+        ``displacement`` [m] (zero at the first row), ``temperature`` [degC].
+    """
+    t = data["time"].to_numpy(float)
+    v = data["voltage"].to_numpy(float)
+    kw = sample.model_kwargs()
+    kw["shear_modulus_slope"] = (0.0 if constant_g else kw["shear_modulus_slope"]) + mods.shear_slope_extra
+    res = _dyn.response(
+        t,
+        v,
+        load=rig.load,
+        damping=rig.damping,
+        thermal_mass=rig.thermal_mass,
+        heat_loss=rig.heat_loss,
+        resistance=rig.resistance,
+        ambient=rig.ambient,
+        resistance_tc=mods.resistance_tc,
+        heat_loss_tc=mods.heat_loss_tc,
+        method=method,
+        **kw,
+    )
+    disp, temp = res.displacement, res.temperature
+    if mods.delay:
+        # Shift the output, not the held input: continuous in the delay, so fits work.
+        disp = np.interp(t - mods.delay, t, disp, left=0.0)
+        temp = np.interp(t - mods.delay, t, temp, left=temp[0])
+    return {"displacement": disp, "temperature": temp}
+
+
+def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, **_) -> RunOptions:
+    """The dynamic model needs no per-run constant beyond the sample and the rig."""
+    return RunOptions()
+
+
+def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarray]:
+    """Phase of every row: heating (voltage on), cooling (3 s after a pulse) or steady."""
+    n = len(data)
+    t = data["time"].to_numpy(float)
+    v = data["voltage"].to_numpy(float)
+    on = np.abs(v) > 0.01 * max(np.abs(v).max(), 1e-12)
+    lab = np.full(n, "steady", dtype=object)
+    lab[on] = "heating"
+    if on.any():
+        ends = np.flatnonzero(on[:-1] & ~on[1:]) + 1
+        for e in ends:
+            m = (~on) & (t >= t[e - 1]) & (t <= t[e - 1] + COOLING_WINDOW_S)
+            m[:e] = False
+            lab[m] = "cooling"
+    return {"phase": lab}
+
+
+def monte_carlo_band(experiment, prediction, *, draws: int, seed: int, call):
+    """The 95 % Monte Carlo band of one run and its summary, or (None, None) without uncertainties.
+
+    ``call(fn, *args, **kwargs)`` runs a model and names the run in its errors.
+    """
+    rig = experiment.rig
+    if not draws or not rig.uncertainty:
+        return None, None
+    t = prediction.data["time"].to_numpy(float)
+    grid = np.arange(t[0], t[-1] + MC_GRID / 2, MC_GRID)
+    idx = np.searchsorted(t, grid, side="right") - 1
+    volts = prediction.data["voltage"].to_numpy(float)[np.clip(idx, 0, t.size - 1)]
+    mc = call(_dyn.monte_carlo, grid, volts, experiment.sample, rig, n_draws=draws, seed=seed)
+    lo, med, hi = (np.interp(t, mc.time, q) for q in mc.band())
+    meas = prediction.data["displacement"].to_numpy(float)
+    coverage = float(np.mean((meas >= lo) & (meas <= hi)))
+    summary = {"draws": draws, "out_of_range": mc.n_invalid, "coverage_95": coverage}
+    return {"lower": lo, "median": med, "upper": hi}, summary
+
+
+def validation_extras(experiment, predictions, *, mc_draws: int, seed: int, call) -> tuple[list, dict]:
+    """Attach the Monte Carlo band to every run; notes and the ``monte_carlo`` extras."""
+    notes, summary = [], {}
+    for p in predictions:
+        band, info = monte_carlo_band(
+            experiment,
+            p,
+            draws=mc_draws,
+            seed=seed,
+            call=lambda fn, *a, _n=p.name, **k: call(_n, fn, *a, **k),
+        )
+        if band is None:
+            continue
+        p.band = band
+        summary[p.name] = info
+        if info["out_of_range"]:
+            notes.append(
+                f"{p.name}: {info['out_of_range']} of {mc_draws} Monte Carlo draws heated the "
+                f"actuator past the G_t' > 0 limit of eq. (2.13) and were left out of "
+                f"the band"
+            )
+    if not summary:
+        notes.append("no [rig.uncertainty] given: no Monte Carlo prediction band")
+        return notes, {}
+    params = sorted(k for k in experiment.rig.uncertainty if k in _dyn.MC_PARAMS)
+    dist = "log-normal, moment-matched to the stated mean and sd"
+    return notes, {"monte_carlo": {"distribution": dist, "parameters": params, "runs": summary}}
+
+
+def figures(result) -> list[Figure]:
+    """Displacement against time with the Monte Carlo band, as thesis figure 2.9."""
+    fig, ax = new_figure()
+    for p in result.predictions:
+        t = p.data["time"].to_numpy()
+        if p.band is not None:
+            ax.fill_between(t, p.band["lower"] * 1e3, p.band["upper"] * 1e3, alpha=0.15)
+        name = legend_label(p.name)
+        (line,) = ax.plot(t, p.data["displacement"] * 1e3, ".", ms=1.5, label=f"{name} measured")
+        ax.plot(
+            t,
+            p.predicted["G(T)"]["displacement"] * 1e3,
+            "-",
+            color=line.get_color(),
+            lw=1,
+            label=f"{name} model",
+        )
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("displacement [mm]")
+    ax.legend(fontsize=6, ncol=2)
+    caption = (
+        "Displacement against time under the voltage pulse: measured (points), model (line) "
+        "and 95% Monte Carlo band (shaded), as in thesis figure 2.9."
+    )
+    return [Figure(fig, caption, alt="dynamic plot")]
+
+
+def extras_section(result) -> Section | None:
+    """The Monte Carlo band's draws and coverage per run, as a report section."""
+    if not result.extras.get("monte_carlo"):
+        return None
+    mc = result.extras["monte_carlo"]
+    rows = [[name, s["draws"], s["out_of_range"], s["coverage_95"]] for name, s in mc["runs"].items()]
+    return Section(
+        "Monte Carlo prediction band",
+        paragraphs=[
+            f"Parameters drawn: {', '.join(mc['parameters'])}; distribution: "
+            f"{mc['distribution']} (keeps every parameter positive although the stated sd "
+            f"of lambda exceeds its value)."
+        ],
+        tables=[
+            Table(
+                ["run", "draws", "out of range", "coverage of the 95% band"],
+                rows,
+                caption="Monte Carlo band per run",
+            )
+        ],
+    )
+
+
+KIND = Kind(
+    name="dynamic",
+    description="voltage-step test (thesis section 2.5.2): displacement against time, "
+    "model (2.14)-(2.19) with a Monte Carlo band from the parameter uncertainties",
+    required_columns=("time_s", "voltage_V", "displacement_mm"),
+    optional_columns=("temperature_C", "current_A", "resistance_ohm"),
+    min_rows=10,
+    inputs=("time", "voltage"),
+    outputs=("displacement",),
+    tension_outputs=(),
+    variants={"G(T)": {}},
+    predict=predict,
+    run_options=run_options,
+    needs_training=False,
+    validation_extras=validation_extras,
+    x_column="time",
+    regimes=regimes,
+    shared_inputs=("voltage",),
+    report_rig_fields=(
+        "load",
+        "ambient",
+        "voltage",
+        "pulse",
+        "resistance",
+        "thermal_mass",
+        "heat_loss",
+        "damping",
+    ),
+    figures=figures,
+    extras_section=extras_section,
+    preset=THESIS_TCA,
+    logged_columns=("time", "voltage", "displacement"),
+    decimals={"time_s": 3, "voltage_V": 3, "displacement_mm": 3},
+    written_rig_fields=(
+        "load",
+        "ambient",
+        "voltage",
+        "pulse",
+        "resistance",
+        "thermal_mass",
+        "heat_loss",
+        "damping",
+    ),
+    hidden_rig_fields=(),
+    default_runs=3,
+    default_scatter={"twists": 2e-3, "coil_length": 2e-3},
+    noisy_inputs=(),
+    strength_quantities=("displacement",),
+)

@@ -1,0 +1,252 @@
+"""Sensing pull test (thesis section 3.3): displacement and force from resistance.
+
+The model inverts (3.1)-(3.7): the fiber diameter from the resistance, the
+torque (3.3), then delta (1 - S f11) = -f12 tau for the physical root, and
+F = S delta. Effect terms of :class:`tcamlab.effects.Mods` that act here:
+slack, hysteresis, relaxation(_tau), temperature_offset, stiffening.
+
+One rule chooses the constants of every run, for validation, diagnosis and
+the virtual rig alike (:func:`run_options`):
+
+- S: the rig's ``spring_constant`` if stated, else identified by
+  :func:`tcamlab.fitting.fit_spring` on training data that never include the
+  run itself (validation: the other runs; diagnosis: the fold's training rows).
+- R0: the rig's ``initial_resistance`` if stated, else the mean of the run's
+  leading rows at rest (:func:`tcamlab.kinds.rest_rows`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.effects import NO_MODS, SLACK_RAMP, Mods
+from tcamlab.errors import InputError
+from tcamlab.kinds import Kind, RunOptions, rest_rows
+from tcamlab.models import sensing as _sens
+from tcamlab.params import SILVER_TCR, THESIS_TCS, Rig, Sample
+from tcamlab.report.document import Cell, Figure, Section, Table
+from tcamlab.report.figures import legend_label, new_figure
+from tcamlab.signals import clock, time_in_dwell, unloading_mask
+
+FORCE_BANDS = 4
+"""The diagnosis reports sensing residuals in this many force bands (quartiles)."""
+
+
+def predict(
+    sample: Sample,
+    rig: Rig,
+    data: pd.DataFrame,
+    mods: Mods = NO_MODS,
+    *,
+    spring_constant: float,
+    initial_resistance: float,
+) -> dict[str, np.ndarray]:
+    """Pull test: displacement and force from resistance, (3.1)-(3.7), F = S delta.
+
+    Parameters
+    ----------
+    data : DataFrame
+        ``resistance`` [ohm], optional ``time`` [s].
+    spring_constant : float
+        S [N/m].
+    initial_resistance : float
+        R0 [ohm].
+    mods : Mods
+        slack, hysteresis, relaxation(_tau), temperature_offset, stiffening.
+
+    Returns
+    -------
+    dict
+        ``displacement`` [m], ``force`` [N].
+    """
+    r = data["resistance"].to_numpy(float)
+    if mods.temperature_offset:
+        r = r / (1.0 + SILVER_TCR * mods.temperature_offset)
+    delta, _ = _sens.invert(r, initial_resistance, spring_constant, **sample.sensor_kwargs())
+    if mods.hysteresis:
+        unloading = unloading_mask(data["resistance"].to_numpy(float))
+        ramp = np.clip(delta / SLACK_RAMP, 0.0, 1.0)
+        delta = delta + mods.hysteresis * np.where(unloading, 1.0, -1.0) * ramp
+    force = spring_constant * delta * (1.0 + mods.stiffening * delta)
+    if mods.relaxation:
+        dwell = time_in_dwell(data["resistance"].to_numpy(float), clock(data))
+        force = force * (1.0 - mods.relaxation * (1.0 - np.exp(-dwell / mods.relaxation_tau)))
+    disp = delta + mods.slack * np.clip(delta / SLACK_RAMP, 0.0, 1.0)
+    return {"displacement": disp, "force": force}
+
+
+def identify_spring(training) -> float:
+    """S [N/m] by least squares through the origin on (DataFrame, row mask) pairs."""
+    from tcamlab.fitting import fit_spring
+
+    x = np.concatenate([d["displacement"].to_numpy(float)[m] for d, m in training])
+    f = np.concatenate([d["force"].to_numpy(float)[m] for d, m in training])
+    return float(fit_spring(x, f).spring_constant)
+
+
+def initial_resistance(rig: Rig, data: pd.DataFrame, column: str = "resistance") -> tuple[float, str]:
+    """R0 [ohm] of one resistance channel and where it came from (the module's rule)."""
+    if rig.initial_resistance is not None:
+        r0 = rig.initial_resistance
+        return float(r0[0] if isinstance(r0, tuple) else r0), "experiment file"
+    rows = rest_rows(KIND, data)
+    value = float(data[column].to_numpy(float)[rows].mean())
+    return value, "first row of the run" if rows.size == 1 else f"mean of the {rows.size} rows at rest"
+
+
+def run_options(
+    sample: Sample,
+    rig: Rig,
+    data: pd.DataFrame,
+    *,
+    training=None,
+    training_runs=(),
+    where="",
+    provenance=None,
+    for_report=False,
+) -> RunOptions:
+    """S and R0 of one run by the module's rule, with their sources.
+
+    Parameters
+    ----------
+    training : list of (DataFrame, row mask), optional
+        Data S may be identified on when the rig does not state it; None
+        leaves S out of the options (the caller fits it as a nuisance).
+    training_runs : sequence of str
+        Names of the training runs, for the source text.
+    where : str
+        Prefix of error messages (the experiment file).
+    for_report : bool
+        Also check the conditioning of the sensing equation (raises
+        ModelDomainError where it has no physical root).
+    """
+    r0, r0_source = initial_resistance(rig, data)
+    options = {"initial_resistance": r0}
+    info = {"initial_resistance_ohm": r0, "initial_resistance_source": r0_source}
+    if rig.spring_constant is not None:
+        s_val = float(rig.spring_constant)
+        source = (provenance or {}).get("spring_constant", "experiment file")
+    elif training is None:
+        return RunOptions(options, info)
+    elif not training:
+        raise InputError(
+            f"{where}: sensing validation needs a spring constant; with one run "
+            "it cannot be identified without using the run being validated",
+            hint="set spring_constant_N_per_m in [rig], or add a second run",
+        )
+    else:
+        s_val = identify_spring(training)
+        source = "identified leave-one-run-out from " + ", ".join(training_runs)
+    options["spring_constant"] = s_val
+    info = {"spring_constant_N_per_m": s_val, "spring_constant_source": source, **info}
+    if for_report:
+        cond = _sens.conditioning(s_val, **sample.sensor_kwargs())
+        info.update(conditioning=cond.status, margin_1_minus_S_f11=cond.margin)
+        if cond.status != "ok":
+            info["note"] = f"sensing inversion {cond.describe()}"
+    return RunOptions(options, info)
+
+
+def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarray]:
+    """Force band (quartiles of all runs' force) and loading / unloading branch of every row.
+
+    ``frames`` are all runs of the experiment, whose pooled force sets the band edges.
+    """
+    n = len(data)
+    f = data["force"].to_numpy(float)
+    pooled = np.concatenate([d["force"].to_numpy(float) for d in frames]) if len(frames) else f
+    edges = np.quantile(pooled, np.linspace(0.0, 1.0, FORCE_BANDS + 1))
+    idx = np.clip(np.searchsorted(edges, f, side="right") - 1, 0, FORCE_BANDS - 1)
+    names = [f"F quartile {j + 1}" for j in range(FORCE_BANDS)]
+    band = np.full(n, "", dtype=object)
+    band[:] = [names[j] for j in idx]
+    branch = np.where(unloading_mask(data["resistance"].to_numpy(float)), "unloading", "loading")
+    return {"force band": band, "branch": branch.astype(object)}
+
+
+def validation_extras(experiment, predictions, **_) -> tuple[list, dict]:
+    """The spring constant, R0 and conditioning used for every run; a note where ill-conditioned."""
+    notes = [f"{p.name}: {p.info['note']}" for p in predictions if "note" in p.info]
+    table = {p.name: {k: v for k, v in p.info.items() if k != "note"} for p in predictions}
+    return notes, {"spring_constant": table}
+
+
+def figures(result) -> list[Figure]:
+    """Force and displacement against resistance, as thesis figures 3.3 and 3.4."""
+    figs = []
+    for q, unit, factor, label in (("force", "N", 1.0, "Force"), ("displacement", "mm", 1e3, "Displacement")):
+        fig, ax = new_figure()
+        for p in result.predictions:
+            r = p.data["resistance"].to_numpy()
+            name = legend_label(p.name)
+            (line,) = ax.plot(r, p.data[q] * factor, "o", ms=2, label=f"{name} measured")
+            ax.plot(
+                r, p.predicted["thesis"][q] * factor, "-", color=line.get_color(), lw=1, label=f"{name} model"
+            )
+        ax.set_xlabel("resistance [ohm]")
+        ax.set_ylabel(f"{q} [{unit}]")
+        ax.legend(fontsize=6, ncol=2)
+        caption = f"{label} against resistance: measured and predicted (thesis figures 3.3/3.4)."
+        figs.append(Figure(fig, caption, alt=f"sensing {q} plot"))
+    return figs
+
+
+def extras_section(result) -> Section:
+    """The spring constant, R0 and conditioning of every run, as a report section."""
+    rows = [
+        [
+            name,
+            i["spring_constant_N_per_m"],
+            i["spring_constant_source"],
+            i["initial_resistance_ohm"],
+            i["initial_resistance_source"],
+            Cell(i["conditioning"], "pass" if i["conditioning"] == "ok" else "warn"),
+            i["margin_1_minus_S_f11"],
+        ]
+        for name, i in result.extras["spring_constant"].items()
+    ]
+    return Section(
+        "Spring constant and conditioning",
+        tables=[
+            Table(
+                ["run", "S [N/m]", "S from", "R0 [ohm]", "R0 from", "conditioning", "1 − S f11"],
+                rows,
+                caption="Spring constant used for each run (never identified on the run "
+                "it validates) and the margin of the sensing equation",
+            )
+        ],
+    )
+
+
+KIND = Kind(
+    name="sensing",
+    description="sensing pull test (thesis section 3.3): displacement and force predicted from "
+    "resistance, (3.1)-(3.7) with F = S delta",
+    required_columns=("displacement_mm", "force_N", "resistance_ohm"),
+    optional_columns=("time_s", "temperature_C"),
+    min_rows=3,
+    inputs=("resistance",),
+    outputs=("displacement", "force"),
+    tension_outputs=("force",),
+    variants={"thesis": {}},
+    predict=predict,
+    run_options=run_options,
+    needs_training=True,
+    validation_extras=validation_extras,
+    x_column="time",
+    regimes=regimes,
+    shared_inputs=("resistance",),
+    report_rig_fields=("ambient", "initial_resistance", "spring_constant"),
+    figures=figures,
+    extras_section=extras_section,
+    preset=THESIS_TCS,
+    logged_columns=("time", "displacement", "force", "resistance"),
+    decimals={"time_s": 1, "displacement_mm": 2, "force_N": 6, "resistance_ohm": 3},
+    written_rig_fields=("ambient", "initial_resistance"),
+    hidden_rig_fields=("spring_constant",),
+    default_runs=3,
+    default_scatter={"twists": 5e-4, "coil_length": 5e-4},
+    noisy_inputs=("resistance",),
+    strength_quantities=None,
+)

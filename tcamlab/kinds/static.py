@@ -1,0 +1,148 @@
+"""Static oven test (thesis section 2.5.1): displacement against temperature.
+
+The model is the static equilibrium of section 2.3 with the constant-G shear
+modulus (2.12) or its temperature-dependent form G(T) (2.13); effect terms of
+:class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
+youngs_modulus_slope, glass_gain/glass_temperature, lag_tau, drift.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.kinds import Kind, RunOptions, no_extras, no_section
+from tcamlab.models import static as _static
+from tcamlab.params import THESIS_TCA, Rig, Sample
+from tcamlab.report.document import Figure
+from tcamlab.report.figures import legend_label, new_figure
+from tcamlab.signals import clock, first_order_lag, moving_average
+
+TEMPERATURE_BAND_EDGES_C = (25, 50, 75, 100, 125, 150)
+"""Edges of the temperature bands the diagnosis reports residuals in [degC]."""
+
+
+def predict(
+    sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *, constant_g: bool = False
+) -> dict[str, np.ndarray]:
+    """Static oven test: displacement from the first row against temperature.
+
+    Parameters
+    ----------
+    sample, rig :
+        Sample and rig (load, ambient = reference temperature) [SI].
+    data : DataFrame
+        ``temperature`` [degC], optional ``time`` [s].
+    mods : Mods
+        Effect terms (shear_slope_extra, youngs_modulus_slope, glass_*, lag_tau, drift).
+    constant_g : bool
+        Use the constant-G model of (2.12) (slope 0) instead of the sample's G(T).
+
+    Returns
+    -------
+    dict
+        ``displacement`` [m], zero at the first row.
+    """
+    t = clock(data)
+    temp = first_order_lag(data["temperature"].to_numpy(float), t, mods.lag_tau)
+    dT = temp - rig.ambient
+    kw = sample.model_kwargs()
+    kw["shear_modulus_slope"] = (0.0 if constant_g else kw["shear_modulus_slope"]) + mods.shear_slope_extra
+    if mods.glass_gain:
+        above = np.maximum(0.0, temp - mods.glass_temperature)
+        strain = dT + mods.glass_gain * above
+        safe = np.where(np.abs(dT) > 1e-12, dT, 1.0)
+        kw["radial_cte"] = np.where(np.abs(dT) > 1e-12, sample.radial_cte * strain / safe, sample.radial_cte)
+    delta = _static.displacement(dT, rig.force, youngs_modulus_slope=mods.youngs_modulus_slope, **kw)
+    disp = delta - delta[0] + mods.drift * t
+    return {"displacement": disp}
+
+
+def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, **_) -> RunOptions:
+    """The static model needs no per-run constant beyond the sample and the rig."""
+    return RunOptions()
+
+
+def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarray]:
+    """Temperature band and heating / steady / cooling phase of every row."""
+    n = len(data)
+    T = data["temperature"].to_numpy(float)
+    edges = TEMPERATURE_BAND_EDGES_C
+    band = np.full(n, "", dtype=object)
+    lo_edge = np.concatenate(([-np.inf], edges))
+    for a, b in zip(lo_edge[:-1], lo_edge[1:]):
+        lbl = f"<{b} degC" if not np.isfinite(a) else f"{a}-{b} degC"
+        band[(T >= a) & (T < b)] = lbl
+    band[T >= edges[-1]] = f">={edges[-1]} degC"
+    t = data["time"].to_numpy(float) if "time" in data else np.arange(n, dtype=float)
+    k = max(3, n // 20)
+    slope = np.gradient(moving_average(T, k), t) if n > 2 else np.zeros(n)
+    tol = 0.05 * np.quantile(np.abs(slope), 0.95) if n > 2 else 0.0
+    phase = np.where(np.abs(slope) <= tol, "steady", np.where(slope > 0, "heating", "cooling"))
+    return {"temperature band": band, "phase": phase.astype(object)}
+
+
+def figures(result) -> list[Figure]:
+    """Displacement against temperature for both models, as thesis figure 2.7."""
+    fig, ax = new_figure()
+    for p in result.predictions:
+        t = p.data["temperature"].to_numpy()
+        name = legend_label(p.name)
+        (line,) = ax.plot(t, p.data["displacement"] * 1e3, "o", ms=3, label=f"{name} measured")
+        ax.plot(
+            t,
+            p.predicted["G(T)"]["displacement"] * 1e3,
+            "-",
+            color=line.get_color(),
+            label=f"{name} G(T) model",
+        )
+        ax.plot(
+            t,
+            p.predicted["constant-G"]["displacement"] * 1e3,
+            "--",
+            color=line.get_color(),
+            alpha=0.7,
+            label=f"{name} constant-G model",
+        )
+    ax.set_xlabel("temperature [°C]")
+    ax.set_ylabel("displacement [mm]")
+    ax.legend(fontsize=6, ncol=2)
+    caption = (
+        "Displacement against temperature: measured (points), G(T) model (solid) and "
+        "constant-G model (dashed), as in thesis figure 2.7."
+    )
+    return [Figure(fig, caption, alt="static validation plot")]
+
+
+KIND = Kind(
+    name="static",
+    description="static oven test (thesis section 2.5.1): displacement against temperature, "
+    "constant-G model (2.12) and G(T) model (2.13)",
+    required_columns=("temperature_C", "displacement_mm"),
+    optional_columns=("time_s",),
+    min_rows=3,
+    inputs=("temperature",),
+    outputs=("displacement",),
+    tension_outputs=(),
+    variants={"G(T)": {}, "constant-G": {"constant_g": True}},
+    predict=predict,
+    run_options=run_options,
+    needs_training=False,
+    validation_extras=no_extras,
+    x_column="temperature",
+    regimes=regimes,
+    shared_inputs=("temperature",),
+    report_rig_fields=("load", "ambient"),
+    figures=figures,
+    extras_section=no_section,
+    preset=THESIS_TCA,
+    logged_columns=("time", "temperature", "displacement"),
+    decimals={"time_s": 0, "temperature_C": 1, "displacement_mm": 3},
+    written_rig_fields=("load", "ambient"),
+    hidden_rig_fields=(),
+    default_runs=3,
+    default_scatter={"twists": 2e-3, "coil_length": 2e-3},
+    noisy_inputs=("temperature",),
+    strength_quantities=("displacement",),
+)

@@ -1,0 +1,154 @@
+"""The rig-kind registry: every registered kind fills in every part, consistently.
+
+In the manner of python-control's ``kwargs_test.py``: the checks scan the
+registry rather than list the kinds, so a new kind is held to them as soon as
+it is registered.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tcamlab import io as tio
+from tcamlab import kinds
+from tcamlab.config import load_experiment
+from tcamlab.effects import EFFECTS, Mods
+from tcamlab.errors import ConfigError, InputError
+from tcamlab.params import Preset
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
+KIND_NAMES = sorted(kinds.REGISTRY)
+CALLABLES = ("predict", "run_options", "validation_extras", "regimes", "figures", "extras_section")
+
+
+def test_registry_holds_the_four_thesis_kinds_and_nothing_else_branches_on_them():
+    assert set(kinds.KINDS) == {"static", "dynamic", "sensing", "curvature"}
+    assert kinds.KINDS == tio.KINDS
+    for name, kind in kinds.REGISTRY.items():
+        assert kind.name == name
+
+
+@pytest.mark.parametrize("name", KIND_NAMES)
+def test_every_part_is_filled_in(name):
+    kind = kinds.get_kind(name)
+    for f in dataclasses.fields(kind):
+        value = getattr(kind, f.name)
+        if f.name == "strength_quantities":
+            assert value is None or set(value) <= set(kind.outputs)
+            continue
+        assert value is not None, f"{name}: {f.name} is not set"
+        if f.name in CALLABLES:
+            assert callable(value), f"{name}: {f.name} is not callable"
+    assert isinstance(kind.preset, Preset)
+    assert kind.description and kind.min_rows >= 2 and kind.default_runs >= 1
+
+
+@pytest.mark.parametrize("name", KIND_NAMES)
+def test_columns_inputs_outputs_agree(name):
+    kind = kinds.get_kind(name)
+    internal = {tio.VARIABLE_MAP[c][0] for c in kind.required_columns}
+    optional = {tio.VARIABLE_MAP[c][0] for c in kind.optional_columns}
+    # every input and output is a logged column; the model predicts what is measured
+    assert set(kind.outputs) <= internal
+    assert {c for c in kind.inputs if c != "time"} <= internal
+    assert set(kind.inputs) <= internal | optional
+    assert not set(kind.inputs) & set(kind.outputs)
+    assert set(kind.tension_outputs) <= set(kind.outputs)
+    assert set(kind.shared_inputs) <= set(kind.inputs)
+    assert set(kind.noisy_inputs) <= set(kind.inputs)
+    assert kind.x_column in internal | optional
+    # the virtual rig writes every required column, with a precision for each
+    assert internal <= set(kind.logged_columns)
+    canon = [tio.INTERNAL_TO_CANONICAL[c] for c in kind.logged_columns]
+    assert set(canon) == set(kind.decimals)
+    assert not set(kind.written_rig_fields) & set(kind.hidden_rig_fields)
+
+
+@pytest.mark.parametrize("name", KIND_NAMES)
+def test_predict_signature_and_variants(name):
+    """predict(sample, rig, data, mods, **options): variants' options are keyword-only parameters."""
+    kind = kinds.get_kind(name)
+    params = inspect.signature(kind.predict).parameters
+    assert list(params)[:4] == ["sample", "rig", "data", "mods"]
+    assert params["mods"].default == Mods()
+    for extra in kind.variants.values():
+        assert set(extra) <= {p for p, v in params.items() if v.kind is v.KEYWORD_ONLY}
+    assert kind.primary == next(iter(kind.variants))
+
+
+@pytest.mark.parametrize("name", KIND_NAMES)
+def test_every_effect_acts_through_fields_the_kind_documents(name):
+    """Each effect of the kind sets Mods fields that the kind's predict docstring names."""
+    kind = kinds.get_kind(name)
+    doc = inspect.getdoc(kinds.get_kind(name).predict) or ""
+    mine = [e for e in EFFECTS.values() if e.kind == name]
+    assert mine, f"{name} has no effect in the library"
+    for effect in mine:
+        for p in effect.params:
+            stem = p.field.split("_")[0]
+            assert stem in doc, f"{effect.name}: {p.field} not documented in {kind.name}.predict"
+
+
+@pytest.mark.parametrize("name", KIND_NAMES)
+def test_predict_on_the_bundled_run_gives_every_output(name):
+    exp = load_experiment(ROOT / "experiments" / f"{name}.toml")
+    run = exp.read_runs()[0]
+    kind = kinds.get_kind(name)
+    training = [(r.data, np.ones(len(r.data), bool)) for r in exp.read_runs()[1:]]
+    ro = kind.run_options(exp.sample, exp.rig, run.data, training=training)
+    out = kinds.predict(name, exp.sample, exp.rig, run.data, **ro.options)
+    for q in kind.outputs:
+        assert np.asarray(out[q]).shape == (len(run.data),)
+        assert np.all(np.isfinite(out[q]))
+    for q in kind.outputs:
+        labels = kind.regimes(run.data, q, [r.data for r in exp.read_runs()])
+        assert labels and all(len(v) == len(run.data) for v in labels.values())
+
+
+def test_unknown_kind_fails_in_one_place_with_the_choices():
+    with pytest.raises(ConfigError, match="unknown kind 'oven'.*static, dynamic, sensing, curvature"):
+        kinds.get_kind("oven")
+    with pytest.raises(ConfigError):
+        kinds.predict("oven", None, None, pd.DataFrame())
+
+
+def test_resistance_rule_is_the_stated_value_else_the_mean_at_rest():
+    """One R0 rule for sensing and curvature: the rig's value wins; else the rest rows' mean."""
+    sens = kinds.get_kind("sensing")
+    preset = sens.preset
+    sample, rig = preset.build_sample(), preset.build_rig()
+    data = pd.DataFrame({"resistance": [30.02, 29.97, 30.01, 31.5, 33.0, 34.0], "time": np.arange(6.0)})
+    # 3 rows at rest (within 2 % of the 4.03 ohm range of the first value), then the pull
+    stated = sens.run_options(sample, rig.replace(initial_resistance=29.0), data)
+    assert stated.options["initial_resistance"] == 29.0
+    assert stated.info["initial_resistance_source"] == "experiment file"
+    free = sens.run_options(sample, rig.replace(initial_resistance=None), data)
+    assert free.options["initial_resistance"] == pytest.approx(30.0, abs=1e-12)
+    assert free.info["initial_resistance_source"] == "mean of the 3 rows at rest"
+    assert "spring_constant" not in free.options  # S is left to the caller without training data
+
+    curv = kinds.get_kind("curvature")
+    robot = curv.preset.build_rig()
+    frame = pd.DataFrame({"cable": [0, 0, 1e-3, 2e-3], "r1": [10.01, 9.99, 10.5, 11], "r2": [20, 20.02, 21, 22]})
+    ro = curv.run_options(curv.preset.build_sample(), robot.replace(initial_resistance=None), frame)
+    assert ro.options["initial_resistances"] == pytest.approx((10.0, 20.01))
+    ro = curv.run_options(curv.preset.build_sample(), robot.replace(initial_resistance=12.0), frame)
+    assert ro.options["initial_resistances"] == (12.0, 12.0)
+
+
+def test_spring_constant_is_never_identified_on_the_run_itself():
+    sens = kinds.get_kind("sensing")
+    sample, rig = sens.preset.build_sample(), sens.preset.build_rig().replace(spring_constant=None)
+    x = np.linspace(0, 0.02, 20)
+    other = pd.DataFrame({"displacement": x, "force": 3.0 * x, "resistance": 30 + x})
+    own = pd.DataFrame({"displacement": x, "force": 9.0 * x, "resistance": 30 + x})
+    ro = sens.run_options(sample, rig, own, training=[(other, np.ones(20, bool))], training_runs=["b"])
+    assert ro.options["spring_constant"] == pytest.approx(3.0)
+    assert ro.info["spring_constant_source"] == "identified leave-one-run-out from b"
+    with pytest.raises(InputError, match="cannot be identified without using the run"):
+        sens.run_options(sample, rig, own, training=[], where="x.toml")
