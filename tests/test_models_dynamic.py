@@ -99,3 +99,31 @@ def test_bad_time_grid(tca):
     sample, rig = tca
     with pytest.raises(ModelDomainError):
         dynamic.response([0.0, 0.0, 1.0], 1.0, **kwargs(sample, rig))
+
+
+def test_kernels_compile_the_package_equations():
+    # One implementation per equation: the numba kernels wrap the very functions
+    # the numpy models and the scipy reference path call.
+    from tcamlab.models import _dynamic_kernel as DK
+    from tcamlab.models import _static_kernel as SK
+    from tcamlab.models import coil, thermal
+
+    assert DK._heating.py_func is thermal.heating_rate
+    assert DK._torque.py_func is static.torque_from_strain
+    assert DK._terms.py_func is coil.compliance_terms
+    assert DK._coefficients.py_func is coil.compliance_coefficients
+    assert DK._restoring.py_func is coil.restoring_force
+    assert DK._acceleration.py_func is dynamic.acceleration
+    assert SK._terms.py_func is coil.compliance_terms
+    assert SK._torque.py_func is static.torque_from_strain
+    assert SK._residual.py_func is static.pitch_residual
+
+
+def test_kernel_temperature_matches_exact_held_voltage_solution(tca):
+    # (2.18) integrated by the dp5 kernel against its closed form (thermal.temperature).
+    sample, rig = tca
+    t = np.arange(0.0, 10.0 + 1e-9, 0.01)
+    v = np.where(t < 1.0 - 1e-9, 10.0, 0.0)
+    res = dynamic.response(t, v, **kwargs(sample, rig))
+    exact = thermal.temperature(t, v, rig.resistance, rig.thermal_mass, rig.heat_loss, rig.ambient)
+    np.testing.assert_allclose(res.temperature, exact, rtol=1e-7)

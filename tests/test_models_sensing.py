@@ -98,3 +98,82 @@ def test_property_monotone_and_finite(r1, r2, frac):
     assert np.all(np.isfinite(d)) and np.all(d >= 0)
     if r1 < r2:
         assert d[0] <= d[1]
+
+
+# Stiff springs: S f11(alpha0) up to 0.95. Just below R0 the equation has two
+# roots (e.g. -0.045 mm and -44.35 mm at S f11 = 0.9, R = R0 (1 - 1e-5)); the
+# physical one is small and continuous through delta = 0 at R = R0.
+STIFF_FRACTIONS = (0.5, 0.8, 0.9, 0.95)
+NEAR_R0 = np.array([-1e-5, -3e-6, -1e-6, 0.0, 1e-6, 3e-6, 1e-5])
+
+
+def _first_order_delta(sample, spring, rel):
+    """delta ~ -f12 tau / (1 - S f11) at alpha0, d0, with tau linear in R - R0 (3.1)-(3.6)."""
+    g = static.sample_shear_modulus(
+        sample.fiber_diameter, sample.fiber_length, sample.twists, sample.youngs_modulus
+    )
+    f11, f12 = static.compliances(
+        sample.sin_alpha0,
+        sample.fiber_diameter,
+        sample.fiber_length,
+        sample.n_coils,
+        g,
+        sample.youngs_modulus,
+    )
+    # d / d0 = sqrt(R0 / R) ~ 1 - rel / 2, so 1 - d0 / d ~ -rel / 2 (3.3).
+    dtau_drel = -0.5 * g * math.pi * sample.fiber_diameter**4 / 32 * 2 * math.pi * sample.twists
+    dtau_drel /= sample.fiber_length
+    return -f12 * dtau_drel * rel / (1 - spring * f11)
+
+
+@pytest.mark.parametrize("frac", STIFF_FRACTIONS)
+def test_stiff_spring_near_r0_picks_the_small_continuous_root(tcs, frac):
+    sample, _ = tcs
+    kw = geometry(sample)
+    r0 = 30.0
+    spring = frac * sensing.conditioning(1.0, **kw).spring_stiffness_model
+    r = r0 * (1 + NEAR_R0)
+    delta, _ = sensing.invert(r, r0, spring, **kw)
+    # continuous through 0 at R0, increasing in R, signed like R - R0
+    assert delta[NEAR_R0 == 0] == 0.0
+    assert np.all(np.diff(delta) > 0)
+    np.testing.assert_array_equal(np.sign(delta), np.sign(NEAR_R0))
+    # small: first-order value from the linearised equation, independent of invert
+    lin = _first_order_delta(sample, spring, NEAR_R0)
+    assert np.all(np.abs(delta) < 0.2e-3)
+    nz = NEAR_R0 != 0
+    np.testing.assert_allclose(delta[nz], lin[nz], rtol=0.01)
+    # and from the forward model's slope dR/ddelta at 0 (central difference)
+    h = 1e-7
+    r_pm = sensing.forward(np.array([h, -h]), r0, spring, **kw)
+    slope = (r_pm[0] - r_pm[1]) / (2 * h)
+    np.testing.assert_allclose(delta[nz], (r[nz] - r0) / slope, rtol=0.01)
+    # forward(invert(R)) == R
+    np.testing.assert_allclose(sensing.forward(delta, r0, spring, **kw), r, rtol=1e-13)
+
+
+@pytest.mark.parametrize("frac", STIFF_FRACTIONS)
+def test_stiff_spring_compression_root_is_nearest_zero(tcs, frac):
+    # Every root of (3.6) between delta and 0 would be a sign change of the
+    # residual: there must be none, so the returned root is the one nearest 0.
+    sample, _ = tcs
+    kw = geometry(sample)
+    spring = frac * sensing.conditioning(1.0, **kw).spring_stiffness_model
+    r = 30.0 * (1 - np.array([1e-5, 1e-4]))
+    delta, _ = sensing.invert(r, 30.0, spring, **kw)
+    g = static.sample_shear_modulus(
+        sample.fiber_diameter, sample.fiber_length, sample.twists, sample.youngs_modulus
+    )
+    for ri, di in zip(r, delta):
+        d = sensing.diameter_from_resistance(ri, 30.0, sample.fiber_diameter)
+        tau = sensing.torque(d, sample.fiber_diameter, sample.twists, sample.fiber_length, g)
+        x = np.linspace(di * (1 - 1e-6), 0.0, 2001)
+        f11, f12 = static.compliances(
+            sample.sin_alpha0 + x / sample.fiber_length,
+            d,
+            sample.fiber_length,
+            sample.n_coils,
+            g,
+            sample.youngs_modulus,
+        )
+        assert np.all(x * (1 - spring * f11) + f12 * tau > 0)

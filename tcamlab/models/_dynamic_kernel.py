@@ -6,6 +6,11 @@ State y = (T, x, v): actuator temperature [degC], extension [m], velocity [m/s].
   m dv/dt    = m g - b v - F_i(x, T)                                    (2.19)
   F_i        = (x + f12 tau) / f11                                      (2.15)
 
+Each equation is compiled from the Python function the rest of the package
+uses (thermal.heating_rate, static.torque_from_strain, coil.compliance_terms,
+...), so there is one implementation of each. Numba's disk cache does not
+notice edits to those modules: touch this file after changing them.
+
 beta and gamma are zero in the thesis model; the effect library uses them
 for a temperature-dependent resistance and convective heat loss.
 
@@ -21,11 +26,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from tcamlab.models import coil, dynamic, static, thermal
+
 # Parameter vector layout (shared with dynamic.py).
 P_MASS, P_DAMP, P_CTH, P_LAM, P_RES, P_TA, P_BETA, P_GAMMA = 0, 1, 2, 3, 4, 5, 6, 7
 P_S0, P_L, P_D0, P_RHO, P_GT, P_SLOPE, P_E, P_PHI0 = 8, 9, 10, 11, 12, 13, 14, 15
-P_A0, P_B0, P_C0, P_FEXT = 16, 17, 18, 19
-N_PARAMS = 20
+P_NCOIL, P_FEXT = 16, 17
+N_PARAMS = 18
 
 OK, ERR_SHEAR, ERR_PITCH, ERR_NONFINITE, ERR_STEPS = 0, 1, 2, 3, 4
 MAX_HALVINGS = 16
@@ -41,38 +48,33 @@ _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
 _E1, _E3, _E4, _E5, _E6, _E7 = (71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
 
 
+_heating = njit(cache=True)(thermal.heating_rate)  # (2.18)
+_softened = njit(cache=True)(static.softened_modulus)  # (2.13)
+_torque = njit(cache=True)(static.torque_from_strain)  # (2.9)
+_coefficients = njit(cache=True)(coil.compliance_coefficients)  # (2.11)
+_terms = njit(cache=True)(coil.compliance_terms)  # (2.11)
+_restoring = njit(cache=True)(coil.restoring_force)  # (2.15)
+_acceleration = njit(cache=True)(dynamic.acceleration)  # (2.19)
+
+
 @njit(cache=True, fastmath=False)
 def rhs(T, x, v, volt, p, out):
     """Right-hand side; writes (dT/dt, dx/dt, dv/dt) into ``out``; returns a status."""
     dT = T - p[P_TA]
-    power = volt * volt / (p[P_RES] * (1.0 + p[P_BETA] * dT))
-    out[0] = (power - p[P_LAM] * (1.0 + p[P_GAMMA] * dT) * dT) / p[P_CTH]
+    out[0] = _heating(dT, volt, p[P_RES], p[P_CTH], p[P_LAM], p[P_BETA], p[P_GAMMA])
     out[1] = v
-    g_tau = p[P_GT] - p[P_SLOPE] * dT
+    g_tau = _softened(dT, p[P_GT], p[P_SLOPE])
     if g_tau <= 0.0:
         return ERR_SHEAR
     r = p[P_RHO] * dT
-    one_r = 1.0 + r
-    d0 = p[P_D0]
-    tau = g_tau * p[P_PHI0] * np.pi * d0**4 * one_r**3 * r / (32.0 * p[P_L])
+    tau = _torque(g_tau, p[P_PHI0], p[P_D0], p[P_L], r)
     s = p[P_S0] + x / p[P_L]
     if s <= 0.0 or s >= 1.0:
         return ERR_PITCH
-    k2 = 1.0 / (one_r * one_r)
-    k4 = k2 * k2
-    s2 = s * s
-    c2 = 1.0 - s2
-    gt = p[P_GT]
-    e = p[P_E]
-    f11 = (
-        p[P_A0] * k4 * c2 * c2 / gt
-        + p[P_B0] * k2 * c2 / (2.0 * gt)
-        + 2.0 * p[P_A0] * k4 * s2 * c2 / e
-        + p[P_B0] * k2 * s2 / (2.0 * e)
-    )
-    f12 = p[P_C0] * k4 * c2 / gt
-    f_int = (x + f12 * tau) / f11
-    out[2] = (p[P_FEXT] - p[P_DAMP] * v - f_int) / p[P_MASS]
+    # f11, f12 at the swollen diameter; G_t and E at their fabrication values.
+    a, b, c = _coefficients(p[P_D0] * (1.0 + r), p[P_L], p[P_NCOIL])
+    f11, _, f12, _ = _terms(s, a, b, c, p[P_GT], p[P_E])
+    out[2] = _acceleration(v, _restoring(x, f11, f12, tau), p[P_MASS], p[P_DAMP], p[P_FEXT])
     return OK
 
 

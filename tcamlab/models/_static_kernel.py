@@ -12,7 +12,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from tcamlab.models import coil, static
+
 OK, NO_BRACKET, NO_CONVERGENCE = 0, 1, 2
+
+# The equations are compiled from the same Python functions the numpy path
+# calls, so there is one implementation of each. Numba's disk cache does not
+# notice edits to those modules: touch this file after changing them.
+_coefficients = njit(cache=True)(coil.compliance_coefficients)  # (2.11)
+_terms = njit(cache=True)(coil.compliance_terms)  # (2.11)
+_torque = njit(cache=True)(static.torque_from_strain)  # (2.9)
+_youngs = njit(cache=True)(static.youngs_modulus_at)
+_residual = njit(cache=True)(static.pitch_residual)  # (2.10) = (2.11)
 
 
 @njit(cache=True, inline="always")
@@ -22,13 +33,9 @@ def _at(a, i):
 
 @njit(cache=True)
 def _h(s, l, s0, F, tau, A, B, C, g, e):
-    s2 = s * s
-    c2 = 1.0 - s2
-    f11 = A * c2 * c2 / g + B * c2 / (2.0 * g) + 2.0 * A * s2 * c2 / e + B * s2 / (2.0 * e)
-    df11 = -4.0 * A * s * c2 / g - B * s / g + 4.0 * A * s * (c2 - s2) / e + B * s / e
-    f12 = C * c2 / g
-    df12 = -2.0 * C * s / g
-    return l * (s - s0) - F * f11 + tau * f12, l - F * df11 + tau * df12, f11, f12
+    f11, df11, f12, df12 = _terms(s, A, B, C, g, e)
+    h, dh = _residual(s, l, s0, F, tau, f11, df11, f12, df12)
+    return h, dh, f11, f12
 
 
 @njit(cache=True, parallel=True)
@@ -42,12 +49,9 @@ def solve(
         li = _at(l, i)
         ni = _at(ncoil, i)
         gi = _at(g_t, i)
-        tau = _at(g_tau, i) * 2.0 * np.pi * _at(twists, i) * np.pi * d0i**4 * (1.0 + x) ** 3 * x / (32.0 * li)
-        d = d0i * (1.0 + x)
-        A = 8.0 * ni / (np.pi**3 * d**4) * (li / ni) ** 3
-        B = 8.0 * ni / (np.pi * d**2) * (li / ni)
-        C = 8.0 * ni / (np.pi**2 * d**4) * (li / ni) ** 2
-        e = _at(e_fab, i) * (1.0 - _at(e_slope, i) * dti)
+        tau = _torque(_at(g_tau, i), 2.0 * np.pi * _at(twists, i), d0i, li, x)
+        A, B, C = _coefficients(d0i * (1.0 + x), li, ni)
+        e = _youngs(dti, _at(e_fab, i), _at(e_slope, i))
         Fi = _at(F, i)
         s0i = _at(s0, i)
         h_lo = _h(0.0, li, s0i, Fi, tau, A, B, C, gi, e)[0]

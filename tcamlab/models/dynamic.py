@@ -32,6 +32,8 @@ import pandas as pd
 
 from tcamlab.errors import IntegrationError, ModelDomainError
 from tcamlab.models import static as _static
+from tcamlab.models import thermal
+from tcamlab.models.coil import compliance_coefficients, compliance_terms, restoring_force
 from tcamlab.params import G_ACCEL
 
 RTOL = 1e-8
@@ -47,6 +49,7 @@ __all__ = [
     "monte_carlo",
     "MonteCarloResult",
     "lognormal_draws",
+    "acceleration",
     "RTOL",
     "ATOL",
     "METHOD",
@@ -139,14 +142,13 @@ def _pack(
         )
     )
     n = float(_static.n_coils(fiber_length, coil_length, coil_diameter))
-    a0, b0, c0 = _static._compliance_coefficients(fiber_diameter, fiber_length, n)
     p[K.P_MASS], p[K.P_DAMP] = load, damping
     p[K.P_CTH], p[K.P_LAM], p[K.P_RES], p[K.P_TA] = thermal_mass, heat_loss, resistance, ambient
     p[K.P_BETA], p[K.P_GAMMA] = resistance_tc, heat_loss_tc
     p[K.P_S0], p[K.P_L], p[K.P_D0] = coil_length / fiber_length, fiber_length, fiber_diameter
     p[K.P_RHO], p[K.P_GT], p[K.P_SLOPE] = radial_cte, g_t, shear_modulus_slope
     p[K.P_E], p[K.P_PHI0] = youngs_modulus, 2.0 * np.pi * twists
-    p[K.P_A0], p[K.P_B0], p[K.P_C0] = float(a0), float(b0), float(c0)
+    p[K.P_NCOIL] = n
     p[K.P_FEXT] = load * G_ACCEL
     for name, value in (
         ("load", load),
@@ -327,20 +329,50 @@ def response(
     raise ValueError(f"unknown method {method!r}; use 'dp5' or one of {SCIPY_METHODS}")
 
 
+def acceleration(velocity, internal_force, mass, damping, force):
+    """Acceleration of the hanging load, eq. (2.19): (F - b v - F_i) / m.
+
+    Plain arithmetic (the numba kernel compiles this same function).
+
+    Parameters
+    ----------
+    velocity : float or ndarray
+        v [m/s], positive downwards (extension).
+    internal_force : float or ndarray
+        F_i of (2.15) [N].
+    mass : float or ndarray
+        m [kg].
+    damping : float or ndarray
+        b [N s/m].
+    force : float or ndarray
+        External force m g [N].
+
+    Returns
+    -------
+    float or ndarray
+        dv/dt [m/s^2].
+    """
+    return (force - damping * velocity - internal_force) / mass
+
+
 def _python_rhs(p):
-    """The right-hand side as plain Python (reference path for solve_ivp)."""
+    """The right-hand side in plain Python (reference path for solve_ivp).
+
+    Built from the same equation functions as the kernel's ``rhs``; only the
+    integrator differs.
+    """
     from tcamlab.models import _dynamic_kernel as K
 
     m, b, cth, lam, res, ta = (p[K.P_MASS], p[K.P_DAMP], p[K.P_CTH], p[K.P_LAM], p[K.P_RES], p[K.P_TA])
     beta, gamma, s0, l, d0 = p[K.P_BETA], p[K.P_GAMMA], p[K.P_S0], p[K.P_L], p[K.P_D0]
     rho, gt, slope, e, phi0 = p[K.P_RHO], p[K.P_GT], p[K.P_SLOPE], p[K.P_E], p[K.P_PHI0]
-    a0, b0, c0, fext = p[K.P_A0], p[K.P_B0], p[K.P_C0], p[K.P_FEXT]
+    n, fext = p[K.P_NCOIL], p[K.P_FEXT]
 
     def f(_t, y, volt):
         temp, x, vel = y
         dT = temp - ta
-        tdot = (volt * volt / (res * (1 + beta * dT)) - lam * (1 + gamma * dT) * dT) / cth
-        g_tau = gt - slope * dT
+        tdot = thermal.heating_rate(dT, volt, res, cth, lam, beta, gamma)
+        g_tau = _static.softened_modulus(dT, gt, slope)
         if g_tau <= 0:
             raise ModelDomainError(
                 f"dynamic model: temperature exceeds T_a + {gt / slope:.1f} K, where G_t' "
@@ -348,20 +380,10 @@ def _python_rhs(p):
                 hint="lower the voltage or pulse length, or use the constant-G model",
             )
         r = rho * dT
-        tau = g_tau * phi0 * np.pi * d0**4 * (1 + r) ** 3 * r / (32 * l)
-        s = s0 + x / l
-        k2 = 1 / (1 + r) ** 2
-        k4 = k2 * k2
-        s2 = s * s
-        c2 = 1 - s2
-        f11 = (
-            a0 * k4 * c2 * c2 / gt
-            + b0 * k2 * c2 / (2 * gt)
-            + 2 * a0 * k4 * s2 * c2 / e
-            + b0 * k2 * s2 / (2 * e)
-        )
-        f12 = c0 * k4 * c2 / gt
-        return [tdot, vel, (fext - b * vel - (x + f12 * tau) / f11) / m]
+        tau = _static.torque_from_strain(g_tau, phi0, d0, l, r)
+        a, b_, c = compliance_coefficients(d0 * (1 + r), l, n)
+        f11, _, f12, _ = compliance_terms(s0 + x / l, a, b_, c, gt, e)
+        return [tdot, vel, acceleration(vel, restoring_force(x, f11, f12, tau), m, b, fext)]
 
     return f
 

@@ -34,6 +34,7 @@ import numpy as np
 from tcamlab.errors import ModelDomainError
 from tcamlab.models import static as _static
 from tcamlab.models._roots import MAXITER, bracketed_newton
+from tcamlab.models.coil import compliance_coefficients, compliance_terms
 
 __all__ = [
     "diameter_from_resistance",
@@ -323,13 +324,13 @@ def invert(
     tau = torque(d, fiber_diameter, twists, fiber_length, g_t)
     l = float(fiber_length)
     s0 = float(coil_length) / l
-    a, b, c = _static._compliance_coefficients(d, l, n)
+    a, b, c = compliance_coefficients(d, l, n)
     S = float(spring_constant)
     E = float(youngs_modulus)
 
     def h(delta, i):
         s = s0 + delta / l
-        f11, df11, f12, df12 = _static._f11_f12(s, a[i], b[i], c[i], g_t, E)
+        f11, df11, f12, df12 = compliance_terms(s, a[i], b[i], c[i], g_t, E)
         return (
             delta * (1.0 - S * f11) + f12 * tau[i],
             1.0 - S * f11 - delta * S * df11 / l + tau[i] * df12 / l,
@@ -343,7 +344,7 @@ def invert(
         # h(0) = f12 tau < 0 and h(l (1 - s0)) > 0 while m0 > 0: the physical
         # root is bracketed, and h increases on the bracket, so it is unique.
         hi = np.full(idx.size, l * (1.0 - s0) * (1.0 - 1e-12))
-        f11_0, _, f12_0, _ = _static._f11_f12(s0, a[idx], b[idx], c[idx], g_t, E)
+        f11_0, _, f12_0, _ = compliance_terms(s0, a[idx], b[idx], c[idx], g_t, E)
         guess = np.clip(-f12_0 * tau[idx] / (1.0 - S * f11_0), 0.0, hi)
         res = bracketed_newton(
             lambda x, j: h(x, idx[j]),
@@ -460,13 +461,11 @@ def forward(
         max_volume_fraction,
     )
     # Coefficients at unit diameter: f11 = P/d^4 + Q/d^2, f12 = U/d^4.
-    a1, b1, c1 = _static._compliance_coefficients(1.0, l, n)
-    s2 = s * s
-    c2 = 1.0 - s2
+    # A and C scale as 1/d^4, B as 1/d^2 (2.11): split f11 by zeroing the others.
+    a1, b1, c1 = compliance_coefficients(1.0, l, n)
     E = float(youngs_modulus)
-    P = a1 * c2 * c2 / g_t + 2.0 * a1 * s2 * c2 / E
-    Q = b1 * c2 / (2.0 * g_t) + b1 * s2 / (2.0 * E)
-    U = c1 * c2 / g_t
+    P, _, U, _ = compliance_terms(s, a1, 0.0, c1, g_t, E)
+    Q = compliance_terms(s, 0.0, b1, 0.0, g_t, E)[0]
     K = g_t * np.pi / 32.0 * 2.0 * np.pi * float(twists) / l
     S = float(spring_constant)
 

@@ -33,10 +33,13 @@ All functions are pure and vectorised: array arguments broadcast.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from tcamlab.errors import ConvergenceError, ModelDomainError
 from tcamlab.models._roots import MAXITER, RTOL, XTOL, RootResult, bracketed_newton
+from tcamlab.models.coil import compliance_coefficients, compliance_terms, restoring_force
 
 METHOD = "jit"
 """Default static solver: compiled per-point safeguarded Newton (see ``displacement``)."""
@@ -46,8 +49,12 @@ __all__ = [
     "bias_angle",
     "transverse_shear_modulus",
     "shear_modulus_at",
+    "softened_modulus",
+    "youngs_modulus_at",
     "max_temperature_rise",
     "torque",
+    "torque_from_strain",
+    "pitch_residual",
     "n_coils",
     "compliances",
     "displacement",
@@ -205,7 +212,9 @@ def shear_modulus_at(delta_T, shear_modulus, shear_modulus_slope):
     ModelDomainError
         Where G_t' <= 0: the linear softening law has left its range.
     """
-    g = np.asarray(shear_modulus, float) - np.asarray(shear_modulus_slope, float) * np.asarray(delta_T, float)
+    g = softened_modulus(
+        np.asarray(delta_T, float), np.asarray(shear_modulus, float), np.asarray(shear_modulus_slope, float)
+    )
     if np.any(g <= 0):
         dt_max = float(np.min(max_temperature_rise(shear_modulus, shear_modulus_slope)))
         worst = float(np.max(delta_T))
@@ -215,6 +224,29 @@ def shear_modulus_at(delta_T, shear_modulus, shear_modulus_slope):
             hint="lower the temperature or voltage, or use the constant-G model",
         )
     return g
+
+
+def youngs_modulus_at(delta_T, youngs_modulus, relative_slope):
+    """Young's modulus E' = E (1 - c dT) of the f11 terms (effect library).
+
+    The thesis keeps E constant (section 2.3.3, c = 0). Plain arithmetic,
+    compiled by the static kernel as well.
+
+    Parameters
+    ----------
+    delta_T : float or ndarray
+        Temperature rise [K].
+    youngs_modulus : float or ndarray
+        E at fabrication [Pa].
+    relative_slope : float or ndarray
+        c [1/K].
+
+    Returns
+    -------
+    float or ndarray
+        E' [Pa].
+    """
+    return youngs_modulus * (1.0 - relative_slope * delta_T)
 
 
 def torque(delta_T, shear_modulus, fiber_diameter, twists, fiber_length, radial_cte):
@@ -245,17 +277,68 @@ def torque(delta_T, shear_modulus, fiber_diameter, twists, fiber_length, radial_
         tau [N m], positive for the untwisting torque of a swelling fiber.
     """
     x = np.asarray(radial_cte, float) * np.asarray(delta_T, float)
-    d0 = np.asarray(fiber_diameter, float)
     phi0 = 2.0 * np.pi * np.asarray(twists, float)
-    return (
-        np.asarray(shear_modulus, float)
-        * phi0
-        * np.pi
-        * d0**4
-        * (1.0 + x) ** 3
-        * x
-        / (32.0 * np.asarray(fiber_length, float))
+    return torque_from_strain(
+        np.asarray(shear_modulus, float),
+        phi0,
+        np.asarray(fiber_diameter, float),
+        np.asarray(fiber_length, float),
+        x,
     )
+
+
+def torque_from_strain(shear_modulus, twist_angle, fiber_diameter, fiber_length, radial_strain):
+    """Untwisting torque in the form of eq. (2.9), plain arithmetic.
+
+    tau = G phi0 pi d0^4 (1 + x)^3 x / (32 l) with the radial strain
+    x = rho dT. The one implementation of (2.9): :func:`torque` calls it on
+    arrays and the numba kernels compile it (so: floats or float ndarrays).
+
+    Parameters
+    ----------
+    shear_modulus : float or ndarray
+        G (G_t or G_t') [Pa].
+    twist_angle : float or ndarray
+        phi0 = 2 pi N [rad].
+    fiber_diameter : float or ndarray
+        d0 [m].
+    fiber_length : float or ndarray
+        l [m].
+    radial_strain : float or ndarray
+        x = rho dT [-].
+
+    Returns
+    -------
+    float or ndarray
+        tau [N m].
+    """
+    x = radial_strain
+    return (
+        shear_modulus * twist_angle * math.pi * fiber_diameter**4 * (1.0 + x) ** 3 * x / (32.0 * fiber_length)
+    )
+
+
+def softened_modulus(delta_T, modulus, slope):
+    """Linear softening of a modulus with temperature, eq. (2.13): M' = M - k dT.
+
+    Plain arithmetic (compiled by the numba kernels as well); no domain check
+    (see :func:`shear_modulus_at`).
+
+    Parameters
+    ----------
+    delta_T : float or ndarray
+        Temperature rise [K].
+    modulus : float or ndarray
+        M at the reference temperature [Pa].
+    slope : float or ndarray
+        k [Pa/K].
+
+    Returns
+    -------
+    float or ndarray
+        M' [Pa].
+    """
+    return modulus - slope * delta_T
 
 
 def n_coils(fiber_length, coil_length, coil_diameter):
@@ -284,27 +367,6 @@ def _take(arr, idx):
     return arr if arr.ndim == 0 else arr[idx]
 
 
-def _compliance_coefficients(fiber_diameter, fiber_length, n):
-    """A, B, C with f11 = A c^4/G + B c^2/(2G) + 2A s^2 c^2/E + B s^2/(2E), f12 = C c^2/G."""
-    d = np.asarray(fiber_diameter, float)
-    l = np.asarray(fiber_length, float)
-    a = 8.0 * n / (np.pi**3 * d**4) * (l / n) ** 3
-    b = 8.0 * n / (np.pi * d**2) * (l / n)
-    c = 8.0 * n / (np.pi**2 * d**4) * (l / n) ** 2
-    return a, b, c
-
-
-def _f11_f12(s, a, b, c, g, e):
-    """f11, f12 and their derivatives in s = sin(alpha)."""
-    s2 = s * s
-    c2 = 1.0 - s2
-    f11 = a * c2 * c2 / g + b * c2 / (2.0 * g) + 2.0 * a * s2 * c2 / e + b * s2 / (2.0 * e)
-    df11 = -4.0 * a * s * c2 / g - b * s / g + 4.0 * a * s * (c2 - s2) / e + b * s / e
-    f12 = c * c2 / g
-    df12 = -2.0 * c * s / g
-    return f11, df11, f12, df12
-
-
 def compliances(sin_alpha, fiber_diameter, fiber_length, n_coils, shear_modulus, youngs_modulus):
     """Castigliano compliances f11 and f12 of eq. (2.11) (four-term f11).
 
@@ -330,8 +392,10 @@ def compliances(sin_alpha, fiber_diameter, fiber_length, n_coils, shear_modulus,
     f12 : ndarray
         Torque compliance [m/(N m)] = [1/N].
     """
-    a, b, c = _compliance_coefficients(fiber_diameter, fiber_length, np.asarray(n_coils, float))
-    f11, _, f12, _ = _f11_f12(
+    a, b, c = compliance_coefficients(
+        np.asarray(fiber_diameter, float), np.asarray(fiber_length, float), np.asarray(n_coils, float)
+    )
+    f11, _, f12, _ = compliance_terms(
         np.asarray(sin_alpha, float),
         a,
         b,
@@ -453,7 +517,7 @@ def displacement(
     dT, F, d0, l, L, D, N, E_fab, plies, vfmax, rho, slope, e_slope = flat
     size = int(np.prod(shape))
     g_t = sample_shear_modulus(d0, l, N, E_fab, plies, vfmax)
-    E = E_fab * (1.0 - e_slope * dT)
+    E = youngs_modulus_at(dT, E_fab, e_slope)
     if np.any(E <= 0):
         raise ModelDomainError(
             "static model: Young's modulus E (1 - c dT) is not positive",
@@ -487,15 +551,14 @@ def displacement(
     if method != "numpy":
         raise ValueError(f"unknown method {method!r}; use 'jit' or 'numpy'")
     d = d0 * (1.0 + rho * dT)
-    a, b, c = _compliance_coefficients(d, l, n)
+    a, b, c = compliance_coefficients(d, l, n)
 
     def h(s, i):
-        f11, df11, f12, df12 = _f11_f12(s, _take(a, i), _take(b, i), _take(c, i), _take(g_t, i), _take(E, i))
-        li, Fi, ti = _take(l, i), _take(F, i), _take(tau, i)
-        return (li * (s - _take(s0, i)) - Fi * f11 + ti * f12, li - Fi * df11 + ti * df12)
+        terms = compliance_terms(s, _take(a, i), _take(b, i), _take(c, i), _take(g_t, i), _take(E, i))
+        return pitch_residual(s, _take(l, i), _take(s0, i), _take(F, i), _take(tau, i), *terms)
 
     # Linearised first guess: delta ~ f11(s0) F - f12(s0) tau.
-    f11_0, _, f12_0, _ = _f11_f12(s0, a, b, c, g_t, E)
+    f11_0, _, f12_0, _ = compliance_terms(s0, a, b, c, g_t, E)
     guess = np.broadcast_to(np.clip(s0 + (f11_0 * F - f12_0 * tau) / l, 0.0, 1.0), (size,))
     try:
         res = bracketed_newton(
@@ -513,6 +576,36 @@ def displacement(
     if full_output:
         return delta, res
     return delta
+
+
+def pitch_residual(sin_alpha, fiber_length, sin_alpha0, force, torque, f11, df11, f12, df12):
+    """Residual of (2.10) = (2.11) in s = sin(alpha) and its derivative.
+
+    h(s) = l (s - s0) - F f11(s) + tau f12(s); plain arithmetic, shared by the
+    numpy solve and the compiled kernel.
+
+    Parameters
+    ----------
+    sin_alpha, sin_alpha0 : float or ndarray
+        Current and unloaded s [-].
+    fiber_length : float or ndarray
+        l [m].
+    force : float or ndarray
+        F [N].
+    torque : float or ndarray
+        tau [N m].
+    f11, df11, f12, df12 : float or ndarray
+        From :func:`tcamlab.models.coil.compliance_terms` [m/N], [1/N].
+
+    Returns
+    -------
+    h : float or ndarray
+        [m].
+    dh : float or ndarray
+        dh/ds [m].
+    """
+    h = fiber_length * (sin_alpha - sin_alpha0) - force * f11 + torque * f12
+    return h, fiber_length - force * df11 + torque * df12
 
 
 def _displacement_jit(
@@ -621,4 +714,4 @@ def internal_force(
     n = n_coils(fiber_length, coil_length, coil_diameter)
     d = np.asarray(fiber_diameter, float) * (1.0 + np.asarray(radial_cte, float) * dT)
     f11, f12 = compliances(s, d, l, n, g_t, youngs_modulus)
-    return (delta + f12 * tau) / f11
+    return restoring_force(delta, f11, f12, tau)

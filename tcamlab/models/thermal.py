@@ -2,6 +2,11 @@
 
 C_th dT/dt = V(t)^2 / R - lambda (T - T_a).
 
+:func:`heating_rate` is the one implementation of (2.18): the dynamic model
+compiles it into its numba kernel and calls it in its scipy reference path.
+The functions below are the closed-form consequences of the same equation
+(steady state, time constant, exact response to a held voltage).
+
 The voltage is taken as held between samples (zero-order hold), as an
 Arduino-driven motor driver applies it. For a held voltage the equation is
 linear with constant coefficients, so each sample interval has an exact
@@ -17,7 +22,41 @@ import numpy as np
 
 from tcamlab.errors import ModelDomainError
 
-__all__ = ["temperature", "steady_state_temperature", "time_constant"]
+__all__ = ["heating_rate", "temperature", "steady_state_temperature", "time_constant"]
+
+
+def heating_rate(delta_T, voltage, resistance, thermal_mass, heat_loss, resistance_tc=0.0, heat_loss_tc=0.0):
+    """Rate of temperature change dT/dt of eq. (2.18), plain arithmetic.
+
+    C_th dT/dt = V^2 / (R (1 + beta dT)) - lambda (1 + gamma dT) dT.
+    beta and gamma are zero in the thesis; the effect library uses them for
+    a temperature-dependent resistance and heat loss. Floats or float
+    ndarrays (the numba kernel compiles this same function).
+
+    Parameters
+    ----------
+    delta_T : float or ndarray
+        T - T_a [K].
+    voltage : float or ndarray
+        V [V].
+    resistance : float or ndarray
+        R at ambient [ohm].
+    thermal_mass : float or ndarray
+        C_th [J/K].
+    heat_loss : float or ndarray
+        lambda [W/K].
+    resistance_tc : float or ndarray
+        beta [1/K].
+    heat_loss_tc : float or ndarray
+        gamma [1/K].
+
+    Returns
+    -------
+    float or ndarray
+        dT/dt [K/s].
+    """
+    power = voltage * voltage / (resistance * (1.0 + resistance_tc * delta_T))
+    return (power - heat_loss * (1.0 + heat_loss_tc * delta_T) * delta_T) / thermal_mass
 
 
 def steady_state_temperature(voltage, resistance, heat_loss, ambient):
