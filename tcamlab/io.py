@@ -52,6 +52,7 @@ import pandas as pd
 
 from tcamlab import kinds as _kinds
 from tcamlab.errors import InputError
+from tcamlab.units import QUANTITIES
 
 __all__ = [
     "ABSOLUTE_ZERO_C",
@@ -130,20 +131,7 @@ SI_UNITS: dict[str, str] = {
 }
 """Dimension -> the unit used inside tcamlab."""
 
-VARIABLE_MAP: dict[str, tuple[str, str]] = {
-    "time_s": ("time", "s"),
-    "temperature_C": ("temperature", "degC"),
-    "displacement_mm": ("displacement", "mm"),
-    "voltage_V": ("voltage", "V"),
-    "current_A": ("current", "A"),
-    "resistance_ohm": ("resistance", "ohm"),
-    "force_N": ("force", "N"),
-    "cable_mm": ("cable", "mm"),
-    "r1_ohm": ("r1", "ohm"),
-    "r2_ohm": ("r2", "ohm"),
-    "kappa1_per_mm": ("kappa1", "per_mm"),
-    "kappa2_per_mm": ("kappa2", "per_mm"),
-}
+VARIABLE_MAP: dict[str, tuple[str, str]] = {q.column: (q.name, q.column_unit) for q in QUANTITIES.values()}
 """Canonical CSV column -> (internal column name, unit of the canonical column).
 
 Internal columns are in SI: time [s], temperature [degC], displacement [m],

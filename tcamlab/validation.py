@@ -19,18 +19,9 @@ from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.io import RunData
 from tcamlab.kinds import Kind, get_kind
 from tcamlab.metrics import check_thresholds, error_metrics, pooled_metrics
+from tcamlab.units import quantity
 
-__all__ = ["ValidationResult", "RunPrediction", "validate", "DISPLAY", "MC_DRAWS"]
-
-DISPLAY = {
-    # internal quantity -> (display name with unit, factor from SI)
-    "displacement": ("displacement_mm", 1e3),
-    "force": ("force_N", 1.0),
-    "kappa1": ("kappa1_per_mm", 1e-3),
-    "kappa2": ("kappa2_per_mm", 1e-3),
-    "temperature": ("temperature_C", 1.0),
-}
-"""Quantities as shown in reports, metrics and thresholds (lab units)."""
+__all__ = ["ValidationResult", "RunPrediction", "validate", "MC_DRAWS"]
 
 MC_DRAWS = 1000
 """Monte Carlo draws for the dynamic prediction band."""
@@ -113,10 +104,10 @@ class ValidationResult:
             if "time" in p.data:
                 out["time_s"] = p.data["time"].to_numpy()
             for c in inputs:
-                name, factor = _display_input(c)
+                name, factor = quantity(c).column, quantity(c).factor
                 out[name] = p.data[c].to_numpy() * factor
             for q in self.quantities:
-                name, factor = DISPLAY[q]
+                name, factor = quantity(q).column, quantity(q).factor
                 out[f"measured_{name}"] = p.data[q].to_numpy() * factor
                 for v in self.variants:
                     out[f"predicted_{name}__{_slug(v)}"] = p.predicted[v][q] * factor
@@ -177,24 +168,12 @@ class ValidationResult:
 
             ax = Figure().add_subplot()
         q = quantity or self.quantities[0]
-        name, factor = DISPLAY[q]
+        name, factor = quantity(q).column, quantity(q).factor
         for p in self.predictions:
             ax.plot(p.data[q] * factor, p.predicted[self.primary][q] * factor, ".", label=p.name)
         ax.set_xlabel(f"measured {name}")
         ax.set_ylabel(f"predicted {name}")
         return ax
-
-
-def _display_input(column: str) -> tuple[str, float]:
-    mapping = {
-        "temperature": ("temperature_C", 1.0),
-        "voltage": ("voltage_V", 1.0),
-        "resistance": ("resistance_ohm", 1.0),
-        "cable": ("cable_mm", 1e3),
-        "r1": ("r1_ohm", 1.0),
-        "r2": ("r2_ohm", 1.0),
-    }
-    return mapping[column]
 
 
 def _slug(variant: str) -> str:
@@ -222,7 +201,7 @@ def _metrics(predictions, variants, quantities) -> dict:
     for v in variants:
         out[v] = {}
         for q in quantities:
-            name, factor = DISPLAY[q]
+            name, factor = quantity(q).column, quantity(q).factor
             pairs = [(p.data[q].to_numpy() * factor, p.predicted[v][q] * factor) for p in predictions]
             out[v][name] = {
                 "runs": {p.name: error_metrics(m, pr) for p, (m, pr) in zip(predictions, pairs)},

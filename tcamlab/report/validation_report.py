@@ -10,33 +10,9 @@ import numpy as np
 from tcamlab.kinds import get_kind
 from tcamlab.report.document import Cell, Document, Figure, Section, Table
 from tcamlab.report.figures import legend_label, new_figure
+from tcamlab.units import parameter_unit, quantity
 
 __all__ = ["validation_document", "parameter_table", "synthetic_banner", "input_table"]
-
-_SI_UNITS = {
-    "fiber_diameter": ("mm", 1e3),
-    "fiber_length": ("mm", 1e3),
-    "coil_length": ("mm", 1e3),
-    "coil_diameter": ("mm", 1e3),
-    "twists": ("turns", 1),
-    "youngs_modulus": ("GPa", 1e-9),
-    "thread_plies": ("-", 1),
-    "max_volume_fraction": ("-", 1),
-    "radial_cte": ("1/K", 1),
-    "shear_modulus_slope": ("MPa/K", 1e-6),
-    "load": ("g", 1e3),
-    "ambient": ("degC", 1),
-    "voltage": ("V", 1),
-    "pulse": ("s", 1),
-    "resistance": ("ohm", 1),
-    "thermal_mass": ("J/K", 1),
-    "heat_loss": ("W/K", 1),
-    "damping": ("N s/m", 1),
-    "initial_resistance": ("ohm", 1),
-    "spring_constant": ("N/m", 1),
-    "sensor_offset": ("mm", 1e3),
-    "segment_lengths": ("mm", 1e3),
-}
 
 
 def _fmt_value(value, factor):
@@ -51,10 +27,10 @@ def parameter_table(experiment) -> Table:
     """Sample and rig parameters in lab units with their provenance."""
     rows = []
     for name, value in experiment.sample.model_kwargs().items():
-        unit, factor = _SI_UNITS[name]
+        unit, factor = parameter_unit(name)
         rows.append(["sample", name, _fmt_value(value, factor), unit, experiment.provenance.get(name, "–")])
     for name in get_kind(experiment.kind).report_rig_fields:
-        unit, factor = _SI_UNITS[name]
+        unit, factor = parameter_unit(name)
         value = getattr(experiment.rig, name)
         sd = experiment.rig.uncertainty.get(name)
         text = _fmt_value(value, factor)
@@ -148,10 +124,8 @@ def _draw_figures(result) -> list[Figure]:
     figs = get_kind(result.kind).figures(result)
     # residuals of the primary model
     fig, ax = new_figure(6.4, 2.8)
-    from tcamlab.validation import DISPLAY
-
     for q in result.quantities:
-        name, factor = DISPLAY[q]
+        name, factor = quantity(q).column, quantity(q).factor
         for p in result.predictions:
             res = (p.predicted[result.primary][q] - p.data[q].to_numpy()) * factor
             ax.plot(np.arange(res.size), res, ".", ms=2, label=f"{legend_label(p.name)} {name}")
