@@ -6,10 +6,10 @@ the median of 5 runs of ``python -c pass`` (interpreter start-up baseline).
 The difference is what importing tcamlab's CLI costs before it can print help
 (heavy imports such as numba, scipy or matplotlib show up here).
 
-    python bench/bench_cli_help.py [--runs 5] [--json out.json]
+    python bench/bench_cli_help.py [--runs 5] [--json out.json] [--quick]
 
 If the CLI does not exist yet (non-zero exit), prints "CLI not available"
-and exits 0.
+and exits 0 (1 with ``--quick``, the CI smoke run: one timed run each).
 """
 
 from __future__ import annotations
@@ -38,7 +38,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description="tcamlab --help startup time")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--json", metavar="PATH")
+    ap.add_argument(
+        "--quick", action="store_true", help="CI smoke run: one timed run each; exit 1 if the CLI fails"
+    )
     args = ap.parse_args(argv)
+    if args.quick:
+        args.runs = 1
+    missing = 1 if args.quick else 0
 
     cli = [sys.executable, "-m", "tcamlab", "--help"]
     base = [sys.executable, "-c", "pass"]
@@ -47,12 +53,12 @@ def main(argv=None):
     if warm.returncode != 0:
         last = (warm.stderr.strip().splitlines() or ["(no output)"])[-1]
         print(f"CLI not available: `python -m tcamlab --help` exited {warm.returncode}: {last}")
-        return 0
+        return missing
     subprocess.run(base, capture_output=True)
     cli_t, proc = run_times(cli, args.runs)
     if proc.returncode != 0:
         print(f"CLI not available: `python -m tcamlab --help` exited {proc.returncode}")
-        return 0
+        return missing
     base_t, _ = run_times(base, args.runs)
     cli_med, base_med = statistics.median(cli_t), statistics.median(base_t)
     print(f"| Command | Median of {args.runs} | Min | Max |")

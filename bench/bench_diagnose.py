@@ -1,6 +1,10 @@
 """Time `tcamlab diagnose` on one five-run experiment of each rig kind.
 
-Run: python bench/bench_diagnose.py [--json out.json]
+Run: python bench/bench_diagnose.py [--json out.json] [--quick]
+
+``--quick`` (the CI smoke run) takes one single-effect case per kind with two
+runs each, no warm-up, one timed run of each diagnosis; times are printed, not
+asserted.
 
 Each experiment is simulated by the virtual rig (five runs, one effect at 3x
 the noise RMS, seed 1; plus sensing and dynamic with two effects at 5x, where
@@ -43,25 +47,36 @@ def best_of(fn, n=3):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", help="also write the numbers as JSON")
+    ap.add_argument("--quick", action="store_true", help="CI smoke run (see the module docstring)")
     args = ap.parse_args()
+    cases = CASES[:4] if args.quick else CASES
+    n_runs, n_timed = (2, 1) if args.quick else (5, 3)
     rows = []
-    for kind, effects in CASES:
+    for kind, effects in cases:
         effect = next(iter(effects))
         with tempfile.TemporaryDirectory() as tmp:
             sim = simulate(
-                kind, f"experiments/templates/{kind}.toml", seed=1, out_dir=tmp, effects=effects, n_runs=5
+                kind,
+                f"experiments/templates/{kind}.toml",
+                seed=1,
+                out_dir=tmp,
+                effects=effects,
+                n_runs=n_runs,
             )
             exp = load_experiment(sim.experiment_path)
             runs = exp.read_runs()
-            diagnose(exp, runs)  # warm-up: imports and JIT
-            full, res = best_of(lambda exp=exp, runs=runs: diagnose(exp, runs))
-            one, _ = best_of(lambda exp=exp, runs=runs, effect=effect: diagnose(exp, runs, effects=[effect]))
+            if not args.quick:
+                diagnose(exp, runs)  # warm-up: imports and JIT
+            full, res = best_of(lambda exp=exp, runs=runs: diagnose(exp, runs), n_timed)
+            one, _ = best_of(
+                lambda exp=exp, runs=runs, effect=effect: diagnose(exp, runs, effects=[effect]), n_timed
+            )
             label = " + ".join(f"{k} {v:g}x" for k, v in effects.items())
             rows.append(
                 {
                     "kind": kind,
                     "effect": label,
-                    "runs": 5,
+                    "runs": n_runs,
                     "rows": sum(len(r.data) for r in runs),
                     "seconds": full,
                     "seconds_one_candidate": one,
@@ -78,7 +93,7 @@ def main():
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         print(
-            f"| {r['kind']} | 5 ({r['rows']}) | {r['effect']} | {r['seconds']:.2f} s | "
+            f"| {r['kind']} | {r['runs']} ({r['rows']}) | {r['effect']} | {r['seconds']:.2f} s | "
             f"{r['seconds_one_candidate']:.2f} s | {r['verdict']} ({r['pair'] or r['attributed']}) | "
             f"{'PASS' if r['pass'] else 'FAIL'} |"
         )

@@ -88,7 +88,9 @@ __all__ = [
     "DISPLAY_UNITS",
     "CandidateResult",
     "DiagnosisResult",
+    "complement",
     "diagnose",
+    "folds",
     "gap_limit",
     "pool_noise_estimates",
     "second_difference_sigma",
@@ -805,8 +807,12 @@ def pool_noise_estimates(
 # ---------------------------------------------------------------------------
 
 
-def _folds(problem: _Problem) -> list[list[tuple[int, np.ndarray]]]:
-    """Held-out sets: one run each, or contiguous blocks of a single run."""
+def folds(problem: _Problem) -> list[list[tuple[int, np.ndarray]]]:
+    """Held-out sets: one run each, or contiguous blocks of a single run.
+
+    Only ``problem.frames`` is read. The held-out rows of all folds cover every
+    row exactly once; :func:`complement` gives the training rows (no guard band).
+    """
     frames = problem.frames
     if len(frames) >= 2:
         return [[(i, np.ones(len(d), bool))] for i, d in enumerate(frames)]
@@ -823,7 +829,8 @@ def _folds(problem: _Problem) -> list[list[tuple[int, np.ndarray]]]:
     return out
 
 
-def _complement(problem: _Problem, held) -> list[tuple[int, np.ndarray]]:
+def complement(problem: _Problem, held) -> list[tuple[int, np.ndarray]]:
+    """Training rows of a fold: every row not held out (runs left empty are dropped)."""
     held_map = {i: m for i, m in held}
     rows = []
     for i, d in enumerate(problem.frames):
@@ -1071,16 +1078,16 @@ def diagnose(
         run_stats.append(entry)
 
     # --- which: candidates, leave one out -------------------------------------------
-    folds = _folds(problem)
-    K = len(folds)
+    fold_sets = folds(problem)
+    K = len(fold_sets)
     fold_info = []
     before_fold = np.zeros(K)
     n_fold = np.zeros(K)
     before_q = np.zeros((K, len(Q)))
     n_q = np.zeros((K, len(Q)))
     train_rows_f, spring_f = [], []
-    for k, held in enumerate(folds):
-        train = _complement(problem, held)
+    for k, held in enumerate(fold_sets):
+        train = complement(problem, held)
         spring = problem.spring_for(train)
         if problem.spring_nuisance:
             spring = _fit_effect(problem, None, train, spring).spring
@@ -1115,7 +1122,7 @@ def diagnose(
     b4 = math.sqrt(before_fold.sum() / n_fold.sum())
 
     def run_jobs(effs):
-        jobs = [(problem, eff, folds, train_rows_f, spring_f, all_rows, spring_all) for eff in effs]
+        jobs = [(problem, eff, fold_sets, train_rows_f, spring_f, all_rows, spring_all) for eff in effs]
         n_work = _n_workers(workers, len(jobs))
         if n_work > 1:
             import multiprocessing as mp

@@ -1,3 +1,6 @@
+import shutil
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -27,3 +30,19 @@ def geometry(sample):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def lab(tmp_path):
+    """A copy of the shipped experiments (without templates) and raw logs.
+
+    test_config.py overrides it with its own one-run tree.
+    """
+    shutil.copytree(
+        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
+    )
+    shutil.copytree(ROOT / "raw", tmp_path / "raw")
+    return tmp_path

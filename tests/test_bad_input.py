@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -19,16 +18,6 @@ from tcamlab.cli import app
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 OUTPUTS = ("report.html", "report.pdf", "metrics.json", "predictions.csv")
-
-
-@pytest.fixture
-def lab(tmp_path):
-    """A copy of the shipped experiments and raw logs."""
-    shutil.copytree(
-        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
-    )
-    shutil.copytree(ROOT / "raw", tmp_path / "raw")
-    return tmp_path
 
 
 def experiment(

@@ -2,7 +2,6 @@
 
 import hashlib
 import json
-import shutil
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -36,16 +35,6 @@ def test_every_command_has_help_with_an_example():
             assert "Example:" in cmd.help, f"{' '.join(path)} help lacks an example"
         seen += 1
     assert seen >= 12
-
-
-@pytest.fixture
-def lab(tmp_path):
-    """A copy of the shipped experiments and raw logs."""
-    shutil.copytree(
-        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
-    )
-    shutil.copytree(ROOT / "raw", tmp_path / "raw")
-    return tmp_path
 
 
 def _hashes(folder):

@@ -30,15 +30,6 @@ runner = CliRunner()
 SCRIPT = "<script>alert(1)<script>"
 
 
-@pytest.fixture
-def lab(tmp_path):
-    shutil.copytree(
-        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
-    )
-    shutil.copytree(ROOT / "raw", tmp_path / "raw")
-    return tmp_path
-
-
 class _Page(HTMLParser):
     """Collects start tags, visible text, attribute values and comments."""
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -27,15 +26,6 @@ ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 KINDS = ("static", "dynamic", "sensing", "curvature")
 OUTPUTS = ("report.html", "report.pdf", "metrics.json", "predictions.csv")
-
-
-@pytest.fixture
-def lab(tmp_path):
-    shutil.copytree(
-        ROOT / "experiments", tmp_path / "experiments", ignore=shutil.ignore_patterns("templates")
-    )
-    shutil.copytree(ROOT / "raw", tmp_path / "raw")
-    return tmp_path
 
 
 def tree_hashes(folder: Path) -> dict[str, tuple[str, int]]:
