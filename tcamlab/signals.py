@@ -93,6 +93,34 @@ def rolling_median(x: np.ndarray, window: int) -> np.ndarray:
     return pd.Series(x).rolling(window, center=True, min_periods=1).median().to_numpy()
 
 
+def _turning_point(x: np.ndarray, window: int) -> int | None:
+    """Last row of the top plateau of a rise-and-fall signal, or None when it does not fall back."""
+    n = x.size
+    w = max(1, int(window))
+    w = w + 1 if w % 2 == 0 else w
+    w = min(w, n if n % 2 == 1 else n - 1)
+    smooth = rolling_median(x, w)
+    noise = mad_scale(x - smooth)
+    span = float(np.ptp(smooth))
+    tol = max(5.0 * noise, 1e-3 * span, np.finfo(float).tiny)
+
+    i_max = int(np.argmax(smooth))
+    top = smooth[i_max]
+    below = np.flatnonzero(smooth[i_max:] < top - tol)
+    # end of the top plateau: last sample before the first clear drop
+    i_end = i_max + int(below[0]) - 1 if below.size else n - 1
+    before = np.flatnonzero(smooth[:i_max] < top - tol)
+    i_start = int(before[-1]) + 1 if before.size else 0
+    if below.size and i_end - i_start < w:
+        # a sharp peak, not a dwell: the median flattens it over ~w samples,
+        # so put the turning point at the raw maximum near the flat top
+        lo = max(0, i_start - w // 2)
+        i_end = lo + int(np.argmax(x[lo : i_end + 1]))
+    after = n - 1 - i_end
+    drop = top - float(smooth[i_end + 1 :].min()) if after > 0 else 0.0
+    return None if after < 3 or drop < tol else i_end
+
+
 def split_branches(displacement, time=None, *, window: int = 5) -> dict[str, np.ndarray]:
     """Boolean masks of the loading and unloading branches of a pull test.
 
@@ -157,31 +185,9 @@ def split_branches(displacement, time=None, *, window: int = 5) -> dict[str, np.
     if n < 4:
         return {"loading": loading}
 
-    w = max(1, int(window))
-    w = w + 1 if w % 2 == 0 else w
-    w = min(w, n if n % 2 == 1 else n - 1)
-    smooth = rolling_median(x, w)
-    noise = mad_scale(x - smooth)
-    span = float(np.ptp(smooth))
-    tol = max(5.0 * noise, 1e-3 * span, np.finfo(float).tiny)
-
-    i_max = int(np.argmax(smooth))
-    top = smooth[i_max]
-    below = np.flatnonzero(smooth[i_max:] < top - tol)
-    # end of the top plateau: last sample before the first clear drop
-    i_end = i_max + int(below[0]) - 1 if below.size else n - 1
-    before = np.flatnonzero(smooth[:i_max] < top - tol)
-    i_start = int(before[-1]) + 1 if before.size else 0
-    if below.size and i_end - i_start < w:
-        # a sharp peak, not a dwell: the median flattens it over ~w samples,
-        # so put the turning point at the raw maximum near the flat top
-        lo = max(0, i_start - w // 2)
-        i_end = lo + int(np.argmax(x[lo : i_end + 1]))
-    after = n - 1 - i_end
-    drop = top - float(smooth[i_end + 1 :].min()) if after > 0 else 0.0
-    if after < 3 or drop < tol:
+    i_end = _turning_point(x, window)
+    if i_end is None:
         return {"loading": loading}
-
     in_order = np.arange(n) <= i_end
     loading = np.empty(n, dtype=bool)
     loading[order] = in_order

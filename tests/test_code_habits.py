@@ -29,7 +29,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "tcamlab.config:load_experiment": SPLIT,
     "tcamlab.diagnosis:diagnose": SPLIT,
     "tcamlab.fitting:fit_spring": SPLIT,
-    "tcamlab.fitting:split_branches": SPLIT,
     "tcamlab.io:column_spec": SPLIT,
     "tcamlab.io:_read_run": SPLIT,
     "tcamlab.models._roots:bracketed_newton": SPLIT,
@@ -39,7 +38,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "tcamlab.models.sensing:forward": SPLIT,
     "tcamlab.models.static:displacement": SPLIT,
     "tcamlab.report.diagnosis_report:diagnosis_section": SPLIT,
-    "tcamlab.report.validation_report:_draw_figures": SPLIT,
     "tcamlab.rig:scale_effect": SPLIT,
     "tcamlab.rig:simulate": SPLIT,
 }
@@ -49,15 +47,6 @@ PRIVATE_IMPORTS: dict[str, str] = {
     "tcamlab.benchmark -> tcamlab.diagnosis._jsonable": "JSON cleaning helper, not yet public",
     "tcamlab.config -> tcamlab.io._did_you_mean": "spelling-suggestion helper, not yet public",
     "tcamlab.pipeline -> tcamlab.report.atomic._default_mode": "default file mode, not yet public",
-    "tcamlab.models.dynamic -> tcamlab.models.static._compliance_coefficients": (
-        "Castigliano coefficients shared by the models, not yet public"
-    ),
-    "tcamlab.models.sensing -> tcamlab.models.static._compliance_coefficients": (
-        "Castigliano coefficients shared by the models, not yet public"
-    ),
-    "tcamlab.models.sensing -> tcamlab.models.static._f11_f12": (
-        "compliances with their s-derivatives, shared by the models, not yet public"
-    ),
 }
 """importing module -> owning module.name -> why it is still imported."""
 
@@ -177,7 +166,7 @@ def _all_private_uses() -> set[str]:
 def test_the_walk_sees_the_package():
     names = {f"{mod}:{name}" for mod, _, tree in _modules() for name, _ in _functions(tree)}
     # a module-level function, a method and a function in a subpackage
-    assert "tcamlab.forward:predict" in names
+    assert "tcamlab.kinds:predict" in names
     assert "tcamlab.diagnosis:_Problem.norm_resid" in names
     assert "tcamlab.models.static:displacement" in names
 
@@ -206,7 +195,7 @@ def test_private_use_detector_sees_every_form():
     src = (
         "from tcamlab.io import _a\n"
         "from .metrics import _b, ok\n"
-        "from tcamlab import forward as fw\n"
+        "from tcamlab import effects as fw\n"
         "import tcamlab.models.static\n"
         "from . import __version__\n"
         "from tcamlab.x import _own\n"
@@ -217,7 +206,7 @@ def test_private_use_detector_sees_every_form():
     assert found == {
         "tcamlab.x -> tcamlab.io._a",
         "tcamlab.x -> tcamlab.metrics._b",
-        "tcamlab.x -> tcamlab.forward._c",
+        "tcamlab.x -> tcamlab.effects._c",
         "tcamlab.x -> tcamlab.models.static._d",
     }
     # a private module of the importer's own package is allowed; of another is not

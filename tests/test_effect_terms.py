@@ -1,4 +1,4 @@
-"""Each effect term of tcamlab.forward.Mods, checked directly for sign and size.
+"""Each effect term of tcamlab.effects.Mods, checked directly for sign and size.
 
 For every field: prediction with the term minus prediction without, on a
 small hand-made input frame, against a value derived by hand here (exact
@@ -14,9 +14,10 @@ import pandas as pd
 import pytest
 from scipy.integrate import quad
 
-from tcamlab.forward import SILVER_TCR, SLACK_RAMP, Mods, predict
+from tcamlab.effects import SLACK_RAMP, Mods
+from tcamlab.kinds import predict
 from tcamlab.models import sensing, static
-from tcamlab.params import THESIS_ROBOT, THESIS_TCA, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT
+from tcamlab.params import SILVER_TCR, THESIS_ROBOT, THESIS_TCA, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT
 
 NONE = Mods()
 

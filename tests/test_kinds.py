@@ -134,7 +134,9 @@ def test_resistance_rule_is_the_stated_value_else_the_mean_at_rest():
 
     curv = kinds.get_kind("curvature")
     robot = curv.preset.build_rig()
-    frame = pd.DataFrame({"cable": [0, 0, 1e-3, 2e-3], "r1": [10.01, 9.99, 10.5, 11], "r2": [20, 20.02, 21, 22]})
+    frame = pd.DataFrame(
+        {"cable": [0, 0, 1e-3, 2e-3], "r1": [10.01, 9.99, 10.5, 11], "r2": [20, 20.02, 21, 22]}
+    )
     ro = curv.run_options(curv.preset.build_sample(), robot.replace(initial_resistance=None), frame)
     assert ro.options["initial_resistances"] == pytest.approx((10.0, 20.01))
     ro = curv.run_options(curv.preset.build_sample(), robot.replace(initial_resistance=12.0), frame)
