@@ -49,7 +49,7 @@ def main():
         effect = next(iter(effects))
         with tempfile.TemporaryDirectory() as tmp:
             sim = simulate(
-                kind, f"experiments/templates/{kind}.toml", seed=1, out_dir=tmp, effects=effects, n_runs=5
+                kind, f"tcamlab/templates/{kind}.toml", seed=1, out_dir=tmp, effects=effects, n_runs=5
             )
             exp = load_experiment(sim.experiment_path)
             runs = exp.read_runs()

@@ -28,6 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from tcamlab.effects import effects_for, get_effect
+from tcamlab.jsonutil import dumps_json, to_jsonable
+from tcamlab.report.atomic import write_all_or_nothing
+from tcamlab.templates import template_path
 
 __all__ = [
     "STRENGTHS",
@@ -35,6 +38,9 @@ __all__ = [
     "BenchmarkResult",
     "run_benchmark",
     "run_task",
+    "execute_tasks",
+    "GENERATOR",
+    "KINDS",
     "make_tasks",
     "score",
     "STATIC_OVEN",
@@ -58,7 +64,6 @@ PAIRS: dict[str, list[tuple[str, str]]] = {
 one more look-alike) for the pair cases."""
 
 PAIR_STRENGTH = 5.0
-TEMPLATES = Path(__file__).resolve().parent.parent / "experiments" / "templates"
 
 
 STATIC_OVEN = "heat-cool"
@@ -68,10 +73,8 @@ thermal lag apart from temperature-only effects; with the thesis's
 heating-only program those come out ``aliased`` (README)."""
 
 
-def _simulator():
-    from tcamlab.rig import simulate
-
-    return simulate, "tcamlab.rig"
+GENERATOR = "tcamlab.rig"
+"""The simulator the benchmark's cases come from (recorded in every result)."""
 
 
 # ---------------------------------------------------------------------------
@@ -118,20 +121,16 @@ def run_task(task: dict) -> dict:
     """
     from tcamlab.config import load_experiment
     from tcamlab.diagnosis import diagnose
+    from tcamlab.rig import simulate
 
-    simulate, generator = _simulator()
     kind = task["kind"]
     t0 = time.perf_counter()
     out = dict(task)
-    out["generator"] = generator
+    out["generator"] = GENERATOR
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
-        template = task.get("template") or TEMPLATES / f"{kind}.toml"
+        template = task.get("template") or template_path(kind)
         try:
-            extra = (
-                {"oven": task.get("oven", STATIC_OVEN)}
-                if kind == "static" and generator == "tcamlab.rig"
-                else {}
-            )
+            extra = {"oven": task.get("oven", STATIC_OVEN)} if kind == "static" else {}
             if "noise_scale" in task:
                 extra["noise_scale"] = float(task["noise_scale"])
             sim = simulate(
@@ -387,19 +386,18 @@ class BenchmarkResult:
     settings: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        from tcamlab.diagnosis import _jsonable
-
-        return _jsonable(
+        return to_jsonable(
             {"schema_version": 1, "settings": self.settings, "scores": self.scores, "results": self.results}
         )
 
 
-def _execute(tasks, scheduler=None, workers=None) -> list[dict]:
+def execute_tasks(tasks, scheduler=None, workers=None) -> list[dict]:
+    """Run :func:`run_task` on every task: on a dask scheduler (address or cluster)
+    if given, else in local processes (``workers``, default all cores)."""
     if scheduler is not None:
         from dask.distributed import Client
 
-        own = isinstance(scheduler, str)
-        client = Client(scheduler) if own else Client(scheduler)
+        client = Client(scheduler)
         try:
             futures = client.map(run_task, tasks, pure=False)
             return client.gather(futures)
@@ -450,33 +448,31 @@ def run_benchmark(
     if tasks is None:
         tasks = make_tasks(quick=quick, seeds=seeds, kinds=kinds, effects=effects)
     t0 = time.perf_counter()
-    results = _execute(tasks, scheduler, workers)
+    results = execute_tasks(tasks, scheduler, workers)
     wall = time.perf_counter() - t0
     scores = score(results)
-    _, generator = _simulator()
     settings = {
         "quick": bool(quick),
         "seeds": seeds,
         "n_tasks": len(tasks),
         "wall_seconds": wall,
-        "generator": generator,
+        "generator": GENERATOR,
         "strengths": [3.0] if quick else list(STRENGTHS),
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
     }
     res = BenchmarkResult(scores=scores, results=results, settings=settings)
-    from tcamlab.report import atomic_write_bytes, atomic_write_text
+    from tcamlab.report import render_html, render_pdf
 
-    jp = atomic_write_text(out / "benchmark.json", json.dumps(res.to_dict(), indent=1, allow_nan=False))
-    mp = atomic_write_text(out / "benchmark.md", markdown(res))
-    paths = {"json": str(jp), "markdown": str(mp)}
-    try:
-        from tcamlab.report import render_html, render_pdf
-
-        doc = report_document(res)
-        paths["html"] = str(atomic_write_text(out / "benchmark.html", render_html(doc)))
-        paths["pdf"] = str(atomic_write_bytes(out / "benchmark.pdf", render_pdf(doc)))
-    except ImportError:  # pragma: no cover - renderer dependencies missing
-        pass
+    # Everything is rendered before anything is written: all four files or none.
+    doc = report_document(res)
+    payload = {
+        "benchmark.json": dumps_json(res.to_dict(), indent=1, sort_keys=False).encode(),
+        "benchmark.md": markdown(res).encode(),
+        "benchmark.html": render_html(doc).encode(),
+        "benchmark.pdf": render_pdf(doc),
+    }
+    files = write_all_or_nothing(out, payload)
+    paths = {key: str(p) for key, p in zip(("json", "markdown", "html", "pdf"), files)}
     res.paths = paths
     return res
 

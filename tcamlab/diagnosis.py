@@ -80,6 +80,7 @@ from tcamlab import forward as F
 from tcamlab.effects import Effect, combine, effects_for, get_effect
 from tcamlab.errors import ConfigError, TcamlabError
 from tcamlab.forward import Mods
+from tcamlab.jsonutil import to_jsonable
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -184,31 +185,6 @@ _INPUT_UNITS = {
 # ---------------------------------------------------------------------------
 # small helpers
 # ---------------------------------------------------------------------------
-
-
-def _f(x) -> float | None:
-    """JSON-safe float (None for NaN/inf)."""
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return _f(obj)
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    return obj
 
 
 def second_difference_sigma(r) -> float:
@@ -601,7 +577,7 @@ class CandidateResult:
     fit_success: bool = True
 
     def to_dict(self) -> dict:
-        return _jsonable(
+        return to_jsonable(
             {
                 "effect": self.effect,
                 "heldout_rmse_before": self.heldout_rmse_before,
@@ -648,7 +624,7 @@ class DiagnosisResult:
     # -- export --------------------------------------------------------------
     def to_dict(self) -> dict:
         """JSON-safe dict (no NaN: non-finite numbers become null)."""
-        return _jsonable(
+        return to_jsonable(
             {
                 "schema_version": SCHEMA_VERSION,
                 "kind": self.kind,
@@ -1075,12 +1051,6 @@ def diagnose(
     floor2 = 1.0 + sum(w / k for w, k in ref_weights)
     gap_significant = base_rms_noise > limit
     common_unit = _common_unit(Q)
-
-    def _rmse_display(sq_by_q: dict, n_by_q: dict) -> float:
-        if common_unit == "noise":
-            return float("nan")
-        fac = DISPLAY_UNITS[Q[0]][1]
-        return float(math.sqrt(sum(sq_by_q.values()) / max(sum(n_by_q.values()), 1))) * fac
 
     base_by_q = {}
     for q in Q:

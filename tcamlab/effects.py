@@ -283,12 +283,11 @@ def get_effect(name: str, kind: str) -> Effect:
     try:
         return EFFECTS[(kind, name)]
     except KeyError:
-        import difflib
+        from tcamlab.text import did_you_mean
 
         names = [e.name for e in effects_for(kind)]
-        close = difflib.get_close_matches(name, names, n=1)
         raise ConfigError(
-            f"unknown {kind} effect {name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""),
+            f"unknown {kind} effect {name!r}" + did_you_mean(name, names),
             hint=f"{kind} effects: " + ", ".join(names),
         ) from None
 

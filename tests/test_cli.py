@@ -171,7 +171,7 @@ def test_reports_are_byte_identical_on_rerun(lab):
 def test_fit_spring_json_recovers_the_simulated_spring_constant(lab):
     import tomllib
 
-    truth_s = tomllib.loads((ROOT / "experiments/templates/sensing.toml").read_text())["rig"][
+    truth_s = tomllib.loads((ROOT / "tcamlab/templates/sensing.toml").read_text())["rig"][
         "spring_constant_N_per_m"
     ]
     runs = sorted((lab / "raw").glob("sensing_run*.csv"))
@@ -259,7 +259,7 @@ def test_simulate_writes_an_experiment_that_validates(tmp_path):
             "simulate",
             "static",
             "--experiment",
-            str(ROOT / "experiments/templates/static.toml"),
+            str(ROOT / "tcamlab/templates/static.toml"),
             "--seed",
             "5",
             "--out",
@@ -284,7 +284,7 @@ def test_simulate_unknown_effect_is_a_clear_error(tmp_path):
             "simulate",
             "static",
             "--experiment",
-            str(ROOT / "experiments/templates/static.toml"),
+            str(ROOT / "tcamlab/templates/static.toml"),
             "--seed",
             "1",
             "--out",
@@ -304,7 +304,7 @@ def test_diagnose_command_on_a_simulated_experiment(tmp_path):
             "simulate",
             "curvature",
             "--experiment",
-            str(ROOT / "experiments/templates/curvature.toml"),
+            str(ROOT / "tcamlab/templates/curvature.toml"),
             "--seed",
             "4",
             "--out",
