@@ -167,32 +167,16 @@ def run_task(task: dict) -> dict:
 
 
 def _truth_values(truth: dict, kind: str, effects: dict) -> dict:
-    """{effect: {field: true value}} from a truth file (several layouts tolerated)."""
+    """{effect: {field: true value}} from a :func:`tcamlab.rig.simulate` truth file."""
     out = {}
-    eff_block = truth.get("effects", truth)
     for name in effects:
+        params = truth["effects"][name]["parameters"]
         fields = get_effect(name, kind).param_names
-        entry = eff_block.get(name) if isinstance(eff_block, dict) else None
-        vals = {}
-        if isinstance(entry, dict):
-            for f in fields:
-                if f in entry:
-                    vals[f] = entry[f]
-                elif "values" in entry and isinstance(entry["values"], dict) and f in entry["values"]:
-                    vals[f] = entry["values"][f]
-                elif (
-                    "parameters" in entry
-                    and isinstance(entry["parameters"], dict)
-                    and f in entry["parameters"]
-                ):
-                    vals[f] = entry["parameters"][f]
-        elif isinstance(entry, (int, float)):
-            vals[fields[0]] = entry
-        elif isinstance(entry, (list, tuple)) and entry:
-            vals = dict(zip(fields, entry))
-        if not vals and isinstance(truth.get("mods"), dict):
-            vals = {f: truth["mods"][f] for f in fields if f in truth["mods"]}
-        out[name] = {k: (float(v) if isinstance(v, (int, float)) else v) for k, v in vals.items()}
+        out[name] = {
+            f: (float(params[f]) if isinstance(params[f], (int, float)) else params[f])
+            for f in fields
+            if f in params
+        }
     return out
 
 

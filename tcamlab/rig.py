@@ -112,7 +112,6 @@ quantity (see :func:`simulate`).
 from __future__ import annotations
 
 import math
-import shlex
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -132,7 +131,7 @@ from tcamlab.jsonutil import dumps_json, to_jsonable
 from tcamlab.models import sensing as _sensing
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS, THESIS_ROBOT, THESIS_TCA, THESIS_TCS, Rig, Sample
 from tcamlab.report.atomic import atomic_write_text
-from tcamlab.text import simulate_command
+from tcamlab.text import public_command, simulate_command
 
 __all__ = [
     "SimulationResult",
@@ -887,26 +886,6 @@ def _experiment_doc(
     return doc
 
 
-def _public_command(command: str) -> str:
-    """The command without ``--effect`` options (the file must not reveal effects)."""
-    try:
-        parts = shlex.split(command)
-    except ValueError:
-        return "tcamlab simulate"
-    out, skip = [], False
-    for p in parts:
-        if skip:
-            skip = False
-            continue
-        if p in ("--effect", "-e"):
-            skip = True
-            continue
-        if p.startswith("--effect="):
-            continue
-        out.append(p)
-    return shlex.join(out)
-
-
 # --- simulate --------------------------------------------------------------------------
 
 
@@ -986,7 +965,7 @@ def simulate(
     scatter = dict(DEFAULT_SCATTER[kind] if scatter is None else scatter)
     name = exp.name if name is None else str(name)
     out = Path(out_dir)
-    # The truth file keeps the effects; the experiment file gets _public_command.
+    # The truth file keeps the effects; the experiment file gets public_command.
     full_command_truth = full_command = command
     if command is None:
         strengths = {k: (v["value"] if isinstance(v, Mapping) else v) for k, v in (effects or {}).items()}
@@ -1049,7 +1028,7 @@ def simulate(
         )
 
     exp_path = out / "experiments" / f"{name}.toml"
-    doc = _experiment_doc(kind, exp, name, run_names, int(seed), _public_command(full_command))
+    doc = _experiment_doc(kind, exp, name, run_names, int(seed), public_command(full_command))
     _config.write_experiment(exp_path, doc)
 
     truth = to_jsonable(

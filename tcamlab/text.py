@@ -13,16 +13,16 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 __all__ = [
-    "close_matches",
     "did_you_mean",
     "shown_path",
     "command_line",
     "validate_command",
     "simulate_command",
+    "public_command",
 ]
 
 
-def close_matches(word: str, choices: Iterable[str], n: int = 1) -> list[str]:
+def _close_matches(word: str, choices: Iterable[str], n: int = 1) -> list[str]:
     """Choices close to word; a case-insensitive second try catches 'Force' for 'force'."""
     choices = list(choices)
     matches = difflib.get_close_matches(word, choices, n=n, cutoff=0.6)
@@ -36,7 +36,7 @@ def close_matches(word: str, choices: Iterable[str], n: int = 1) -> list[str]:
 
 def did_you_mean(word: str, choices: Iterable[str], n: int = 1) -> str:
     """``"; did you mean 'x'?"`` for an error message, or ``""`` when nothing is close."""
-    matches = close_matches(word, choices, n)
+    matches = _close_matches(word, choices, n)
     return "; did you mean " + " or ".join(repr(m) for m in matches) + "?" if matches else ""
 
 
@@ -107,3 +107,24 @@ def simulate_command(
     options += [("--scatter", f"{k}={_number(v)}") for k, v in (scatter or {}).items()]
     options += [("--effect", f"{k}={_number(v)}") for k, v in (effects or {}).items()]
     return command_line("simulate", kind, options=options)
+
+
+def public_command(command: str) -> str:
+    """A simulate command line without its ``--effect`` options, for the experiment
+    file (which must not reveal the effects; the truth file keeps them)."""
+    try:
+        parts = shlex.split(command)
+    except ValueError:
+        return "tcamlab simulate"
+    out, skip = [], False
+    for p in parts:
+        if skip:
+            skip = False
+            continue
+        if p in ("--effect", "-e"):
+            skip = True
+            continue
+        if p.startswith("--effect="):
+            continue
+        out.append(p)
+    return shlex.join(out)
