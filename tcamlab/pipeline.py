@@ -438,11 +438,11 @@ def diagnose_experiment(path, *, effects=None, seed: int = 0, out_dir=None) -> D
     if isinstance(effects, str):
         effects = [e.strip() for e in effects.split(",") if e.strip()]
     result = diagnose(exp, effects=effects or None, seed=seed)
-    files = write_diagnosis(result, exp, out_dir) if out_dir is not None else []
+    files = _write_diagnosis(result, exp, out_dir) if out_dir is not None else []
     return DiagnoseOutcome(result, exp, files)
 
 
-def write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
+def _write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
     """Write OUT/NAME/diagnosis.json, diagnosis.html and diagnosis.pdf, all or nothing."""
     from tcamlab.report.diagnosis_report import diagnosis_document
     from tcamlab.report.html import render_html

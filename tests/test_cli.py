@@ -349,3 +349,26 @@ def test_benchmark_diagnose_command_on_a_tiny_subset(tmp_path):
     assert (tmp_path / "benchmark.json").exists() and (tmp_path / "benchmark.md").exists()
     bad = runner.invoke(app, ["benchmark", "diagnose", "--kind", "oven"])
     assert bad.exit_code == 2
+
+
+def test_simulate_takes_a_bare_kind_for_the_shipped_template(tmp_path):
+    args = ["simulate", "sensing", "--experiment", "sensing", "--seed", "2", "--out", str(tmp_path)]
+    result = runner.invoke(app, args + ["--runs", "1"])
+    assert result.exit_code == 0, result.output
+    text = (tmp_path / "experiments/sensing.toml").read_text()
+    assert "--experiment sensing --seed 2" in text
+
+
+def test_diagnose_writes_all_or_nothing(tmp_path, monkeypatch):
+    import tcamlab.report.pdf as pdf
+    from tcamlab.pipeline import diagnose_experiment, simulate_experiment
+
+    sim = simulate_experiment("curvature", "curvature", seed=4, out_dir=tmp_path, runs=2)
+
+    def boom(doc):
+        raise RuntimeError("renderer crashed")
+
+    monkeypatch.setattr(pdf, "render_pdf", boom)
+    with pytest.raises(RuntimeError):
+        diagnose_experiment(sim.experiment_path, out_dir=tmp_path / "d")
+    assert not (tmp_path / "d/curvature").exists() or list((tmp_path / "d/curvature").iterdir()) == []
