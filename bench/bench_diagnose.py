@@ -57,7 +57,7 @@ def main():
         with tempfile.TemporaryDirectory() as tmp:
             sim = simulate(
                 kind,
-                f"experiments/templates/{kind}.toml",
+                f"tcamlab/templates/{kind}.toml",
                 seed=1,
                 out_dir=tmp,
                 effects=effects,

@@ -25,8 +25,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from tcamlab.benchmark import TEMPLATES, BenchmarkResult, _execute, markdown, score
+from tcamlab.benchmark import BenchmarkResult, execute_tasks, markdown, score
 from tcamlab.effects import effects_for
+from tcamlab.templates import TEMPLATES
 
 # kind -> list of (label, text appended to the template's [sample] / [rig] tables)
 VARIANTS: dict[str, list[tuple[str, dict, dict]]] = {
@@ -125,7 +126,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="tcam-sweep-") as tmp:
         tasks = make_tasks(Path(tmp), kinds)
-        results = _execute(tasks, None, args.workers)
+        results = execute_tasks(tasks, None, args.workers)
     wall = time.perf_counter() - t0
     for r in results:
         r.pop("template", None)

@@ -28,6 +28,10 @@ from pathlib import Path
 import numpy as np
 
 from tcamlab.effects import effects_for, get_effect
+from tcamlab.jsonutil import dumps_json, to_jsonable
+from tcamlab.kinds import KINDS
+from tcamlab.report.atomic import write_all_or_nothing
+from tcamlab.templates import template_path
 
 __all__ = [
     "STRENGTHS",
@@ -35,13 +39,15 @@ __all__ = [
     "BenchmarkResult",
     "run_benchmark",
     "run_task",
+    "execute_tasks",
+    "GENERATOR",
+    "KINDS",
     "make_tasks",
     "score",
     "STATIC_OVEN",
     "noise_ceiling",
 ]
 
-KINDS = ("static", "dynamic", "sensing", "curvature")
 STRENGTHS = (1.0, 3.0, 10.0)
 """Effect strengths, multiples of the noise RMS."""
 
@@ -58,7 +64,6 @@ PAIRS: dict[str, list[tuple[str, str]]] = {
 one more look-alike) for the pair cases."""
 
 PAIR_STRENGTH = 5.0
-TEMPLATES = Path(__file__).resolve().parent.parent / "experiments" / "templates"
 
 
 STATIC_OVEN = "heat-cool"
@@ -68,10 +73,8 @@ thermal lag apart from temperature-only effects; with the thesis's
 heating-only program those come out ``aliased`` (README)."""
 
 
-def _simulator():
-    from tcamlab.rig import simulate
-
-    return simulate, "tcamlab.rig"
+GENERATOR = "tcamlab.rig"
+"""The simulator the benchmark's cases come from (recorded in every result)."""
 
 
 # ---------------------------------------------------------------------------
@@ -118,20 +121,16 @@ def run_task(task: dict) -> dict:
     """
     from tcamlab.config import load_experiment
     from tcamlab.diagnosis import diagnose
+    from tcamlab.rig import simulate
 
-    simulate, generator = _simulator()
     kind = task["kind"]
     t0 = time.perf_counter()
     out = dict(task)
-    out["generator"] = generator
+    out["generator"] = GENERATOR
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
-        template = task.get("template") or TEMPLATES / f"{kind}.toml"
+        template = task.get("template") or template_path(kind)
         try:
-            extra = (
-                {"oven": task.get("oven", STATIC_OVEN)}
-                if kind == "static" and generator == "tcamlab.rig"
-                else {}
-            )
+            extra = {"oven": task.get("oven", STATIC_OVEN)} if kind == "static" else {}
             if "noise_scale" in task:
                 extra["noise_scale"] = float(task["noise_scale"])
             sim = simulate(
@@ -168,32 +167,16 @@ def run_task(task: dict) -> dict:
 
 
 def _truth_values(truth: dict, kind: str, effects: dict) -> dict:
-    """{effect: {field: true value}} from a truth file (several layouts tolerated)."""
+    """{effect: {field: true value}} from a :func:`tcamlab.rig.simulate` truth file."""
     out = {}
-    eff_block = truth.get("effects", truth)
     for name in effects:
+        params = truth["effects"][name]["parameters"]
         fields = get_effect(name, kind).param_names
-        entry = eff_block.get(name) if isinstance(eff_block, dict) else None
-        vals = {}
-        if isinstance(entry, dict):
-            for f in fields:
-                if f in entry:
-                    vals[f] = entry[f]
-                elif "values" in entry and isinstance(entry["values"], dict) and f in entry["values"]:
-                    vals[f] = entry["values"][f]
-                elif (
-                    "parameters" in entry
-                    and isinstance(entry["parameters"], dict)
-                    and f in entry["parameters"]
-                ):
-                    vals[f] = entry["parameters"][f]
-        elif isinstance(entry, (int, float)):
-            vals[fields[0]] = entry
-        elif isinstance(entry, (list, tuple)) and entry:
-            vals = dict(zip(fields, entry))
-        if not vals and isinstance(truth.get("mods"), dict):
-            vals = {f: truth["mods"][f] for f in fields if f in truth["mods"]}
-        out[name] = {k: (float(v) if isinstance(v, (int, float)) else v) for k, v in vals.items()}
+        out[name] = {
+            f: (float(params[f]) if isinstance(params[f], (int, float)) else params[f])
+            for f in fields
+            if f in params
+        }
     return out
 
 
@@ -212,46 +195,49 @@ def _label(r: dict) -> str:
     return r["verdict"]
 
 
-def score(results: list[dict]) -> dict:
-    """Accuracy tables, false attributions, shrinkage, recovery, pairs, confusion."""
-    singles = [r for r in results if r["case"] == "single"]
-    nulls = [r for r in results if r["case"] == "null"]
-    pairs = [r for r in results if r["case"] == "pair"]
+def _acc(rows: list[dict]) -> dict:
+    """Top-1 / top-3 accuracy of single-effect cases (an error counts as wrong)."""
+    n = len(rows)
+    if not n:
+        return {"n": 0, "top1": None, "top3": None}
+    top1 = top3 = 0
+    for r in rows:
+        truth = next(iter(r["effects"]))
+        if "error" in r:
+            continue
+        conf = r["verdict"] in CONFIDENT
+        # the named effect (the best single candidate, or the primary of a pair)
+        top1 += int(conf and r["effect"] == truth)
+        top3 += int(conf and truth in r["ranking"][:3])
+    return {"n": n, "top1": top1 / n, "top3": top3 / n}
 
-    def acc(rows):
-        n = len(rows)
-        if not n:
-            return {"n": 0, "top1": None, "top3": None}
-        top1 = top3 = 0
-        for r in rows:
-            truth = next(iter(r["effects"]))
-            if "error" in r:
-                continue
-            conf = r["verdict"] in CONFIDENT
-            # the named effect (the best single candidate, or the primary of a pair)
-            top1 += int(conf and r["effect"] == truth)
-            top3 += int(conf and truth in r["ranking"][:3])
-        return {"n": n, "top1": top1 / n, "top3": top3 / n}
 
-    by_strength = {
-        str(s): acc([r for r in singles if next(iter(r["effects"].values())) == s])
-        for s in sorted({next(iter(r["effects"].values())) for r in singles})
-    }
+def _strength(r: dict) -> float:
+    return next(iter(r["effects"].values()))
+
+
+def _accuracy(singles: list[dict]) -> dict:
+    """Accuracy by strength, by kind, by kind and strength, and by effect."""
+    strengths = sorted({_strength(r) for r in singles})
     by_kind = {
-        k: acc([r for r in singles if r["kind"] == k]) for k in KINDS if any(r["kind"] == k for r in singles)
+        k: _acc([r for r in singles if r["kind"] == k]) for k in KINDS if any(r["kind"] == k for r in singles)
     }
-    by_kind_strength = {}
-    for k in by_kind:
-        by_kind_strength[k] = {
-            str(s): acc([r for r in singles if r["kind"] == k and next(iter(r["effects"].values())) == s])
-            for s in sorted({next(iter(r["effects"].values())) for r in singles})
-        }
-    by_effect = {}
+    by_effect: dict[str, list] = {}
     for r in singles:
-        name = next(iter(r["effects"]))
-        by_effect.setdefault(f"{r['kind']}/{name}", []).append(r)
-    by_effect = {k: acc(v) for k, v in sorted(by_effect.items())}
+        by_effect.setdefault(f"{r['kind']}/{next(iter(r['effects']))}", []).append(r)
+    return {
+        "accuracy_by_strength": {str(s): _acc([r for r in singles if _strength(r) == s]) for s in strengths},
+        "accuracy_by_kind": by_kind,
+        "accuracy_by_kind_and_strength": {
+            k: {str(s): _acc([r for r in singles if r["kind"] == k and _strength(r) == s]) for s in strengths}
+            for k in by_kind
+        },
+        "accuracy_by_effect": {k: _acc(v) for k, v in sorted(by_effect.items())},
+    }
 
+
+def _right_cases(singles: list[dict]):
+    """Shrinkage per strength cell and parameter recovery of the right attributions."""
     shrink, recov = [], defaultdict(list)
     by_s = defaultdict(lambda: {"shrinkage": [], "attainable": [], "fraction_closed": []})
     for r in singles:
@@ -259,7 +245,7 @@ def score(results: list[dict]) -> dict:
         if "error" in r or r["verdict"] not in CONFIDENT or r["effect"] != truth:
             continue
         shrink.append(r["shrinkage"][truth])
-        cell = by_s[str(next(iter(r["effects"].values())))]
+        cell = by_s[str(_strength(r))]
         cell["shrinkage"].append(r["shrinkage"][truth])
         cell["fraction_closed"].append(r.get("fraction_closed", {}).get(truth))
         b4 = r.get("heldout_rmse_before_noise")
@@ -272,8 +258,12 @@ def score(results: list[dict]) -> dict:
         for f, v in tv.items():
             if f in fv and isinstance(v, float) and v != 0 and fv[f] is not None:
                 recov[f"{r['kind']}/{truth}"].append(abs(fv[f] - v) / abs(v))
+    return shrink, recov, by_s
+
+
+def _null_summary(nulls: list[dict]) -> dict:
     null_false = [r for r in nulls if "error" not in r and r["verdict"] in CONFIDENT]
-    null_by_kind = {
+    by_kind = {
         k: {
             "n": sum(r["kind"] == k for r in nulls),
             "false": sum(r["kind"] == k for r in null_false),
@@ -282,50 +272,58 @@ def score(results: list[dict]) -> dict:
         for k in KINDS
         if any(r["kind"] == k for r in nulls)
     }
-
-    pair_rows = []
-    for r in pairs:
-        names = list(r["effects"])
-        if "error" in r:
-            outcome = "error"
-        elif r["verdict"] == "aliased" and set(names) & ({r["effect"]} | set(r["aliased_with"])):
-            outcome = "aliased"
-        elif r["verdict"] in CONFIDENT and r["effect"] in names:
-            outcome = "one of the pair"
-        elif r["verdict"] in CONFIDENT:
-            outcome = "confident third effect (failure)"
-        else:
-            outcome = r["verdict"]
-        pair_rows.append(
-            {
-                "kind": r["kind"],
-                "pair": " + ".join(names),
-                "seed": r["seed"],
-                "verdict": r.get("verdict"),
-                "effect": r.get("effect"),
-                "aliased_with": r.get("aliased_with"),
-                "outcome": outcome,
-            }
-        )
-
-    confusion: dict[str, dict[str, dict[str, int]]] = {}
-    for r in singles + nulls:
-        truth = next(iter(r["effects"])) if r["effects"] else "none (null)"
-        confusion.setdefault(r["kind"], {}).setdefault(truth, {})
-        lab = _label(r)
-        confusion[r["kind"]][truth][lab] = confusion[r["kind"]][truth].get(lab, 0) + 1
-
     return {
-        "accuracy_by_strength": by_strength,
-        "accuracy_by_kind": by_kind,
-        "accuracy_by_kind_and_strength": by_kind_strength,
-        "accuracy_by_effect": by_effect,
-        "null": {
-            "n": len(nulls),
-            "false_attributions": len(null_false),
-            "rate": (len(null_false) / len(nulls)) if nulls else None,
-            "by_kind": null_by_kind,
-        },
+        "n": len(nulls),
+        "false_attributions": len(null_false),
+        "rate": (len(null_false) / len(nulls)) if nulls else None,
+        "by_kind": by_kind,
+    }
+
+
+def _pair_outcome(r: dict) -> str:
+    names = list(r["effects"])
+    if "error" in r:
+        return "error"
+    if r["verdict"] == "aliased" and set(names) & ({r["effect"]} | set(r["aliased_with"])):
+        return "aliased"
+    if r["verdict"] in CONFIDENT and r["effect"] in names:
+        return "one of the pair"
+    if r["verdict"] in CONFIDENT:
+        return "confident third effect (failure)"
+    return r["verdict"]
+
+
+def _pair_row(r: dict) -> dict:
+    return {
+        "kind": r["kind"],
+        "pair": " + ".join(r["effects"]),
+        "seed": r["seed"],
+        "verdict": r.get("verdict"),
+        "effect": r.get("effect"),
+        "aliased_with": r.get("aliased_with"),
+        "outcome": _pair_outcome(r),
+    }
+
+
+def _confusion(rows: list[dict]) -> dict[str, dict[str, dict[str, int]]]:
+    confusion: dict[str, dict[str, dict[str, int]]] = {}
+    for r in rows:
+        truth = next(iter(r["effects"])) if r["effects"] else "none (null)"
+        cell = confusion.setdefault(r["kind"], {}).setdefault(truth, {})
+        lab = _label(r)
+        cell[lab] = cell.get(lab, 0) + 1
+    return confusion
+
+
+def score(results: list[dict]) -> dict:
+    """Accuracy tables, false attributions, shrinkage, recovery, pairs, confusion."""
+    singles = [r for r in results if r["case"] == "single"]
+    nulls = [r for r in results if r["case"] == "null"]
+    shrink, recov, by_s = _right_cases(singles)
+    pair_rows = [_pair_row(r) for r in results if r["case"] == "pair"]
+    return {
+        **_accuracy(singles),
+        "null": _null_summary(nulls),
         "median_shrinkage_when_right": float(np.median(shrink)) if shrink else None,
         "shrinkage_by_strength": {
             k: _shrink_cell(k, v) for k, v in sorted(by_s.items(), key=lambda kv: float(kv[0]))
@@ -337,7 +335,7 @@ def score(results: list[dict]) -> dict:
         "parameter_recovery_median_rel_error": {k: float(np.median(v)) for k, v in recov.items()},
         "pairs": pair_rows,
         "pair_outcomes": dict(Counter(p["outcome"] for p in pair_rows)),
-        "confusion": confusion,
+        "confusion": _confusion(singles + nulls),
         "errors": [
             {"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
             for r in results
@@ -387,19 +385,18 @@ class BenchmarkResult:
     settings: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        from tcamlab.diagnosis import _jsonable
-
-        return _jsonable(
+        return to_jsonable(
             {"schema_version": 1, "settings": self.settings, "scores": self.scores, "results": self.results}
         )
 
 
-def _execute(tasks, scheduler=None, workers=None) -> list[dict]:
+def execute_tasks(tasks, scheduler=None, workers=None) -> list[dict]:
+    """Run :func:`run_task` on every task: on a dask scheduler (address or cluster)
+    if given, else in local processes (``workers``, default all cores)."""
     if scheduler is not None:
         from dask.distributed import Client
 
-        own = isinstance(scheduler, str)
-        client = Client(scheduler) if own else Client(scheduler)
+        client = Client(scheduler)
         try:
             futures = client.map(run_task, tasks, pure=False)
             return client.gather(futures)
@@ -450,33 +447,31 @@ def run_benchmark(
     if tasks is None:
         tasks = make_tasks(quick=quick, seeds=seeds, kinds=kinds, effects=effects)
     t0 = time.perf_counter()
-    results = _execute(tasks, scheduler, workers)
+    results = execute_tasks(tasks, scheduler, workers)
     wall = time.perf_counter() - t0
     scores = score(results)
-    _, generator = _simulator()
     settings = {
         "quick": bool(quick),
         "seeds": seeds,
         "n_tasks": len(tasks),
         "wall_seconds": wall,
-        "generator": generator,
+        "generator": GENERATOR,
         "strengths": [3.0] if quick else list(STRENGTHS),
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
     }
     res = BenchmarkResult(scores=scores, results=results, settings=settings)
-    from tcamlab.report import atomic_write_bytes, atomic_write_text
+    from tcamlab.report import render_html, render_pdf
 
-    jp = atomic_write_text(out / "benchmark.json", json.dumps(res.to_dict(), indent=1, allow_nan=False))
-    mp = atomic_write_text(out / "benchmark.md", markdown(res))
-    paths = {"json": str(jp), "markdown": str(mp)}
-    try:
-        from tcamlab.report import render_html, render_pdf
-
-        doc = report_document(res)
-        paths["html"] = str(atomic_write_text(out / "benchmark.html", render_html(doc)))
-        paths["pdf"] = str(atomic_write_bytes(out / "benchmark.pdf", render_pdf(doc)))
-    except ImportError:  # pragma: no cover - renderer dependencies missing
-        pass
+    # Everything is rendered before anything is written: all four files or none.
+    doc = report_document(res)
+    payload = {
+        "benchmark.json": dumps_json(res.to_dict(), indent=1, sort_keys=False).encode(),
+        "benchmark.md": markdown(res).encode(),
+        "benchmark.html": render_html(doc).encode(),
+        "benchmark.pdf": render_pdf(doc),
+    }
+    files = write_all_or_nothing(out, payload)
+    paths = {key: str(p) for key, p in zip(("json", "markdown", "html", "pdf"), files)}
     res.paths = paths
     return res
 
@@ -492,101 +487,95 @@ def _fmt(x, pct=False):
     return f"{x:.0%}" if pct else f"{x:.3g}"
 
 
-def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]]:
-    s = res.scores
-    tabs = []
-    rows = [
-        [k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
-        for k, v in s["accuracy_by_strength"].items()
-    ]
-    tabs.append(
-        ("Attribution accuracy by strength (x noise RMS)", ["strength", "cases", "top-1", "top-3"], rows)
-    )
+def _accuracy_tables(s: dict) -> list:
+    def acc_rows(block):
+        return [[k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)] for k, v in block.items()]
+
     strengths = list(s["accuracy_by_strength"])
-    rows = []
-    for k, v in s["accuracy_by_kind_and_strength"].items():
-        rows.append(
-            [k]
-            + [_fmt(v[st]["top1"], True) + f" ({v[st]['n']})" for st in strengths]
-            + [_fmt(s["accuracy_by_kind"][k]["top1"], True)]
-        )
-    tabs.append(("Top-1 accuracy by kind (cases)", ["kind"] + [f"{st}x" for st in strengths] + ["all"], rows))
-    rows = [
-        [k, str(v["n"]), _fmt(v["top1"], True), _fmt(v["top3"], True)]
-        for k, v in s["accuracy_by_effect"].items()
+    by_kind = [
+        [k]
+        + [_fmt(v[st]["top1"], True) + f" ({v[st]['n']})" for st in strengths]
+        + [_fmt(s["accuracy_by_kind"][k]["top1"], True)]
+        for k, v in s["accuracy_by_kind_and_strength"].items()
     ]
-    tabs.append(("Accuracy by effect", ["effect", "cases", "top-1", "top-3"], rows))
-    n = s["null"]
+    return [
+        (
+            "Attribution accuracy by strength (x noise RMS)",
+            ["strength", "cases", "top-1", "top-3"],
+            acc_rows(s["accuracy_by_strength"]),
+        ),
+        ("Top-1 accuracy by kind (cases)", ["kind"] + [f"{st}x" for st in strengths] + ["all"], by_kind),
+        ("Accuracy by effect", ["effect", "cases", "top-1", "top-3"], acc_rows(s["accuracy_by_effect"])),
+    ]
+
+
+def _null_table(n: dict) -> tuple:
     rows = [
         [k, str(v["n"]), str(v["false"]), ", ".join(f"{a}: {b}" for a, b in v["verdicts"].items())]
         for k, v in n["by_kind"].items()
     ]
     rows.append(["all", str(n["n"]), str(n["false_attributions"]), _fmt(n["rate"], True)])
-    tabs.append(("Null cases (no effect): false attributions", ["kind", "cases", "false", "verdicts"], rows))
-    if s.get("shrinkage_by_strength"):
-        rows = [
-            [
-                k,
-                str(v["n"]),
-                _fmt(v["median_shrinkage"], True),
-                _fmt(v["noise_ceiling"], True),
-                _fmt(v["median_share_of_attainable"], True),
-                _fmt(v["median_fraction_closed"], True),
-            ]
-            for k, v in s["shrinkage_by_strength"].items()
+    return ("Null cases (no effect): false attributions", ["kind", "cases", "false", "verdicts"], rows)
+
+
+def _shrinkage_table(by_strength: dict) -> tuple:
+    keys = ("median_shrinkage", "noise_ceiling", "median_share_of_attainable", "median_fraction_closed")
+    rows = [[k, str(v["n"])] + [_fmt(v[c], True) for c in keys] for k, v in by_strength.items()]
+    cols = [
+        "strength",
+        "cases",
+        "median RMSE shrinkage",
+        "noise ceiling",
+        "median share of attainable",
+        "median fraction of gap closed",
+    ]
+    return ("Held-out shrinkage where the attribution is right, by strength", cols, rows)
+
+
+def _pair_table(pairs: list[dict]) -> tuple:
+    rows = [
+        [
+            p["kind"],
+            p["pair"],
+            str(p["seed"]),
+            str(p["verdict"]),
+            str(p["effect"]),
+            ", ".join(p["aliased_with"] or []),
+            p["outcome"],
         ]
-        tabs.append(
-            (
-                "Held-out shrinkage where the attribution is right, by strength",
-                [
-                    "strength",
-                    "cases",
-                    "median RMSE shrinkage",
-                    "noise ceiling",
-                    "median share of attainable",
-                    "median fraction of gap closed",
-                ],
-                rows,
-            )
-        )
-    rows = [[k, _fmt(v)] for k, v in s["parameter_recovery_median_rel_error"].items()]
+        for p in pairs
+    ]
+    return (
+        "Pairs of effects",
+        ["kind", "pair", "seed", "verdict", "effect", "aliased with", "outcome"],
+        rows,
+    )
+
+
+def _confusion_table(kind: str, conf: dict) -> tuple:
+    cols = sorted({c for row in conf.values() for c in row})
+    rows = [[t] + [str(row.get(c, 0)) for c in cols] for t, row in conf.items()]
+    title = f"Confusion matrix, {kind} (rows: true effect; columns: diagnosis)"
+    return (title, ["true \\ diagnosed"] + cols, rows)
+
+
+def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]]:
+    """(title, columns, rows) of every table of the benchmark's markdown and report."""
+    s = res.scores
+    tabs = _accuracy_tables(s) + [_null_table(s["null"])]
+    if s.get("shrinkage_by_strength"):
+        tabs.append(_shrinkage_table(s["shrinkage_by_strength"]))
+    recovery = [[k, _fmt(v)] for k, v in s["parameter_recovery_median_rel_error"].items()]
     tabs.append(
         (
             "Parameter recovery, median |fitted - true| / |true| (right attributions)",
             ["effect", "median rel. error"],
-            rows,
+            recovery,
         )
     )
     if s["pairs"]:
-        rows = [
-            [
-                p["kind"],
-                p["pair"],
-                str(p["seed"]),
-                str(p["verdict"]),
-                str(p["effect"]),
-                ", ".join(p["aliased_with"] or []),
-                p["outcome"],
-            ]
-            for p in s["pairs"]
-        ]
-        tabs.append(
-            (
-                "Pairs of effects",
-                ["kind", "pair", "seed", "verdict", "effect", "aliased with", "outcome"],
-                rows,
-            )
-        )
-    for kind, conf in s["confusion"].items():
-        cols = sorted({c for row in conf.values() for c in row})
-        rows = [[t] + [str(row.get(c, 0)) for c in cols] for t, row in conf.items()]
-        tabs.append(
-            (
-                f"Confusion matrix, {kind} (rows: true effect; columns: diagnosis)",
-                ["true \\ diagnosed"] + cols,
-                rows,
-            )
-        )
+        tabs.append(_pair_table(s["pairs"]))
+    tabs += [_confusion_table(kind, conf) for kind, conf in s["confusion"].items()]
     return tabs
 
 

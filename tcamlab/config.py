@@ -52,6 +52,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 from tcamlab import io as tio
 from tcamlab.errors import ConfigError
 from tcamlab.params import PRESETS, RIG_KEYS, SAMPLE_KEYS, Rig, Sample, get_preset
+from tcamlab.text import did_you_mean
 
 __all__ = [
     "KINDS",
@@ -293,7 +294,7 @@ def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = 
         allowed = allowed or []
         table = f"[{'.'.join(parent)}]" if parent else "the top level"
         return ConfigError(
-            f"{shown}: unknown key {key!r} in {table}" + tio._did_you_mean(str(loc[-1]), allowed) + more,
+            f"{shown}: unknown key {key!r} in {table}" + did_you_mean(str(loc[-1]), allowed) + more,
             "allowed keys: " + ", ".join(allowed) if allowed else None,
         )
     if kind == "missing":
@@ -302,7 +303,7 @@ def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = 
         expected = e.get("ctx", {}).get("expected", "")
         return ConfigError(
             f"{shown}: {key}: expected one of {expected}, got {_short(e['input'])}"
-            + (tio._did_you_mean(e["input"], _literal_choices(loc)) if isinstance(e["input"], str) else "")
+            + (did_you_mean(e["input"], _literal_choices(loc)) if isinstance(e["input"], str) else "")
             + more
         )
     if kind == "too_short":
@@ -735,8 +736,6 @@ def write_experiment(path: str | os.PathLike, data: Mapping[str, Any], *, commen
     text = dumps_toml(data)
     if comment:
         text = "".join(f"# {line}".rstrip() + "\n" for line in comment.splitlines()) + "\n" + text
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, p)
-    return p
+    from tcamlab.report.atomic import atomic_write_text
+
+    return atomic_write_text(p, text)

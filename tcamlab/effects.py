@@ -20,6 +20,7 @@ __all__ = [
     "NO_MODS",
     "SLACK_RAMP",
     "EffectParam",
+    "CompositeEffect",
     "Effect",
     "EFFECTS",
     "combine",
@@ -166,6 +167,11 @@ class Effect:
     @property
     def param_names(self) -> tuple[str, ...]:
         return tuple(p.field for p in self.params)
+
+    @property
+    def parts(self) -> tuple[Effect, ...]:
+        """The single effects this one is made of: itself (a :class:`CompositeEffect` has several)."""
+        return (self,)
 
     def mods(self, values, base: Mods | None = None) -> Mods:
         """Mods with this effect's parameters set to ``values`` (SI)."""
@@ -332,12 +338,27 @@ EFFECTS: dict[tuple[str, str], Effect] = {
 }
 
 
-def combine(*effects: Effect) -> Effect | None:
-    """Two or more effects of one kind acting together (their parameters concatenated).
+@dataclass(frozen=True)
+class CompositeEffect(Effect):
+    """Two or more effects of one kind acting together, keeping its parts.
 
-    The combination is again a nested augmentation: all parameters zero is the
-    thesis model. Returns None when the effects set a common Mods field (they
-    would overwrite each other) or belong to different kinds.
+    Like lmfit's ``CompositeModel(left, right, op)``: the parameters are the
+    parts' parameters concatenated, and :attr:`parts` gives the parts back
+    (nothing splits the joined name). All parameters zero is the thesis model.
+    """
+
+    components: tuple[Effect, ...] = ()
+
+    @property
+    def parts(self) -> tuple[Effect, ...]:
+        return self.components
+
+
+def combine(*effects: Effect) -> CompositeEffect | None:
+    """The :class:`CompositeEffect` of effects of one kind, or None if they cannot act together.
+
+    None when the effects set a common Mods field (they would overwrite each
+    other) or belong to different kinds.
     """
     if len({e.kind for e in effects}) != 1:
         return None
@@ -350,7 +371,8 @@ def combine(*effects: Effect) -> Effect | None:
     fixed: dict = {}
     for e in effects:
         fixed.update(e.fixed)
-    return Effect(
+    parts = tuple(p for e in effects for p in e.parts)
+    return CompositeEffect(
         "+".join(e.name for e in effects),
         effects[0].kind,
         tuple(p for e in effects for p in e.params),
@@ -358,6 +380,7 @@ def combine(*effects: Effect) -> Effect | None:
         "; ".join(e.source for e in effects),
         "; ".join(e.separate_by for e in effects),
         fixed,
+        parts,
     )
 
 
@@ -373,12 +396,11 @@ def get_effect(name: str, kind: str) -> Effect:
     try:
         return EFFECTS[(kind, name)]
     except KeyError:
-        import difflib
+        from tcamlab.text import did_you_mean
 
         names = [e.name for e in effects_for(kind)]
-        close = difflib.get_close_matches(name, names, n=1)
         raise ConfigError(
-            f"unknown {kind} effect {name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""),
+            f"unknown {kind} effect {name!r}" + did_you_mean(name, names),
             hint=f"{kind} effects: " + ", ".join(names),
         ) from None
 

@@ -51,9 +51,3 @@ class ConvergenceError(TcamlabError):
 
 class IntegrationError(TcamlabError):
     """An ODE integration failed (non-finite state, step-size collapse)."""
-
-
-class ThresholdExceeded(TcamlabError):
-    """A validation metric exceeded its acceptance limit."""
-
-    exit_code = 1

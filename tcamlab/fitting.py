@@ -21,6 +21,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from tcamlab.errors import ConvergenceError, InputError
+from tcamlab.jsonutil import json_float
 from tcamlab.signals import mad_scale, split_branches
 
 __all__ = [
@@ -37,11 +38,6 @@ __all__ = [
 _HINT_SET_S = "set spring_constant_N_per_m in [rig]"
 
 _METHODS = ("ols-origin", "ols-intercept", "robust-origin", "robust-intercept")
-
-
-def _json_float(x) -> float | None:
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 @dataclass
@@ -113,15 +109,15 @@ class SpringFit:
             "branch": self.branch_label,
             "method": self.method,
             "n": int(self.n),
-            "spring_constant_N_per_m": _json_float(self.spring_constant),
-            "stderr_N_per_m": _json_float(self.stderr),
-            "ci95_N_per_m": [_json_float(self.ci95[0]), _json_float(self.ci95[1])],
-            "intercept_N": _json_float(self.intercept),
-            "intercept_stderr_N": _json_float(self.intercept_stderr),
-            "r2": _json_float(self.r2),
+            "spring_constant_N_per_m": json_float(self.spring_constant),
+            "stderr_N_per_m": json_float(self.stderr),
+            "ci95_N_per_m": [json_float(self.ci95[0]), json_float(self.ci95[1])],
+            "intercept_N": json_float(self.intercept),
+            "intercept_stderr_N": json_float(self.intercept_stderr),
+            "r2": json_float(self.r2),
         }
         if include_residuals:
-            d["residuals_N"] = [_json_float(r) for r in np.asarray(self.residuals, float)]
+            d["residuals_N"] = [json_float(r) for r in np.asarray(self.residuals, float)]
         return d
 
     def to_pandas(self):
@@ -453,7 +449,7 @@ class SpringFitReport:
     def to_dict(self, include_residuals: bool = False) -> dict:
         """JSON-safe dict: ``spring_constant_N_per_m`` (pooled S), ``pooled``, ``runs``."""
         return {
-            "spring_constant_N_per_m": _json_float(self.pooled.spring_constant),
+            "spring_constant_N_per_m": json_float(self.pooled.spring_constant),
             "method": self.pooled.method,
             "pooled": self.pooled.to_dict(include_residuals),
             "runs": [f.to_dict(include_residuals) for f in self.fits],

@@ -38,7 +38,6 @@ it, 1-based) and the column.
 from __future__ import annotations
 
 import csv
-import difflib
 import hashlib
 import math
 import os
@@ -52,6 +51,7 @@ import pandas as pd
 
 from tcamlab import kinds as _kinds
 from tcamlab.errors import InputError
+from tcamlab.text import did_you_mean
 from tcamlab.units import QUANTITIES
 
 __all__ = [
@@ -300,16 +300,6 @@ class ColumnSpec:
         return np.asarray(values, dtype=np.float64)
 
 
-def _did_you_mean(word: str, choices: list[str] | tuple[str, ...], n: int = 1) -> str:
-    matches = difflib.get_close_matches(word, list(choices), n=n, cutoff=0.6)
-    if not matches:
-        lowered = {c.lower(): c for c in choices}
-        matches = [
-            lowered[m] for m in difflib.get_close_matches(word.lower(), list(lowered), n=n, cutoff=0.5)
-        ]
-    return "; did you mean " + " or ".join(repr(m) for m in matches) + "?" if matches else ""
-
-
 def column_spec(
     kind: str,
     canonical: str,
@@ -346,7 +336,7 @@ def column_spec(
     allowed = REQUIRED[kind] + OPTIONAL[kind]
     if canonical not in allowed:
         raise error(
-            f"{where}: {canonical!r} is not a column of a {kind} run{_did_you_mean(canonical, allowed)}",
+            f"{where}: {canonical!r} is not a column of a {kind} run{did_you_mean(canonical, allowed)}",
             "columns of a " + kind + " run: " + ", ".join(allowed),
         )
     canon_unit = VARIABLE_MAP[canonical][1]
@@ -363,7 +353,7 @@ def column_spec(
     for key in spec:
         if key not in keys:
             raise error(
-                f"{where}.{canonical}: unknown key {key!r}{_did_you_mean(str(key), keys)}",
+                f"{where}.{canonical}: unknown key {key!r}{did_you_mean(str(key), keys)}",
                 "allowed keys: from, unit, scale, offset",
             )
     header = spec.get("from", canonical)
@@ -372,7 +362,7 @@ def column_spec(
     unit = spec.get("unit", canon_unit)
     if not isinstance(unit, str) or unit not in UNITS:
         raise error(
-            f"{where}.{canonical}.unit: unknown unit {unit!r}{_did_you_mean(str(unit), list(UNITS))}",
+            f"{where}.{canonical}.unit: unknown unit {unit!r}{did_you_mean(str(unit), list(UNITS))}",
             f"{_dimension(canon_unit)} units: "
             + ", ".join(u for u, v in UNITS.items() if v[0] == _dimension(canon_unit)),
         )
@@ -745,7 +735,7 @@ def _read_run(
                 f"{shown}: line {layout.header_line}: {what} column {spec.header!r}"
                 + (f" (for {canon})" if spec.header != canon else "")
                 + f" not found in the header of a {kind} run"
-                + _did_you_mean(spec.header, headers)
+                + did_you_mean(spec.header, headers)
                 + " (headers: "
                 + ", ".join(repr(h) for h in headers[:12])
                 + (", ..." if len(headers) > 12 else "")

@@ -9,9 +9,6 @@ identical inputs (no timestamps, no absolute paths).
 from __future__ import annotations
 
 import io as _stdio
-import json
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +18,9 @@ import pandas as pd
 
 from tcamlab.config import Experiment, load_experiment
 from tcamlab.errors import ConfigError, InputError, TcamlabError
-from tcamlab.report.atomic import atomic_write_bytes, atomic_write_text
+from tcamlab.jsonutil import dumps_json
+from tcamlab.kinds import KINDS
+from tcamlab.report.atomic import atomic_write_bytes, atomic_write_text, write_all_or_nothing
 
 __all__ = [
     "validate_experiment",
@@ -29,17 +28,18 @@ __all__ = [
     "build_reports",
     "ReportOutcome",
     "fit_spring_files",
+    "simulate_experiment",
+    "diagnose_experiment",
+    "DiagnoseOutcome",
+    "benchmark_diagnosis",
+    "list_effects",
+    "EffectListing",
     "neutralise_csv",
-    "dumps_json",
     "FORMATS",
+    "KINDS",
 ]
 
 FORMATS = ("html", "pdf")
-
-
-def dumps_json(obj) -> str:
-    """Deterministic JSON (sorted keys, no NaN)."""
-    return json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
 
 
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
@@ -160,71 +160,6 @@ def _write_validation(result, target: Path, formats, command) -> list[Path]:
     files = write_all_or_nothing(target, payload)
     result.document = doc
     return files
-
-
-def write_all_or_nothing(target: Path, payload: dict[str, bytes]) -> list[Path]:
-    """Write several files of one report so that a failure leaves none of them half-done.
-
-    Every file is first written in full to a temporary file in ``target``
-    (``.NAME.XXXX.tmp``, flushed and fsynced); only when all are on disk are
-    they renamed over their final names (``os.replace``, atomic on POSIX and
-    Windows). If anything fails before the renames, the temporary files are
-    removed and no final file is touched. A process killed outright
-    (SIGKILL) before the renames leaves at most ``.*.tmp`` files, never a
-    truncated ``report.html``/``report.pdf``/``metrics.json``/``predictions.csv``.
-
-    Parameters
-    ----------
-    target : path-like
-        Folder receiving the files (created).
-    payload : dict of str to bytes
-        File name -> content.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The written files, in payload order.
-
-    Raises
-    ------
-    TcamlabError
-        When the file system refuses (permissions, disk full...).
-    """
-    from tcamlab.report.atomic import _default_mode
-
-    target = Path(target)
-    staged: list[tuple[Path, Path]] = []
-    try:
-        target.mkdir(parents=True, exist_ok=True)
-        for name, data in payload.items():
-            final = target / name
-            try:
-                mode = final.stat().st_mode & 0o7777
-            except FileNotFoundError:
-                mode = _default_mode()
-            fd, tmp_name = tempfile.mkstemp(dir=target, prefix=f".{name}.", suffix=".tmp")
-            tmp = Path(tmp_name)
-            staged.append((tmp, final))
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.chmod(tmp, mode)
-        for tmp, final in staged:
-            os.replace(tmp, final)
-    except BaseException as exc:
-        for tmp, _ in staged:
-            try:
-                tmp.unlink()
-            except OSError:
-                pass
-        if isinstance(exc, OSError):
-            raise TcamlabError(
-                f"cannot write {target}: {exc.strerror or exc}",
-                hint="check free disk space and that the output directory is writable",
-            ) from exc
-        raise
-    return [final for _, final in staged]
 
 
 @dataclass
@@ -395,17 +330,173 @@ def _two_axes():
     return fig, (ax1, ax2)
 
 
-def write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
-    """Write OUT/NAME/diagnosis.json, diagnosis.html and diagnosis.pdf atomically."""
+# -- simulate ---------------------------------------------------------------------------
+
+
+def _assignments(items, flag: str, form: str, example: str) -> dict[str, float] | None:
+    """Parse repeated NAME=NUMBER options into a dict (None when there are none)."""
+    if items is None or isinstance(items, dict):
+        return items or None
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"{flag} {item!r}: expected {form}", hint=f"e.g. {flag} {example}") from None
+        if not sep:
+            raise ConfigError(f"{flag} {item!r}: expected {form}")
+    return out or None
+
+
+def _check_kind(kind: str, flag: str = "kind") -> None:
+    from tcamlab.text import did_you_mean
+
+    if kind not in KINDS:
+        raise ConfigError(
+            f"unknown {flag} {kind!r}{did_you_mean(kind, KINDS)}", hint="one of " + ", ".join(KINDS)
+        )
+
+
+def simulate_experiment(
+    kind: str,
+    experiment,
+    *,
+    seed: int,
+    out_dir,
+    effects=None,
+    runs: int | None = None,
+    name: str | None = None,
+    scatter=None,
+    noise_scale: float = 1.0,
+    oven: str = "heating",
+):
+    """Virtual rig: write ``out_dir/{experiments,raw,truth}/`` for one simulated experiment.
+
+    ``experiment`` is a template experiment file, or a bare kind ('static')
+    naming the template shipped in :mod:`tcamlab.templates`. ``effects`` and
+    ``scatter`` are dicts or ``NAME=NUMBER`` strings (the CLI's repeated
+    options): effect strengths in noise RMS, relative scatter of Sample/Rig
+    fields. Returns :class:`tcamlab.rig.SimulationResult`.
+    """
+    from tcamlab import rig
+    from tcamlab.templates import resolve_template
+    from tcamlab.text import simulate_command
+
+    _check_kind(kind)
+    effects = _assignments(effects, "--effect", "NAME=STRENGTH", "glass-transition=3 (3x the noise RMS)")
+    scatter = _assignments(scatter, "--scatter", "FIELD=REL", "twists=0.002 (0.2% between runs)")
+    command = simulate_command(
+        kind,
+        experiment,
+        seed,
+        out_dir,
+        runs=runs,
+        name=name,
+        noise_scale=noise_scale,
+        oven=oven,
+        scatter=scatter,
+        effects=effects,
+    )
+    return rig.simulate(
+        kind,
+        resolve_template(experiment),
+        seed=seed,
+        out_dir=out_dir,
+        effects=effects or {},
+        n_runs=runs,
+        name=name,
+        scatter=scatter,
+        noise_scale=noise_scale,
+        oven=oven,
+        command=command,
+    )
+
+
+# -- diagnose ---------------------------------------------------------------------------
+
+
+@dataclass
+class DiagnoseOutcome:
+    """What ``diagnose`` produced: the diagnosis and the files written (if any)."""
+
+    result: object
+    experiment: Experiment
+    files: list = field(default_factory=list)
+
+
+def diagnose_experiment(path, *, effects=None, seed: int = 0, out_dir=None) -> DiagnoseOutcome:
+    """Diagnose the sim-to-real gap of one experiment.
+
+    ``effects`` restricts the candidates (a list, or a comma-separated string);
+    ``seed`` seeds the bootstrap. With ``out_dir``, writes
+    ``out_dir/NAME/diagnosis.{json,html,pdf}`` all or nothing.
+    """
+    from tcamlab.diagnosis import diagnose
+
+    exp = load_experiment(path)
+    if isinstance(effects, str):
+        effects = [e.strip() for e in effects.split(",") if e.strip()]
+    result = diagnose(exp, effects=effects or None, seed=seed)
+    files = _write_diagnosis(result, exp, out_dir) if out_dir is not None else []
+    return DiagnoseOutcome(result, exp, files)
+
+
+def _write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
+    """Write OUT/NAME/diagnosis.json, diagnosis.html and diagnosis.pdf, all or nothing."""
     from tcamlab.report.diagnosis_report import diagnosis_document
     from tcamlab.report.html import render_html
     from tcamlab.report.pdf import render_pdf
 
     doc = diagnosis_document(result, experiment)
-    target = Path(out_dir) / experiment.name
     payload = {
         "diagnosis.json": dumps_json(result.to_dict()).encode(),
         "diagnosis.html": render_html(doc).encode(),
         "diagnosis.pdf": render_pdf(doc),
     }
-    return [atomic_write_bytes(target / name, data) for name, data in payload.items()]
+    return write_all_or_nothing(Path(out_dir) / experiment.name, payload)
+
+
+# -- benchmark and effects ----------------------------------------------------------------
+
+
+def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, **options):
+    """Withheld-effect benchmark of the diagnosis (:func:`tcamlab.benchmark.run_benchmark`).
+
+    ``kinds`` (default all) are checked first, so a typo fails before minutes
+    of simulation; ``options`` are ``quick``, ``scheduler``, ``workers``, ``seeds``.
+    """
+    from tcamlab.benchmark import run_benchmark
+
+    kinds = tuple(kinds) if kinds else KINDS
+    for k in kinds:
+        _check_kind(k, "--kind")
+    return run_benchmark(out_dir, kinds=kinds, effects=list(effects) if effects else None, **options)
+
+
+@dataclass
+class EffectListing:
+    """The unmodelled effects of :func:`list_effects`."""
+
+    effects: list
+
+    def to_records(self) -> list[dict]:
+        return [
+            {
+                "kind": e.kind,
+                "name": e.name,
+                "cause": e.cause,
+                "source": e.source,
+                "parameters": [{"name": p.field, "unit": p.unit} for p in e.params],
+            }
+            for e in self.effects
+        ]
+
+
+def list_effects(kind: str | None = None) -> EffectListing:
+    """The unmodelled-effect library, optionally of one rig kind."""
+    from tcamlab.effects import EFFECTS
+
+    if kind is not None:
+        _check_kind(kind)
+    return EffectListing([e for e in EFFECTS.values() if kind is None or e.kind == kind])

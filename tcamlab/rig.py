@@ -111,10 +111,7 @@ quantity (see :func:`simulate`).
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import shlex
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -129,9 +126,12 @@ from tcamlab import config as _config
 from tcamlab import io as tio
 from tcamlab.effects import NO_MODS, Effect, Mods, get_effect
 from tcamlab.errors import ConfigError, TcamlabError
+from tcamlab.jsonutil import dumps_json, to_jsonable
 from tcamlab.kinds import REGISTRY, get_kind, predict
 from tcamlab.models import sensing as _sensing
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS, SILVER_TCR, Rig, Sample
+from tcamlab.report.atomic import atomic_write_text
+from tcamlab.text import public_command, simulate_command
 
 __all__ = [
     "SimulationResult",
@@ -777,14 +777,6 @@ def _format_csv(kind: str, logged: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-
-
 def _experiment_doc(
     kind: str, exp, name: str, run_names: list[str], seed: int, command: str
 ) -> dict[str, Any]:
@@ -823,59 +815,6 @@ def _experiment_doc(
     if exp.thresholds:
         doc["thresholds"] = dict(exp.thresholds)
     return doc
-
-
-def _public_command(command: str) -> str:
-    """The command without ``--effect`` options (the file must not reveal effects)."""
-    try:
-        parts = shlex.split(command)
-    except ValueError:
-        return "tcamlab simulate"
-    out, skip = [], False
-    for p in parts:
-        if skip:
-            skip = False
-            continue
-        if p in ("--effect", "-e"):
-            skip = True
-            continue
-        if p.startswith("--effect="):
-            continue
-        out.append(p)
-    return shlex.join(out)
-
-
-def _default_command(kind, template_arg, seed, out_dir, n_runs, noise_scale, name) -> str:
-    parts = [
-        "tcamlab",
-        "simulate",
-        kind,
-        "--experiment",
-        str(template_arg),
-        "--seed",
-        str(seed),
-        "--out",
-        str(out_dir),
-    ]
-    if n_runs is not None:
-        parts += ["--runs", str(n_runs)]
-    if noise_scale != 1.0:
-        parts += ["--noise-scale", repr(float(noise_scale))]
-    if name is not None:
-        parts += ["--name", str(name)]
-    return shlex.join(parts)
-
-
-def _jsonable(obj):
-    if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 # --- simulate --------------------------------------------------------------------------
@@ -957,19 +896,20 @@ def simulate(
     scatter = dict(DEFAULT_SCATTER[kind] if scatter is None else scatter)
     name = exp.name if name is None else str(name)
     out = Path(out_dir)
-    full_command = (
-        command
-        if command is not None
-        else _default_command(
-            kind, template_arg, seed, out_dir, n_runs, noise_scale, None if name == exp.name else name
-        )
-    )
-    if kind == "static" and oven != "heating" and command is None:
-        full_command += f" --oven {oven}"
-    full_command_truth = full_command
-    if effects and command is None:
-        full_command_truth += "".join(
-            f" --effect {k}={v['value'] if isinstance(v, Mapping) else v}" for k, v in effects.items()
+    # The truth file keeps the effects; the experiment file gets public_command.
+    full_command_truth = full_command = command
+    if command is None:
+        strengths = {k: (v["value"] if isinstance(v, Mapping) else v) for k, v in (effects or {}).items()}
+        full_command = full_command_truth = simulate_command(
+            kind,
+            template_arg,
+            seed,
+            out_dir,
+            runs=n_runs,
+            name=None if name == exp.name else name,
+            noise_scale=noise_scale,
+            oven=oven if kind == "static" else "heating",
+            effects=strengths,
         )
 
     sample0, rig0 = exp.sample, exp.rig
@@ -1007,7 +947,7 @@ def simulate(
         logged = _measure(kind, inputs, outputs, rng, noise_scale)
         fname = f"{name}_run{k + 1}.csv"
         path = out / "raw" / fname
-        _write_text(path, _format_csv(kind, logged))
+        atomic_write_text(path, _format_csv(kind, logged))
         run_names.append(fname)
         run_paths.append(path)
         runs_truth.append(
@@ -1019,10 +959,10 @@ def simulate(
         )
 
     exp_path = out / "experiments" / f"{name}.toml"
-    doc = _experiment_doc(kind, exp, name, run_names, int(seed), _public_command(full_command))
+    doc = _experiment_doc(kind, exp, name, run_names, int(seed), public_command(full_command))
     _config.write_experiment(exp_path, doc)
 
-    truth = _jsonable(
+    truth = to_jsonable(
         {
             "kind": kind,
             "name": name,
@@ -1047,5 +987,5 @@ def simulate(
         }
     )
     truth_path = out / "truth" / f"{name}.truth.json"
-    _write_text(truth_path, json.dumps(truth, indent=2) + "\n")
+    atomic_write_text(truth_path, dumps_json(truth, sort_keys=False))
     return SimulationResult(exp_path, tuple(run_paths), truth_path, truth)

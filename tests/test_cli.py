@@ -160,7 +160,7 @@ def test_reports_are_byte_identical_on_rerun(lab):
 def test_fit_spring_json_recovers_the_simulated_spring_constant(lab):
     import tomllib
 
-    truth_s = tomllib.loads((ROOT / "experiments/templates/sensing.toml").read_text())["rig"][
+    truth_s = tomllib.loads((ROOT / "tcamlab/templates/sensing.toml").read_text())["rig"][
         "spring_constant_N_per_m"
     ]
     runs = sorted((lab / "raw").glob("sensing_run*.csv"))
@@ -248,7 +248,7 @@ def test_simulate_writes_an_experiment_that_validates(tmp_path):
             "simulate",
             "static",
             "--experiment",
-            str(ROOT / "experiments/templates/static.toml"),
+            str(ROOT / "tcamlab/templates/static.toml"),
             "--seed",
             "5",
             "--out",
@@ -273,7 +273,7 @@ def test_simulate_unknown_effect_is_a_clear_error(tmp_path):
             "simulate",
             "static",
             "--experiment",
-            str(ROOT / "experiments/templates/static.toml"),
+            str(ROOT / "tcamlab/templates/static.toml"),
             "--seed",
             "1",
             "--out",
@@ -293,7 +293,7 @@ def test_diagnose_command_on_a_simulated_experiment(tmp_path):
             "simulate",
             "curvature",
             "--experiment",
-            str(ROOT / "experiments/templates/curvature.toml"),
+            str(ROOT / "tcamlab/templates/curvature.toml"),
             "--seed",
             "4",
             "--out",
@@ -338,3 +338,26 @@ def test_benchmark_diagnose_command_on_a_tiny_subset(tmp_path):
     assert (tmp_path / "benchmark.json").exists() and (tmp_path / "benchmark.md").exists()
     bad = runner.invoke(app, ["benchmark", "diagnose", "--kind", "oven"])
     assert bad.exit_code == 2
+
+
+def test_simulate_takes_a_bare_kind_for_the_shipped_template(tmp_path):
+    args = ["simulate", "sensing", "--experiment", "sensing", "--seed", "2", "--out", str(tmp_path)]
+    result = runner.invoke(app, args + ["--runs", "1"])
+    assert result.exit_code == 0, result.output
+    text = (tmp_path / "experiments/sensing.toml").read_text()
+    assert "--experiment sensing --seed 2" in text
+
+
+def test_diagnose_writes_all_or_nothing(tmp_path, monkeypatch):
+    import tcamlab.report.pdf as pdf
+    from tcamlab.pipeline import diagnose_experiment, simulate_experiment
+
+    sim = simulate_experiment("curvature", "curvature", seed=4, out_dir=tmp_path, runs=2)
+
+    def boom(doc):
+        raise RuntimeError("renderer crashed")
+
+    monkeypatch.setattr(pdf, "render_pdf", boom)
+    with pytest.raises(RuntimeError):
+        diagnose_experiment(sim.experiment_path, out_dir=tmp_path / "d")
+    assert not (tmp_path / "d/curvature").exists() or list((tmp_path / "d/curvature").iterdir()) == []

@@ -18,7 +18,7 @@ from tcamlab.config import load_experiment
 from tcamlab.diagnosis import diagnose, gap_limit, pool_noise_estimates, second_difference_sigma
 
 ROOT = Path(__file__).resolve().parent.parent
-TEMPLATES = ROOT / "experiments" / "templates"
+TEMPLATES = ROOT / "tcamlab" / "templates"
 
 rig = pytest.importorskip("tcamlab.rig")
 

@@ -135,20 +135,22 @@ def test_diagnose_trains_on_the_complement(tmp_path, monkeypatch, n_runs):
     rig = pytest.importorskip("tcamlab.rig")
     from tcamlab.config import load_experiment
 
-    templates = Path(__file__).resolve().parent.parent / "experiments" / "templates"
+    templates = Path(__file__).resolve().parent.parent / "tcamlab" / "templates"
     sim = rig.simulate("static", templates / "static.toml", seed=3, out_dir=tmp_path, n_runs=n_runs)
     exp = load_experiment(sim.experiment_path)
     lengths = [len(r.data) for r in exp.read_runs()]
     everything = {(i, j) for i, n in enumerate(lengths) for j in range(n)}
 
     jobs = []
-    real_job = diagnosis._candidate_job
+    from tcamlab.diagnosis import candidates
+
+    real_job = candidates.candidate_job
 
     def spy(job):
         jobs.append(job)
         return real_job(job)
 
-    monkeypatch.setattr(diagnosis, "_candidate_job", spy)
+    monkeypatch.setattr(candidates, "candidate_job", spy)
     diagnosis.diagnose(exp, effects=["displacement-drift"], n_boot=10, workers=1)
     assert len(jobs) == 1
     _problem_, _eff, held_sets, train_rows, *_ = jobs[0]

@@ -17,7 +17,7 @@ from tcamlab.io import read_run
 from tcamlab.kinds import get_kind, predict
 
 ROOT = Path(__file__).resolve().parents[1]
-TEMPLATES = ROOT / "experiments" / "templates"
+TEMPLATES = ROOT / "tcamlab" / "templates"
 KINDS = ("static", "dynamic", "sensing", "curvature")
 
 
@@ -162,6 +162,7 @@ def test_shipped_sample_data_is_reproducible(tmp_path):
         shipped = ROOT / "experiments" / f"{kind}.toml"
         if not shipped.exists():
             pytest.skip("sample data not generated")
+        # the command line recorded when the sample data were made (templates then lived there)
         cmd = f"tcamlab simulate {kind} --experiment experiments/templates/{kind}.toml --seed 1 --out ."
         res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=1, out_dir=tmp_path, command=cmd)
         assert res.experiment_path.read_bytes() == shipped.read_bytes()

@@ -1,4 +1,9 @@
-"""Atomic file writes: a reader sees either the old file or the new one."""
+"""Atomic file writes: a reader sees either the old files or the new ones.
+
+:func:`write_all_or_nothing` is tcamlab's one writer; every report, metrics
+file, simulated log and experiment file goes through it (directly or through
+:func:`atomic_write_bytes` / :func:`atomic_write_text` for one file).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,8 @@ import tempfile
 from pathlib import Path
 
 from ..errors import TcamlabError
+
+__all__ = ["atomic_write_bytes", "atomic_write_text", "write_all_or_nothing"]
 
 _UMASK: int | None = None
 
@@ -33,34 +40,13 @@ def _fsync_dir(directory: Path) -> None:
         os.close(fd)
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write *data* to *path* atomically and return the path.
-
-    Parent directories are created.  The data go to a temporary file in the
-    same directory, which is flushed, fsynced and then ``os.replace``-d over
-    *path*; on any error the temporary file is removed and an existing file
-    at *path* is left untouched.  The new file keeps the permissions of the
-    file it replaces (or the umask default for a new file).
-
-    Raises
-    ------
-    TcamlabError
-        When the file system refuses (permissions, disk full...); the
-        original ``OSError`` is chained.  Other exceptions propagate as-is.
-    """
-    target = Path(path)
+def _stage(final: Path, data: bytes) -> Path:
+    """Write data in full to a temporary file next to final, with final's permissions."""
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            mode = target.stat().st_mode & 0o7777
-        except FileNotFoundError:
-            mode = _default_mode()
-        fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    except OSError as exc:
-        raise TcamlabError(
-            f"cannot write {target}: {exc.strerror or exc}",
-            hint="check that the output directory is writable",
-        ) from exc
+        mode = final.stat().st_mode & 0o7777
+    except FileNotFoundError:
+        mode = _default_mode()
+    fd, tmp_name = tempfile.mkstemp(dir=final.parent, prefix=f".{final.name}.", suffix=".tmp")
     tmp = Path(tmp_name)
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -68,22 +54,72 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
         os.chmod(tmp, mode)
-        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return tmp
+
+
+def write_all_or_nothing(target, payload: dict[str, bytes]) -> list[Path]:
+    """Write several files into one folder so that a failure leaves none of them half-done.
+
+    Every file is first written in full to a temporary file in ``target``
+    (``.NAME.XXXX.tmp``, flushed and fsynced, with the permissions of the file
+    it replaces or the umask default); only when all are on disk are they
+    renamed over their final names (``os.replace``, atomic on POSIX and
+    Windows). If anything fails before the renames, the temporary files are
+    removed and no final file is touched. A process killed outright (SIGKILL)
+    before the renames leaves at most ``.*.tmp`` files, never a truncated one.
+
+    Parameters
+    ----------
+    target : path-like
+        Folder receiving the files (created with its parents).
+    payload : dict of str to bytes
+        File name -> content.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The written files, in payload order.
+
+    Raises
+    ------
+    TcamlabError
+        When the file system refuses (permissions, disk full...), naming the
+        file; the original ``OSError`` is chained. Other exceptions propagate.
+    """
+    target = Path(target)
+    staged: list[tuple[Path, Path]] = []
+    current = target
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        for name, data in payload.items():
+            current = target / name
+            staged.append((_stage(current, data), current))
+        for tmp, final in staged:
+            current = final
+            os.replace(tmp, final)
     except BaseException as exc:
-        try:
-            tmp.unlink()
-        except FileNotFoundError:
-            pass
-        except OSError:
-            pass
+        for tmp, _ in staged:
+            try:
+                tmp.unlink(missing_ok=True)
+            except OSError:
+                pass
         if isinstance(exc, OSError):
             raise TcamlabError(
-                f"cannot write {target}: {exc.strerror or exc}",
+                f"cannot write {current}: {exc.strerror or exc}",
                 hint="check free disk space and that the output directory is writable",
             ) from exc
         raise
-    _fsync_dir(target.parent)
-    return target
+    _fsync_dir(target)
+    return [final for _, final in staged]
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write *data* to *path* atomically (see :func:`write_all_or_nothing`) and return the path."""
+    target = Path(path)
+    return write_all_or_nothing(target.parent, {target.name: data})[0]
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:

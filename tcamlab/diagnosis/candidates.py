@@ -1,0 +1,289 @@
+"""Which effect: every candidate fitted on training rows and scored on the held-out rows.
+
+Folds hold out one run each (a single run: contiguous blocks). The baseline
+is scored on the same folds, so a candidate's held-out shrinkage and the
+share of the gap it closes compare like with like; a bootstrap over folds
+gives their intervals.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from tcamlab.diagnosis.noise import BaselineFit, all_rows
+from tcamlab.diagnosis.problem import Fit, Problem, complement, fit_effect, folds
+from tcamlab.diagnosis.result import CandidateResult
+from tcamlab.effects import Effect
+from tcamlab.units import display
+
+__all__ = [
+    "CI_LEVEL",
+    "FoldScores",
+    "CandidateFit",
+    "score_folds",
+    "fit_candidates",
+    "candidate_job",
+    "n_workers",
+    "common_unit",
+    "ci",
+    "param_ci",
+]
+
+
+CI_LEVEL = 0.95
+"""Level of every reported interval."""
+
+
+def ci(samples: np.ndarray) -> list[float]:
+    """The :data:`CI_LEVEL` percentile interval of the finite samples."""
+    a = (1.0 - CI_LEVEL) / 2.0
+    s = np.asarray(samples, float)
+    s = s[np.isfinite(s)]
+    if s.size == 0:
+        return [float("nan"), float("nan")]
+    return [float(np.quantile(s, a)), float(np.quantile(s, 1.0 - a))]
+
+
+def param_ci(fit: Fit, effect: Effect) -> dict:
+    """95 % CI of each parameter from (J^T J)^-1 s^2 of the all-runs fit (SI)."""
+    scales = np.array([p.scale for p in effect.params], float)
+    k = scales.size
+    sd = np.full(k, np.nan)
+    if fit.jac is not None and fit.n > fit.jac.shape[1]:
+        J = np.asarray(fit.jac, float)
+        s2 = fit.sse / (fit.n - J.shape[1])
+        try:
+            cov = np.linalg.inv(J.T @ J) * s2
+            sd = np.sqrt(np.clip(np.diag(cov)[:k], 0.0, None)) * scales
+        except np.linalg.LinAlgError:
+            pass
+    z = stats.norm.ppf(0.5 + CI_LEVEL / 2.0)
+    out = {}
+    for p, v, s in zip(effect.params, fit.values, sd):
+        out[p.field] = {
+            "value": float(v),
+            "ci95": [float(v - z * s), float(v + z * s)],
+            "stderr": float(s),
+            "unit": p.unit,
+            "at_bound": bool(np.isclose(v, p.lower) or np.isclose(v, p.upper)),
+        }
+    return out
+
+
+def candidate_job(job):
+    """Fit one candidate on every fold's training rows and on all rows."""
+    problem, eff, folds, train_rows_f, spring_f, all_rows, spring_all = job
+    Q = problem.quantities
+    K = len(folds)
+    after_fold = np.zeros(K)
+    after_q = np.zeros((K, len(Q)))
+    fold_vals = []
+    for k, held in enumerate(folds):
+        fit = fit_effect(problem, eff, train_rows_f[k], spring_f[k])
+        fold_vals.append(fit.values)
+        mods = eff.mods(fit.values)
+        for i, m in held:
+            za = problem.norm_resid(i, mods, fit.spring, m)
+            after_fold[k] += np.sum(za**2)
+            nm = int(m.sum())
+            for j, q in enumerate(Q):
+                after_q[k, j] += np.sum((za[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
+    full = fit_effect(problem, eff, all_rows, spring_all)
+    return after_fold, after_q, fold_vals, full
+
+
+def n_workers(workers, n_jobs: int) -> int:
+    """Processes for the candidate fits (default 1; never inside a daemon process)."""
+    import multiprocessing as mp
+
+    if workers is None or mp.current_process().daemon:
+        return 1
+    return max(1, min(int(workers), n_jobs))
+
+
+def common_unit(Q) -> str:
+    """The display unit shared by all quantities, else ``"noise"`` (noise-floor multiples)."""
+    units = {display(q)[0] for q in Q}
+    return units.pop() if len(units) == 1 else "noise"
+
+
+@dataclass
+class FoldScores:
+    """The baseline on each fold's held-out rows, and the bootstrap over folds.
+
+    Sums of squares are of the normalised residuals (``before``) or, per
+    quantity, of the residuals in SI (``before_q``).
+    """
+
+    held: list
+    """Per fold: held-out (run, row mask) pairs."""
+    train: list
+    """Per fold: training (run, row mask) pairs."""
+    spring: list
+    """Per fold: the sensing S identified on the training rows [N/m] (or None)."""
+    before: np.ndarray
+    """Per fold: sum of squared normalised baseline residuals."""
+    n: np.ndarray
+    """Per fold: residuals summed."""
+    before_q: np.ndarray
+    """Per fold and quantity: sum of squared baseline residuals [SI^2]."""
+    n_q: np.ndarray
+    """Per fold and quantity: rows summed."""
+    boot_idx: np.ndarray
+    """Bootstrap resamples of the folds (n_boot x folds)."""
+    details: list = field(default_factory=list)
+    """Per fold: the held-out rows, for the JSON."""
+
+    @property
+    def rmse_before(self) -> float:
+        """Pooled held-out baseline RMSE [noise-floor multiples]."""
+        return math.sqrt(self.before.sum() / self.n.sum())
+
+    @property
+    def boot_n(self) -> np.ndarray:
+        return self.n[self.boot_idx].sum(axis=1)
+
+
+@dataclass
+class CandidateFit:
+    """What the verdict and the plots need of a candidate beyond its scores."""
+
+    effect: Effect
+    after: np.ndarray
+    """Per fold: sum of squared normalised residuals with the candidate."""
+    values: np.ndarray
+    """Parameters fitted on all runs [SI]."""
+    spring: float | None
+    """Sensing S fitted with them on all runs [N/m]."""
+
+
+def _fold_spring(problem: Problem, train) -> float | None:
+    spring = problem.spring_for(train)
+    if problem.spring_nuisance:
+        spring = fit_effect(problem, None, train, spring).spring
+    return spring
+
+
+def score_folds(problem: Problem, baseline: BaselineFit, n_boot: int, seed: int) -> FoldScores:
+    """Split the rows into folds and score the baseline on each fold's held-out rows."""
+    held_sets = folds(problem)
+    K, nq = len(held_sets), len(problem.quantities)
+    train = [complement(problem, held) for held in held_sets]
+    spring = [_fold_spring(problem, t) for t in train]
+    before, n, before_q, n_q = np.zeros(K), np.zeros(K), np.zeros((K, nq)), np.zeros((K, nq))
+    for k, held in enumerate(held_sets):
+        for i, m in held:
+            zb = problem.norm_resid(i, baseline.mods, spring[k], m)
+            before[k] += np.sum(zb**2)
+            n[k] += zb.size
+            nm = int(m.sum())
+            for j, q in enumerate(problem.quantities):
+                before_q[k, j] += np.sum((zb[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
+                n_q[k, j] += nm
+    details = [
+        {
+            "held_out": [
+                {"run": i, "rows": [int(np.flatnonzero(m)[0]), int(np.flatnonzero(m)[-1])]} for i, m in held
+            ]
+        }
+        for held in held_sets
+    ]
+    boot_idx = np.random.default_rng(seed).integers(0, K, size=(max(int(n_boot), 1), K))
+    return FoldScores(held_sets, train, spring, before, n, before_q, n_q, boot_idx, details)
+
+
+def _run_jobs(problem: Problem, effects, scores: FoldScores, baseline: BaselineFit, workers):
+    jobs = [
+        (problem, eff, scores.held, scores.train, scores.spring, all_rows(problem), baseline.spring)
+        for eff in effects
+    ]
+    n_work = n_workers(workers, len(jobs))
+    if n_work > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=n_work, mp_context=mp.get_context("spawn")) as pool:
+            return list(pool.map(candidate_job, jobs))
+    return [candidate_job(j) for j in jobs]
+
+
+def _by_quantity(problem: Problem, scores: FoldScores, after_q: np.ndarray) -> dict:
+    out = {}
+    for j, q in enumerate(problem.quantities):
+        unit, fac = display(q)
+        out[q] = {
+            "heldout_rmse_before": math.sqrt(scores.before_q[:, j].sum() / scores.n_q[:, j].sum()) * fac,
+            "heldout_rmse_after": math.sqrt(after_q[:, j].sum() / scores.n_q[:, j].sum()) * fac,
+            "unit": unit,
+        }
+    return out
+
+
+def _score(
+    problem: Problem, eff: Effect, outcome, scores: FoldScores, baseline: BaselineFit
+) -> CandidateResult:
+    """A candidate's held-out scores, intervals and parameters from its fits."""
+    after_fold, after_q, fold_vals, full = outcome
+    K, b4 = len(scores.held), scores.rmse_before
+    fold_rows = [
+        {
+            "fold": k,
+            "rmse_before_noise": math.sqrt(scores.before[k] / scores.n[k]),
+            "rmse_after_noise": math.sqrt(after_fold[k] / scores.n[k]),
+            "parameters": {p.field: float(v) for p, v in zip(eff.params, fold_vals[k])},
+        }
+        for k in range(K)
+    ]
+    af = math.sqrt(after_fold.sum() / scores.n.sum())
+    b_n = scores.boot_n
+    with np.errstate(all="ignore"):
+        b_after, b_before = (
+            after_fold[scores.boot_idx].sum(axis=1),
+            scores.before[scores.boot_idx].sum(axis=1),
+        )
+        boot_shrink = 1.0 - np.sqrt(b_after / b_n) / np.sqrt(b_before / b_n)
+    floor2 = baseline.floor2
+    kp = len(eff.params) + baseline.n_params
+    unit = common_unit(problem.quantities)
+    if unit == "noise":
+        rb, ra = b4, af
+    else:
+        fac = display(problem.quantities[0])[1]
+        rb = math.sqrt(scores.before_q.sum() / scores.n_q.sum()) * fac
+        ra = math.sqrt(after_q.sum() / scores.n_q.sum()) * fac
+    return CandidateResult(
+        effect=eff.name,
+        heldout_rmse_before=rb,
+        heldout_rmse_after=ra,
+        unit=unit,
+        heldout_rmse_before_noise=b4,
+        heldout_rmse_after_noise=af,
+        shrinkage=1.0 - af / b4 if b4 > 0 else 0.0,
+        shrinkage_ci95=ci(boot_shrink),
+        fraction_closed=(b4**2 - af**2) / (b4**2 - floor2) if b4**2 > floor2 else float("nan"),
+        aic=full.sse + 2 * kp,
+        bic=full.sse + kp * math.log(max(full.n, 1)),
+        parameters=param_ci(full, eff),
+        by_quantity=_by_quantity(problem, scores, after_q),
+        folds=fold_rows,
+        cause=eff.cause,
+        separate_by=eff.separate_by,
+        fit_success=full.success,
+        members=tuple(p.name for p in eff.parts),
+    )
+
+
+def fit_candidates(
+    problem: Problem, effects, scores: FoldScores, baseline: BaselineFit, workers=None
+) -> tuple[list[CandidateResult], dict[str, CandidateFit]]:
+    """Fit and score every candidate; the ranking (best held-out RMSE first) and the fits by name."""
+    ranking, fits = [], {}
+    for eff, outcome in zip(effects, _run_jobs(problem, effects, scores, baseline, workers)):
+        ranking.append(_score(problem, eff, outcome, scores, baseline))
+        fits[eff.name] = CandidateFit(eff, outcome[0], outcome[3].values, outcome[3].spring)
+    ranking.sort(key=lambda c: (c.heldout_rmse_after_noise, c.effect))
+    return ranking, fits

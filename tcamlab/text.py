@@ -1,0 +1,130 @@
+"""Text shared by the commands: did-you-mean suggestions and recorded command lines.
+
+Command lines written into reports, experiment files and truth files are
+built here only, from parsed options (never ``sys.argv``), so that the same
+options always give the same bytes.
+"""
+
+from __future__ import annotations
+
+import difflib
+import shlex
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+__all__ = [
+    "did_you_mean",
+    "shown_path",
+    "command_line",
+    "validate_command",
+    "simulate_command",
+    "public_command",
+]
+
+
+def _close_matches(word: str, choices: Iterable[str], n: int = 1) -> list[str]:
+    """Choices close to word; a case-insensitive second try catches 'Force' for 'force'."""
+    choices = list(choices)
+    matches = difflib.get_close_matches(word, choices, n=n, cutoff=0.6)
+    if not matches:
+        lowered = {c.lower(): c for c in choices}
+        matches = [
+            lowered[m] for m in difflib.get_close_matches(word.lower(), list(lowered), n=n, cutoff=0.5)
+        ]
+    return matches
+
+
+def did_you_mean(word: str, choices: Iterable[str], n: int = 1) -> str:
+    """``"; did you mean 'x'?"`` for an error message, or ``""`` when nothing is close."""
+    matches = _close_matches(word, choices, n)
+    return "; did you mean " + " or ".join(repr(m) for m in matches) + "?" if matches else ""
+
+
+def shown_path(p) -> str:
+    """A path as shown in a report: relative to the working directory when below it,
+    else elided to its name, so reports carry no absolute paths."""
+    p = Path(p)
+    if not p.is_absolute():
+        return p.as_posix()
+    try:
+        return p.relative_to(Path.cwd()).as_posix()
+    except ValueError:
+        return ".../" + p.name
+
+
+def _number(x) -> str:
+    x = float(x)
+    return str(int(x)) if x.is_integer() else repr(x)
+
+
+def command_line(*words, options: Iterable[tuple[str, object]] = ()) -> str:
+    """``tcamlab WORDS... --flag value...``, shell-quoted; an option whose value is
+    None or False is left out, True gives the bare flag."""
+    parts = ["tcamlab", *map(str, words)]
+    for flag, value in options:
+        if value is None or value is False:
+            continue
+        parts += [flag] if value is True else [flag, str(value)]
+    return shlex.join(parts)
+
+
+def validate_command(kind: str, experiment, drop_na: bool = False, mc_draws: int | None = None) -> str:
+    """The validate command line shown in a report's provenance.
+
+    Only the options that change the report's content, with the experiment
+    path made relative, so the report is byte-identical wherever the lab
+    folder lives and wherever the report is written (--out, --format, --json,
+    --max-bytes do not change a byte of it).
+    """
+    return command_line(
+        "validate", kind, shown_path(experiment), options=[("--drop-na", drop_na), ("--mc-draws", mc_draws)]
+    )
+
+
+def simulate_command(
+    kind: str,
+    template,
+    seed: int,
+    out_dir,
+    *,
+    runs: int | None = None,
+    name: str | None = None,
+    noise_scale: float = 1.0,
+    oven: str = "heating",
+    scatter: Mapping[str, float] | None = None,
+    effects: Mapping[str, float] | None = None,
+) -> str:
+    """The simulate command line recorded in experiment and truth files (defaults left out)."""
+    options = [
+        ("--experiment", template),
+        ("--seed", seed),
+        ("--out", out_dir),
+        ("--runs", runs),
+        ("--name", name),
+        ("--noise-scale", None if noise_scale == 1.0 else repr(float(noise_scale))),
+        ("--oven", None if oven == "heating" else oven),
+    ]
+    options += [("--scatter", f"{k}={_number(v)}") for k, v in (scatter or {}).items()]
+    options += [("--effect", f"{k}={_number(v)}") for k, v in (effects or {}).items()]
+    return command_line("simulate", kind, options=options)
+
+
+def public_command(command: str) -> str:
+    """A simulate command line without its ``--effect`` options, for the experiment
+    file (which must not reveal the effects; the truth file keeps them)."""
+    try:
+        parts = shlex.split(command)
+    except ValueError:
+        return "tcamlab simulate"
+    out, skip = [], False
+    for p in parts:
+        if skip:
+            skip = False
+            continue
+        if p in ("--effect", "-e"):
+            skip = True
+            continue
+        if p.startswith("--effect="):
+            continue
+        out.append(p)
+    return shlex.join(out)
