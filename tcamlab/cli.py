@@ -17,6 +17,7 @@ from typing import Annotated
 import typer
 
 from tcamlab import __version__
+from tcamlab.kinds import KINDS
 
 app = typer.Typer(
     name="tcamlab",
@@ -184,13 +185,8 @@ def _make_validate(kind: str, example: str):
     return command
 
 
-for _kind, _ex in (
-    ("static", "tcamlab validate static experiments/static.toml"),
-    ("dynamic", "tcamlab validate dynamic experiments/dynamic.toml --format html"),
-    ("sensing", "tcamlab validate sensing experiments/sensing.toml --json"),
-    ("curvature", "tcamlab validate curvature experiments/curvature.toml --out reports"),
-):
-    validate_app.command(_kind)(_make_validate(_kind, _ex))
+for _kind in KINDS:
+    validate_app.command(_kind)(_make_validate(_kind, f"tcamlab validate {_kind} experiments/{_kind}.toml"))
 
 
 # -- report ---------------------------------------------------------------------------

@@ -129,7 +129,7 @@ class _ColumnTable(BaseModel):
 
 class _ExperimentFile(BaseModel):
     model_config = _STRICT
-    kind: Literal["static", "dynamic", "sensing", "curvature"]
+    kind: Literal[KINDS]  # type: ignore[valid-type]
     title: str
     runs: list[str] = Field(min_length=1)
     notes: str | None = None
@@ -327,7 +327,7 @@ def _literal_choices(loc: tuple) -> list[str]:
 
 def _hint_for(loc: tuple) -> str | None:
     hints = {
-        "kind": 'kind = "static" (or dynamic, sensing, curvature)',
+        "kind": f'kind = "{KINDS[0]}" (or {", ".join(KINDS[1:])})',
         "title": 'title = "what this experiment is"',
         "runs": 'runs = ["../raw/run1.csv"] (paths relative to the experiment file)',
     }

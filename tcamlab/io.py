@@ -863,7 +863,7 @@ def _read_run(
         if displacement_zero != 0.0:
             data["displacement"] = data["displacement"] - displacement_zero
 
-    if "force" in _kinds.REGISTRY[kind].tension_outputs:
+    if "force" in _kinds.get_kind(kind).tension_outputs:
         _check_pull_force(shown, data, selected)
 
     frame = pd.DataFrame(data)

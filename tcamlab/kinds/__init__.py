@@ -20,16 +20,19 @@ curvature   cable, r1, r2                 kappa1, kappa2
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import pandas as pd
-
-from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError
-from tcamlab.params import Preset, Rig, Sample
+
+if TYPE_CHECKING:  # the registry stays cheap to import: the CLI lists kinds for --help
+    import numpy as np
+    import pandas as pd
+
+    from tcamlab.effects import Mods
+    from tcamlab.params import Preset, Rig, Sample
 
 __all__ = [
     "Kind",
@@ -186,6 +189,8 @@ def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
     An input is at rest while it is within :data:`REST_TOLERANCE` of its range
     of the first row's value; time does not count. At least the first row.
     """
+    import numpy as np
+
     first_move = len(data)
     for c in kind.inputs:
         if c == "time" or c not in data:
@@ -198,34 +203,44 @@ def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
     return np.arange(max(first_move, 1))
 
 
-def _registry() -> dict[str, Kind]:
-    from tcamlab.kinds import curvature, dynamic, sensing, static
+KINDS: tuple[str, ...] = ("static", "dynamic", "sensing", "curvature")
+"""The kinds of run tcamlab knows, in the order reports list them: the name of each is
+the name of its module in this package, which defines ``KIND``. Registering a new rig
+kind is adding its module and its name here."""
 
-    return {m.KIND.name: m.KIND for m in (static, dynamic, sensing, curvature)}
-
-
-REGISTRY: dict[str, Kind] = _registry()
-"""Kind name -> :class:`Kind`, in the order reports list them."""
-
-KINDS: tuple[str, ...] = tuple(REGISTRY)
-"""The kinds of run tcamlab knows."""
+_LOADED: dict[str, Kind] = {}
 
 
 def get_kind(name: str) -> Kind:
     """The registered :class:`Kind` called ``name``; the one place an unknown kind fails.
+
+    Kind modules are imported on first use, so listing :data:`KINDS` costs nothing.
 
     Raises
     ------
     ConfigError
         ``name`` is not a registered kind.
     """
-    try:
-        return REGISTRY[name]
-    except (KeyError, TypeError):
-        raise ConfigError(f"unknown kind {name!r}", hint="one of " + ", ".join(KINDS)) from None
+    if not isinstance(name, str) or name not in KINDS:
+        raise ConfigError(f"unknown kind {name!r}", hint="one of " + ", ".join(KINDS))
+    if name not in _LOADED:
+        kind = importlib.import_module(f"tcamlab.kinds.{name}").KIND
+        if kind.name != name:
+            raise ConfigError(f"tcamlab.kinds.{name} defines kind {kind.name!r}")
+        _LOADED[name] = kind
+    return _LOADED[name]
 
 
-def predict(kind: str, sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, **options) -> dict:
+def __getattr__(attr: str):
+    # REGISTRY is built on first access, like the kinds themselves.
+    if attr == "REGISTRY":
+        return {name: get_kind(name) for name in KINDS}
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
+
+
+def predict(
+    kind: str, sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods | None = None, **options
+) -> dict:
     """Predict a run's measured columns with the model of ``kind`` (see the module table).
 
     Parameters
@@ -236,9 +251,11 @@ def predict(kind: str, sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods 
         Sample and rig [SI].
     data : DataFrame
         The run's input columns [SI, internal names].
-    mods : Mods
-        Effect terms (all zero: the thesis model).
+    mods : Mods, optional
+        Effect terms (default, or all zero: the thesis model).
     **options
         The kind's per-run options (:attr:`Kind.run_options`, :attr:`Kind.variants`).
     """
+    if mods is None:
+        return get_kind(kind).predict(sample, rig, data, **options)
     return get_kind(kind).predict(sample, rig, data, mods, **options)
