@@ -9,11 +9,12 @@ import pytest
 from typer.main import get_command
 from typer.testing import CliRunner
 
+from tcamlab import kinds
 from tcamlab.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
-KINDS = ("static", "dynamic", "sensing", "curvature")
+KINDS = kinds.KINDS
 
 
 def _all_commands(cmd, path=()):

@@ -20,11 +20,12 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from tcamlab import kinds
 from tcamlab.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
-KINDS = ("static", "dynamic", "sensing", "curvature")
+KINDS = kinds.KINDS
 OUTPUTS = ("report.html", "report.pdf", "metrics.json", "predictions.csv")
 
 
