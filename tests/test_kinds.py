@@ -23,7 +23,18 @@ from tcamlab.params import Preset
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
 KIND_NAMES = sorted(kinds.REGISTRY)
-CALLABLES = ("predict", "run_options", "validation_extras", "regimes", "figures", "extras_section")
+CALLABLES = (
+    "predict",
+    "run_options",
+    "validation_extras",
+    "regimes",
+    "figures",
+    "extras_section",
+    "protocol",
+    "exact_inputs",
+    "instrument_sd",
+    "measure",
+)
 
 
 def test_registry_holds_the_four_thesis_kinds_and_nothing_else_branches_on_them():
