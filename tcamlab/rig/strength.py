@@ -254,6 +254,34 @@ def _search(
     return float(brentq(f, lo, hi, xtol=xtol, rtol=1e-10, maxiter=200)), None
 
 
+def _at_values(kind, effect: Effect, given: Mapping[str, Any], sample, rig, proto, sd):
+    """(values, quantities, strength) for parameter values given as ``{"value": x}`` [SI]."""
+    if "value" not in given:
+        raise ConfigError(f"effect {effect.name!r}: give a strength or {{'value': x}}")
+    values = np.atleast_1d(np.asarray(given["value"], float))
+    if values.size != len(effect.params):
+        raise ConfigError(
+            f"effect {effect.name!r}: give one value per parameter ({', '.join(effect.param_names)})"
+        )
+    gap = _gap(kind, sample, rig, proto, effect.mods(values), true_options(kind, sample, rig, proto))
+    quantities = _strength_quantities(kind, gap, sd)
+    return values, quantities, _normalised_rms(gap, sd, quantities)
+
+
+def _quantities_along(kind, effect: Effect, direction: float, sample, rig, proto, sd) -> tuple[str, ...]:
+    """The strength quantities, judged one ``scale`` step (or to the bound) along the ray."""
+    trial = direction * min(effect.params[0].scale, abs(ray_bound(effect, direction)))
+    gap = _gap(
+        kind,
+        sample,
+        rig,
+        proto,
+        effect.mods(ray_values(effect, trial)),
+        true_options(kind, sample, rig, proto),
+    )
+    return _strength_quantities(kind, gap, sd)
+
+
 def scale_effect(
     kind: str,
     name: str | Effect,
@@ -299,26 +327,14 @@ def scale_effect(
         ``"bound"`` or ``"domain"``).
     """
     effect = resolve_effect(name, kind)
-    strength_of = _strength_at(kind, sample, rig, proto, sd, also_valid_for)
-    opts = true_options(kind, sample, rig, proto)
     if isinstance(strength, Mapping):
-        if "value" not in strength:
-            raise ConfigError(f"effect {effect.name!r}: give a strength or {{'value': x}}")
-        values = np.atleast_1d(np.asarray(strength["value"], float))
-        if values.size != len(effect.params):
-            raise ConfigError(
-                f"effect {effect.name!r}: give one value per parameter ({', '.join(effect.param_names)})"
-            )
-        gap = _gap(kind, sample, rig, proto, effect.mods(values), opts)
-        quantities = _strength_quantities(kind, gap, sd)
         requested, limited = None, None
-        achieved = _normalised_rms(gap, sd, quantities)
+        values, quantities, achieved = _at_values(kind, effect, strength, sample, rig, proto, sd)
     else:
         requested = float(strength)
         direction = 1.0 if requested >= 0 else -1.0
-        bound = ray_bound(effect, direction)
-        trial = ray_values(effect, direction * min(effect.params[0].scale, abs(bound)))
-        quantities = _strength_quantities(kind, _gap(kind, sample, rig, proto, effect.mods(trial), opts), sd)
+        strength_of = _strength_at(kind, sample, rig, proto, sd, also_valid_for)
+        quantities = _quantities_along(kind, effect, direction, sample, rig, proto, sd)
         x, limited = _search(effect, abs(requested), direction, strength_of, quantities)
         values = ray_values(effect, x)
         achieved = strength_of(effect.mods(values), quantities) if x != 0 else 0.0
