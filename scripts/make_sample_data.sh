@@ -4,7 +4,7 @@
 #   experiments/{static,dynamic,sensing,curvature}.toml
 #   raw/{kind}_run{1,2,3}.csv
 #   truth/{kind}.truth.json   (the generator's truth: no effects, per-run sample scatter)
-# The data are effect-free virtual-rig runs (tcamlab/rig.py), 3 runs each, seed 1.
+# The data are effect-free virtual-rig runs (tcamlab/rig/), 3 runs each, seed 1.
 # Re-running gives byte-identical files, except the recorded command line: the
 # shipped files were made when the templates lived in experiments/templates/.
 set -euo pipefail

@@ -35,8 +35,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "tcamlab.models.sensing:forward": SPLIT,
     "tcamlab.models.static:displacement": SPLIT,
     "tcamlab.report.diagnosis_report:diagnosis_section": SPLIT,
-    "tcamlab.rig:scale_effect": SPLIT,
-    "tcamlab.rig:simulate": SPLIT,
 }
 """module:qualified name -> why it may stay longer than MAX_FUNCTION_LINES."""
 

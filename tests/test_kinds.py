@@ -23,7 +23,18 @@ from tcamlab.params import Preset
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
 KIND_NAMES = sorted(kinds.REGISTRY)
-CALLABLES = ("predict", "run_options", "validation_extras", "regimes", "figures", "extras_section")
+CALLABLES = (
+    "predict",
+    "run_options",
+    "validation_extras",
+    "regimes",
+    "figures",
+    "extras_section",
+    "protocol",
+    "exact_inputs",
+    "instrument_sd",
+    "measure",
+)
 
 
 def test_registry_holds_the_four_thesis_kinds_and_nothing_else_branches_on_them():
@@ -154,3 +165,27 @@ def test_spring_constant_is_never_identified_on_the_run_itself():
     assert ro.info["spring_constant_source"] == "identified leave-one-run-out from b"
     with pytest.raises(InputError, match="cannot be identified without using the run"):
         sens.run_options(sample, rig, own, training=[], where="x.toml")
+
+
+@pytest.mark.parametrize("name", KIND_NAMES)
+def test_virtual_rig_parts_agree_with_the_logged_columns(name):
+    """protocol -> exact_inputs -> predict -> measure gives exactly the logged columns, each with an sd."""
+    kind = kinds.get_kind(name)
+    sample = kind.preset.build_sample()
+    rig = kind.preset.build_rig().replace(**kind.simulation_rig_defaults)
+    assert set(kind.simulation_rig_defaults) <= {f.name for f in dataclasses.fields(rig)}
+    assert set(kind.program_options) <= set(inspect.signature(kind.protocol).parameters)
+    proto = kind.protocol(rig, np.random.default_rng(0))
+    inputs = kind.exact_inputs(sample, rig, proto, Mods())
+    assert set(kind.inputs) <= set(inputs.columns)
+    outputs = kind.predict(sample, rig, inputs, **kind.run_options(sample, rig, inputs).options)
+    logged = kind.measure(inputs, outputs, np.random.default_rng(1), 1.0)
+    assert tuple(logged.columns) == kind.logged_columns
+    assert len(logged) == len(proto)
+    sd = kind.instrument_sd(1.0)
+    assert set(sd) == set(kind.logged_columns) and all(v >= 0 for v in sd.values())
+    # exact chains only: zero noise leaves a noise-free logged column equal to the exact value
+    quiet = kind.measure(inputs, outputs, np.random.default_rng(1), 0.0)
+    for c, v in sd.items():
+        if v == 0:
+            assert np.array_equal(quiet[c].to_numpy(), inputs[c].to_numpy(float)), c

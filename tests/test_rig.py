@@ -12,9 +12,11 @@ import pytest
 
 from tcamlab import rig
 from tcamlab.config import load_experiment
-from tcamlab.effects import NO_MODS, Mods, effects_for
+from tcamlab.effects import NO_MODS, Effect, EffectParam, Mods, combine, effects_for, get_effect
+from tcamlab.errors import ConfigError
 from tcamlab.io import read_run
 from tcamlab.kinds import get_kind, predict
+from tcamlab.rig import strength as rig_strength
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "tcamlab" / "templates"
@@ -358,3 +360,72 @@ def test_bad_arguments_are_config_errors(tmp_path):
         )
     with pytest.raises(ConfigError):
         rig.simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path, scatter={"colour": 0.1})
+
+
+# --- effects with two parameters ------------------------------------------------------------------
+
+
+def test_two_parameter_effect_is_scaled_along_its_scale_vector(tmp_path):
+    """A combined effect ('+'-joined names) scales both parameters together; the truth has both."""
+    res = rig.simulate(
+        "sensing",
+        TEMPLATES / "sensing.toml",
+        seed=5,
+        out_dir=tmp_path,
+        effects={"initial-slack+stress-relaxation": 3.0},
+    )
+    truth = json.loads(res.truth_path.read_text())
+    info = truth["effects"]["initial-slack+stress-relaxation"]
+    params = info["parameters"]
+    assert set(params) == {"slack", "relaxation"}
+    assert info["limited_by"] is None
+    assert info["achieved_strength"] == pytest.approx(3.0, rel=1e-6)
+    # Both moved along (+scale): slack 0.5 mm, relaxation 0.02 -> ratio 40.
+    assert params["slack"] > 0 and params["relaxation"] / params["slack"] == pytest.approx(0.02 / 0.5e-3)
+    assert info["fixed"] == {"relaxation_tau": 1.5}
+    assert truth["mods"] == params
+    # The recorded parameters give the recorded strength when put back as values.
+    t = template("sensing")
+    proto = rig.protocol("sensing", t.rig, np.random.default_rng([5, 0]))
+    sd = rig.noise_sd("sensing", t.sample, t.rig)
+    joined = combine(get_effect("initial-slack", "sensing"), get_effect("stress-relaxation", "sensing"))
+    again = rig.scale_effect(
+        "sensing", joined, {"value": [params["slack"], params["relaxation"]]}, t.sample, t.rig, proto, sd
+    )
+    assert again["achieved_strength"] == pytest.approx(3.0, rel=1e-6)
+
+
+def test_two_parameter_effect_object_stops_at_the_tighter_bound():
+    """An Effect built from two EffectParams: the ray ends where the first parameter bound is met."""
+    t = template("sensing")
+    effect = Effect(
+        "slack-and-stiffening",
+        "sensing",
+        (EffectParam("slack", "m", 0.5e-3, -2e-3, 10e-3), EffectParam("stiffening", "1/m", 5.0, -50.0, 0.5)),
+        "test effect",
+        "none",
+        "none",
+    )
+    # The ray coordinate is the slack; stiffening = 1e4 slack. Along +scale stiffening
+    # reaches its 0.5 when slack is 0.05 mm; along -scale slack meets its -2 mm first.
+    assert rig_strength.ray_bound(effect, 1.0) == pytest.approx(0.05e-3)
+    assert rig_strength.ray_bound(effect, -1.0) == pytest.approx(-2e-3)
+    proto = rig.protocol("sensing", t.rig, np.random.default_rng(0))
+    sd = rig.noise_sd("sensing", t.sample, t.rig)
+    info = rig.scale_effect("sensing", effect, 1e6, t.sample, t.rig, proto, sd)
+    assert info["limited_by"] == "bound"
+    assert info["parameters"]["stiffening"] == pytest.approx(0.5)
+    assert info["parameters"]["slack"] == pytest.approx(0.05e-3)
+    with pytest.raises(ConfigError, match="one value per parameter"):
+        rig.scale_effect("sensing", effect, {"value": 1e-4}, t.sample, t.rig, proto, sd)
+
+
+def test_effects_that_cannot_act_together_are_a_config_error(tmp_path):
+    with pytest.raises(ConfigError, match="cannot act together"):
+        rig.simulate(
+            "static",
+            TEMPLATES / "static.toml",
+            seed=1,
+            out_dir=tmp_path,
+            effects={"displacement-drift+displacement-drift": 1.0},
+        )

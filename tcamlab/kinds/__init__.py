@@ -132,6 +132,30 @@ class Kind:
         Logged inputs whose noise propagates into the model's outputs.
     strength_quantities : tuple of str or None
         Quantities an effect strength refers to (None: whichever the effect moves most).
+    protocol : callable
+        ``protocol(rig, rng, **options) -> DataFrame``: the exact programmed
+        quantities of one virtual-rig run [SI, internal names].
+    program_options : tuple of str
+        Keyword options ``protocol`` takes (static: ``oven``); the rig passes
+        only these.
+    exact_inputs : callable
+        ``exact_inputs(sample, rig, proto, mods) -> DataFrame``: the exact
+        input columns of ``predict`` for a protocol [SI].
+    instrument_sd : callable
+        ``instrument_sd(noise_scale) -> {column: sd}``: sd of each logged
+        column's measurement chain [SI] (:mod:`tcamlab.instruments`).
+    measure : callable
+        ``measure(inputs, outputs, rng, noise_scale) -> DataFrame``: the
+        logged columns [SI] from the exact inputs and model outputs.
+    simulation_rig_defaults : mapping of str to Any
+        Rig fields [SI] the virtual rig's default noise floor sets on top of
+        the preset (sensing S, which the preset leaves to be identified).
+    segment_rig_fields : tuple of str
+        Rig fields holding one value per robot segment: a stated scalar
+        scatters independently per segment (curvature R0).
+    coil_length_rig_fields : tuple of str
+        Rig length fields that scale with the sample's coil length when it
+        scatters (curvature segment lengths: the sensor spans the segments).
     """
 
     name: str
@@ -162,6 +186,14 @@ class Kind:
     default_scatter: Mapping[str, float]
     noisy_inputs: tuple[str, ...]
     strength_quantities: tuple[str, ...] | None
+    protocol: Callable[..., pd.DataFrame]
+    program_options: tuple[str, ...]
+    exact_inputs: Callable[..., pd.DataFrame]
+    instrument_sd: Callable[..., dict]
+    measure: Callable[..., pd.DataFrame]
+    simulation_rig_defaults: Mapping[str, Any]
+    segment_rig_fields: tuple[str, ...]
+    coil_length_rig_fields: tuple[str, ...]
 
     @property
     def primary(self) -> str:

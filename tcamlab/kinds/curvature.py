@@ -9,6 +9,17 @@ The per-run rule (:func:`run_options`), shared by validation, diagnosis and
 the virtual rig: S is the rig's (one segment; it must be stated), and each
 segment's R0 is the rig's ``initial_resistance`` if stated, else the mean of
 that channel over the run's leading rows at rest.
+
+The virtual rig's camera test (:func:`protocol`, :func:`exact_inputs`,
+:func:`measure`): with both lines at d1/2 from the neutral axis, a pull c
+bends segment i (length L_i, tip first) to kappa_i with
+sum_i kappa_i (d1/2) L_i = c and kappa_tip / kappa_base =
+:data:`TIP_TO_BASE_CURVATURE`; the sensor part stretches by
+delta_i = kappa_i (d1/2) L_i and reads R_i = sensing.forward(delta_i) for a
+segment sensor whose fiber length and twists are the whole sensor's scaled
+by L_i / L (S = rig.spring_constant). The camera's ground truth is
+:func:`predict` of the exact R_i and cable, so the model is exact without
+effects.
 """
 
 from __future__ import annotations
@@ -16,13 +27,25 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
-from tcamlab.errors import InputError, ModelDomainError
+from tcamlab.errors import ConfigError, InputError, ModelDomainError
 from tcamlab.kinds import Kind, RunOptions, no_extras, no_section, rest_rows
 from tcamlab.models import curvature as _curv
+from tcamlab.models import sensing as _sens
 from tcamlab.params import THESIS_ROBOT, Rig, Sample
 from tcamlab.report.document import Figure
 from tcamlab.report.figures import legend_label, new_figure
+
+CABLE_STEP_M = 1e-3
+"""Cable pull step of the actuator [m]."""
+CABLE_MAX_M = 10e-3
+"""Largest cable pull [m]: 11 poses."""
+TIP_TO_BASE_CURVATURE = 1.5
+"""Assumed ratio of tip to base segment curvature [-]: the tip (EcoFlex 00-10) is
+softer than the base (00-30) and the cable's bending moment is the same in
+both, so curvature goes with compliance; 1.5 is a round ratio between the two
+grades' moduli."""
 
 
 def predict(
@@ -132,6 +155,104 @@ def figures(result) -> list[Figure]:
     return [Figure(fig, caption, alt="curvature plot")]
 
 
+# --- virtual rig ---------------------------------------------------------------------------
+
+
+def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+    """The exact cable program of one run (deterministic; ``rig`` and ``rng`` are unused).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``cable`` [m]: 0 to :data:`CABLE_MAX_M` in :data:`CABLE_STEP_M` steps.
+    """
+    n = int(round(CABLE_MAX_M / CABLE_STEP_M)) + 1
+    return pd.DataFrame({"cable": np.arange(n) * CABLE_STEP_M})
+
+
+def segment_curvatures(cable: np.ndarray, rig: Rig) -> np.ndarray:
+    """Neutral-axis curvature of each segment (tip first) for a cable pull [1/m].
+
+    Parameters
+    ----------
+    cable : ndarray
+        Cable pull [m].
+    rig : Rig
+        ``segment_lengths`` [m] and ``sensor_offset`` d1 [m] (cable at d1/2).
+
+    Returns
+    -------
+    ndarray, shape (segments, len(cable))
+        kappa_i [1/m], tip / base = :data:`TIP_TO_BASE_CURVATURE`.
+    """
+    lengths = np.asarray(rig.segment_lengths, float)
+    ratio = np.ones(lengths.size)
+    ratio[0] = TIP_TO_BASE_CURVATURE
+    y_c = rig.sensor_offset / 2.0
+    base = cable / (y_c * float(np.sum(ratio * lengths)))
+    return ratio[:, None] * base[None, :]
+
+
+def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
+    """The cable pull and each segment's exact resistance, from the geometry of the module docstring.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``cable`` [m], ``r1``, ``r2`` [ohm].
+    """
+    if rig.spring_constant is None or rig.initial_resistance is None:
+        raise ConfigError(
+            "curvature simulation needs spring_constant_N_per_m and initial_resistance_ohm in the template's [rig]"
+        )
+    cable = proto["cable"].to_numpy(float)
+    lengths = np.asarray(rig.segment_lengths, float)
+    if lengths.size != 2:
+        raise ConfigError(
+            "the curvature rig simulates a two-segment robot", hint="segment_lengths_mm = [tip, base]"
+        )
+    elong = segment_curvatures(cable, rig) * (rig.sensor_offset / 2.0) * lengths[:, None]
+    r0s, _ = initial_resistances(rig, proto)
+    kw = sample.sensor_kwargs()
+    out = {"cable": cable}
+    for i, length in enumerate(lengths):
+        # A segment's sensor: the whole sensor's fiber and twists scaled by L_i / L.
+        ratio = length / sample.coil_length
+        out[f"r{i + 1}"] = _sens.forward(
+            elong[i],
+            r0s[i],
+            rig.spring_constant,
+            kw["fiber_diameter"],
+            kw["fiber_length"] * ratio,
+            length,
+            kw["coil_diameter"],
+            kw["twists"] * ratio,
+            kw["youngs_modulus"],
+            kw["thread_plies"],
+            kw["max_volume_fraction"],
+        )
+    return pd.DataFrame(out)
+
+
+def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
+    """Sd of each logged column's chain [SI]: programmed cable exact, two multimeter channels, camera."""
+    ohm = instruments.ohmmeter_sd(noise_scale)
+    cam = instruments.camera_sd(noise_scale)
+    return {"cable": 0.0, "r1": ohm, "r2": ohm, "kappa1": cam, "kappa2": cam}
+
+
+def measure(
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+) -> pd.DataFrame:
+    """Logged ``cable`` [m] (exact), ``r1``, ``r2`` [ohm] (multimeter), ``kappa1``, ``kappa2`` [1/m] (camera)."""
+    out = {"cable": inputs["cable"].to_numpy(float)}
+    for c in ("r1", "r2"):
+        out[c] = instruments.ohmmeter(inputs[c].to_numpy(float), rng, noise_scale)
+    for q in ("kappa1", "kappa2"):
+        out[q] = instruments.camera(np.asarray(outputs[q], float), rng, noise_scale)
+    return pd.DataFrame(out)
+
+
 KIND = Kind(
     name="curvature",
     description="camera curvature test (thesis section 4.3): segment curvatures predicted from R1, R2 by (4.1)",
@@ -174,4 +295,14 @@ KIND = Kind(
     default_scatter={"twists": 5e-4, "coil_length": 5e-4},
     noisy_inputs=("r1", "r2"),
     strength_quantities=("kappa1", "kappa2"),
+    protocol=protocol,
+    program_options=(),
+    exact_inputs=exact_inputs,
+    instrument_sd=instrument_sd,
+    measure=measure,
+    simulation_rig_defaults={},
+    # One R0 per segment; the embedded sensor spans the segments, so they
+    # change length with its coil length.
+    segment_rig_fields=("initial_resistance",),
+    coil_length_rig_fields=("segment_lengths",),
 )

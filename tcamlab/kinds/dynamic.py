@@ -5,6 +5,10 @@ actuator, whose mass-spring-damper follows the static force (2.15). Effect
 terms of :class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
 resistance_tc, heat_loss_tc, delay. Validation adds a Monte Carlo band from
 the stated uncertainties of C_th, lambda and b.
+
+The virtual rig's voltage step (:func:`protocol`, :func:`measure`): a pulse
+from the template's rig after a quiet baseline, logged at 100 Hz by the
+Arduino with the laser chain of :mod:`tcamlab.instruments`.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.kinds import Kind, RunOptions
 from tcamlab.models import dynamic as _dyn
@@ -24,6 +29,17 @@ MC_GRID = 0.01
 
 COOLING_WINDOW_S = 3.0
 """Rows up to this long after a pulse ends are labelled "cooling" by the diagnosis [s]."""
+
+PULSE_START_S = 0.5
+"""Quiet baseline before the pulse [s]; voltage and duration come from the rig
+(10 V for 1 s in the thesis)."""
+DYNAMIC_RATE_HZ = 100
+"""Arduino logging rate [Hz]."""
+DYNAMIC_DURATION_S = 10.0
+"""Length of a run [s], long enough to see most of the cooling."""
+TIMING_JITTER_PROB = 0.03
+"""Chance that the loop runs 1 ms early or late; the logged ``millis()`` is of the
+actual sample, so the logged time is exact."""
 
 
 def predict(
@@ -196,6 +212,61 @@ def extras_section(result) -> Section | None:
     )
 
 
+# --- virtual rig ---------------------------------------------------------------------------
+
+
+def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+    """The exact voltage step of one run.
+
+    Parameters
+    ----------
+    rig : Rig
+        ``voltage`` [V] and ``pulse`` [s] of the step.
+    rng : numpy.random.Generator
+        Draws the timing jitter of each sample (:data:`TIMING_JITTER_PROB`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time`` [s] (integer ms of the actual samples), ``voltage`` [V] (as commanded).
+    """
+    n = int(round(DYNAMIC_DURATION_S * DYNAMIC_RATE_HZ))
+    period_ms = int(round(1000 / DYNAMIC_RATE_HZ))
+    u = rng.random(n)
+    jitter = np.where(u < TIMING_JITTER_PROB / 2, -1, np.where(u > 1 - TIMING_JITTER_PROB / 2, 1, 0))
+    jitter[0] = 0
+    ms = np.arange(n) * period_ms + jitter
+    nominal = np.arange(n) / DYNAMIC_RATE_HZ
+    # The pulse is on the nominal grid; the 1e-9 s keeps float steps off its edges.
+    on = (nominal >= PULSE_START_S - 1e-9) & (nominal < PULSE_START_S + rig.pulse - 1e-9)
+    volt = np.where(on, round(float(rig.voltage), 3), 0.0)
+    return pd.DataFrame({"time": ms / 1000.0, "voltage": volt})
+
+
+def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
+    """The model's exact inputs: the voltage step itself (``time`` [s], ``voltage`` [V])."""
+    return proto.copy()
+
+
+def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
+    """Sd of each logged column's chain [SI]: time and commanded voltage exact, laser."""
+    return {"time": 0.0, "voltage": 0.0, "displacement": instruments.laser_sd(noise_scale)}
+
+
+def measure(
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+) -> pd.DataFrame:
+    """Logged ``time`` [s], ``voltage`` [V] (exact) and ``displacement`` [m] (laser)."""
+    disp = instruments.laser(np.asarray(outputs["displacement"], float), rng, noise_scale)
+    return pd.DataFrame(
+        {
+            "time": inputs["time"].to_numpy(float),
+            "voltage": inputs["voltage"].to_numpy(float),
+            "displacement": disp,
+        }
+    )
+
+
 KIND = Kind(
     name="dynamic",
     description="voltage-step test (thesis section 2.5.2): displacement against time, "
@@ -244,4 +315,12 @@ KIND = Kind(
     default_scatter={"twists": 2e-3, "coil_length": 2e-3},
     noisy_inputs=(),
     strength_quantities=("displacement",),
+    protocol=protocol,
+    program_options=(),
+    exact_inputs=exact_inputs,
+    instrument_sd=instrument_sd,
+    measure=measure,
+    simulation_rig_defaults={},
+    segment_rig_fields=(),
+    coil_length_rig_fields=(),
 )

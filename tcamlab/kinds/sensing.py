@@ -13,6 +13,10 @@ the virtual rig alike (:func:`run_options`):
   run itself (validation: the other runs; diagnosis: the fold's training rows).
 - R0: the rig's ``initial_resistance`` if stated, else the mean of the run's
   leading rows at rest (:func:`tcamlab.kinds.rest_rows`).
+
+The virtual rig's pull test (:func:`protocol`, :func:`measure`): the linear
+actuator steps the sensor to 50 mm and back, dwelling at each step; the
+encoder, load cell and multimeter of :mod:`tcamlab.instruments` log it.
 """
 
 from __future__ import annotations
@@ -20,17 +24,29 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from tcamlab import instruments
 from tcamlab.effects import NO_MODS, SLACK_RAMP, Mods
-from tcamlab.errors import InputError
+from tcamlab.errors import ConfigError, InputError
 from tcamlab.kinds import Kind, RunOptions, rest_rows
 from tcamlab.models import sensing as _sens
-from tcamlab.params import SILVER_TCR, THESIS_TCS, Rig, Sample
+from tcamlab.params import SILVER_TCR, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT, Rig, Sample
 from tcamlab.report.document import Cell, Figure, Section, Table
 from tcamlab.report.figures import legend_label, new_figure
 from tcamlab.signals import clock, time_in_dwell, unloading_mask
 
 FORCE_BANDS = 4
 """The diagnosis reports sensing residuals in this many force bands (quartiles)."""
+
+PULL_STEP_M = 2e-3
+"""Linear-actuator step [m]."""
+PULL_MAX_M = 50e-3
+"""Loading up to this elongation, then unloading back to 0 [m]."""
+PULL_DWELL_S = 5.0
+"""Dwell at each step [s] (thesis protocol)."""
+PULL_SPEED_M_PER_S = 10e-3
+"""Actuator speed between steps [m/s] (a step takes 0.2 s)."""
+PULL_RATE_HZ = 10
+"""Logging rate [Hz]."""
 
 
 def predict(
@@ -219,6 +235,76 @@ def extras_section(result) -> Section:
     )
 
 
+# --- virtual rig ---------------------------------------------------------------------------
+
+
+def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+    """The exact pull program of one run (deterministic; ``rig`` and ``rng`` are unused).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time`` [s], ``elongation`` [m]: the sensor elongation programmed by
+        the actuator, on its encoder grid, so the logged position is exact.
+    """
+    n_up = int(round(PULL_MAX_M / PULL_STEP_M))
+    levels = np.concatenate([np.arange(n_up + 1), np.arange(n_up - 1, -1, -1)]) * PULL_STEP_M
+    move = PULL_STEP_M / PULL_SPEED_M_PER_S
+    # Knots of the piecewise-linear program: dwell at level 0, then move + dwell.
+    kt, kx = [0.0, PULL_DWELL_S], [levels[0], levels[0]]
+    for x in levels[1:]:
+        kt += [kt[-1] + move, kt[-1] + move + PULL_DWELL_S]
+        kx += [x, x]
+    n = int(round(kt[-1] * PULL_RATE_HZ)) + 1
+    t = np.arange(n) / PULL_RATE_HZ
+    x = np.interp(t, kt, kx)
+    return pd.DataFrame({"time": t, "elongation": instruments.encoder(x)})
+
+
+def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
+    """The exact resistance of the sensor stretched by the programmed elongation.
+
+    :func:`tcamlab.models.sensing.forward` with the rig's S and R0, times
+    ``1 + TCR dT`` when the sensor is off its R0 temperature
+    (``mods.temperature_offset`` [K]).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time`` [s], ``resistance`` [ohm].
+    """
+    if rig.spring_constant is None or rig.initial_resistance is None:
+        raise ConfigError(
+            "sensing simulation needs spring_constant_N_per_m and initial_resistance_ohm in the template's [rig]"
+        )
+    r0, _ = initial_resistance(rig, proto)
+    r = _sens.forward(proto["elongation"].to_numpy(float), r0, rig.spring_constant, **sample.sensor_kwargs())
+    r = r * (1.0 + SILVER_TCR * mods.temperature_offset)
+    return pd.DataFrame({"time": proto["time"].to_numpy(float), "resistance": r})
+
+
+def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
+    """Sd of each logged column's chain [SI]: time exact, encoder, load cell, multimeter."""
+    return {
+        "time": 0.0,
+        "displacement": instruments.encoder_sd(),
+        "force": instruments.load_cell_sd(noise_scale),
+        "resistance": instruments.ohmmeter_sd(noise_scale),
+    }
+
+
+def measure(
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+) -> pd.DataFrame:
+    """Logged ``time`` [s], ``displacement`` [m] (encoder), ``force`` [N] (load cell), ``resistance`` [ohm]."""
+    disp = instruments.encoder(outputs["displacement"])
+    force = instruments.load_cell(np.asarray(outputs["force"], float), rng, noise_scale)
+    res = instruments.ohmmeter(inputs["resistance"].to_numpy(float), rng, noise_scale)
+    return pd.DataFrame(
+        {"time": inputs["time"].to_numpy(float), "displacement": disp, "force": force, "resistance": res}
+    )
+
+
 KIND = Kind(
     name="sensing",
     description="sensing pull test (thesis section 3.3): displacement and force predicted from "
@@ -249,4 +335,14 @@ KIND = Kind(
     default_scatter={"twists": 5e-4, "coil_length": 5e-4},
     noisy_inputs=("resistance",),
     strength_quantities=None,
+    protocol=protocol,
+    program_options=(),
+    exact_inputs=exact_inputs,
+    instrument_sd=instrument_sd,
+    measure=measure,
+    # S is not part of the thesis-tcs preset (it is identified from pull tests);
+    # the default noise floor uses the simulation template's value.
+    simulation_rig_defaults={"spring_constant": THESIS_TCS_SPRING_CONSTANT.value},
+    segment_rig_fields=(),
+    coil_length_rig_fields=(),
 )

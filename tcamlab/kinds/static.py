@@ -4,6 +4,10 @@ The model is the static equilibrium of section 2.3 with the constant-G shear
 modulus (2.12) or its temperature-dependent form G(T) (2.13); effect terms of
 :class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
 youngs_modulus_slope, glass_gain/glass_temperature, lag_tau, drift.
+
+The virtual rig's oven test (:func:`protocol`, :func:`measure`): 5 degC oven
+steps from 25 to 150 degC, read after a dwell, logged by the thermocouple
+reader and the laser chain of :mod:`tcamlab.instruments`.
 """
 
 from __future__ import annotations
@@ -11,7 +15,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import ConfigError
 from tcamlab.kinds import Kind, RunOptions, no_extras, no_section
 from tcamlab.models import static as _static
 from tcamlab.params import THESIS_TCA, Rig, Sample
@@ -21,6 +27,19 @@ from tcamlab.signals import clock, first_order_lag, moving_average
 
 TEMPERATURE_BAND_EDGES_C = (25, 50, 75, 100, 125, 150)
 """Edges of the temperature bands the diagnosis reports residuals in [degC]."""
+
+OVEN_STEPS_C = tuple(float(t) for t in range(25, 151, 5))
+"""Oven set points [degC]: 5 degC steps from just above room temperature to 150
+degC (below the G_t' = 0 limit of ~160 degC), 26 readings per run."""
+OVEN_DWELL_S = 300.0
+"""Dwell per step before the reading [s], long enough for the small oven to settle."""
+OVEN_REGULATION_SD_C = 0.3
+"""The oven holds its set point only to a few tenths of a degree [degC]."""
+OVEN_PROGRAMS = ("heating", "heat-cool")
+"""Static oven programs: the thesis's heating-only 25 -> 150 degC steps, or the
+same steps up and back down to 25 degC (a cooling branch: 51 readings), the
+experiment that separates sensor drift and thermal lag from temperature-only
+effects."""
 
 
 def predict(
@@ -115,6 +134,59 @@ def figures(result) -> list[Figure]:
     return [Figure(fig, caption, alt="static validation plot")]
 
 
+# --- virtual rig ---------------------------------------------------------------------------
+
+
+def protocol(rig: Rig, rng: np.random.Generator, *, oven: str = "heating") -> pd.DataFrame:
+    """The exact oven program of one run.
+
+    Parameters
+    ----------
+    rig : Rig
+        Unused (the oven program does not depend on the rig).
+    rng : numpy.random.Generator
+        Draws the regulation error of each step, N(0, :data:`OVEN_REGULATION_SD_C`).
+    oven : {"heating", "heat-cool"}
+        Oven program (:data:`OVEN_PROGRAMS`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time`` [s] (one reading per dwell), ``temperature`` [degC] (the
+        actual oven temperature: set point + regulation error).
+    """
+    steps = np.asarray(OVEN_STEPS_C)
+    if oven == "heat-cool":
+        steps = np.concatenate([steps, steps[-2::-1]])
+    elif oven != "heating":
+        raise ConfigError(f"unknown oven program {oven!r}", hint="one of " + ", ".join(OVEN_PROGRAMS))
+    temp = steps + rng.normal(0.0, OVEN_REGULATION_SD_C, steps.size)
+    return pd.DataFrame({"time": np.arange(steps.size) * OVEN_DWELL_S, "temperature": temp})
+
+
+def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
+    """The model's exact inputs: the oven program itself (``time`` [s], ``temperature`` [degC])."""
+    return proto.copy()
+
+
+def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
+    """Sd of each logged column's chain [SI]: time exact, thermometer, laser."""
+    return {
+        "time": 0.0,
+        "temperature": instruments.thermometer_sd(noise_scale),
+        "displacement": instruments.laser_sd(noise_scale),
+    }
+
+
+def measure(
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+) -> pd.DataFrame:
+    """Logged ``time`` [s], ``temperature`` [degC] (thermometer) and ``displacement`` [m] (laser)."""
+    temp = instruments.thermometer(inputs["temperature"].to_numpy(float), rng, noise_scale)
+    disp = instruments.laser(np.asarray(outputs["displacement"], float), rng, noise_scale)
+    return pd.DataFrame({"time": inputs["time"].to_numpy(float), "temperature": temp, "displacement": disp})
+
+
 KIND = Kind(
     name="static",
     description="static oven test (thesis section 2.5.1): displacement against temperature, "
@@ -145,4 +217,12 @@ KIND = Kind(
     default_scatter={"twists": 2e-3, "coil_length": 2e-3},
     noisy_inputs=("temperature",),
     strength_quantities=("displacement",),
+    protocol=protocol,
+    program_options=("oven",),
+    exact_inputs=exact_inputs,
+    instrument_sd=instrument_sd,
+    measure=measure,
+    simulation_rig_defaults={},
+    segment_rig_fields=(),
+    coil_length_rig_fields=(),
 )

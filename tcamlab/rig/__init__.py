@@ -1,0 +1,434 @@
+"""The virtual rig: synthetic runs with known causes, through the thesis model.
+
+:func:`simulate` makes an experiment (CSV runs and an experiment file) of one
+rig kind from a template experiment file. The *measured* columns are the
+prediction of :func:`tcamlab.kinds.predict` -- with the active effect terms
+of :mod:`tcamlab.effects` -- evaluated on the *exact* protocol inputs, then
+passed through the measurement chain (noise, ADC quantisation, display
+resolution). The logged inputs (temperature, resistance, ...) go through
+their own chains. Without effects the thesis model is therefore exact up to
+the measurement chain, and fitting it to the data leaves residuals at the
+noise floor (:func:`noise_sd`).
+
+The experiment file and the CSVs do not reveal which effects are active; the
+truth (effects, their strength and physical values, per-run sample
+parameters, noise levels, seed) goes to ``truth/<name>.truth.json``.
+
+Everything that differs between rig kinds is the kind's own
+(:class:`tcamlab.kinds.Kind`: ``protocol``, ``exact_inputs``, ``measure``,
+``instrument_sd``, the written columns and rig fields, the scatter); this
+package only runs the steps: :mod:`.runs` (one run by its kind),
+:mod:`.scatter` (per-run true parameters), :mod:`.strength` (noise floor and
+effect strengths), :mod:`.writers` (CSV, experiment and truth files).
+
+Protocols and measurement chains
+--------------------------------
+
+Every constant below is an attribute of the module its name is prefixed with
+(``static.`` etc. are :mod:`tcamlab.kinds.static` etc., ``instruments.`` is
+:mod:`tcamlab.instruments`, ``strength.`` is :mod:`tcamlab.rig.strength`);
+SI unless the name says otherwise. The instrument chains are shared by the
+kinds that use the same instrument.
+
+=====================================  ==================  =====================================================
+constant                               value               reason
+=====================================  ==================  =====================================================
+**static oven test** (thesis sec. 2.5.1)
+static.OVEN_STEPS_C                    25, 30, ... 150     5 degC oven steps from just above room temperature to
+                                                           150 degC (below the G_t' = 0 limit of ~160 degC):
+                                                           26 readings per run
+static.OVEN_DWELL_S                    300 s               reading taken after a 5 min dwell per step, long
+                                                           enough for the small oven to settle
+static.OVEN_REGULATION_SD_C            0.3 degC            the oven holds its set point only to a few tenths
+                                                           of a degree; the actual (exact) temperature of each
+                                                           step is set point + N(0, 0.3)
+instruments.THERMOMETER_SD_C           0.2 degC            thermocouple reader noise in the vent hole
+instruments.THERMOMETER_RESOLUTION_C   0.1 degC            display resolution of the reader
+instruments.LASER_NOISE_SD_M           5 um                analog noise of the laser displacement sensor
+instruments.LASER_SPAN_M, ADC_BITS     10 mm, 10 bit       0..10 mm laser output read by the Arduino's 10-bit
+                                                           ADC: quantum 10 mm / 1023 = 9.78 um
+                                                           (instruments.LASER_QUANTUM_M)
+instruments.LASER_TARE_SAMPLES         64                  the sketch zeroes on the mean of 64 readings at rest
+                                                           and logs that mean as row 0 (0.000 mm); later rows
+                                                           carry the tare error (about sd / 8) as an offset
+instruments.LASER_LOG_RESOLUTION_M     1 um                displacement written with 3 decimals in mm
+static.KIND.default_runs               3                   three repeats of the oven test
+**dynamic voltage-step test** (thesis sec. 2.5.2)
+dynamic.PULSE_START_S                  0.5 s               a quiet baseline before the pulse; the pulse voltage
+                                                           and duration come from the template's rig table
+                                                           (10 V for 1 s in the thesis)
+dynamic.DYNAMIC_RATE_HZ                100 Hz              Arduino logging rate
+dynamic.DYNAMIC_DURATION_S             10 s                long enough to see most of the cooling
+dynamic.TIMING_JITTER_PROB             0.03                the loop occasionally runs 1 ms early or late; the
+                                                           logged time is the Arduino's integer ``millis()``
+                                                           of the actual sample, so it is exact
+(displacement)                                             the same laser chain as the static test
+dynamic.KIND.default_runs              3
+**sensing pull test** (thesis sec. 3.3)
+sensing.PULL_STEP_M                    2 mm                linear-actuator step
+sensing.PULL_MAX_M                     50 mm               loading up to 50 mm, then unloading back to 0
+sensing.PULL_DWELL_S                   5 s                 dwell at each step (thesis protocol)
+sensing.PULL_SPEED_M_PER_S             10 mm/s             actuator speed between steps (a step takes 0.2 s)
+sensing.PULL_RATE_HZ                   10 Hz               logging rate
+instruments.ENCODER_RESOLUTION_M       0.01 mm             actuator encoder; the programmed positions are on
+                                                           its grid, so the logged position is exact
+instruments.LOADCELL_SD_N              2 mN                LSP-5 load cell with its amplifier
+instruments.LOADCELL_OFFSET_N          -0.4 mN             residual zero offset after taring
+instruments.LOADCELL_SPAN_N, _BITS     +-0.5 N, 12 bit     amplifier span read by a 12-bit ADC: quantum
+                                                           1 N / 4095 = 0.244 mN
+instruments.OHMMETER_SD_OHM            2 mohm              bench multimeter noise on a 10-30 ohm sensor
+instruments.OHMMETER_RESOLUTION_OHM    1 mohm              its display resolution
+sensing.KIND.default_runs              3                   S is identified leave-one-run-out, so >= 2 runs
+sensing.KIND.simulation_rig_defaults   S of thesis-tcs     the default noise floor's S (the preset leaves S to
+                                                           be identified)
+**curvature camera test** (thesis sec. 4.3)
+curvature.CABLE_STEP_M, CABLE_MAX_M    1 mm, 10 mm         cable pulled by the same actuator: 11 poses
+curvature.TIP_TO_BASE_CURVATURE        1.5                 assumption: the tip segment (EcoFlex 00-10) is
+                                                           softer than the base (00-30); the bending moment
+                                                           of the cable is the same in both, so curvature
+                                                           goes with compliance; 1.5 is a round ratio
+                                                           between the two grades' moduli
+(neutral axis)                         y_c = y_s = d1 / 2  cable and sensor placed symmetrically about the
+                                                           neutral axis (thesis sec. 4.3), which also makes
+                                                           the model's proportional cable sharing exact
+instruments.CAMERA_SD_PER_M            0.2 1/m             curvature from the camera images (2e-4 per mm)
+instruments.CAMERA_RESOLUTION_PER_M    0.001 1/m           written with 6 decimals in per_mm
+(resistances)                                              two channels of the same multimeter as above
+curvature.KIND.default_runs            3
+**per-run scatter** (relative sd, ``KIND.default_scatter`` of each kind module)
+actuators                              0.2 % twists,       re-mounting and slow annealing make repeats of the
+                                       0.2 % coil_length   same sample differ slightly; far below noise here
+sensors                                0.05 % twists,      the same sensor is re-tested; its resistance map is
+                                       0.05 % coil_length  sensitive, so only a small scatter stays in noise
+R0                                     0 (optional)        the sensing file carries the true R0, so R0 must not
+                                                           scatter; pass ``scatter={"initial_resistance": ..}``
+                                                           when the pipeline takes R0 from each run's first row
+                                                           (curvature: one draw per segment,
+                                                           ``KIND.segment_rig_fields``)
+**effect strengths**
+strength.DOMAIN_BACKOFF                0.9                 a strength the model's domain cannot reach (e.g. a
+                                                           steeper G(T) that makes G_t' <= 0 inside the
+                                                           protocol) is capped at 90 % of the largest valid
+                                                           parameters; the achieved strength is recorded
+=====================================  ==================  =====================================================
+
+The curvature geometry is documented in :mod:`tcamlab.kinds.curvature`.
+
+Effect strengths are in multiples of the noise floor of the primary measured
+quantity (see :func:`simulate`); an effect's parameters are scaled together
+along their ``scale`` vector (:func:`scale_effect`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tcamlab import config as tconfig
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import ConfigError
+from tcamlab.instruments import LASER_QUANTUM_M
+from tcamlab.jsonutil import dumps_json, to_jsonable
+from tcamlab.kinds import REGISTRY, get_kind, predict
+from tcamlab.kinds.static import OVEN_PROGRAMS
+from tcamlab.params import Rig, Sample
+from tcamlab.report.atomic import atomic_write_text
+from tcamlab.rig.runs import exact_inputs, instrument_sd, measure, program_options, protocol, true_options
+from tcamlab.rig.scatter import rig_truth, scattered
+from tcamlab.rig.strength import DOMAIN_BACKOFF, noise_sd, resolve_effect, scale_effect
+from tcamlab.rig.writers import GENERATOR, SYNTHETIC_NOTE, experiment_doc, format_csv, mods_truth
+from tcamlab.text import public_command, simulate_command
+
+__all__ = [
+    "SimulationResult",
+    "simulate",
+    "noise_sd",
+    "instrument_sd",
+    "protocol",
+    "exact_inputs",
+    "scale_effect",
+    "resolve_effect",
+    "DEFAULT_RUNS",
+    "DEFAULT_SCATTER",
+    "DOMAIN_BACKOFF",
+    "OVEN_PROGRAMS",
+    "SYNTHETIC_NOTE",
+    "LASER_QUANTUM_M",
+]
+
+DEFAULT_RUNS = {k.name: k.default_runs for k in REGISTRY.values()}
+"""Runs per simulated experiment unless ``n_runs`` is given (from the kind registry)."""
+
+DEFAULT_SCATTER: dict[str, dict[str, float]] = {k.name: dict(k.default_scatter) for k in REGISTRY.values()}
+"""Kind -> {SI field of Sample or Rig: relative sd} of the per-run scatter (from the kind registry)."""
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """What :func:`simulate` wrote.
+
+    Attributes
+    ----------
+    experiment_path : pathlib.Path
+        ``out_dir/experiments/<name>.toml``.
+    run_paths : tuple of pathlib.Path
+        ``out_dir/raw/<name>_runN.csv``.
+    truth_path : pathlib.Path
+        ``out_dir/truth/<name>.truth.json``.
+    truth : dict
+        The content of the truth file.
+    """
+
+    experiment_path: Path
+    run_paths: tuple[Path, ...]
+    truth_path: Path
+    truth: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """The checked arguments of one :func:`simulate` call."""
+
+    kind: str
+    exp: Any  # tcamlab.config.Experiment
+    template_arg: Any
+    seed: int
+    n_runs: int
+    noise_scale: float
+    scatter: dict[str, float]
+    name: str
+    out: Path
+    program: dict[str, Any]
+    command: str
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One run's random stream, exact protocol and true (scattered) sample and rig."""
+
+    rng: np.random.Generator
+    proto: Any  # pandas.DataFrame
+    sample: Sample
+    rig: Rig
+
+
+def simulate(
+    kind: str,
+    template,
+    *,
+    seed: int,
+    out_dir,
+    effects: Mapping[str, Any] | None = None,
+    n_runs: int | None = None,
+    scatter: Mapping[str, float] | None = None,
+    noise_scale: float = 1.0,
+    name: str | None = None,
+    command: str | None = None,
+    oven: str = "heating",
+) -> SimulationResult:
+    """Simulate an experiment of one rig kind and write it like a lab would.
+
+    Parameters
+    ----------
+    kind : str
+        ``"static"``, ``"dynamic"``, ``"sensing"`` or ``"curvature"``.
+    template : Experiment or path-like
+        Template experiment file (``load_experiment(..., require_runs=False)``);
+        its sample and rig are the truth (sensing: S comes from the
+        template's ``spring_constant_N_per_m`` and is not written out).
+    seed : int
+        Seed of every random draw; same seed and arguments, same bytes.
+    out_dir : path-like
+        Writes ``raw/<name>_runN.csv``, ``experiments/<name>.toml`` and
+        ``truth/<name>.truth.json`` under it.
+    effects : mapping, optional
+        Effect -> strength (float, in noise sd of the primary quantity, see
+        :func:`scale_effect`) or ``{"value": x}`` (the parameters in SI).
+        An effect is a library name, or names joined by ``+`` acting as one
+        combined effect whose parameters are scaled together
+        (:func:`resolve_effect`). Several effects are scaled one by one and
+        then combined.
+    n_runs : int, optional
+        Runs (default :data:`DEFAULT_RUNS`).
+    scatter : mapping, optional
+        SI field of Sample or Rig -> relative sd of its per-run scatter
+        (default :data:`DEFAULT_SCATTER`; ``{}`` for none).
+    noise_scale : float
+        Multiplies every instrument noise sd.
+    name : str, optional
+        Output name (default: the template's file stem).
+    command : str, optional
+        The command line recorded in ``[synthetic]`` (``--effect`` options
+        are removed there, kept in the truth file).
+    oven : {"heating", "heat-cool"}
+        Static oven program (:data:`OVEN_PROGRAMS`); ignored by kinds whose
+        protocol takes no oven.
+
+    Returns
+    -------
+    SimulationResult
+        ``truth`` (also written to the truth file) holds ``kind``, ``seed``,
+        ``command`` (with the effects), ``effects`` {name: {requested_strength,
+        parameters {Mods field: SI value}, fixed, achieved_strength, quantities,
+        limited_by}}, ``mods`` (the combined non-default Mods fields),
+        ``scatter``, ``noise_sd`` (:func:`noise_sd`), ``instrument_sd``, the
+        template's sample and rig, and ``runs`` [{file, sample, rig}] with
+        each run's true (scattered) parameters, SI.
+    """
+    plan = _plan(kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven)
+    runs = _draw_runs(plan)
+    sd = _strength_floor(plan)
+    effect_truth, mods = _scale_effects(plan, effects or {}, runs, sd)
+    run_paths, runs_truth = _write_runs(plan, runs, mods)
+    exp_path = _write_experiment(plan, run_paths)
+    truth = _truth(plan, effect_truth, mods, sd, runs_truth)
+    truth_path = plan.out / "truth" / f"{plan.name}.truth.json"
+    atomic_write_text(truth_path, dumps_json(truth, sort_keys=False))
+    return SimulationResult(exp_path, tuple(run_paths), truth_path, truth)
+
+
+# --- the steps of simulate ----------------------------------------------------------------
+
+
+def _plan(kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven) -> _Plan:
+    """Check the arguments of :func:`simulate` and settle its defaults."""
+    get_kind(kind)
+    if isinstance(template, tconfig.Experiment):
+        exp, template_arg = template, template.path
+    else:
+        exp, template_arg = tconfig.load_experiment(template, require_runs=False), template
+    if exp.kind != kind:
+        raise ConfigError(f"{exp.path}: template is a {exp.kind!r} experiment, not {kind!r}")
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)) or seed < 0:
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
+    n = DEFAULT_RUNS[kind] if n_runs is None else int(n_runs)
+    if n < 1:
+        raise ConfigError(f"n_runs must be at least 1, got {n_runs!r}")
+    if noise_scale < 0 or not math.isfinite(noise_scale):
+        raise ConfigError(f"noise_scale must be finite and >= 0, got {noise_scale!r}")
+    name = exp.name if name is None else str(name)
+    program = program_options(kind, oven=oven)
+    if command is None:
+        # The truth file keeps the effects; the experiment file gets public_command.
+        strengths = {k: (v["value"] if isinstance(v, Mapping) else v) for k, v in (effects or {}).items()}
+        command = simulate_command(
+            kind,
+            template_arg,
+            seed,
+            out_dir,
+            runs=n_runs,
+            name=None if name == exp.name else name,
+            noise_scale=noise_scale,
+            effects=strengths,
+            **program,
+        )
+    return _Plan(
+        kind=kind,
+        exp=exp,
+        template_arg=template_arg,
+        seed=int(seed),
+        n_runs=n,
+        noise_scale=noise_scale,
+        scatter=dict(DEFAULT_SCATTER[kind] if scatter is None else scatter),
+        name=name,
+        out=Path(out_dir),
+        program=program,
+        command=command,
+    )
+
+
+def _draw_runs(plan: _Plan) -> list[_Run]:
+    """Each run's stream, protocol and true parameters.
+
+    One stream per run, drawn in a fixed order: protocol, scatter, then
+    (later, in :func:`_write_runs`) noise.
+    """
+    exp = plan.exp
+    rngs = [np.random.default_rng([plan.seed, k]) for k in range(plan.n_runs)]
+    protos = [protocol(plan.kind, exp.rig, rng, **plan.program) for rng in rngs]
+    trues = [scattered(plan.kind, exp.sample, exp.rig, plan.scatter, rng) for rng in rngs]
+    return [_Run(rng, p, s, r) for rng, p, (s, r) in zip(rngs, protos, trues)]
+
+
+def _strength_floor(plan: _Plan) -> dict[str, float]:
+    """The noise floor of the template; with the noise off, strengths still refer to the nominal floor."""
+    sample, rig = plan.exp.sample, plan.exp.rig
+    sd = noise_sd(plan.kind, sample, rig, noise_scale=plan.noise_scale)
+    if plan.noise_scale == 0:
+        sd = noise_sd(plan.kind, sample, rig)
+    return sd
+
+
+def _scale_effects(
+    plan: _Plan, effects: Mapping[str, Any], runs: list[_Run], sd: Mapping[str, float]
+) -> tuple[dict[str, dict], Mods]:
+    """({effect: its truth}, the combined Mods): each effect scaled on the first run, valid on all."""
+    sample, rig = plan.exp.sample, plan.exp.rig
+    others = tuple((r.sample, r.rig, r.proto) for r in runs)
+    effect_truth: dict[str, dict] = {}
+    mods = NO_MODS
+    for ename, strength in effects.items():
+        info = scale_effect(plan.kind, ename, strength, sample, rig, runs[0].proto, sd, also_valid_for=others)
+        effect_truth[ename] = {k: v for k, v in info.items() if k != "name"}
+        eff = resolve_effect(ename, plan.kind)
+        mods = eff.mods([info["parameters"][p.field] for p in eff.params], mods)
+    return effect_truth, mods
+
+
+def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods) -> tuple[list[Path], list[dict]]:
+    """Predict, measure and write each run's CSV; (paths, each run's truth)."""
+    kind = plan.kind
+    paths, truths = [], []
+    for k, run in enumerate(runs):
+        inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
+        opts = true_options(kind, run.sample, run.rig, inputs)
+        outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
+        logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale)
+        fname = f"{plan.name}_run{k + 1}.csv"
+        path = plan.out / "raw" / fname
+        atomic_write_text(path, format_csv(kind, logged))
+        paths.append(path)
+        truths.append(
+            {"file": f"raw/{fname}", "sample": run.sample.model_kwargs(), "rig": rig_truth(run.rig)}
+        )
+    return paths, truths
+
+
+def _write_experiment(plan: _Plan, run_paths: list[Path]) -> Path:
+    """Write ``experiments/<name>.toml`` (no effects in it) and return its path."""
+    path = plan.out / "experiments" / f"{plan.name}.toml"
+    names = [p.name for p in run_paths]
+    doc = experiment_doc(plan.kind, plan.exp, names, plan.seed, public_command(plan.command))
+    tconfig.write_experiment(path, doc)
+    return path
+
+
+def _truth(
+    plan: _Plan, effect_truth: dict, mods: Mods, sd: Mapping[str, float], runs_truth: list[dict]
+) -> dict[str, Any]:
+    """The truth file's content (JSON-ready)."""
+    return to_jsonable(
+        {
+            "kind": plan.kind,
+            "name": plan.name,
+            "seed": plan.seed,
+            "generator": GENERATOR,
+            "command": plan.command,
+            "template": str(plan.template_arg),
+            "n_runs": plan.n_runs,
+            "noise_scale": float(plan.noise_scale),
+            "effects": effect_truth,
+            "mods": mods_truth(mods),
+            "scatter": plan.scatter,
+            "noise_sd": sd,
+            "instrument_sd": instrument_sd(plan.kind, plan.noise_scale),
+            "template_sample": plan.exp.sample.model_kwargs(),
+            "template_rig": rig_truth(plan.exp.rig),
+            "runs": runs_truth,
+        }
+    )

@@ -1,0 +1,88 @@
+"""One virtual-rig run, step by step, each step the kind's own (:mod:`tcamlab.kinds`).
+
+These are thin public functions that look the kind up with
+:func:`tcamlab.kinds.get_kind`; the per-kind work lives in the kind modules.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.kinds import get_kind
+from tcamlab.params import Rig, Sample
+
+__all__ = ["protocol", "program_options", "exact_inputs", "instrument_sd", "true_options", "measure"]
+
+
+def program_options(kind: str, **options) -> dict[str, Any]:
+    """The protocol options ``kind`` takes, out of ``options`` (others are ignored: a dynamic run has no oven)."""
+    return {k: v for k, v in options.items() if k in get_kind(kind).program_options}
+
+
+def protocol(kind: str, rig: Rig, rng: np.random.Generator, **options) -> pd.DataFrame:
+    """The exact programmed quantities of one run (SI, internal names).
+
+    Parameters
+    ----------
+    kind : str
+        Rig kind.
+    rig : Rig
+        Rig parameters (voltage and pulse of the dynamic test).
+    rng : numpy.random.Generator
+        Draws the oven regulation error (static) and the timing jitter
+        (dynamic); the sensing and curvature programs are deterministic.
+    **options
+        Program options (static ``oven``: "heating" or "heat-cool", see
+        :data:`tcamlab.kinds.static.OVEN_PROGRAMS`); those a kind does not
+        take are ignored.
+
+    Returns
+    -------
+    pandas.DataFrame
+        static: ``time``, ``temperature`` (the actual oven temperature);
+        dynamic: ``time``, ``voltage``; sensing: ``time``, ``elongation``
+        (sensor elongation programmed by the actuator); curvature: ``cable``.
+    """
+    return get_kind(kind).protocol(rig, rng, **program_options(kind, **options))
+
+
+def exact_inputs(
+    kind: str, sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS
+) -> pd.DataFrame:
+    """The exact input columns of :func:`tcamlab.kinds.predict` for a protocol [SI].
+
+    Static and dynamic inputs are the protocol itself; the sensing input is
+    the stretched sensor's resistance; the curvature inputs are the cable and
+    each segment's resistance (see the kind modules).
+    """
+    return get_kind(kind).exact_inputs(sample, rig, proto, mods)
+
+
+def instrument_sd(kind: str, noise_scale: float = 1.0) -> dict[str, float]:
+    """Standard deviation of each logged column's measurement chain (SI).
+
+    Noise and quantisation (uniform, q / sqrt(12)) together; columns that are
+    logged exactly (time, commanded voltage, programmed cable pull) are 0.
+    """
+    return get_kind(kind).instrument_sd(float(noise_scale))
+
+
+def true_options(kind: str, sample: Sample, rig: Rig, data: pd.DataFrame) -> dict[str, Any]:
+    """Keyword options of :func:`tcamlab.kinds.predict` for a run's (true) rig, by the kind's rule."""
+    return dict(get_kind(kind).run_options(sample, rig, data).options)
+
+
+def measure(
+    kind: str,
+    inputs: pd.DataFrame,
+    outputs: Mapping[str, np.ndarray],
+    rng: np.random.Generator,
+    noise_scale: float,
+) -> pd.DataFrame:
+    """Logged columns [SI, internal names] from the exact inputs and outputs, through the kind's chains."""
+    return get_kind(kind).measure(inputs, outputs, rng, float(noise_scale))
