@@ -1,0 +1,59 @@
+"""The verdict rules, on hand-made candidate scores (no fitting)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tcamlab.diagnosis.result import CandidateResult
+from tcamlab.diagnosis.verdict import MIN_FRACTION_CLOSED, verdict
+
+
+def _cand(name, fraction, ci_low, after=1.0):
+    return CandidateResult(
+        effect=name,
+        heldout_rmse_before=2.0,
+        heldout_rmse_after=after,
+        unit="mm",
+        heldout_rmse_before_noise=2.0,
+        heldout_rmse_after_noise=after,
+        shrinkage=1.0 - after / 2.0,
+        shrinkage_ci95=[ci_low, 0.6],
+        fraction_closed=fraction,
+        aic=0.0,
+        bic=0.0,
+        parameters={},
+        by_quantity={},
+        folds=[],
+        members=(name,),
+    )
+
+
+def _boot(after_by_name, K=4, B=200):
+    idx = np.random.default_rng(0).integers(0, K, size=(B, K))
+    folds = {n: np.full(K, a) for n, a in after_by_name.items()}
+    return folds, idx, np.full(B, 100.0 * K)
+
+
+def test_no_gap_gives_none_whatever_the_candidates():
+    folds, idx, bn = _boot({"a": 1.0})
+    v, eff, aliased, _ = verdict([_cand("a", 0.9, 0.2)], False, folds, idx, bn, 1.1, 1.3)
+    assert (v, eff, aliased) == ("none", None, [])
+
+
+def test_attributed_needs_the_fraction_and_a_shrinkage_interval_above_zero():
+    folds, idx, bn = _boot({"a": 100.0, "b": 300.0})
+    best = _cand("a", MIN_FRACTION_CLOSED + 0.1, 0.05)
+    other = _cand("b", 0.1, -0.1, after=1.8)
+    assert verdict([best, other], True, folds, idx, bn, 2.0, 1.3)[:2] == ("attributed", "a")
+    # the same candidate whose interval reaches below zero explains nothing for sure
+    weak = _cand("a", MIN_FRACTION_CLOSED + 0.1, -0.01)
+    assert verdict([weak, other], True, folds, idx, bn, 2.0, 1.3)[0] == "unexplained"
+    # and one that closes less than the required fraction neither
+    small = _cand("a", MIN_FRACTION_CLOSED - 0.01, 0.05)
+    assert verdict([small, other], True, folds, idx, bn, 2.0, 1.3)[0] == "unexplained"
+
+
+def test_two_qualifying_candidates_that_fit_alike_are_aliased():
+    folds, idx, bn = _boot({"a": 100.0, "b": 100.0})
+    res = verdict([_cand("a", 0.8, 0.1), _cand("b", 0.8, 0.1)], True, folds, idx, bn, 2.0, 1.3)
+    assert res[:3] == ("aliased", "a", ["b"])
