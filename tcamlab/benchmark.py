@@ -10,7 +10,8 @@ are reported as aliased or as one of the pair, never as a confident third.
 Only the benchmark reads the simulator's truth files (to score); the
 diagnosis never does.
 
-Static cases use the heat-cool oven program (:data:`STATIC_OVEN`).
+Each kind sets its cases' protocol options and effect pairs (:attr:`tcamlab.kinds.Kind.benchmark_program`,
+:attr:`~tcamlab.kinds.Kind.benchmark_pairs`); static cases use the heat-cool oven.
 """
 
 from __future__ import annotations
@@ -29,13 +30,12 @@ import numpy as np
 
 from tcamlab.effects import effects_for, get_effect
 from tcamlab.jsonutil import dumps_json, to_jsonable
-from tcamlab.kinds import KINDS
+from tcamlab.kinds import KINDS, get_kind
 from tcamlab.report.atomic import write_all_or_nothing
 from tcamlab.templates import template_path
 
 __all__ = [
     "STRENGTHS",
-    "PAIRS",
     "BenchmarkResult",
     "run_benchmark",
     "run_task",
@@ -44,33 +44,13 @@ __all__ = [
     "KINDS",
     "make_tasks",
     "score",
-    "STATIC_OVEN",
     "noise_ceiling",
 ]
 
 STRENGTHS = (1.0, 3.0, 10.0)
 """Effect strengths, multiples of the noise RMS."""
 
-PAIRS: dict[str, list[tuple[str, str]]] = {
-    "static": [
-        ("glass-transition", "displacement-drift"),
-        ("oven-thermal-lag", "youngs-modulus-temperature"),
-    ],
-    "dynamic": [("response-delay", "convective-heat-loss")],
-    "sensing": [("initial-slack", "stress-relaxation"), ("hysteresis", "stiffening-spring")],
-    "curvature": [("camera-placement", "axial-compression")],
-}
-"""Representative pairs of effects of one kind (one with distinct signatures,
-one more look-alike) for the pair cases."""
-
 PAIR_STRENGTH = 5.0
-
-
-STATIC_OVEN = "heat-cool"
-"""Oven program of the benchmark's static cases: the thesis's 5 degC steps up to
-150 degC and back down. The cooling branch is what tells sensor drift and
-thermal lag apart from temperature-only effects; with the thesis's
-heating-only program those come out ``aliased`` (README)."""
 
 
 GENERATOR = "tcamlab.rig"
@@ -98,7 +78,7 @@ def make_tasks(*, quick: bool = False, seeds: int = 10, kinds=KINDS, effects=Non
         for seed in range(n_seeds):
             tasks.append({"case": "null", "kind": kind, "effects": {}, "seed": 5000 + seed})
         if not quick:
-            for a, b in PAIRS.get(kind, []):
+            for a, b in get_kind(kind).benchmark_pairs:
                 for seed in range(max(3, n_seeds // 2)):
                     tasks.append(
                         {
@@ -109,6 +89,12 @@ def make_tasks(*, quick: bool = False, seeds: int = 10, kinds=KINDS, effects=Non
                         }
                     )
     return tasks
+
+
+def _program(kind: str, task: dict) -> dict:
+    """The kind's benchmark protocol options, overridden by those the task sets."""
+    k = get_kind(kind)
+    return {**k.benchmark_program, **{o: task[o] for o in k.program_options if o in task}}
 
 
 def run_task(task: dict) -> dict:
@@ -130,7 +116,7 @@ def run_task(task: dict) -> dict:
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
         template = task.get("template") or template_path(kind)
         try:
-            extra = {"oven": task.get("oven", STATIC_OVEN)} if kind == "static" else {}
+            extra = _program(kind, task)
             if "noise_scale" in task:
                 extra["noise_scale"] = float(task["noise_scale"])
             sim = simulate(

@@ -7,6 +7,8 @@ branch of a pull test.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
@@ -18,6 +20,7 @@ __all__ = [
     "mad_scale",
     "moving_average",
     "rolling_median",
+    "second_difference_sigma",
     "split_branches",
     "time_in_dwell",
     "unloading_mask",
@@ -201,3 +204,15 @@ def unloading_mask(x: np.ndarray) -> np.ndarray:
     (displacement, or a sensor's resistance).
     """
     return split_branches(x).get("unloading", np.zeros(np.asarray(x).size, dtype=bool))
+
+
+def second_difference_sigma(r) -> float:
+    """Noise sd of a series from its second differences (robust to smooth trends).
+
+    sigma^2 = sum((r[i+1] - 2 r[i] + r[i-1])^2) / (6 (n - 2)).
+    """
+    r = np.asarray(r, float)
+    if r.size < 3:
+        return float("nan")
+    d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
+    return float(math.sqrt(np.sum(d2 * d2) / (6.0 * (r.size - 2))))

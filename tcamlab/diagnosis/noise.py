@@ -18,6 +18,7 @@ from scipy import stats
 from tcamlab.diagnosis.problem import Problem, fit_effect
 from tcamlab.diagnosis.result import Baseline, Gap, NoiseFloor, QuantityNoise
 from tcamlab.effects import Mods
+from tcamlab.signals import second_difference_sigma
 from tcamlab.units import display
 
 __all__ = [
@@ -58,18 +59,6 @@ MEDIAN_EFFICIENCY = 2.0 / math.pi
 POOL_CONSISTENCY_LEVEL = 0.99
 """Two-sided level of the F test that admits the between-run variance into
 the noise floor (:func:`pool_noise_estimates`)."""
-
-
-def second_difference_sigma(r) -> float:
-    """Noise sd of a series from its second differences (robust to smooth trends).
-
-    sigma^2 = sum((r[i+1] - 2 r[i] + r[i-1])^2) / (6 (n - 2)).
-    """
-    r = np.asarray(r, float)
-    if r.size < 3:
-        return float("nan")
-    d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
-    return float(math.sqrt(np.sum(d2 * d2) / (6.0 * (r.size - 2))))
 
 
 def gap_limit(

@@ -135,6 +135,12 @@ class Kind:
     protocol : callable
         ``protocol(rig, rng, **options) -> DataFrame``: the exact programmed
         quantities of one virtual-rig run [SI, internal names].
+    benchmark_program : mapping of str to Any
+        Protocol options of the diagnosis benchmark's cases (static: the heat-cool oven, whose
+        cooling branch separates drift and thermal lag from temperature-only effects).
+    benchmark_pairs : tuple of (str, str)
+        Representative pairs of this kind's effects for the benchmark's two-effect cases (one
+        pair with distinct signatures, one more look-alike where the kind has one).
     program_options : tuple of str
         Keyword options ``protocol`` takes (static: ``oven``); the rig passes
         only these.
@@ -188,6 +194,8 @@ class Kind:
     strength_quantities: tuple[str, ...] | None
     protocol: Callable[..., pd.DataFrame]
     program_options: tuple[str, ...]
+    benchmark_program: Mapping[str, Any]
+    benchmark_pairs: tuple[tuple[str, str], ...]
     exact_inputs: Callable[..., pd.DataFrame]
     instrument_sd: Callable[..., dict]
     measure: Callable[..., pd.DataFrame]

@@ -267,6 +267,19 @@ def measure(
     )
 
 
+RIG_FIELDS = (
+    "load",
+    "ambient",
+    "voltage",
+    "pulse",
+    "resistance",
+    "thermal_mass",
+    "heat_loss",
+    "damping",
+)
+"""Rig fields of the voltage-step test: shown in the report and written by the virtual rig."""
+
+
 KIND = Kind(
     name="dynamic",
     description="voltage-step test (thesis section 2.5.2): displacement against time, "
@@ -285,37 +298,21 @@ KIND = Kind(
     x_column="time",
     regimes=regimes,
     shared_inputs=("voltage",),
-    report_rig_fields=(
-        "load",
-        "ambient",
-        "voltage",
-        "pulse",
-        "resistance",
-        "thermal_mass",
-        "heat_loss",
-        "damping",
-    ),
+    report_rig_fields=RIG_FIELDS,
     figures=figures,
     extras_section=extras_section,
     preset=THESIS_TCA,
     logged_columns=("time", "voltage", "displacement"),
     decimals={"time_s": 3, "voltage_V": 3, "displacement_mm": 3},
-    written_rig_fields=(
-        "load",
-        "ambient",
-        "voltage",
-        "pulse",
-        "resistance",
-        "thermal_mass",
-        "heat_loss",
-        "damping",
-    ),
+    written_rig_fields=RIG_FIELDS,
     hidden_rig_fields=(),
     default_runs=3,
     default_scatter={"twists": 2e-3, "coil_length": 2e-3},
     noisy_inputs=(),
     strength_quantities=("displacement",),
     protocol=protocol,
+    benchmark_program={},
+    benchmark_pairs=(("response-delay", "convective-heat-loss"),),
     program_options=(),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,

@@ -218,6 +218,11 @@ KIND = Kind(
     noisy_inputs=("temperature",),
     strength_quantities=("displacement",),
     protocol=protocol,
+    benchmark_program={"oven": "heat-cool"},
+    benchmark_pairs=(
+        ("glass-transition", "displacement-drift"),
+        ("oven-thermal-lag", "youngs-modulus-temperature"),
+    ),
     program_options=("oven",),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
