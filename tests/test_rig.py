@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tcamlab import rig
+from tcamlab import kinds, rig
 from tcamlab.config import load_experiment
 from tcamlab.effects import NO_MODS, Effect, EffectParam, Mods, combine, effects_for, get_effect
 from tcamlab.errors import ConfigError
@@ -20,7 +20,7 @@ from tcamlab.rig import strength as rig_strength
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "tcamlab" / "templates"
-KINDS = ("static", "dynamic", "sensing", "curvature")
+KINDS = kinds.KINDS
 
 
 def template(kind):
