@@ -18,6 +18,7 @@ from tcamlab.errors import ConfigError, InputError
 
 __all__ = [
     "METRIC_NAMES",
+    "METRIC_LABELS",
     "METRIC_UNITS_NOTE",
     "THRESHOLD_FORMS",
     "UNIT_SUFFIXES",
@@ -29,6 +30,17 @@ __all__ = [
 ]
 
 METRIC_NAMES = ("rmse", "mae", "max_abs", "bias", "nrmse", "r2")
+
+METRIC_LABELS = {
+    "rmse": "RMSE",
+    "mae": "MAE",
+    "max_abs": "max |err|",
+    "bias": "bias",
+    "nrmse": "NRMSE",
+    "r2": "R²",
+}
+"""Column heading of each metric in reports (a new metric needs its name, its label and
+its formula in :func:`error_metrics`; reports and metrics.json follow)."""
 """Keys of :func:`error_metrics` that are metrics (``n`` and ``n_nan`` are counts)."""
 
 UNIT_SUFFIXES = ("per_mm", "mm", "N", "ohm")

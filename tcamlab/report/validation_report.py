@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from tcamlab.kinds import get_kind
+from tcamlab.metrics import METRIC_LABELS, METRIC_NAMES
 from tcamlab.report.document import Cell, Document, Figure, Section, Table
 from tcamlab.report.figures import legend_label, new_figure
 from tcamlab.units import parameter_unit, quantity
@@ -75,17 +76,12 @@ def _metrics_table(result) -> Table:
                         variant + (" (primary)" if variant == result.primary else ""),
                         q,
                         run,
-                        m["rmse"],
-                        m["mae"],
-                        m["max_abs"],
-                        m["bias"],
-                        m["nrmse"],
-                        m["r2"],
+                        *(m[k] for k in METRIC_NAMES),
                         m["n"],
                     ]
                 )
     return Table(
-        ["model", "quantity", "run", "RMSE", "MAE", "max |err|", "bias", "NRMSE", "R²", "n"],
+        ["model", "quantity", "run", *(METRIC_LABELS[k] for k in METRIC_NAMES), "n"],
         rows,
         caption="Error metrics (predicted − measured) in the quantity's unit",
     )
