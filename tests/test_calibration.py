@@ -154,3 +154,17 @@ def test_sample_uncertainty_table_is_parsed_and_checked(tmp_path):
     f.write_text(base + "radial_cte_per_K = -1e-5\n")
     with pytest.raises(ConfigError, match="must not be negative"):
         load_experiment(f, require_runs=False)
+
+
+def test_calibration_imports_neither_the_diagnosis_nor_the_rig():
+    import re
+    from pathlib import Path
+
+    import tcamlab.calibration as cal
+
+    for f in Path(cal.__file__).parent.glob("*.py"):
+        text = f.read_text()
+        pattern = (
+            r"^\s*(from|import)\s+tcamlab\.(diagnosis|rig)\b|^\s*from tcamlab import .*\b(diagnosis|rig)\b"
+        )
+        assert not re.search(pattern, text, re.M), f
