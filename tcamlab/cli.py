@@ -356,6 +356,45 @@ def simulate(
     typer.echo(f"wrote {res.experiment_path} and {len(res.run_paths)} runs")
 
 
+# -- calibrate --------------------------------------------------------------------------
+
+
+@app.command("calibrate")
+def calibrate(
+    experiments: Annotated[
+        list[Path],
+        typer.Argument(help="Experiment files of one sample (TOML).", metavar="EXPERIMENT.toml..."),
+    ],
+    params: str | None = typer.Option(
+        None, "--params", help="Comma-separated parameters to calibrate (default: all of the kinds')."
+    ),
+    out: Annotated[Path | None, typer.Option("--out", help="Write OUT/NAME/calibration.json.")] = None,
+    as_json: Json = False,
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing NAME.calibrated.toml."),
+):
+    """Calibrate the model parameters from the logs, with profile intervals and identifiability.
+
+    Writes NAME.calibrated.toml beside each experiment file.
+
+    Example: tcamlab calibrate experiments/dynamic.toml --out reports --json
+    """
+    from tcamlab.pipeline import calibrate_experiment
+
+    outcome = _run(calibrate_experiment, experiments, params=params, out_dir=out, force=force)
+    doc = outcome.result.to_dict()
+    if as_json:
+        _print_json(doc)
+        return
+    for p in doc["parameters"]:
+        lo, hi = p["profile_95"]
+        shift = "" if p["shift_in_stated_sds"] is None else f" ({p['shift_in_stated_sds']:+.2f} stated sds)"
+        typer.echo(f"{p['name']:<24s} {p['value']:.5g} {p['unit']} [{lo:.4g}, {hi:.4g}]{shift}")
+    for line in doc["identifiability"]:
+        typer.echo("  " + line)
+    for f in outcome.files:
+        typer.echo(f"wrote {f}")
+
+
 # -- diagnose ---------------------------------------------------------------------------
 
 

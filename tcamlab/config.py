@@ -94,9 +94,13 @@ def _sample_field(key: str):
     return (float | None, None)
 
 
+_SampleUncertainty = create_model(
+    "_SampleUncertainty", __config__=_STRICT, **{key: (float | None, None) for key in SAMPLE_KEYS}
+)
 _SampleTable = create_model(
     "_SampleTable",
     __config__=_STRICT,
+    uncertainty=(_SampleUncertainty | None, None),
     preset=(Literal[tuple(PRESETS)] | None, None),  # type: ignore[valid-type]
     **{key: _sample_field(key) for key in SAMPLE_KEYS},
 )
@@ -154,6 +158,7 @@ _ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
     (): _model_keys(_ExperimentFile),
     ("synthetic",): _model_keys(_Synthetic),
     ("sample",): _model_keys(_SampleTable),
+    ("sample", "uncertainty"): _model_keys(_SampleUncertainty),
     ("rig",): _model_keys(_RigTable),
     ("rig", "uncertainty"): _model_keys(_RigUncertainty),
 }
@@ -211,6 +216,8 @@ class Experiment:
         text or ``"experiment file"``); uncertainties as ``"sd(field)"``.
     raw : dict
         The parsed TOML document.
+    sample_uncertainty : dict of str to float
+        ``[sample.uncertainty]``: standard deviations of sample fields [SI], by SI field name.
     """
 
     path: Path
@@ -226,6 +233,7 @@ class Experiment:
     synthetic: dict | None = None
     provenance: dict[str, str] = field(default_factory=dict)
     raw: dict = field(default_factory=dict)
+    sample_uncertainty: dict[str, float] = field(default_factory=dict)
 
     @property
     def preset(self) -> str | None:
@@ -494,8 +502,9 @@ def load_experiment(
         thresholds[name] = _finite(shown, f"thresholds.{name}", value)
 
     sample, sample_prov = _build_sample(doc, shown)
+    sample_unc = _sample_uncertainty(doc, shown)
     rig, rig_prov = _build_rig(doc, shown)
-    provenance = {**sample_prov, **rig_prov}
+    provenance = {**sample_prov, **rig_prov, **{f"sd({k})": EXPERIMENT_FILE for k in sample_unc}}
 
     return Experiment(
         path=p.resolve(),
@@ -511,11 +520,13 @@ def load_experiment(
         synthetic=doc.synthetic.model_dump() if doc.synthetic else None,
         provenance=provenance,
         raw=raw,
+        sample_uncertainty=sample_unc,
     )
 
 
 def _build_sample(doc: _ExperimentFile, shown: str) -> tuple[Sample, dict[str, str]]:
     table = doc.sample.model_dump(exclude_none=True) if doc.sample else {}
+    table.pop("uncertainty", None)
     preset_name = table.pop("preset", None)
     overrides: dict[str, Any] = {}
     for key, value in table.items():
@@ -546,6 +557,24 @@ def _build_sample(doc: _ExperimentFile, shown: str) -> tuple[Sample, dict[str, s
             raise
         raise ConfigError(f"{shown}: {exc.message}", exc.hint) from None
     return sample, provenance
+
+
+def _sample_uncertainty(doc: _ExperimentFile, shown: str) -> dict[str, float]:
+    """``[sample.uncertainty]`` in SI by field name; every sd a non-negative finite number."""
+    table = (
+        doc.sample.uncertainty.model_dump(exclude_none=True) if doc.sample and doc.sample.uncertainty else {}
+    )
+    out: dict[str, float] = {}
+    for key, value in table.items():
+        si_name, factor = SAMPLE_KEYS[key]
+        v = _finite(shown, f"sample.uncertainty.{key}", value)
+        if v < 0:
+            raise ConfigError(
+                f"{shown}: sample.uncertainty.{key} = {value!r} must not be negative",
+                "uncertainties are standard deviations",
+            )
+        out[si_name] = v * factor
+    return out
 
 
 def _rig_values(table: Mapping[str, Any], shown: str, where: str, sd: bool) -> dict[str, Any]:

@@ -500,3 +500,48 @@ def list_effects(kind: str | None = None) -> EffectListing:
     if kind is not None:
         _check_kind(kind)
     return EffectListing([e for e in EFFECTS.values() if kind is None or e.kind == kind])
+
+
+# -- calibrate ----------------------------------------------------------------------------
+
+
+@dataclass
+class CalibrateOutcome:
+    """What ``calibrate`` produced: the calibration and the files written."""
+
+    result: object
+    files: list = field(default_factory=list)
+
+
+def calibrate_experiment(paths, *, params=None, out_dir=None, force: bool = False) -> CalibrateOutcome:
+    """Calibrate one or more experiments of one sample and write the results.
+
+    Writes ``NAME.calibrated.toml`` beside each experiment file (never the file itself;
+    an existing one only with ``force``) and, with ``out_dir``,
+    ``out_dir/NAME/calibration.json`` (NAME joins the experiment names with ``+``).
+    Nothing is written unless the calibration succeeds; a failed write of the JSON
+    removes the calibrated files just written.
+    """
+    from tcamlab.calibration import calibrate, calibrated_path, calibrated_text, load_experiments
+
+    exps = load_experiments(list(paths) if not isinstance(paths, (str, Path)) else [paths])
+    targets = [calibrated_path(e) for e in exps]
+    for e, t in zip(exps, targets):
+        if t == e.path:
+            raise InputError(f"{t}: refusing to overwrite the experiment file itself")
+        if t.exists() and not force:
+            raise InputError(f"{t}: calibrated file exists", "pass --force to overwrite it")
+    result = calibrate(exps, params)
+    files: list[Path] = []
+    try:
+        for e, t in zip(exps, targets):
+            files.append(atomic_write_text(t, calibrated_text(e, result)))
+        if out_dir is not None:
+            name = "+".join(e.name for e in exps)
+            payload = {"calibration.json": dumps_json(result.to_dict()).encode()}
+            files += write_all_or_nothing(Path(out_dir) / name, payload)
+    except BaseException:
+        for f in files:
+            f.unlink(missing_ok=True)
+        raise
+    return CalibrateOutcome(result, files)

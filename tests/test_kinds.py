@@ -189,3 +189,16 @@ def test_virtual_rig_parts_agree_with_the_logged_columns(name):
     for c, v in sd.items():
         if v == 0:
             assert np.array_equal(quiet[c].to_numpy(), inputs[c].to_numpy(float)), c
+
+
+@pytest.mark.parametrize("name", KIND_NAMES)
+def test_calibration_parameters_name_real_fields(name):
+    from tcamlab.params import Rig, Sample
+
+    kind = kinds.get_kind(name)
+    assert kind.calibration
+    fields = {"sample": set(Sample.__dataclass_fields__), "rig": set(Rig.__dataclass_fields__)}
+    for p in kind.calibration:
+        assert p.field in fields[p.where], f"{name}: {p.field} is not a {p.where} field"
+        assert p.default_sd > 0 and p.symbol and p.unit and p.pinned_by
+    assert set(kind.nuisance_zeros) <= set(kind.outputs)

@@ -36,6 +36,7 @@ if TYPE_CHECKING:  # the registry stays cheap to import: the CLI lists kinds for
 
 __all__ = [
     "Kind",
+    "CalibrationParam",
     "RunOptions",
     "REGISTRY",
     "KINDS",
@@ -62,6 +63,38 @@ class RunOptions:
 
     options: dict[str, Any] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CalibrationParam:
+    """One parameter ``tcamlab calibrate`` identifies from a kind's logs.
+
+    Attributes
+    ----------
+    field : str
+        SI field of :class:`~tcamlab.params.Sample` or :class:`~tcamlab.params.Rig`.
+    where : str
+        ``"sample"`` (shared by experiments of one sample) or ``"rig"`` (per experiment).
+    symbol : str
+        The thesis symbol, for reports (``"C_th"``).
+    unit : str
+        SI unit of the field (``"J/K"``).
+    default_sd : float
+        Relative prior sd [-] used when the experiment file states no uncertainty
+        (the prior sd is ``default_sd * |stated value|``).
+    pinned_by : str
+        The experiment that would pin the parameter when the logs do not, in words.
+    positive : bool
+        Fitted as its logarithm (a Gaussian prior in log space, sd_log = sd / value).
+    """
+
+    field: str
+    where: str
+    symbol: str
+    unit: str
+    default_sd: float
+    pinned_by: str
+    positive: bool = True
 
 
 @dataclass(frozen=True)
@@ -162,6 +195,11 @@ class Kind:
     coil_length_rig_fields : tuple of str
         Rig length fields that scale with the sample's coil length when it
         scatters (curvature segment lengths: the sensor spans the segments).
+    calibration : tuple of CalibrationParam
+        The parameters ``tcamlab calibrate`` identifies from this kind's logs.
+    nuisance_zeros : tuple of str
+        Measured quantities whose zero (tare) is a per-run nuisance offset in
+        calibration: the logged first row or tare carries the instrument's noise.
     """
 
     name: str
@@ -202,6 +240,8 @@ class Kind:
     simulation_rig_defaults: Mapping[str, Any]
     segment_rig_fields: tuple[str, ...]
     coil_length_rig_fields: tuple[str, ...]
+    calibration: tuple[CalibrationParam, ...]
+    nuisance_zeros: tuple[str, ...]
 
     @property
     def primary(self) -> str:

@@ -30,7 +30,7 @@ import pandas as pd
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
-from tcamlab.kinds import Kind, RunOptions, no_extras, no_section, rest_rows
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, no_extras, no_section, rest_rows
 from tcamlab.models import curvature as _curv
 from tcamlab.models import sensing as _sens
 from tcamlab.params import THESIS_ROBOT, Rig, Sample
@@ -253,6 +253,18 @@ def measure(
     return pd.DataFrame(out)
 
 
+CALIBRATION = (
+    CalibrationParam(
+        "sensor_offset", "rig", "d1", "m", 0.2, "a bend of known curvature (e.g. around a mandrel)"
+    ),
+    CalibrationParam("spring_constant", "rig", "S", "N/m", 0.5, "a sensing pull test of the embedded sensor"),
+    CalibrationParam(
+        "initial_resistance", "rig", "R0", "ohm", 0.05, "more rows at rest before the cable is pulled"
+    ),
+)
+"""Calibratable parameters of the camera curvature test (one S and R0 for both segments)."""
+
+
 KIND = Kind(
     name="curvature",
     description="camera curvature test (thesis section 4.3): segment curvatures predicted from R1, R2 by (4.1)",
@@ -307,4 +319,6 @@ KIND = Kind(
     # change length with its coil length.
     segment_rig_fields=("initial_resistance",),
     coil_length_rig_fields=("segment_lengths",),
+    calibration=CALIBRATION,
+    nuisance_zeros=(),
 )

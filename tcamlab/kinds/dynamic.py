@@ -18,7 +18,7 @@ import pandas as pd
 
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
-from tcamlab.kinds import Kind, RunOptions
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions
 from tcamlab.models import dynamic as _dyn
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure, Section, Table
@@ -280,6 +280,37 @@ RIG_FIELDS = (
 """Rig fields of the voltage-step test: shown in the report and written by the virtual rig."""
 
 
+CALIBRATION = (
+    CalibrationParam(
+        "thermal_mass",
+        "rig",
+        "C_th",
+        "J/K",
+        0.5,
+        "log temperature during the pulse (the initial heating rate is V^2/(R C_th))",
+    ),
+    CalibrationParam(
+        "heat_loss",
+        "rig",
+        "lambda",
+        "W/K",
+        1.0,
+        "a longer pulse that reaches the steady temperature (T - T_a = V^2/(R lambda)), "
+        "or a logged temperature",
+    ),
+    CalibrationParam(
+        "damping",
+        "rig",
+        "b",
+        "N s/m",
+        0.3,
+        "log faster than the mechanical time constant b/k (e.g. 1 kHz), or a load step",
+    ),
+)
+"""Calibratable parameters of the voltage-step test; the default prior sds are wide
+(the thesis's own sds are 32 %, 181 % and 14 %)."""
+
+
 KIND = Kind(
     name="dynamic",
     description="voltage-step test (thesis section 2.5.2): displacement against time, "
@@ -320,4 +351,6 @@ KIND = Kind(
     simulation_rig_defaults={},
     segment_rig_fields=(),
     coil_length_rig_fields=(),
+    calibration=CALIBRATION,
+    nuisance_zeros=("displacement",),
 )

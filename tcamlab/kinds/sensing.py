@@ -27,7 +27,7 @@ import pandas as pd
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, SLACK_RAMP, Mods
 from tcamlab.errors import ConfigError, InputError
-from tcamlab.kinds import Kind, RunOptions, rest_rows
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows
 from tcamlab.models import sensing as _sens
 from tcamlab.params import SILVER_TCR, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT, Rig, Sample
 from tcamlab.report.document import Cell, Figure, Section, Table
@@ -305,6 +305,17 @@ def measure(
     )
 
 
+CALIBRATION = (
+    CalibrationParam(
+        "spring_constant", "rig", "S", "N/m", 1.0, "a pull test logging force over a wider stretch"
+    ),
+    CalibrationParam("initial_resistance", "rig", "R0", "ohm", 0.05, "more rows at rest before the pull"),
+    CalibrationParam("youngs_modulus", "sample", "E", "Pa", 0.2, "a tensile test of the straight fiber"),
+)
+"""Calibratable parameters of the pull test (S: a weak 100 % prior, it is usually not
+stated; R0: 5 %, the rest rows fix it; E: 20 %)."""
+
+
 KIND = Kind(
     name="sensing",
     description="sensing pull test (thesis section 3.3): displacement and force predicted from "
@@ -347,4 +358,6 @@ KIND = Kind(
     simulation_rig_defaults={"spring_constant": THESIS_TCS_SPRING_CONSTANT.value},
     segment_rig_fields=(),
     coil_length_rig_fields=(),
+    calibration=CALIBRATION,
+    nuisance_zeros=("force",),
 )

@@ -18,7 +18,7 @@ import pandas as pd
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError
-from tcamlab.kinds import Kind, RunOptions, no_extras, no_section
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, no_extras, no_section
 from tcamlab.models import static as _static
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure
@@ -187,6 +187,36 @@ def measure(
     return pd.DataFrame({"time": inputs["time"].to_numpy(float), "temperature": temp, "displacement": disp})
 
 
+CALIBRATION = (
+    CalibrationParam(
+        "radial_cte",
+        "sample",
+        "rho",
+        "1/K",
+        0.3,
+        "an oven test at a second load (rho and G_t act differently with load)",
+    ),
+    CalibrationParam(
+        "shear_modulus_slope",
+        "sample",
+        "G_t slope",
+        "Pa/K",
+        0.3,
+        "an oven test over a wider temperature range, or at a second load",
+    ),
+    CalibrationParam(
+        "youngs_modulus",
+        "sample",
+        "E",
+        "Pa",
+        0.2,
+        "a tensile test of the straight fiber, or a sensing pull test",
+    ),
+)
+"""Calibratable parameters of the oven test (default prior sd: 30 % for rho and the
+G_t slope, 20 % for E)."""
+
+
 KIND = Kind(
     name="static",
     description="static oven test (thesis section 2.5.1): displacement against temperature, "
@@ -230,4 +260,6 @@ KIND = Kind(
     simulation_rig_defaults={},
     segment_rig_fields=(),
     coil_length_rig_fields=(),
+    calibration=CALIBRATION,
+    nuisance_zeros=("displacement",),
 )

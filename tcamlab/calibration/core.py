@@ -1,0 +1,173 @@
+"""``calibrate``: load the experiments, fit, and assemble the :class:`CalibrationResult`."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from tcamlab.calibration.fit import Z95, laplace_covariance, map_fit, profile_interval
+from tcamlab.calibration.identify import PINNED_RATIO, directions, identifiability_text
+from tcamlab.calibration.problem import CalibrationProblem
+from tcamlab.calibration.result import CalibrationResult, FitQuality, ParameterEstimate, ZeroEstimate
+from tcamlab.config import Experiment, load_experiment
+from tcamlab.errors import InputError
+
+__all__ = ["calibrate", "load_experiments"]
+
+
+def load_experiments(experiments: Sequence) -> list[Experiment]:
+    """Experiment files (paths or loaded) of one sample; several must have equal ``[sample]``."""
+    if isinstance(experiments, (str, Path, Experiment)):
+        experiments = [experiments]
+    loaded = [e if isinstance(e, Experiment) else load_experiment(e) for e in experiments]
+    if not loaded:
+        raise InputError(
+            "calibrate: no experiment file given", "e.g. tcamlab calibrate experiments/dynamic.toml"
+        )
+    for e in loaded[1:]:
+        if e.sample != loaded[0].sample:
+            raise InputError(
+                f"{e.path}: its [sample] differs from {loaded[0].path}'s; only experiments of one "
+                "sample are calibrated together",
+                "calibrate them separately, or make their [sample] tables equal",
+            )
+    names = [e.name for e in loaded]
+    if len(set(names)) < len(names):
+        raise InputError("calibrate: two experiment files share the name " + repr(names[0]))
+    return loaded
+
+
+def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> ParameterEstimate:
+    s = problem.specs[k]
+    sd_u = float(math.sqrt(max(cov[k, k], 0.0)))
+    value = s.from_u(float(u[k]))
+    lap = (s.from_u(u[k] - Z95 * sd_u), s.from_u(u[k] + Z95 * sd_u))
+    post_sd = value * sd_u if s.param.positive else sd_u * s.prior_sd
+    stated_sd = s.prior_sd if s.sd_stated else None
+    return ParameterEstimate(
+        name=s.name,
+        field=s.param.field,
+        where=s.param.where,
+        symbol=s.param.symbol,
+        unit=s.param.unit,
+        key=s.key,
+        stated=s.stated,
+        stated_in_file=s.stated_in_file,
+        stated_sd=stated_sd,
+        prior_sd=s.prior_sd,
+        value=value,
+        posterior_sd=post_sd,
+        posterior_sd_rel=sd_u if s.param.positive else post_sd / abs(value),
+        prior_sd_rel=float(s.sd_u) if s.param.positive else s.prior_sd / abs(s.stated),
+        laplace_95=lap,
+        profile_95=(s.from_u(sides[0].bound), s.from_u(sides[1].bound)),
+        profile_open=(sides[0].open, sides[1].open),
+        shift_in_stated_sds=(value - s.stated) / stated_sd if stated_sd else None,
+        pinned=sd_u < PINNED_RATIO * s.sd_u,
+        pinned_by=s.param.pinned_by,
+    )
+
+
+def _zeros(problem, u: np.ndarray, cov: np.ndarray) -> list[ZeroEstimate]:
+    labels = problem.zero_labels()
+    if not labels:
+        return []
+    z = problem.zeros(u)
+    g = problem.jacobian(u, fn=problem.zeros)
+    extra = np.einsum("ij,jk,ik->i", g, cov, g)
+    out = []
+    for (i, j, q), value, ex in zip(labels, z, extra):
+        n = len(problem.runs[i][j].data)
+        sd = float(math.sqrt(problem.sigma[(i, q)] ** 2 / n + max(ex, 0.0)))
+        run = Path(getattr(problem.runs[i][j], "path", f"run{j + 1}")).name
+        out.append(
+            ZeroEstimate(
+                problem.experiments[i].name, run, q, float(value), sd, (value - Z95 * sd, value + Z95 * sd)
+            )
+        )
+    return out
+
+
+def _rms(x: np.ndarray, sigma: float) -> float:
+    return float(np.sqrt(np.mean(x * x)) / sigma)
+
+
+def _quality(problem, u: np.ndarray) -> list[FitQuality]:
+    before = problem.raw_residuals(problem.u0) or []
+    after = problem.raw_residuals(u) or []
+    out = []
+    for i, qs in enumerate(problem.quantities):
+        for q in qs:
+            sig = problem.sigma[(i, q)]
+            b = np.concatenate([r for e, _, qq, r in before if e == i and qq == q] or [np.array([np.nan])])
+            a = [
+                (r - r.mean()) if problem.is_zeroed(i, q) else r
+                for e, _, qq, r in after
+                if e == i and qq == q
+            ]
+            a = np.concatenate(a or [np.array([np.nan])])
+            out.append(
+                FitQuality(problem.experiments[i].name, q, sig, _rms(b, sig), _rms(a, sig), int(a.size))
+            )
+    return out
+
+
+def _describe_logs(problem) -> str:
+    parts = []
+    for e, qs, runs in zip(problem.experiments, problem.quantities, problem.runs):
+        parts.append(f"{e.name} ({e.kind}, {len(runs)} runs, logging {', '.join(qs)})")
+    return "the logs of " + " and ".join(parts)
+
+
+def calibrate(
+    experiments, params: Sequence[str] | str | None = None, *, drop_na: bool = False
+) -> CalibrationResult:
+    """Calibrate the kinds' parameters from the logs of one or more experiments of one sample.
+
+    Parameters
+    ----------
+    experiments : path-like, Experiment, or a sequence of them
+        Experiment files with equal ``[sample]`` (their sample parameters are shared).
+    params : sequence of str or comma-separated str, optional
+        Parameters to calibrate (``field``, or ``EXPERIMENT.field`` for a rig parameter of
+        several experiments); default every calibratable parameter of their kinds.
+    drop_na : bool
+        Drop rows with blank cells instead of raising.
+
+    Returns
+    -------
+    CalibrationResult
+        MAP values with Laplace and profile 95 % intervals, nuisance zeros, correlation,
+        identifiability in words, residuals before and after.
+    """
+    exps = load_experiments(experiments)
+    if isinstance(params, str):
+        params = [p.strip() for p in params.split(",") if p.strip()]
+    problem = CalibrationProblem(exps, [e.read_runs(drop_na=drop_na) for e in exps], params)
+    fit = map_fit(problem)
+    cov, _ = laplace_covariance(problem, fit.u)
+    estimates = []
+    for k in range(len(problem.specs)):
+        sides = [profile_interval(problem, fit, cov, k, side) for side in (-1, 1)]
+        estimates.append(_estimate(problem, k, fit.u, cov, sides))
+    names = [s.name for s in problem.specs]
+    dirs = directions(names, problem.sd_u, cov)
+    sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    return CalibrationResult(
+        experiments=[str(e.path) for e in exps],
+        kinds=[e.kind for e in exps],
+        parameters=estimates,
+        zeros=_zeros(problem, fit.u, cov),
+        fit=_quality(problem, fit.u),
+        correlation={"names": names, "matrix": (cov / np.outer(sd, sd)).tolist()},
+        directions=[
+            {"exponents": d.exponents, "ratio": d.ratio, "relative_sd": d.relative_sd, "pinned": d.pinned}
+            for d in dirs
+        ],
+        identifiability=identifiability_text(estimates, dirs, _describe_logs(problem)),
+        chi2=fit.chi2,
+        n_points=problem.size,
+    )
