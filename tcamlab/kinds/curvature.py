@@ -283,7 +283,13 @@ KIND = Kind(
     regimes=regimes,
     # r1, r2 are measured responses of the commanded cable, so only the cable counts.
     shared_inputs=("cable",),
-    report_rig_fields=("ambient", "spring_constant", "sensor_offset", "segment_lengths"),
+    report_rig_fields=(
+        "ambient",
+        "initial_resistance",
+        "spring_constant",
+        "sensor_offset",
+        "segment_lengths",
+    ),
     figures=figures,
     extras_section=no_section,
     preset=THESIS_ROBOT,
