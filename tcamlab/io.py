@@ -691,10 +691,8 @@ def _size_text(n: int) -> str:
     return f"{n / 1024**3:.2f} GiB"
 
 
-def _read_run(
-    p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None, drop_na: bool, max_bytes: int
-) -> RunData:
-    """:func:`read_run` without the translation of OSError."""
+def _check_file(p: Path, shown: str, kind: str, max_bytes: int) -> int:
+    """Refuse an unknown kind, a missing, special, oversized or empty file; the size [bytes]."""
     if kind not in REQUIRED:
         raise InputError(f"{shown}: unknown run kind {kind!r}", "one of " + ", ".join(KINDS))
     if not p.exists():
@@ -710,18 +708,15 @@ def _read_run(
         )
     if size == 0:
         raise InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
+    return size
 
-    columns = dict(columns or {})
-    specs = {
-        canon: column_spec(kind, canon, spec, where=f"{shown}: [columns]") for canon, spec in columns.items()
-    }
 
-    layout = _sniff(p, shown)
+def _select_columns(shown: str, kind: str, layout: _Layout, specs: dict) -> dict[str, tuple[ColumnSpec, int]]:
+    """Internal name -> (column spec, position in the file) of every column the kind reads."""
     headers = layout.headers
     positions: dict[str, list[int]] = {}
     for i, h in enumerate(headers):
         positions.setdefault(h, []).append(i)
-
     selected: dict[str, tuple[ColumnSpec, int]] = {}
     for canon in REQUIRED[kind] + OPTIONAL[kind]:
         spec = specs.get(canon) or column_spec(kind, canon)
@@ -749,139 +744,154 @@ def _read_run(
                 "rename the duplicates so each header is unique",
             )
         selected[VARIABLE_MAP[canon][0]] = (spec, where[0])
+    return selected
 
+
+def _read_values(p: Path, shown: str, layout: _Layout, selected: dict, size: int) -> pd.DataFrame:
+    """The selected columns' raw numbers, trailing blank lines dropped; refuses a header without data."""
     usecols = sorted({idx for _, idx in selected.values()})
     try:
         raw = _read_frame(p, shown, layout, usecols, dtype=np.float64)
     except ValueError:  # a cell that is not a number: find and name it
         raw = _locate_bad_cell(p, shown, layout, usecols)
-
     n_trailing = _count_trailing_blank_lines(p, size)
     if n_trailing:
         n_keep = len(raw) - n_trailing
         tail_blank = raw.iloc[max(n_keep, 0) :].isna().all(axis=1).all()
         if n_keep >= 0 and tail_blank:
             raw = raw.iloc[:n_keep]
-    n_rows_raw = len(raw)
-    if n_rows_raw == 0:
+    if len(raw) == 0:
         raise InputError(
             f"{shown}: line {layout.header_line}: header only, no data rows",
             "a run needs data rows after the header",
         )
+    return raw
 
-    # SI conversion, column by column.
-    data: dict[str, np.ndarray] = {}
-    for name, (spec, idx) in selected.items():
-        data[name] = spec.to_si(raw[idx].to_numpy(dtype=np.float64))
 
-    def line_of(pos: int) -> int:
-        return layout.header_line + 1 + int(pos)
+@dataclass
+class _Where:
+    """Names a cell of the file for error messages: the line as an editor shows it, the column."""
 
-    def col_desc(name: str) -> str:
-        spec = selected[name][0]
+    shown: str
+    layout: _Layout
+    selected: dict
+    kept_pos: np.ndarray
+
+    def line(self, j: int) -> int:
+        """Editor line of the j-th kept data row."""
+        return self.layout.header_line + 1 + int(self.kept_pos[j])
+
+    def column(self, name: str) -> str:
+        spec = self.selected[name][0]
         return repr(spec.header) + (f" ({spec.canonical})" if spec.header != spec.canonical else "")
 
-    # Blank / NaN cells.
-    names = list(data)
-    nan_mask = np.zeros(n_rows_raw, dtype=bool)
-    for name in names:
-        nan_mask |= np.isnan(data[name])
-    kept_pos = np.arange(n_rows_raw)
-    n_dropped = 0
-    if nan_mask.any():
-        if not drop_na:
-            pos = int(np.flatnonzero(nan_mask)[0])
-            bad = next(n for n in names if np.isnan(data[n][pos]))
-            n_bad = int(nan_mask.sum())
-            raise InputError(
-                f"{shown}: line {line_of(pos)}, column {col_desc(bad)}: blank or NaN cell"
-                + (f" ({n_bad} rows have one)" if n_bad > 1 else ""),
-                "fill the cell, or drop incomplete rows with drop_na=True (CLI: --drop-na)",
-            )
-        keep = ~nan_mask
-        kept_pos = np.flatnonzero(keep)
-        n_dropped = int(nan_mask.sum())
-        data = {n: v[keep] for n, v in data.items()}
+    def cell(self, j: int, name: str) -> str:
+        return f"{self.shown}: line {self.line(j)}, column {self.column(name)}"
 
-    # Infinite values (e.g. "inf" or 1e400 in the file).
-    for name in names:
-        bad = ~np.isfinite(data[name])
-        if bad.any():
-            j = int(np.flatnonzero(bad)[0])
+
+def _drop_blank(data: dict, where: _Where, drop_na: bool) -> tuple[dict, int]:
+    """Refuse blank or NaN cells, or with ``drop_na`` drop their rows; (data, rows dropped)."""
+    nan_mask = np.zeros(len(where.kept_pos), dtype=bool)
+    for v in data.values():
+        nan_mask |= np.isnan(v)
+    if not nan_mask.any():
+        return data, 0
+    if not drop_na:
+        pos = int(np.flatnonzero(nan_mask)[0])
+        bad = next(n for n in data if np.isnan(data[n][pos]))
+        n_bad = int(nan_mask.sum())
+        raise InputError(
+            f"{where.cell(pos, bad)}: blank or NaN cell" + (f" ({n_bad} rows have one)" if n_bad > 1 else ""),
+            "fill the cell, or drop incomplete rows with drop_na=True (CLI: --drop-na)",
+        )
+    keep = ~nan_mask
+    where.kept_pos = np.flatnonzero(keep)
+    return {n: v[keep] for n, v in data.items()}, int(nan_mask.sum())
+
+
+def _first_bad(mask: np.ndarray) -> int | None:
+    return int(np.flatnonzero(mask)[0]) if mask.any() else None
+
+
+def _check_values(data: dict, kind: str, where: _Where, n_dropped: int) -> None:
+    """Refuse infinite values, too few rows, time that does not increase, impossible values."""
+    for name in data:
+        j = _first_bad(~np.isfinite(data[name]))
+        if j is not None:
             raise InputError(
-                f"{shown}: line {line_of(kept_pos[j])}, column {col_desc(name)}: "
-                f"non-finite value {data[name][j]!r}",
+                f"{where.cell(j, name)}: non-finite value {data[name][j]!r}",
                 "every cell must be a finite number",
             )
-
-    n = len(kept_pos)
+    n = len(where.kept_pos)
     if n < MIN_ROWS[kind]:
         raise InputError(
-            f"{shown}: only {n} usable data row{'s' if n != 1 else ''}"
+            f"{where.shown}: only {n} usable data row{'s' if n != 1 else ''}"
             + (f" ({n_dropped} dropped for blank cells)" if n_dropped else "")
             + f"; a {kind} run needs at least {MIN_ROWS[kind]}",
             "record a longer run",
         )
-
     if "time" in data:
         t = data["time"]
         dt = np.diff(t)
-        bad = ~(dt > 0)
-        if bad.any():
-            j = int(np.flatnonzero(bad)[0]) + 1
+        j = _first_bad(~(dt > 0))
+        if j is not None:
+            j += 1
             what = "duplicated" if dt[j - 1] == 0 else "decreasing"
             raise InputError(
-                f"{shown}: line {line_of(kept_pos[j])}, column {col_desc('time')}: {what} time "
-                f"{t[j]:.9g} s after {t[j - 1]:.9g} s on line {line_of(kept_pos[j - 1])}",
+                f"{where.cell(j, 'time')}: {what} time {t[j]:.9g} s after {t[j - 1]:.9g} s on line {where.line(j - 1)}",
                 "time must increase strictly from row to row; split concatenated runs into separate files",
             )
-
     for name in _NONNEGATIVE:
-        if name in data:
-            bad = data[name] < 0
-            if bad.any():
-                j = int(np.flatnonzero(bad)[0])
-                raise InputError(
-                    f"{shown}: line {line_of(kept_pos[j])}, column {col_desc(name)}: "
-                    f"negative resistance {data[name][j]:.6g} ohm",
-                    "a resistance cannot be negative; check the column mapping and its unit",
-                )
-
-    if "temperature" in data:
-        bad = data["temperature"] < ABSOLUTE_ZERO_C
-        if bad.any():
-            j = int(np.flatnonzero(bad)[0])
+        j = _first_bad(data[name] < 0) if name in data else None
+        if j is not None:
             raise InputError(
-                f"{shown}: line {line_of(kept_pos[j])}, column {col_desc('temperature')}: "
-                f"temperature {data['temperature'][j]:.6g} degC is below absolute zero (-273.15 degC)",
-                "check the temperature unit (degC, degF or K) in [columns]",
+                f"{where.cell(j, name)}: negative resistance {data[name][j]:.6g} ohm",
+                "a resistance cannot be negative; check the column mapping and its unit",
             )
+    j = _first_bad(data["temperature"] < ABSOLUTE_ZERO_C) if "temperature" in data else None
+    if j is not None:
+        raise InputError(
+            f"{where.cell(j, 'temperature')}: temperature {data['temperature'][j]:.6g} degC is below "
+            "absolute zero (-273.15 degC)",
+            "check the temperature unit (degC, degF or K) in [columns]",
+        )
 
+
+def _read_run(
+    p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None, drop_na: bool, max_bytes: int
+) -> RunData:
+    """:func:`read_run` without the translation of OSError."""
+    size = _check_file(p, shown, kind, max_bytes)
+    specs = {
+        c: column_spec(kind, c, spec, where=f"{shown}: [columns]") for c, spec in (columns or {}).items()
+    }
+    layout = _sniff(p, shown)
+    selected = _select_columns(shown, kind, layout, specs)
+    raw = _read_values(p, shown, layout, selected, size)
+    data = {name: spec.to_si(raw[idx].to_numpy(dtype=np.float64)) for name, (spec, idx) in selected.items()}
+    where = _Where(shown, layout, selected, np.arange(len(raw)))
+    data, n_dropped = _drop_blank(data, where, drop_na)
+    _check_values(data, kind, where, n_dropped)
     displacement_zero = 0.0
     if "displacement" in data:
         displacement_zero = float(data["displacement"][0])
         if displacement_zero != 0.0:
             data["displacement"] = data["displacement"] - displacement_zero
-
     if "force" in _kinds.get_kind(kind).tension_outputs:
         _check_pull_force(shown, data, selected)
-
     frame = pd.DataFrame(data)
     frame.index = pd.RangeIndex(len(frame))
-    units = {}
-    for name, (spec, _) in selected.items():
-        units[name] = SI_UNITS[_dimension(spec.unit)]
     return RunData(
         path=p,
         kind=kind,
         data=frame,
         sha256=sha256_file(p),
-        n_rows_raw=n_rows_raw,
+        n_rows_raw=len(raw),
         n_dropped=n_dropped,
         source_columns={name: spec.header for name, (spec, _) in selected.items()},
         header_line=layout.header_line,
         displacement_zero=displacement_zero,
-        units=units,
+        units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in selected.items()},
     )
 
 

@@ -27,7 +27,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "tcamlab.config:load_experiment": SPLIT,
     "tcamlab.fitting:fit_spring": SPLIT,
     "tcamlab.io:column_spec": SPLIT,
-    "tcamlab.io:_read_run": SPLIT,
     "tcamlab.models._roots:bracketed_newton": SPLIT,
     "tcamlab.models.dynamic:response": SPLIT,
     "tcamlab.models.dynamic:monte_carlo": SPLIT,
