@@ -395,8 +395,43 @@ def load_experiment(
         missing key, wrong type, missing run file, impossible sample or rig,
         or a kind other than ``expected_kind``.
     """
-    p = Path(path)
-    shown = str(path)
+    p, shown = Path(path), str(path)
+    raw = _read_toml(p, shown)
+    try:
+        doc = (_ExperimentFile if require_runs else _TemplateFile).model_validate(raw)
+    except ValidationError as exc:
+        raise _translate(exc, shown) from None
+    kind = doc.kind
+    if expected_kind is not None and expected_kind != kind:
+        raise ConfigError(
+            f"{shown}: this is a {kind!r} experiment, not {expected_kind!r}",
+            f"run it with the '{kind}' subcommand",
+        )
+    runs = _resolve_runs(doc.runs, p, shown, require_runs)
+    columns, thresholds = _columns(doc, kind, shown), _thresholds(doc, shown)
+    sample, sample_prov = _build_sample(doc, shown)
+    sample_unc = _sample_uncertainty(doc, shown)
+    rig, rig_prov = _build_rig(doc, shown)
+    return Experiment(
+        path=p.resolve(),
+        name=p.stem,
+        kind=kind,
+        title=doc.title,
+        notes=doc.notes,
+        runs=tuple(runs),
+        sample=sample,
+        rig=rig,
+        columns=columns,
+        thresholds=thresholds,
+        synthetic=doc.synthetic.model_dump() if doc.synthetic else None,
+        provenance={**sample_prov, **rig_prov, **{f"sd({k})": EXPERIMENT_FILE for k in sample_unc}},
+        raw=raw,
+        sample_uncertainty=sample_unc,
+    )
+
+
+def _read_bytes(p: Path, shown: str) -> bytes:
+    """The file's bytes, refusing a missing, special or oversized file."""
     try:
         is_file, exists = p.is_file(), p.exists()
     except (OSError, ValueError) as exc:
@@ -416,17 +451,22 @@ def load_experiment(
                 f"{MAX_EXPERIMENT_BYTES} bytes",
                 "an experiment file is a few lines of TOML; check that the right file is named",
             )
-        data = p.read_bytes()
+        return p.read_bytes()
     except OSError as exc:
         raise ConfigError(
             f"{shown}: cannot read the file ({exc.strerror or exc})", "check that it exists and is readable"
         ) from None
+
+
+def _read_toml(p: Path, shown: str) -> dict:
+    """The parsed TOML document, with a one-line error for anything that is not UTF-8 TOML."""
+    data = _read_bytes(p, shown)
     # Editors on Windows often save UTF-8 with a byte-order mark, which
     # tomllib refuses as an "invalid statement" at line 1: accept it.
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     try:
-        raw = tomllib.loads(data.decode("utf-8"))
+        return tomllib.loads(data.decode("utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(
             f"{shown}: TOML syntax error: {' '.join(str(exc).split())}",
@@ -442,22 +482,12 @@ def load_experiment(
             "arrays and tables nest only a few levels in an experiment file",
         ) from None
 
-    try:
-        doc = (_ExperimentFile if require_runs else _TemplateFile).model_validate(raw)
-    except ValidationError as exc:
-        raise _translate(exc, shown) from None
 
-    kind = doc.kind
-    if expected_kind is not None and expected_kind != kind:
-        raise ConfigError(
-            f"{shown}: this is a {kind!r} experiment, not {expected_kind!r}",
-            f"run it with the '{kind}' subcommand",
-        )
-
-    # runs
+def _resolve_runs(run_list, p: Path, shown: str, require_runs: bool) -> list[Path]:
+    """Run paths resolved against the experiment file's folder, checked to be files."""
     base = p.resolve().parent
     runs = []
-    for i, run in enumerate(doc.runs):
+    for i, run in enumerate(run_list):
         shown_run = _short(run)
         if not run.strip() or "\x00" in run:
             raise ConfigError(
@@ -481,47 +511,31 @@ def load_experiment(
                 "run paths are relative to the experiment file",
             )
         runs.append(rp)
+    return runs
 
-    # columns
+
+def _columns(doc: _ExperimentFile, kind: str, shown: str) -> dict[str, Any]:
+    """The [columns] table, each entry checked against the kind's canonical columns."""
     columns: dict[str, Any] = {}
     for canon, spec in doc.columns.items():
-        where = f"{shown}: columns"
         if isinstance(spec, Mapping):
             try:
                 _ColumnTable.model_validate(spec)
             except ValidationError as exc:
                 raise _translate(exc, shown, prefix=("columns", canon)) from None
-        tio.column_spec(kind, canon, spec, where=where, error=ConfigError)
+        tio.column_spec(kind, canon, spec, where=f"{shown}: columns", error=ConfigError)
         columns[canon] = dict(spec) if isinstance(spec, Mapping) else spec
+    return columns
 
-    # thresholds
+
+def _thresholds(doc: _ExperimentFile, shown: str) -> dict[str, float]:
+    """The [thresholds] table as finite numbers."""
     thresholds: dict[str, float] = {}
     for name, value in doc.thresholds.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{shown}: thresholds.{name}: expected a number, got {_short(value)}")
         thresholds[name] = _finite(shown, f"thresholds.{name}", value)
-
-    sample, sample_prov = _build_sample(doc, shown)
-    sample_unc = _sample_uncertainty(doc, shown)
-    rig, rig_prov = _build_rig(doc, shown)
-    provenance = {**sample_prov, **rig_prov, **{f"sd({k})": EXPERIMENT_FILE for k in sample_unc}}
-
-    return Experiment(
-        path=p.resolve(),
-        name=p.stem,
-        kind=kind,
-        title=doc.title,
-        notes=doc.notes,
-        runs=tuple(runs),
-        sample=sample,
-        rig=rig,
-        columns=columns,
-        thresholds=thresholds,
-        synthetic=doc.synthetic.model_dump() if doc.synthetic else None,
-        provenance=provenance,
-        raw=raw,
-        sample_uncertainty=sample_unc,
-    )
+    return thresholds
 
 
 def _build_sample(doc: _ExperimentFile, shown: str) -> tuple[Sample, dict[str, str]]:
