@@ -21,18 +21,19 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parent.parent / "tcamlab"
 MAX_FUNCTION_LINES = 80
 
-SPLIT = "being split under the architecture issue"
+
+DOCSTRING = "within the limit without its numpy docstring (parameters with units, equations)"
 
 LONG_FUNCTIONS: dict[str, str] = {
-    "tcamlab.fitting:fit_spring": SPLIT,
-    "tcamlab.io:column_spec": SPLIT,
-    "tcamlab.models._roots:bracketed_newton": SPLIT,
-    "tcamlab.models.dynamic:response": SPLIT,
-    "tcamlab.models.dynamic:monte_carlo": SPLIT,
-    "tcamlab.models.sensing:invert": SPLIT,
-    "tcamlab.models.sensing:forward": SPLIT,
-    "tcamlab.models.static:displacement": SPLIT,
-    "tcamlab.report.diagnosis_report:diagnosis_section": SPLIT,
+    "tcamlab.fitting:fit_spring": DOCSTRING,
+    "tcamlab.io:column_spec": DOCSTRING,
+    "tcamlab.models._roots:bracketed_newton": DOCSTRING,
+    "tcamlab.models.dynamic:response": DOCSTRING,
+    "tcamlab.models.dynamic:monte_carlo": DOCSTRING,
+    "tcamlab.models.sensing:forward": "81 lines without its docstring; to split with the self-sensing model (R(T, delta))",
+    "tcamlab.models.sensing:invert": "88 lines without its docstring: the root bracketing of (3.6); to split with the self-sensing model",
+    "tcamlab.models.static:displacement": "104 lines without its docstring: solver set-up of (2.10)-(2.11); to split",
+    "tcamlab.report.diagnosis_report:diagnosis_section": "to be rebuilt under the honest-reports issue",
 }
 """module:qualified name -> why it may stay longer than MAX_FUNCTION_LINES."""
 
