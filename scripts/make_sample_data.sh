@@ -10,7 +10,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-KINDS="static dynamic sensing curvature"
+KINDS=$(python -c "from tcamlab.kinds import KINDS; print(' '.join(KINDS))")
 SEED=1
 
 if tcamlab simulate --help >/dev/null 2>&1; then
