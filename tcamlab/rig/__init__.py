@@ -14,6 +14,12 @@ The experiment file and the CSVs do not reveal which effects are active; the
 truth (effects, their strength and physical values, per-run sample
 parameters, noise levels, seed) goes to ``truth/<name>.truth.json``.
 
+The rig can also lie like a real lab (both off by default): with
+``parameter_error`` the true parameters are drawn away from the stated ones
+by their stated sds (:mod:`.lies`), and with ``noisy_zero`` each run is
+zeroed on one noisy reading (the kinds' ``measure``); only the truth file
+says so.
+
 Everything that differs between rig kinds is the kind's own
 (:class:`tcamlab.kinds.Kind`: ``protocol``, ``exact_inputs``, ``measure``,
 ``instrument_sd``, the written columns and rig fields, the scatter); this
@@ -50,7 +56,9 @@ instruments.LASER_SPAN_M, ADC_BITS     10 mm, 10 bit       0..10 mm laser output
                                                            (instruments.LASER_QUANTUM_M)
 instruments.LASER_TARE_SAMPLES         64                  the sketch zeroes on the mean of 64 readings at rest
                                                            and logs that mean as row 0 (0.000 mm); later rows
-                                                           carry the tare error (about sd / 8) as an offset
+                                                           carry the tare error (about sd / 8) as an offset;
+                                                           ``noisy_zero``: row 0 is one reading, the offset
+                                                           is about one noise sd
 instruments.LASER_LOG_RESOLUTION_M     1 um                displacement written with 3 decimals in mm
 static.KIND.default_runs               3                   three repeats of the oven test
 **dynamic voltage-step test** (thesis sec. 2.5.2)
@@ -73,7 +81,8 @@ sensing.PULL_RATE_HZ                   10 Hz               logging rate
 instruments.ENCODER_RESOLUTION_M       0.01 mm             actuator encoder; the programmed positions are on
                                                            its grid, so the logged position is exact
 instruments.LOADCELL_SD_N              2 mN                LSP-5 load cell with its amplifier
-instruments.LOADCELL_OFFSET_N          -0.4 mN             residual zero offset after taring
+instruments.LOADCELL_OFFSET_N          -0.4 mN             residual zero offset after taring; ``noisy_zero``:
+                                                           minus one reading's noise, redrawn per run
 instruments.LOADCELL_SPAN_N, _BITS     +-0.5 N, 12 bit     amplifier span read by a 12-bit ADC: quantum
                                                            1 N / 4095 = 0.244 mN
 instruments.OHMMETER_SD_OHM            2 mohm              bench multimeter noise on a 10-30 ohm sensor
