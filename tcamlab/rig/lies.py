@@ -6,8 +6,9 @@ file has one); the real values lie somewhere inside it. With a parameter
 error F (:func:`tcamlab.rig.simulate` ``parameter_error``) the rig draws
 each stated parameter's TRUE value from a distribution with the stated value
 as its mean and F stated sds as its sd (z ~ N(0, 1): one seeded draw per
-parameter in sorted field order, from a stream of its own, so the runs' noise
-is the same with or without it):
+parameter, from a stream keyed by the seed and the field's name, so neither
+the runs' noise nor another parameter's draw depends on which parameters are
+stated):
 
 - a positive parameter is log-normal, so it stays positive:
   true = exp(mu + s z), s^2 = ln(1 + (F sd / stated)^2), mu = ln(stated) - s^2 / 2
@@ -28,6 +29,7 @@ the draw (:func:`draw_parameters`).
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -43,7 +45,7 @@ SIGNED_FIELDS = frozenset({"ambient", "radial_cte", "shear_modulus_slope"})
 """Fields drawn from a normal distribution (they may take any sign or be zero)."""
 
 LIES_STREAM = (0x11E5, 1)
-"""Appended to the seed to key the parameter draw's stream (the runs use ``[seed, k]``)."""
+"""Keys a parameter's stream after the seed, before the CRC-32 of its name (the runs use ``[seed, k]``)."""
 
 _SAMPLE_FIELDS = frozenset(Sample.__dataclass_fields__)
 _RIG_FIELDS = frozenset(Rig.__dataclass_fields__) - {"uncertainty"}
@@ -155,10 +157,9 @@ def draw_parameters(
         F [-]: each true value has the stated mean and F stated sds as its sd.
     offsets : mapping, optional
         {SI field: d}: exact offsets in stated sds, true = stated + d sd,
-        instead of a draw (every field still takes its z, so the others do
-        not change).
+        instead of a draw.
     seed : int
-        The simulation seed (the stream is ``[seed, *LIES_STREAM]``).
+        The simulation seed (a field's stream is ``[seed, *LIES_STREAM, crc32(field)]``).
 
     Returns
     -------
@@ -175,7 +176,6 @@ def draw_parameters(
             f"parameter offsets: {', '.join(unknown)} have no stated uncertainty",
             hint="stated fields: " + (", ".join(sorted(sds)) or "none (add [rig.uncertainty])"),
         )
-    rng = np.random.default_rng([int(seed), *LIES_STREAM])
     record: dict[str, dict] = {}
     s_changes: dict[str, Any] = {}
     r_changes: dict[str, Any] = {}
@@ -185,6 +185,7 @@ def draw_parameters(
         )
         stated = getattr(owner, fld)
         n = len(stated) if isinstance(stated, tuple) else 1
+        rng = np.random.default_rng([int(seed), *LIES_STREAM, zlib.crc32(fld.encode())])
         z = rng.normal(size=n)
         if stated is None:
             continue
