@@ -329,6 +329,15 @@ def simulate(
         "--oven",
         help="Static oven program: heating (thesis, 25->150 degC) or heat-cool (and back down).",
     ),
+    parameter_error: float = typer.Option(
+        0.0,
+        "--parameter-error",
+        help="F: draw the true parameters with the stated [rig.uncertainty] sds times F "
+        "(kept out of the experiment file; truth file only).",
+    ),
+    noisy_zero: bool = typer.Option(
+        False, "--noisy-zero", help="Zero each run on one noisy reading instead of the averaged tare."
+    ),
 ):
     """Virtual rig: write synthetic run CSVs and an experiment file from the models.
 
@@ -352,6 +361,8 @@ def simulate(
         scatter=scatter,
         noise_scale=noise_scale,
         oven=oven,
+        parameter_error=parameter_error,
+        noisy_zero=noisy_zero,
     )
     typer.echo(f"wrote {res.experiment_path} and {len(res.run_paths)} runs")
 
@@ -443,6 +454,9 @@ def _print_scores(sc: dict) -> None:
     null = sc["null"]
     if null["n"]:
         typer.echo(f"null cases: {null['false_attributions']} false attributions of {null['n']}")
+    lying = sc.get("null_miscalibrated")
+    if lying:
+        typer.echo(f"null, miscalibrated: {lying['false_attributions']} false attributions of {lying['n']}")
     if sc.get("median_shrinkage_when_right") is not None:
         typer.echo(f"median held-out shrinkage when right: {100 * sc['median_shrinkage_when_right']:.0f}%")
     if sc["errors"]:
@@ -460,6 +474,11 @@ def benchmark_diagnose(
     ),
     kind: list[str] | None = typer.Option(None, "--kind", help="Only this rig kind (repeatable)."),
     effect: list[str] | None = typer.Option(None, "--effect", help="Only this effect (repeatable)."),
+    lies: bool = typer.Option(
+        False,
+        "--lies",
+        help="Add null cases of a lying rig (parameters 1 stated sd off, noisy zeros), scored apart.",
+    ),
 ):
     """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
 
@@ -479,6 +498,7 @@ def benchmark_diagnose(
         scheduler=scheduler,
         workers=workers,
         seeds=seeds,
+        lies=lies,
     )
     _print_scores(res.scores)
     typer.echo(f"wrote {out}")

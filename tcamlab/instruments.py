@@ -42,10 +42,12 @@ __all__ = [
     "thermometer",
     "thermometer_sd",
     "laser",
+    "laser_zeroed",
     "laser_sd",
     "encoder",
     "encoder_sd",
     "load_cell",
+    "load_cell_tare",
     "load_cell_sd",
     "ohmmeter",
     "ohmmeter_sd",
@@ -140,22 +142,44 @@ def thermometer_sd(noise_scale: float = 1.0) -> float:
     return chain_sd(THERMOMETER_SD_C, THERMOMETER_RESOLUTION_C, noise_scale=noise_scale)
 
 
-def laser(displacement: np.ndarray, rng: np.random.Generator, noise_scale: float) -> np.ndarray:
-    """Logged displacement [m] through the laser, its 10-bit ADC and the tare.
+def laser(
+    displacement: np.ndarray, rng: np.random.Generator, noise_scale: float, *, noisy_zero: bool = False
+) -> np.ndarray:
+    """Logged displacement [m] through the laser, its 10-bit ADC and the zero (:func:`laser_zeroed`)."""
+    return laser_zeroed(displacement, rng, noise_scale, noisy_zero=noisy_zero)[0]
 
-    The sensor rests near mid-span (a random mount within +-0.5 mm); the
-    sketch zeroes on the mean code of :data:`LASER_TARE_SAMPLES` readings at
-    rest and logs that as row 0 (exactly 0), so later rows carry the tare
-    error as an offset. Written to :data:`LASER_LOG_RESOLUTION_M`.
+
+def laser_zeroed(
+    displacement: np.ndarray, rng: np.random.Generator, noise_scale: float, *, noisy_zero: bool = False
+) -> tuple[np.ndarray, float]:
+    """Logged displacement [m] through the laser, its 10-bit ADC and the zero, and the zero error [m].
+
+    The sensor rests near mid-span (a random mount within +-0.5 mm). By
+    default the sketch zeroes on the mean code of :data:`LASER_TARE_SAMPLES`
+    readings at rest and logs that as row 0 (exactly 0), so later rows carry
+    the tare error (about sd / 8) as an offset. With ``noisy_zero`` the zero
+    is the run's first reading itself (a lab that zeroes on one reading, or
+    re-zeroes its log on the first row): row 0 is still 0, and every later
+    row carries that reading's noise and quantisation (about one noise sd)
+    as an offset. Written to :data:`LASER_LOG_RESOLUTION_M`.
 
     Parameters
     ----------
     displacement : ndarray
         True displacement from the first row [m].
     rng : numpy.random.Generator
-        Draws the mount, the tare readings and the readings, in that order.
+        Draws the mount, the tare readings (not with ``noisy_zero``) and the
+        readings, in that order.
     noise_scale : float
         Multiplies :data:`LASER_NOISE_SD_M`.
+    noisy_zero : bool
+        Zero on the first reading instead of the averaged tare.
+
+    Returns
+    -------
+    (ndarray, float)
+        The logged displacement [m] and the zero error [m]: the constant the
+        rows after the first carry, logged = true + zero error + noise.
     """
     ns = float(noise_scale)
     disp = np.asarray(displacement, float)
@@ -165,13 +189,18 @@ def laser(displacement: np.ndarray, rng: np.random.Generator, noise_scale: float
     def codes(x):
         return np.clip(np.round((rest + x) / LASER_QUANTUM_M), 0, top)
 
-    tare = codes(
-        np.full(LASER_TARE_SAMPLES, 0.0) + ns * rng.normal(0.0, LASER_NOISE_SD_M, LASER_TARE_SAMPLES)
-    ).mean()
-    reading = codes(disp + ns * rng.normal(0.0, LASER_NOISE_SD_M, disp.size))
-    out = (reading - tare) * LASER_QUANTUM_M
+    if noisy_zero:
+        reading = codes(disp + ns * rng.normal(0.0, LASER_NOISE_SD_M, disp.size))
+        zero, zero_at = reading[0], disp[0]
+    else:
+        zero = codes(
+            np.full(LASER_TARE_SAMPLES, 0.0) + ns * rng.normal(0.0, LASER_NOISE_SD_M, LASER_TARE_SAMPLES)
+        ).mean()
+        zero_at = 0.0
+        reading = codes(disp + ns * rng.normal(0.0, LASER_NOISE_SD_M, disp.size))
+    out = (reading - zero) * LASER_QUANTUM_M
     out[0] = 0.0
-    return quantise(out, LASER_LOG_RESOLUTION_M)
+    return quantise(out, LASER_LOG_RESOLUTION_M), float(rest + zero_at - zero * LASER_QUANTUM_M)
 
 
 def laser_sd(noise_scale: float = 1.0) -> float:
@@ -189,12 +218,27 @@ def encoder_sd() -> float:
     return chain_sd(0.0, ENCODER_RESOLUTION_M)
 
 
-def load_cell(force: np.ndarray, rng: np.random.Generator, noise_scale: float) -> np.ndarray:
-    """Logged force [N]: zero offset and noise, then the amplifier's 12-bit ADC (clipped to its span)."""
+def load_cell(
+    force: np.ndarray, rng: np.random.Generator, noise_scale: float, *, offset: float = LOADCELL_OFFSET_N
+) -> np.ndarray:
+    """Logged force [N]: zero offset and noise, then the amplifier's 12-bit ADC (clipped to its span).
+
+    ``offset`` [N] is the zero offset after taring (default the rig's fixed
+    :data:`LOADCELL_OFFSET_N`; :func:`load_cell_tare` draws a run's own).
+    """
     f = np.asarray(force, float)
-    reading = f + LOADCELL_OFFSET_N + float(noise_scale) * rng.normal(0.0, LOADCELL_SD_N, f.size)
+    reading = f + offset + float(noise_scale) * rng.normal(0.0, LOADCELL_SD_N, f.size)
     code = np.clip(np.round((reading - LOADCELL_SPAN_N[0]) / LOADCELL_QUANTUM_N), 0, 2**LOADCELL_BITS - 1)
     return code * LOADCELL_QUANTUM_N + LOADCELL_SPAN_N[0]
+
+
+def load_cell_tare(rng: np.random.Generator, noise_scale: float) -> float:
+    """A run's zero offset [N] when the load cell is tared on one noisy reading.
+
+    The fixed residual :data:`LOADCELL_OFFSET_N` minus the noise of the one
+    tare reading, N(0, noise_scale :data:`LOADCELL_SD_N`): redrawn per run.
+    """
+    return LOADCELL_OFFSET_N - float(noise_scale) * rng.normal(0.0, LOADCELL_SD_N)
 
 
 def load_cell_sd(noise_scale: float = 1.0) -> float:

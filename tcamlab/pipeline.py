@@ -370,6 +370,8 @@ def simulate_experiment(
     scatter=None,
     noise_scale: float = 1.0,
     oven: str = "heating",
+    parameter_error: float = 0.0,
+    noisy_zero: bool = False,
 ):
     """Virtual rig: write ``out_dir/{experiments,raw,truth}/`` for one simulated experiment.
 
@@ -377,7 +379,8 @@ def simulate_experiment(
     naming the template shipped in :mod:`tcamlab.templates`. ``effects`` and
     ``scatter`` are dicts or ``NAME=NUMBER`` strings (the CLI's repeated
     options): effect strengths in noise RMS, relative scatter of Sample/Rig
-    fields. Returns :class:`tcamlab.rig.SimulationResult`.
+    fields. ``parameter_error`` and ``noisy_zero`` make the rig lie like a
+    real lab (:func:`tcamlab.rig.simulate`). Returns :class:`tcamlab.rig.SimulationResult`.
     """
     from tcamlab import rig
     from tcamlab.templates import resolve_template
@@ -397,6 +400,8 @@ def simulate_experiment(
         oven=oven,
         scatter=scatter,
         effects=effects,
+        parameter_error=parameter_error,
+        noisy_zero=noisy_zero,
     )
     return rig.simulate(
         kind,
@@ -410,6 +415,8 @@ def simulate_experiment(
         noise_scale=noise_scale,
         oven=oven,
         command=command,
+        parameter_error=parameter_error,
+        noisy_zero=noisy_zero,
     )
 
 
@@ -464,7 +471,7 @@ def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, **options):
     """Withheld-effect benchmark of the diagnosis (:func:`tcamlab.benchmark.run_benchmark`).
 
     ``kinds`` (default all) are checked first, so a typo fails before minutes
-    of simulation; ``options`` are ``quick``, ``scheduler``, ``workers``, ``seeds``.
+    of simulation; ``options`` are ``quick``, ``scheduler``, ``workers``, ``seeds``, ``lies``.
     """
     from tcamlab.benchmark import run_benchmark
 

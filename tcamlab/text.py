@@ -19,6 +19,7 @@ __all__ = [
     "validate_command",
     "simulate_command",
     "public_command",
+    "HIDDEN_SIMULATE_OPTIONS",
 ]
 
 
@@ -93,6 +94,8 @@ def simulate_command(
     oven: str = "heating",
     scatter: Mapping[str, float] | None = None,
     effects: Mapping[str, float] | None = None,
+    parameter_error: float = 0.0,
+    noisy_zero: bool = False,
 ) -> str:
     """The simulate command line recorded in experiment and truth files (defaults left out)."""
     options = [
@@ -103,28 +106,36 @@ def simulate_command(
         ("--name", name),
         ("--noise-scale", None if noise_scale == 1.0 else repr(float(noise_scale))),
         ("--oven", None if oven == "heating" else oven),
+        ("--parameter-error", _number(parameter_error) if parameter_error else None),
+        ("--noisy-zero", bool(noisy_zero)),
     ]
     options += [("--scatter", f"{k}={_number(v)}") for k, v in (scatter or {}).items()]
     options += [("--effect", f"{k}={_number(v)}") for k, v in (effects or {}).items()]
     return command_line("simulate", kind, options=options)
 
 
+HIDDEN_SIMULATE_OPTIONS = {"--effect": 1, "-e": 1, "--parameter-error": 1, "--noisy-zero": 0}
+"""simulate options the experiment file must not show (option -> values it takes): the
+effects and the rig's lies (true parameters off the stated ones, noisy zeros)."""
+
+
 def public_command(command: str) -> str:
-    """A simulate command line without its ``--effect`` options, for the experiment
-    file (which must not reveal the effects; the truth file keeps them)."""
+    """A simulate command line without its hidden options (:data:`HIDDEN_SIMULATE_OPTIONS`),
+    for the experiment file, which must not reveal the effects or the rig's lies; the
+    truth file keeps them."""
     try:
         parts = shlex.split(command)
     except ValueError:
         return "tcamlab simulate"
-    out, skip = [], False
+    out, skip = [], 0
     for p in parts:
         if skip:
-            skip = False
+            skip -= 1
             continue
-        if p in ("--effect", "-e"):
-            skip = True
+        if p in HIDDEN_SIMULATE_OPTIONS:
+            skip = HIDDEN_SIMULATE_OPTIONS[p]
             continue
-        if p.startswith("--effect="):
+        if p.split("=", 1)[0] in HIDDEN_SIMULATE_OPTIONS and "=" in p:
             continue
         out.append(p)
     return shlex.join(out)

@@ -242,9 +242,13 @@ def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
 
 
 def measure(
-    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float, *, noisy_zero=False
 ) -> pd.DataFrame:
-    """Logged ``cable`` [m] (exact), ``r1``, ``r2`` [ohm] (multimeter), ``kappa1``, ``kappa2`` [1/m] (camera)."""
+    """Logged ``cable`` [m] (exact), ``r1``, ``r2`` [ohm] (multimeter), ``kappa1``, ``kappa2`` [1/m] (camera).
+
+    ``noisy_zero`` changes nothing here: the camera measures absolute
+    curvature and no channel is zeroed on the run (``attrs["zero_error"]`` is empty).
+    """
     out = {"cable": inputs["cable"].to_numpy(float)}
     for c in ("r1", "r2"):
         out[c] = instruments.ohmmeter(inputs[c].to_numpy(float), rng, noise_scale)

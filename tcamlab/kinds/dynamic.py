@@ -254,17 +254,26 @@ def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
 
 
 def measure(
-    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float, *, noisy_zero=False
 ) -> pd.DataFrame:
-    """Logged ``time`` [s], ``voltage`` [V] (exact) and ``displacement`` [m] (laser)."""
-    disp = instruments.laser(np.asarray(outputs["displacement"], float), rng, noise_scale)
-    return pd.DataFrame(
+    """Logged ``time`` [s], ``voltage`` [V] (exact) and ``displacement`` [m] (laser).
+
+    ``noisy_zero``: the laser zeroes on the first reading
+    (:func:`tcamlab.instruments.laser_zeroed`); its zero error [m] is in
+    ``attrs["zero_error"]["displacement"]``.
+    """
+    disp, zero = instruments.laser_zeroed(
+        np.asarray(outputs["displacement"], float), rng, noise_scale, noisy_zero=noisy_zero
+    )
+    out = pd.DataFrame(
         {
             "time": inputs["time"].to_numpy(float),
             "voltage": inputs["voltage"].to_numpy(float),
             "displacement": disp,
         }
     )
+    out.attrs["zero_error"] = {"displacement": zero}
+    return out
 
 
 RIG_FIELDS = (

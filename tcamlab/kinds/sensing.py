@@ -294,15 +294,24 @@ def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
 
 
 def measure(
-    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float, *, noisy_zero=False
 ) -> pd.DataFrame:
-    """Logged ``time`` [s], ``displacement`` [m] (encoder), ``force`` [N] (load cell), ``resistance`` [ohm]."""
+    """Logged ``time`` [s], ``displacement`` [m] (encoder), ``force`` [N] (load cell), ``resistance`` [ohm].
+
+    ``noisy_zero``: the load cell is tared on one noisy reading, so its zero
+    offset is redrawn for the run (:func:`tcamlab.instruments.load_cell_tare`,
+    drawn before the readings); the offset [N] is in
+    ``attrs["zero_error"]["force"]``. The encoder is exact and R is not zeroed.
+    """
     disp = instruments.encoder(outputs["displacement"])
-    force = instruments.load_cell(np.asarray(outputs["force"], float), rng, noise_scale)
+    offset = instruments.load_cell_tare(rng, noise_scale) if noisy_zero else instruments.LOADCELL_OFFSET_N
+    force = instruments.load_cell(np.asarray(outputs["force"], float), rng, noise_scale, offset=offset)
     res = instruments.ohmmeter(inputs["resistance"].to_numpy(float), rng, noise_scale)
-    return pd.DataFrame(
+    out = pd.DataFrame(
         {"time": inputs["time"].to_numpy(float), "displacement": disp, "force": force, "resistance": res}
     )
+    out.attrs["zero_error"] = {"force": offset}
+    return out
 
 
 CALIBRATION = (

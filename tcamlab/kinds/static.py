@@ -179,12 +179,21 @@ def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
 
 
 def measure(
-    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float, *, noisy_zero=False
 ) -> pd.DataFrame:
-    """Logged ``time`` [s], ``temperature`` [degC] (thermometer) and ``displacement`` [m] (laser)."""
+    """Logged ``time`` [s], ``temperature`` [degC] (thermometer) and ``displacement`` [m] (laser).
+
+    ``noisy_zero``: the laser zeroes on the first reading
+    (:func:`tcamlab.instruments.laser_zeroed`); its zero error [m] is in
+    ``attrs["zero_error"]["displacement"]``.
+    """
     temp = instruments.thermometer(inputs["temperature"].to_numpy(float), rng, noise_scale)
-    disp = instruments.laser(np.asarray(outputs["displacement"], float), rng, noise_scale)
-    return pd.DataFrame({"time": inputs["time"].to_numpy(float), "temperature": temp, "displacement": disp})
+    disp, zero = instruments.laser_zeroed(
+        np.asarray(outputs["displacement"], float), rng, noise_scale, noisy_zero=noisy_zero
+    )
+    out = pd.DataFrame({"time": inputs["time"].to_numpy(float), "temperature": temp, "displacement": disp})
+    out.attrs["zero_error"] = {"displacement": zero}
+    return out
 
 
 CALIBRATION = (

@@ -14,6 +14,12 @@ The experiment file and the CSVs do not reveal which effects are active; the
 truth (effects, their strength and physical values, per-run sample
 parameters, noise levels, seed) goes to ``truth/<name>.truth.json``.
 
+The rig can also lie like a real lab (both off by default): with
+``parameter_error`` the true parameters are drawn away from the stated ones
+by their stated sds (:mod:`.lies`), and with ``noisy_zero`` each run is
+zeroed on one noisy reading (the kinds' ``measure``); only the truth file
+says so.
+
 Everything that differs between rig kinds is the kind's own
 (:class:`tcamlab.kinds.Kind`: ``protocol``, ``exact_inputs``, ``measure``,
 ``instrument_sd``, the written columns and rig fields, the scatter); this
@@ -50,7 +56,9 @@ instruments.LASER_SPAN_M, ADC_BITS     10 mm, 10 bit       0..10 mm laser output
                                                            (instruments.LASER_QUANTUM_M)
 instruments.LASER_TARE_SAMPLES         64                  the sketch zeroes on the mean of 64 readings at rest
                                                            and logs that mean as row 0 (0.000 mm); later rows
-                                                           carry the tare error (about sd / 8) as an offset
+                                                           carry the tare error (about sd / 8) as an offset;
+                                                           ``noisy_zero``: row 0 is one reading, the offset
+                                                           is about one noise sd
 instruments.LASER_LOG_RESOLUTION_M     1 um                displacement written with 3 decimals in mm
 static.KIND.default_runs               3                   three repeats of the oven test
 **dynamic voltage-step test** (thesis sec. 2.5.2)
@@ -73,7 +81,8 @@ sensing.PULL_RATE_HZ                   10 Hz               logging rate
 instruments.ENCODER_RESOLUTION_M       0.01 mm             actuator encoder; the programmed positions are on
                                                            its grid, so the logged position is exact
 instruments.LOADCELL_SD_N              2 mN                LSP-5 load cell with its amplifier
-instruments.LOADCELL_OFFSET_N          -0.4 mN             residual zero offset after taring
+instruments.LOADCELL_OFFSET_N          -0.4 mN             residual zero offset after taring; ``noisy_zero``:
+                                                           minus one reading's noise, redrawn per run
 instruments.LOADCELL_SPAN_N, _BITS     +-0.5 N, 12 bit     amplifier span read by a 12-bit ADC: quantum
                                                            1 N / 4095 = 0.244 mN
 instruments.OHMMETER_SD_OHM            2 mohm              bench multimeter noise on a 10-30 ohm sensor
@@ -138,6 +147,7 @@ from tcamlab.kinds import REGISTRY, get_kind, predict
 from tcamlab.kinds.static import OVEN_PROGRAMS
 from tcamlab.params import Rig, Sample
 from tcamlab.report.atomic import atomic_write_text
+from tcamlab.rig.lies import draw_parameters, stated_sds
 from tcamlab.rig.runs import exact_inputs, instrument_sd, measure, program_options, protocol, true_options
 from tcamlab.rig.scatter import rig_truth, scattered
 from tcamlab.rig.strength import DOMAIN_BACKOFF, noise_sd, resolve_effect, scale_effect
@@ -181,7 +191,20 @@ class SimulationResult:
     truth_path : pathlib.Path
         ``out_dir/truth/<name>.truth.json``.
     truth : dict
-        The content of the truth file.
+        The content of the truth file: ``kind``, ``seed``, ``command`` (with
+        the effects and the lies), ``effects`` {name: {requested_strength,
+        parameters {Mods field: SI value}, fixed, achieved_strength,
+        quantities, limited_by}}, ``mods`` (the combined non-default Mods
+        fields), ``scatter``, ``noise_sd`` (:func:`noise_sd`),
+        ``instrument_sd``, the template's (stated) sample and rig, and
+        ``runs`` [{file, sample, rig}] with each run's true (scattered)
+        parameters, SI. With a parameter error also ``parameter_error``,
+        ``parameter_offsets``, ``stated_sd`` {field: sd} and
+        ``true_parameters`` {field: {table, stated, sd, true, z, offset_sd,
+        distribution}} (:func:`tcamlab.rig.lies.draw_parameters`); with
+        ``noisy_zero`` also ``noisy_zero`` and each run's ``zero_error``
+        {logged column: the constant its rows carry, logged = true +
+        zero_error + noise [SI]}.
     """
 
     experiment_path: Path
@@ -205,6 +228,10 @@ class _Plan:
     out: Path
     program: dict[str, Any]
     command: str
+    true_sample: Sample
+    true_rig: Rig
+    true_parameters: dict[str, dict] | None
+    lies: dict[str, Any]
 
 
 @dataclass(frozen=True)
@@ -230,6 +257,10 @@ def simulate(
     name: str | None = None,
     command: str | None = None,
     oven: str = "heating",
+    parameter_error: float = 0.0,
+    parameter_offsets: Mapping[str, float] | None = None,
+    uncertainty: Mapping[str, Any] | None = None,
+    noisy_zero: bool = False,
 ) -> SimulationResult:
     """Simulate an experiment of one rig kind and write it like a lab would.
 
@@ -238,49 +269,52 @@ def simulate(
     kind : str
         ``"static"``, ``"dynamic"``, ``"sensing"`` or ``"curvature"``.
     template : Experiment or path-like
-        Template experiment file (``load_experiment(..., require_runs=False)``);
-        its sample and rig are the truth (sensing: S comes from the
-        template's ``spring_constant_N_per_m`` and is not written out).
+        Template experiment file (``load_experiment(..., require_runs=False)``): the
+        stated sample and rig (sensing S is the template's, never written out).
     seed : int
         Seed of every random draw; same seed and arguments, same bytes.
     out_dir : path-like
-        Writes ``raw/<name>_runN.csv``, ``experiments/<name>.toml`` and
-        ``truth/<name>.truth.json`` under it.
+        Gets ``raw/<name>_runN.csv``, ``experiments/<name>.toml``, ``truth/<name>.truth.json``.
     effects : mapping, optional
-        Effect -> strength (float, in noise sd of the primary quantity, see
-        :func:`scale_effect`) or ``{"value": x}`` (the parameters in SI).
-        An effect is a library name, or names joined by ``+`` acting as one
-        combined effect whose parameters are scaled together
-        (:func:`resolve_effect`). Several effects are scaled one by one and
-        then combined.
+        Effect -> strength (in noise sd of the primary quantity,
+        :func:`scale_effect`) or ``{"value": x}`` (the parameters in SI). Names
+        joined by ``+`` act as one effect (:func:`resolve_effect`); several
+        effects are scaled one by one, then combined.
     n_runs : int, optional
         Runs (default :data:`DEFAULT_RUNS`).
     scatter : mapping, optional
-        SI field of Sample or Rig -> relative sd of its per-run scatter
-        (default :data:`DEFAULT_SCATTER`; ``{}`` for none).
+        {SI field: relative sd} of the per-run scatter (default :data:`DEFAULT_SCATTER`; ``{}``: none).
     noise_scale : float
         Multiplies every instrument noise sd.
     name : str, optional
         Output name (default: the template's file stem).
     command : str, optional
-        The command line recorded in ``[synthetic]`` (``--effect`` options
-        are removed there, kept in the truth file).
+        The command line of the truth file (``[synthetic]`` gets it without
+        the effects and lies, :func:`tcamlab.text.public_command`).
     oven : {"heating", "heat-cool"}
-        Static oven program (:data:`OVEN_PROGRAMS`); ignored by kinds whose
-        protocol takes no oven.
+        Static oven program (:data:`OVEN_PROGRAMS`); kinds without an oven ignore it.
+    parameter_error : float
+        F [-]: every parameter with a stated sd (``[rig.uncertainty]``, a
+        sample uncertainty where the configuration has one, ``uncertainty``)
+        gets a TRUE value drawn with the stated mean and F stated sds
+        (:mod:`tcamlab.rig.lies`), used by every run; the experiment file keeps
+        the stated values. 0 (default): the stated values are the truth.
+    parameter_offsets : mapping, optional
+        {SI field: d}: the true value is exactly stated + d sd (tests).
+    uncertainty : mapping, optional
+        {SI field: sd [SI]}: sds the template does not state (drawn, never written).
+    noisy_zero : bool
+        Zero each run on one noisy reading, not the averaged tare; zero errors go to the truth.
 
     Returns
     -------
     SimulationResult
-        ``truth`` (also written to the truth file) holds ``kind``, ``seed``,
-        ``command`` (with the effects), ``effects`` {name: {requested_strength,
-        parameters {Mods field: SI value}, fixed, achieved_strength, quantities,
-        limited_by}}, ``mods`` (the combined non-default Mods fields),
-        ``scatter``, ``noise_sd`` (:func:`noise_sd`), ``instrument_sd``, the
-        template's sample and rig, and ``runs`` [{file, sample, rig}] with
-        each run's true (scattered) parameters, SI.
+        The paths written and the truth.
     """
-    plan = _plan(kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven)
+    lies = _lies(parameter_error, parameter_offsets, uncertainty, noisy_zero)
+    plan = _plan(
+        kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven, lies
+    )
     runs = _draw_runs(plan)
     sd = _strength_floor(plan)
     effect_truth, mods = _scale_effects(plan, effects or {}, runs, sd)
@@ -295,7 +329,19 @@ def simulate(
 # --- the steps of simulate ----------------------------------------------------------------
 
 
-def _plan(kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven) -> _Plan:
+def _lies(parameter_error, parameter_offsets, uncertainty, noisy_zero) -> dict[str, Any]:
+    """The rig's lies, as :func:`simulate` got them (:mod:`tcamlab.rig.lies`)."""
+    return {
+        "parameter_error": parameter_error,
+        "parameter_offsets": dict(parameter_offsets or {}),
+        "uncertainty": dict(uncertainty or {}),
+        "noisy_zero": bool(noisy_zero),
+    }
+
+
+def _plan(
+    kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven, lies
+) -> _Plan:
     """Check the arguments of :func:`simulate` and settle its defaults."""
     get_kind(kind)
     if isinstance(template, tconfig.Experiment):
@@ -325,8 +371,11 @@ def _plan(kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, 
             name=None if name == exp.name else name,
             noise_scale=noise_scale,
             effects=strengths,
+            parameter_error=lies["parameter_error"],
+            noisy_zero=lies["noisy_zero"],
             **program,
         )
+    true_sample, true_rig, true_parameters = _true_parameters(kind, exp, int(seed), lies)
     return _Plan(
         kind=kind,
         exp=exp,
@@ -339,6 +388,23 @@ def _plan(kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, 
         out=Path(out_dir),
         program=program,
         command=command,
+        true_sample=true_sample,
+        true_rig=true_rig,
+        true_parameters=true_parameters,
+        lies=lies,
+    )
+
+
+def _true_parameters(kind: str, exp, seed: int, lies: Mapping[str, Any]) -> tuple[Sample, Rig, dict | None]:
+    """The true sample and rig behind the stated ones, and their record (None: no parameter error)."""
+    error = lies["parameter_error"]
+    if not (isinstance(error, (int, float)) and math.isfinite(error) and error >= 0):
+        raise ConfigError(f"parameter_error must be finite and >= 0, got {error!r}")
+    if not error and not lies["parameter_offsets"]:
+        return exp.sample, exp.rig, None
+    sds = stated_sds(exp, lies["uncertainty"])
+    return draw_parameters(
+        kind, exp.sample, exp.rig, sds, error=float(error), offsets=lies["parameter_offsets"], seed=seed
     )
 
 
@@ -348,10 +414,10 @@ def _draw_runs(plan: _Plan) -> list[_Run]:
     One stream per run, drawn in a fixed order: protocol, scatter, then
     (later, in :func:`_write_runs`) noise.
     """
-    exp = plan.exp
     rngs = [np.random.default_rng([plan.seed, k]) for k in range(plan.n_runs)]
-    protos = [protocol(plan.kind, exp.rig, rng, **plan.program) for rng in rngs]
-    trues = [scattered(plan.kind, exp.sample, exp.rig, plan.scatter, rng) for rng in rngs]
+    # The program is the lab's: commanded from the stated rig.
+    protos = [protocol(plan.kind, plan.exp.rig, rng, **plan.program) for rng in rngs]
+    trues = [scattered(plan.kind, plan.true_sample, plan.true_rig, plan.scatter, rng) for rng in rngs]
     return [_Run(rng, p, s, r) for rng, p, (s, r) in zip(rngs, protos, trues)]
 
 
@@ -368,7 +434,7 @@ def _scale_effects(
     plan: _Plan, effects: Mapping[str, Any], runs: list[_Run], sd: Mapping[str, float]
 ) -> tuple[dict[str, dict], Mods]:
     """({effect: its truth}, the combined Mods): each effect scaled on the first run, valid on all."""
-    sample, rig = plan.exp.sample, plan.exp.rig
+    sample, rig = plan.true_sample, plan.true_rig
     others = tuple((r.sample, r.rig, r.proto) for r in runs)
     effect_truth: dict[str, dict] = {}
     mods = NO_MODS
@@ -388,14 +454,16 @@ def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods) -> tuple[list[Path], 
         inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
         opts = true_options(kind, run.sample, run.rig, inputs)
         outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
-        logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale)
+        zero = {"noisy_zero": True} if plan.lies["noisy_zero"] else {}
+        logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale, **zero)
         fname = f"{plan.name}_run{k + 1}.csv"
         path = plan.out / "raw" / fname
         atomic_write_text(path, format_csv(kind, logged))
         paths.append(path)
-        truths.append(
-            {"file": f"raw/{fname}", "sample": run.sample.model_kwargs(), "rig": rig_truth(run.rig)}
-        )
+        truth = {"file": f"raw/{fname}", "sample": run.sample.model_kwargs(), "rig": rig_truth(run.rig)}
+        if zero:
+            truth["zero_error"] = dict(logged.attrs.get("zero_error", {}))
+        truths.append(truth)
     return paths, truths
 
 
@@ -412,23 +480,35 @@ def _truth(
     plan: _Plan, effect_truth: dict, mods: Mods, sd: Mapping[str, float], runs_truth: list[dict]
 ) -> dict[str, Any]:
     """The truth file's content (JSON-ready)."""
-    return to_jsonable(
-        {
-            "kind": plan.kind,
-            "name": plan.name,
-            "seed": plan.seed,
-            "generator": GENERATOR,
-            "command": plan.command,
-            "template": str(plan.template_arg),
-            "n_runs": plan.n_runs,
-            "noise_scale": float(plan.noise_scale),
-            "effects": effect_truth,
-            "mods": mods_truth(mods),
-            "scatter": plan.scatter,
-            "noise_sd": sd,
-            "instrument_sd": instrument_sd(plan.kind, plan.noise_scale),
-            "template_sample": plan.exp.sample.model_kwargs(),
-            "template_rig": rig_truth(plan.exp.rig),
-            "runs": runs_truth,
-        }
-    )
+    truth = {
+        "kind": plan.kind,
+        "name": plan.name,
+        "seed": plan.seed,
+        "generator": GENERATOR,
+        "command": plan.command,
+        "template": str(plan.template_arg),
+        "n_runs": plan.n_runs,
+        "noise_scale": float(plan.noise_scale),
+        "effects": effect_truth,
+        "mods": mods_truth(mods),
+        "scatter": plan.scatter,
+        "noise_sd": sd,
+        "instrument_sd": instrument_sd(plan.kind, plan.noise_scale),
+        "template_sample": plan.exp.sample.model_kwargs(),
+        "template_rig": rig_truth(plan.exp.rig),
+        "runs": runs_truth,
+    }
+    return to_jsonable({**truth, **_lies_truth(plan)})
+
+
+def _lies_truth(plan: _Plan) -> dict[str, Any]:
+    """The truth file's record of the rig's lies (nothing when it tells the truth)."""
+    out: dict[str, Any] = {}
+    if plan.true_parameters is not None:
+        out["parameter_error"] = float(plan.lies["parameter_error"])
+        out["parameter_offsets"] = plan.lies["parameter_offsets"]
+        out["stated_sd"] = {f: v["sd"] for f, v in plan.true_parameters.items()}
+        out["true_parameters"] = plan.true_parameters
+    if plan.lies["noisy_zero"]:
+        out["noisy_zero"] = True
+    return out

@@ -83,6 +83,12 @@ def measure(
     outputs: Mapping[str, np.ndarray],
     rng: np.random.Generator,
     noise_scale: float,
+    **options,
 ) -> pd.DataFrame:
-    """Logged columns [SI, internal names] from the exact inputs and outputs, through the kind's chains."""
-    return get_kind(kind).measure(inputs, outputs, rng, float(noise_scale))
+    """Logged columns [SI, internal names] from the exact inputs and outputs, through the kind's chains.
+
+    ``options``: ``noisy_zero=True`` zeroes each zeroed channel on one noisy
+    reading; the kind's ``measure`` then puts each channel's zero error [SI]
+    in the result's ``attrs["zero_error"]`` {logged column: error}.
+    """
+    return get_kind(kind).measure(inputs, outputs, rng, float(noise_scale), **options)
