@@ -12,8 +12,8 @@ diagnosis never does.
 
 With ``lies=True`` the rig also lies like a real lab: null cases whose true
 parameters are drawn within their stated uncertainty (parameter error F =
-:data:`LIE_PARAMETER_ERROR`; the stated sds are the template's and
-:data:`LIE_UNCERTAINTY`) and whose runs start from noisy zeros. They are
+:data:`LIE_PARAMETER_ERROR`; the stated sds are the template's and the kind's
+:attr:`~tcamlab.kinds.Kind.benchmark_uncertainty`) and whose runs start from noisy zeros. They are
 scored apart (``null_miscalibrated``): every confident verdict on them is a
 false attribution, physics blamed for a wrong parameter or zero.
 
@@ -53,7 +53,6 @@ __all__ = [
     "score",
     "noise_ceiling",
     "LIE_PARAMETER_ERROR",
-    "LIE_UNCERTAINTY",
     "lying_null_task",
 ]
 
@@ -65,20 +64,6 @@ PAIR_STRENGTH = 5.0
 
 LIE_PARAMETER_ERROR = 1.0
 """F of the lying null cases: true parameters drawn with the stated sd (:mod:`tcamlab.rig.lies`)."""
-
-LIE_UNCERTAINTY: dict[str, dict[str, float]] = {
-    "static": {"radial_cte": 8.1e-6, "youngs_modulus": 0.1725e9},
-    "dynamic": {},
-    "sensing": {"youngs_modulus": 0.345e9},
-    "curvature": {"youngs_modulus": 0.345e9, "sensor_offset": 0.3e-3},
-}
-"""Kind -> {SI field: sd [SI]}: what the lying lab believes of parameters its file does not
-state, on top of the template's ``[rig.uncertainty]`` (dynamic: C_th, lambda, b as the
-thesis states them). 10 % of rho and of E (the parameter errors the diagnosis issue tried:
-rho x1.12 and x0.9, E x0.85 and x1.15), except 5 % of E for the oven test, where E 15 %
-low already takes G_t' of (2.13) to 0 inside the oven range; 0.3 mm of the robot's sensor
-offset d1 (a mould tolerance on 9 mm). Kept here until the templates can state sample
-uncertainties."""
 
 GENERATOR = "tcamlab.rig"
 """The simulator the benchmark's cases come from (recorded in every result)."""
@@ -136,7 +121,7 @@ def lying_null_task(kind: str, seed: int) -> dict:
         "seed": int(seed),
         "parameter_error": LIE_PARAMETER_ERROR,
         "noisy_zero": True,
-        "uncertainty": dict(LIE_UNCERTAINTY.get(kind, {})),
+        "uncertainty": dict(get_kind(kind).benchmark_uncertainty),
     }
 
 

@@ -174,6 +174,9 @@ class Kind:
     benchmark_pairs : tuple of (str, str)
         Representative pairs of this kind's effects for the benchmark's two-effect cases (one
         pair with distinct signatures, one more look-alike where the kind has one).
+    benchmark_uncertainty : mapping of str to float
+        SI field -> sd [SI] that the benchmark's lying null cases draw true parameters with
+        where the template states no uncertainty (what a lab believes of its own values).
     program_options : tuple of str
         Keyword options ``protocol`` takes (static: ``oven``); the rig passes
         only these.
@@ -234,6 +237,7 @@ class Kind:
     program_options: tuple[str, ...]
     benchmark_program: Mapping[str, Any]
     benchmark_pairs: tuple[tuple[str, str], ...]
+    benchmark_uncertainty: Mapping[str, float]
     exact_inputs: Callable[..., pd.DataFrame]
     instrument_sd: Callable[..., dict]
     measure: Callable[..., pd.DataFrame]

@@ -319,6 +319,8 @@ KIND = Kind(
     strength_quantities=("kappa1", "kappa2"),
     protocol=protocol,
     benchmark_program={},
+    # 10 % of E; 0.3 mm of d1 (a mould tolerance on 9 mm)
+    benchmark_uncertainty={"youngs_modulus": 0.345e9, "sensor_offset": 0.3e-3},
     benchmark_pairs=(("camera-placement", "axial-compression"),),
     program_options=(),
     exact_inputs=exact_inputs,

@@ -352,6 +352,8 @@ KIND = Kind(
     strength_quantities=("displacement",),
     protocol=protocol,
     benchmark_program={},
+    # C_th, lambda and b: the template states the thesis's sds
+    benchmark_uncertainty={},
     benchmark_pairs=(("response-delay", "convective-heat-loss"),),
     program_options=(),
     exact_inputs=exact_inputs,

@@ -357,6 +357,8 @@ KIND = Kind(
     strength_quantities=None,
     protocol=protocol,
     benchmark_program={},
+    # 10 % of E (the E x0.85 and x1.15)
+    benchmark_uncertainty={"youngs_modulus": 0.345e9},
     benchmark_pairs=(("initial-slack", "stress-relaxation"), ("hysteresis", "stiffening-spring")),
     program_options=(),
     exact_inputs=exact_inputs,
