@@ -38,6 +38,7 @@ import numpy as np
 from tcamlab.errors import ConfigError
 from tcamlab.kinds import get_kind
 from tcamlab.params import Rig, Sample
+from tcamlab.rig.scatter import RIG_SCALARS, SAMPLE_FIELDS
 
 __all__ = ["SIGNED_FIELDS", "LIES_STREAM", "stated_sds", "draw_parameters"]
 
@@ -47,8 +48,7 @@ SIGNED_FIELDS = frozenset({"ambient", "radial_cte", "shear_modulus_slope"})
 LIES_STREAM = (0x11E5, 1)
 """Keys a parameter's stream after the seed, before the CRC-32 of its name (the runs use ``[seed, k]``)."""
 
-_SAMPLE_FIELDS = frozenset(Sample.__dataclass_fields__)
-_RIG_FIELDS = frozenset(Rig.__dataclass_fields__) - {"uncertainty"}
+_RIG_FIELDS = RIG_SCALARS | {"segment_lengths"}
 
 
 def _sample_uncertainty(exp) -> Mapping[str, Any]:
@@ -83,7 +83,7 @@ def stated_sds(exp, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
     rig_sds = {f: v for f, v in exp.rig.uncertainty.items() if f in used}
     out = {**_sample_uncertainty(exp), **rig_sds, **(extra or {})}
     for fld, sd in out.items():
-        if fld not in _SAMPLE_FIELDS | _RIG_FIELDS or fld == "thread_plies":
+        if fld not in SAMPLE_FIELDS | _RIG_FIELDS or fld == "thread_plies":
             raise ConfigError(
                 f"parameter uncertainty: {fld!r} is not a drawable field of Sample or Rig",
                 hint="SI field names, e.g. thermal_mass, youngs_modulus",
@@ -176,7 +176,7 @@ def draw_parameters(
     r_changes: dict[str, Any] = {}
     for fld in sorted(sds):
         table, owner, changes = (
-            ("sample", sample, s_changes) if fld in _SAMPLE_FIELDS else ("rig", rig, r_changes)
+            ("sample", sample, s_changes) if fld in SAMPLE_FIELDS else ("rig", rig, r_changes)
         )
         stated = getattr(owner, fld)
         n = len(stated) if isinstance(stated, tuple) else 1

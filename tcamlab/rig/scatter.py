@@ -22,21 +22,7 @@ __all__ = ["SAMPLE_FIELDS", "RIG_SCALARS", "TRUTH_RIG_FIELDS", "scattered", "rig
 SAMPLE_FIELDS = frozenset(Sample.__dataclass_fields__)
 """Sample fields a scatter may name."""
 
-RIG_SCALARS = frozenset(
-    {
-        "load",
-        "ambient",
-        "voltage",
-        "pulse",
-        "resistance",
-        "thermal_mass",
-        "heat_loss",
-        "damping",
-        "initial_resistance",
-        "spring_constant",
-        "sensor_offset",
-    }
-)
+RIG_SCALARS = frozenset(Rig.__dataclass_fields__) - {"uncertainty", "segment_lengths"}
 """Rig fields a scatter may name (scalars; a kind's segment fields may become tuples)."""
 
 TRUTH_RIG_FIELDS = tuple(sorted(RIG_SCALARS | {"segment_lengths"}))
