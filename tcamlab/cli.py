@@ -141,11 +141,29 @@ def _print_validation(outcome, as_json: bool) -> None:
             f"{res.experiment.name}: {res.primary} {q}: RMSE {m['rmse']:.4g}, "
             f"R² {m['r2']:.4g} over {m['n']} samples"
         )
+    for run, zeros in res.zeros_dict()["runs"].items():
+        for q, z in zeros.items():
+            typer.echo(_zero_line(run, q, z))
     for note in res.notes:
         typer.echo(f"note: {note}")
     for c in res.checks:
         typer.echo(("pass " if c.passed else "FAIL ") + c.describe())
     typer.echo(f"wrote {outcome.out_dir}")
+
+
+def _zero_line(run: str, q: str, z: dict) -> str:
+    """One estimated zero in lab units: value, standard error and 95% interval."""
+    from tcamlab.metrics import quantity_unit
+
+    unit = quantity_unit(q) or ""
+    if z["value"] is None:
+        return f"zero {run} {q}: not estimated"
+    text = f"zero {run} {q.rsplit('_' + unit, 1)[0]}: {z['value']:+.3g} {unit}"
+    if z["stderr"] is not None:
+        lo, hi = z["ci95"]
+        text += f" (standard error {z['stderr']:.2g}, 95% CI {lo:+.3g} to {hi:+.3g})"
+    where = f"{z['rows']} rows at rest" if z["source"] == "rest rows" else f"all {z['rows']} rows of the run"
+    return text + f", mean residual of {where}; subtracted"
 
 
 def _make_validate(kind: str, example: str):

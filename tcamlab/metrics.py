@@ -13,10 +13,15 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from scipy import stats
 
 from tcamlab.errors import ConfigError, InputError
 
 __all__ = [
+    "MIN_REST_ROWS",
+    "ZERO_METHOD_NOTE",
+    "ZeroEstimate",
+    "estimate_zero",
     "METRIC_NAMES",
     "METRIC_LABELS",
     "METRIC_UNITS_NOTE",
@@ -183,6 +188,113 @@ def pooled_metrics(pairs: Iterable[tuple[object, object]]) -> dict[str, float]:
     measured = np.concatenate([m for m, _ in checked])
     predicted = np.concatenate([p for _, p in checked])
     return error_metrics(measured, predicted)
+
+
+# --------------------------------------------------------------------------
+# nuisance zeros
+# --------------------------------------------------------------------------
+
+MIN_REST_ROWS = 10
+"""Fewest leading rest rows a zero is estimated from; with fewer, from the whole run."""
+
+ZERO_METHOD_NOTE = """\
+Each run's zero (tare) of a zero-referenced channel is a nuisance parameter:
+logged = true + zero + noise on every row, the first included (a log re-zeroed
+on its first row carries that row's noise in every later row). It is estimated
+as the mean of measured - predicted over the run's leading rows at rest
+(tcamlab.kinds.rest_rows) when there are at least MIN_REST_ROWS of them, else
+over the whole run (the joint estimate of tcamlab calibrate, flat prior), and
+subtracted from the measurement before the metrics. Its standard error is the
+sd of those residuals over sqrt(rows), its 95 % interval Student-t with rows - 1
+degrees of freedom (residuals taken as independent). After the subtraction the
+first row is a measured point like the others: it stays in n, and the RMSE is
+sqrt(mean(e^2)) over all n rows (not divided by n - zeros; with a whole-run
+zero the bias of that run is 0 by construction)."""
+"""How validation treats the zeros (shown in reports)."""
+
+
+@dataclass(frozen=True)
+class ZeroEstimate:
+    """One run's estimated zero of one channel, in the unit of the series.
+
+    Attributes
+    ----------
+    value : float
+        The zero: mean of measured - predicted over ``rows`` rows.
+    stderr : float
+        Its standard error (sd of those residuals / sqrt(rows)).
+    ci95 : tuple of float
+        Student-t 95 % interval with rows - 1 degrees of freedom.
+    rows : int
+        Rows it was estimated from.
+    source : str
+        ``"rest rows"`` (the leading rows at rest) or ``"whole run"``.
+    """
+
+    value: float
+    stderr: float
+    ci95: tuple[float, float]
+    rows: int
+    source: str
+
+    def scaled(self, factor: float) -> ZeroEstimate:
+        """The same estimate in another unit (``factor`` units per unit)."""
+        lo, hi = self.ci95
+        return ZeroEstimate(
+            self.value * factor, self.stderr * factor, (lo * factor, hi * factor), self.rows, self.source
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-safe dict: value, stderr, ci95, rows, source (NaN becomes None)."""
+
+        def num(x):
+            return float(x) if np.isfinite(x) else None
+
+        return {
+            "value": num(self.value),
+            "stderr": num(self.stderr),
+            "ci95": [num(self.ci95[0]), num(self.ci95[1])],
+            "rows": int(self.rows),
+            "source": self.source,
+        }
+
+
+def estimate_zero(measured, predicted, rest=None, *, min_rest: int = MIN_REST_ROWS) -> ZeroEstimate:
+    """A run's zero: the mean of measured - predicted at rest, else over the run.
+
+    See :data:`ZERO_METHOD_NOTE`. Pairs with a NaN are left out.
+
+    Parameters
+    ----------
+    measured, predicted : array_like
+        One run's series [any unit, the same for both].
+    rest : array_like of int, optional
+        Indices of the run's leading rows at rest (:func:`tcamlab.kinds.rest_rows`).
+    min_rest : int
+        Fewest usable rest rows for a rest-row estimate.
+
+    Returns
+    -------
+    ZeroEstimate
+        In the unit of the series; all NaN when no pair is usable.
+    """
+    m, p = _as_pair(measured, predicted)
+    r = m - p
+    source, sel = "whole run", r[np.isfinite(r)]
+    if rest is not None:
+        at_rest = r[np.asarray(rest, dtype=int)]
+        at_rest = at_rest[np.isfinite(at_rest)]
+        if at_rest.size >= min_rest:
+            source, sel = "rest rows", at_rest
+    k = int(sel.size)
+    if k == 0:
+        return ZeroEstimate(float("nan"), float("nan"), (float("nan"), float("nan")), 0, source)
+    value = float(sel.mean())
+    if k < 2:
+        return ZeroEstimate(value, float("nan"), (float("nan"), float("nan")), k, source)
+    se = float(sel.std(ddof=1)) / np.sqrt(k)
+    half = float(stats.t.ppf(0.975, k - 1)) * se
+    return ZeroEstimate(value, se, (value - half, value + half), k, source)
 
 
 # --------------------------------------------------------------------------

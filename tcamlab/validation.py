@@ -4,6 +4,9 @@
 the measured and predicted columns, error metrics per model variant and
 quantity (per run and pooled), threshold checks, and kind-specific extras
 (spring constants used for sensing, the Monte Carlo band for dynamic runs).
+Each run's zero of every zero-referenced channel (:attr:`Kind.nuisance_zeros`)
+is estimated and subtracted before the metrics and the kind's extras
+(:data:`tcamlab.metrics.ZERO_METHOD_NOTE`).
 No file is written here: see :mod:`tcamlab.pipeline`.
 """
 
@@ -17,8 +20,8 @@ import pandas as pd
 from tcamlab.config import Experiment
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.io import RunData
-from tcamlab.kinds import Kind, get_kind
-from tcamlab.metrics import check_thresholds, error_metrics, pooled_metrics
+from tcamlab.kinds import Kind, get_kind, rest_rows
+from tcamlab.metrics import MIN_REST_ROWS, check_thresholds, error_metrics, estimate_zero, pooled_metrics
 from tcamlab.units import quantity
 
 __all__ = ["ValidationResult", "RunPrediction", "validate", "MC_DRAWS"]
@@ -36,13 +39,17 @@ class RunPrediction:
     name : str
         Run name (CSV file stem).
     data : DataFrame
-        The run's canonical SI columns as ingested.
+        The run's canonical SI columns as ingested, each estimated zero of
+        ``zeros`` subtracted (the logged values are in ``ValidationResult.runs``).
     predicted : dict
         Model variant -> {quantity -> ndarray} [SI].
     band : dict or None
         Dynamic runs: {"lower", "upper", "median"} displacement [m].
     info : dict
         Per-run facts shown in the report (spring constant and its source...).
+    zeros : dict
+        Quantity -> :class:`tcamlab.metrics.ZeroEstimate` [SI] of the run's
+        nuisance zero (its ``stderr`` is the zero's sd, e.g. for a prediction band).
     """
 
     name: str
@@ -50,6 +57,7 @@ class RunPrediction:
     predicted: dict
     band: dict | None = None
     info: dict = field(default_factory=dict)
+    zeros: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -95,11 +103,27 @@ class ValidationResult:
     def quantities(self) -> tuple[str, ...]:
         return get_kind(self.kind).outputs
 
+    @property
+    def zeros(self) -> dict:
+        """Run -> {quantity -> ZeroEstimate [SI]}: the nuisance zeros subtracted."""
+        return {p.name: dict(p.zeros) for p in self.predictions if p.zeros}
+
+    def zeros_dict(self) -> dict:
+        """The ``zeros`` block of metrics.json: per run and quantity, in lab units."""
+        runs = {}
+        for p in self.predictions:
+            if p.zeros:
+                runs[p.name] = {
+                    quantity(q).column: z.scaled(quantity(q).factor).to_dict() for q, z in p.zeros.items()
+                }
+        return {"min_rest_rows": MIN_REST_ROWS, "runs": runs}
+
     def to_pandas(self) -> pd.DataFrame:
-        """One row per logged sample: run, inputs, measured and predicted (lab units)."""
+        """One row per logged sample: run, inputs, measured (as logged), the run's estimated
+        zero where there is one, and predicted (lab units); residual = predicted - (measured - zero)."""
         frames = []
         inputs = [c for c in get_kind(self.kind).inputs if c != "time"]
-        for p in self.predictions:
+        for p, r in zip(self.predictions, self.runs):
             out = {"run": p.name, "row": np.arange(1, len(p.data) + 1)}
             if "time" in p.data:
                 out["time_s"] = p.data["time"].to_numpy()
@@ -108,7 +132,9 @@ class ValidationResult:
                 out[name] = p.data[c].to_numpy() * factor
             for q in self.quantities:
                 name, factor = quantity(q).column, quantity(q).factor
-                out[f"measured_{name}"] = p.data[q].to_numpy() * factor
+                out[f"measured_{name}"] = r.data[q].to_numpy() * factor
+                if q in p.zeros:
+                    out[f"zero_{name}"] = np.full(len(p.data), p.zeros[q].value * factor)
                 for v in self.variants:
                     out[f"predicted_{name}__{_slug(v)}"] = p.predicted[v][q] * factor
             if p.band is not None:
@@ -155,6 +181,7 @@ class ValidationResult:
                 }
                 for v in self.variants
             },
+            "zeros": self.zeros_dict(),
             "thresholds": [c.to_dict() for c in self.checks],
             "passed": self.passed,
             "notes": list(self.notes),
@@ -197,17 +224,48 @@ def _json(obj):
 
 
 def _metrics(predictions, variants, quantities) -> dict:
+    """Metrics per variant, quantity, run and pooled; ``n_zeros`` counts the zeros subtracted."""
     out = {}
     for v in variants:
         out[v] = {}
         for q in quantities:
             name, factor = quantity(q).column, quantity(q).factor
             pairs = [(p.data[q].to_numpy() * factor, p.predicted[v][q] * factor) for p in predictions]
-            out[v][name] = {
-                "runs": {p.name: error_metrics(m, pr) for p, (m, pr) in zip(predictions, pairs)},
-                "pooled": pooled_metrics(pairs),
-            }
+            runs = {}
+            for p, (m, pr) in zip(predictions, pairs):
+                runs[p.name] = {**error_metrics(m, pr), "n_zeros": int(q in p.zeros)}
+            pooled = {**pooled_metrics(pairs), "n_zeros": sum(int(q in p.zeros) for p in predictions)}
+            out[v][name] = {"runs": runs, "pooled": pooled}
     return out
+
+
+def _subtract_zeros(kind: Kind, preds: list[RunPrediction]) -> list[str]:
+    """Estimate each run's nuisance zeros with the primary model, subtract them; the notes."""
+    sources: dict[str, set] = {}
+    for p in preds:
+        rest = rest_rows(kind, p.data)
+        for q in kind.nuisance_zeros:
+            if q not in kind.outputs or q not in p.data:
+                continue
+            est = estimate_zero(p.data[q].to_numpy(float), p.predicted[kind.primary][q], rest)
+            if not np.isfinite(est.value):
+                continue
+            p.data = p.data.assign(**{q: p.data[q].to_numpy(float) - est.value})
+            p.zeros[q] = est
+            sources.setdefault(q, set()).add(est.source)
+    notes = []
+    for q, src in sources.items():
+        how = " or ".join(sorted(src))
+        notes.append(
+            f"the zero of {quantity(q).column} was estimated per run ({how}, with the {kind.primary} "
+            f"model) and subtracted before the metrics; see the table of nuisance zeros"
+            + (
+                f" (fewer than {MIN_REST_ROWS} rows at rest: whole-run zeros make those runs' bias 0)"
+                if "whole run" in src
+                else ""
+            )
+        )
+    return notes
 
 
 def _run_names(runs: list[RunData]) -> list[str]:
@@ -279,6 +337,7 @@ def validate(
     seed: int = 0,
     drop_na: bool = False,
     max_bytes: int | None = None,
+    zeros: bool = True,
 ) -> ValidationResult:
     """Validate the thesis model of ``experiment.kind`` against its runs.
 
@@ -296,6 +355,10 @@ def validate(
     max_bytes : int, optional
         Refuse run files larger than this [bytes] (default
         :data:`tcamlab.io.DEFAULT_MAX_BYTES`).
+    zeros : bool
+        Estimate and subtract each run's nuisance zeros
+        (:data:`tcamlab.metrics.ZERO_METHOD_NOTE`); False compares the log as
+        it is (a re-zeroed first row is then an exact, zero residual).
 
     Returns
     -------
@@ -307,6 +370,7 @@ def validate(
     names = _run_names(runs)
     kind = get_kind(experiment.kind)
     preds = _predict_runs(experiment, kind, runs, names)
+    zero_notes = _subtract_zeros(kind, preds) if zeros else []
     notes, extras = kind.validation_extras(
         experiment,
         preds,
@@ -318,6 +382,7 @@ def validate(
     metrics = _metrics(preds, variants, kind.outputs)
     pooled = {q: b["pooled"] for q, b in metrics[primary].items()}
     checks = check_thresholds(pooled, experiment.thresholds)
+    notes = zero_notes + notes
     dropped = sum(r.n_dropped for r in runs)
     if dropped:
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")

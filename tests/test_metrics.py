@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -13,9 +14,11 @@ from hypothesis.extra import numpy as hnp
 from tcamlab.errors import ConfigError, InputError
 from tcamlab.metrics import (
     METRIC_UNITS_NOTE,
+    MIN_REST_ROWS,
     ThresholdCheck,
     check_thresholds,
     error_metrics,
+    estimate_zero,
     pooled_metrics,
     quantity_unit,
 )
@@ -197,3 +200,45 @@ def test_threshold_check_helpers():
     c = ThresholdCheck("rmse_mm", "displacement_mm", 0.42, 0.5, True)
     assert c.describe() == "displacement_mm rmse 0.42 <= 0.5: pass"
     assert ThresholdCheck("x", "q", float("nan"), 1.0, False).to_dict()["value"] is None
+
+
+# --------------------------------------------------------------------------
+# nuisance zeros
+# --------------------------------------------------------------------------
+
+
+def test_zero_from_rest_rows_by_hand():
+    """Mean of measured - predicted over the rest rows; SE = sd / sqrt(k); Student-t interval."""
+    from scipy import stats
+
+    resid = np.array([0.1, 0.3, 0.2, 0.4, 0.0, 0.2, 0.1, 0.3, 0.2, 0.2, 5.0, 7.0])
+    predicted = np.linspace(0.0, 1.0, resid.size)
+    z = estimate_zero(predicted + resid, predicted, np.arange(10))
+    assert z.source == "rest rows" and z.rows == 10
+    assert z.value == pytest.approx(0.2, rel=1e-12)  # the two moving rows are left out
+    se = np.std(resid[:10], ddof=1) / math.sqrt(10)
+    assert z.stderr == pytest.approx(se, rel=1e-12)
+    half = stats.t.ppf(0.975, 9) * se
+    assert z.ci95 == pytest.approx((0.2 - half, 0.2 + half), rel=1e-12)
+
+
+def test_zero_falls_back_to_the_whole_run_with_too_few_rest_rows():
+    resid = np.array([1.0, 2.0, 3.0, np.nan, 6.0])
+    z = estimate_zero(resid, np.zeros(5), np.arange(MIN_REST_ROWS - 1)[:3])
+    assert z.source == "whole run" and z.rows == 4  # the NaN pair is left out
+    assert z.value == pytest.approx(3.0)
+    assert estimate_zero(resid, np.zeros(5)).value == pytest.approx(3.0)
+    empty = estimate_zero([np.nan, np.nan], [0.0, 0.0])
+    assert empty.rows == 0 and math.isnan(empty.value)
+    json.dumps(empty.to_dict(), allow_nan=False)
+
+
+def test_zero_interval_covers_the_true_zero_95_percent_of_the_time():
+    rng = np.random.default_rng(20261123)
+    hits = 0
+    for _ in range(400):
+        truth = rng.normal(0.0, 1.0)
+        measured = truth + rng.normal(0.0, 0.5, 40)
+        lo, hi = estimate_zero(measured, np.zeros(40), np.arange(15)).ci95
+        hits += lo <= truth <= hi
+    assert 0.92 <= hits / 400 <= 0.98

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -53,3 +54,65 @@ def test_constant_g_and_gt_differ_on_the_static_test():
     p = res.predictions[0]
     diff = np.abs(p.predicted["G(T)"]["displacement"] - p.predicted["constant-G"]["displacement"])
     assert diff[0] == 0.0 and diff.max() > 1e-5  # same zero, apart by > 10 um when hot
+
+
+def _null_dynamic(tmp_path, seed):
+    """Synthetic: the virtual rig (tcamlab.rig.simulate), exact parameters, no effect, four
+    runs each zeroed on one noisy reading (noisy_zero), seed as given."""
+    from tcamlab import rig
+    from tcamlab.templates import template_path
+
+    res = rig.simulate(
+        "dynamic", template_path("dynamic"), seed=seed, out_dir=tmp_path / str(seed), n_runs=4,
+        scatter={}, noisy_zero=True,
+    )  # fmt: skip
+    return load_experiment(res.experiment_path), res.truth
+
+
+def test_null_dynamic_with_noisy_zeros_validates_at_the_noise_floor(tmp_path):
+    """With each run's zero estimated, the displacement RMSE is the laser's noise sd; without,
+    it is about sqrt(2) of it (each run keeps its first reading's noise as an offset)."""
+    from tcamlab import instruments
+
+    laser = instruments.laser_sd()
+    raw_ms, row0_residuals = [], []
+    for seed in (31, 32, 33):
+        exp, truth = _null_dynamic(tmp_path, seed)
+        res = validate(exp, mc_draws=0)
+        m = res.metrics["G(T)"]["displacement_mm"]["pooled"]
+        assert 0.9 <= m["rmse"] * 1e-3 / laser <= 1.15, seed
+        # the re-zeroed first row is a measured point: counted, and no longer a zero residual
+        assert m["n"] == 4000 and m["n_zeros"] == 4
+        for p, t in zip(res.predictions, truth["runs"]):
+            z = p.zeros["displacement"]
+            assert z.source == "rest rows" and z.rows == 50
+            assert abs(z.value - t["zero_error"]["displacement"]) < 4 * z.stderr
+            row0 = p.predicted["G(T)"]["displacement"][0] - p.data["displacement"].iloc[0]
+            assert row0 == pytest.approx(z.value, abs=1e-15)
+            row0_residuals.append(row0)
+        raw = validate(exp, mc_draws=0, zeros=False).metrics["G(T)"]["displacement_mm"]["pooled"]
+        raw_ms.append((raw["rmse"] * 1e-3 / laser) ** 2)
+    # the same data without the zeros: what this test would see if they were not estimated
+    assert math.sqrt(np.mean(raw_ms)) > 1.2
+    assert np.count_nonzero(row0_residuals) >= 10  # a quantised log may average to exactly 0
+
+
+def test_zeros_are_reported_in_metrics_json_and_predictions_csv():
+    """metrics.json carries each zero in lab units with its interval; predictions.csv keeps the
+    logged value and adds the zero, so the residual can be recomputed from the file."""
+    res = validate(load_experiment(ROOT / "experiments" / "sensing.toml"), mc_draws=0)
+    doc = res.to_dict()
+    zeros = doc["zeros"]["runs"]
+    assert set(zeros) == {p.name for p in res.predictions}
+    for p in res.predictions:
+        z = zeros[p.name]["force_N"]
+        assert z["value"] == pytest.approx(p.zeros["force"].value) and z["source"] == "rest rows"
+        assert z["ci95"][0] < z["value"] < z["ci95"][1] and z["stderr"] > 0
+    table = res.to_pandas()
+    first = table[table["run"] == res.predictions[0].name]
+    logged = res.runs[0].data["force"].to_numpy()
+    np.testing.assert_allclose(first["measured_force_N"], logged)
+    resid = first["predicted_force_N__thesis"] - (first["measured_force_N"] - first["zero_force_N"])
+    e = res.predictions[0].predicted["thesis"]["force"] - res.predictions[0].data["force"].to_numpy()
+    np.testing.assert_allclose(resid, e, atol=1e-15)
+    assert "zero_displacement_mm" not in table  # the encoder is not zeroed on the run

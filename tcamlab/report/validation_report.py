@@ -87,6 +87,27 @@ def _metrics_table(result) -> Table:
     )
 
 
+def _zeros_table(result) -> Table | None:
+    """Each run's estimated nuisance zero, with its standard error and 95% interval."""
+    rows = []
+    for run, zeros in result.zeros_dict()["runs"].items():
+        for q, z in zeros.items():
+            lo, hi = z["ci95"]
+            ci = "–" if lo is None else f"{lo:.3g} to {hi:.3g}"
+            where = (
+                f"{z['rows']} rows at rest" if z["source"] == "rest rows" else f"whole run ({z['rows']} rows)"
+            )
+            rows.append([run, q, z["value"], z["stderr"], ci, where])
+    if not rows:
+        return None
+    return Table(
+        ["run", "quantity", "zero", "standard error", "95% CI", "estimated from"],
+        rows,
+        caption="Nuisance zeros (quantity's unit): each run's zero, the mean of measured − predicted "
+        "at rest (else over the run), subtracted from the measurement before the metrics",
+    )
+
+
 def _threshold_table(result) -> Table | None:
     if not result.checks:
         return None
@@ -138,7 +159,9 @@ def validation_document(result, *, command: str | None = None) -> Document:
     from tcamlab import __version__
 
     exp = result.experiment
-    summary_tables = [t for t in (_threshold_table(result), _metrics_table(result)) if t]
+    summary_tables = [
+        t for t in (_threshold_table(result), _metrics_table(result), _zeros_table(result)) if t
+    ]
     verdict = (
         ("all thresholds pass" if result.passed else "some thresholds FAIL")
         if result.checks
