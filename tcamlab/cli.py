@@ -276,21 +276,30 @@ def fit_spring(
         ..., help="Pull-test CSV logs or sensing experiment files.", metavar="CSV_OR_EXPERIMENT..."
     ),
     intercept: bool = typer.Option(
-        False, "--intercept", help="Fit F = S delta + c instead of through the origin."
+        True,
+        "--intercept/--origin",
+        help="Fit F = S delta + F0 with F0, the load cell's zero, one per run (default), or force "
+        "the fit through the origin (F0 = 0, the thesis's form; biased by any tare offset).",
     ),
     robust: bool = typer.Option(False, "--robust", help="Robust (soft-L1) fit that down-weights outliers."),
     no_branches: bool = typer.Option(
         False, "--no-branches", help="Do not split loading and unloading branches."
     ),
-    plot: Path | None = typer.Option(None, "--plot", help="Write the fit and residual plot (.svg or .png)."),
+    plot: Path | None = typer.Option(
+        None,
+        "--plot",
+        help="Write the fit and residual plot; the extension names the format (.png, .svg, .pdf).",
+    ),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing --plot file."),
     as_json: Json = False,
     drop_na: DropNa = False,
     max_bytes: MaxBytes = None,
 ):
-    """Identify the spring constant S of F = S delta (thesis section 3.3).
+    """Identify the spring constant S of F = S delta + F0 (thesis section 3.3).
 
-    Least squares through the origin (the thesis's form) or with an intercept;
-    standard error, 95% CI and R² per run, per branch and pooled.
+    F0, the load cell's zero (tare), is a nuisance fitted per run unless --origin; S and F0
+    with standard error (±) and 95% CI, R² labelled centred or uncentred, per run, per branch
+    and pooled; a warning when F0 is significant.
 
     Example: tcamlab fit-spring raw/sensing_run1.csv raw/sensing_run2.csv --json
     """
@@ -305,17 +314,41 @@ def fit_spring(
         plot_path=plot,
         drop_na=drop_na,
         max_bytes=max_bytes,
+        force=force,
     )
     if as_json:
         _print_json(rep.to_dict())
         return
+    typer.echo(f"model: {rep.pooled.model}; ± is one standard error, CI the 95% confidence interval")
     for f in rep.fits + [rep.pooled]:
-        lo, hi = f.ci95
+        typer.echo(_spring_line(f))
+    for r in rep.pooled.run_intercepts:
+        lo, hi = r["intercept_ci95_N"]
         typer.echo(
-            f"{f.run:>24s} {f.branch_label:>9s}: S = {f.spring_constant:.5g} N/m "
-            f"± {f.stderr:.2g} (95% CI {lo:.5g}..{hi:.5g}), R² {f.r2:.5f}, n {f.n}, "
-            f"{f.method}"
+            f"{'pooled F0 of ' + r['run']:>34s}: {r['intercept_N'] * 1e3:+.3g} mN "
+            f"± {r['intercept_stderr_N'] * 1e3:.2g} (95% CI {lo * 1e3:+.3g} to {hi * 1e3:+.3g})"
         )
+    for w in rep.warnings:
+        typer.echo(f"warning: {w}")
+
+
+def _spring_line(f) -> str:
+    """One spring fit: S and F0 with standard error and 95% CI, labelled R²."""
+    lo, hi = f.ci95
+    text = (
+        f"{f.run:>24s} {f.branch_label:>9s}: S = {f.spring_constant:.5g} N/m "
+        f"± {f.stderr:.2g} (95% CI {lo:.5g} to {hi:.5g})"
+    )
+    if f.through_origin:
+        text += ", F0 = 0 (forced)"
+    else:
+        flo, fhi = f.intercept_ci95
+        mean = "mean " if f.run_intercepts else ""
+        text += (
+            f", {mean}F0 = {f.intercept * 1e3:+.3g} mN ± {f.intercept_stderr * 1e3:.2g} "
+            f"(95% CI {flo * 1e3:+.3g} to {fhi * 1e3:+.3g})"
+        )
+    return text + f", R² ({f.r2_kind}) {f.r2:.5f}, n {f.n}, {f.method}"
 
 
 # -- simulate ---------------------------------------------------------------------------

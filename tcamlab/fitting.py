@@ -1,11 +1,19 @@
 """Spring constant of a coil from pull tests (thesis section 3.3: F = S delta).
 
 The rig stretches the unheated coil and logs its extension delta [m] and the
-force F [N]. :func:`fit_spring` fits F = S delta (through the origin, the
-thesis form) or F = S delta + c, by ordinary least squares or robustly;
+force F [N]. :func:`fit_spring` fits F = S delta + F0 or F = S delta (through
+the origin, the thesis form), by ordinary least squares or robustly;
 :func:`fit_spring_runs` fits several logs, per run, per loading/unloading
 branch (:func:`split_branches`) and pooled; :func:`leave_one_out_spring`
 refits the pool without one run, for cross-validation.
+
+F0 is the load cell's zero (tare) offset, a nuisance parameter: a tare left
+at -0.4 mN biases an origin-forced S by about F0 mean(delta) / mean(delta^2)
+(-0.012 N/m on a 0-50 mm pull, 20 standard errors). :func:`fit_spring_runs`
+(and ``tcamlab fit-spring``) therefore fit F0 by default, one per run in the
+pooled fit (each run is tared on its own), and warn when it is significant
+(:attr:`SpringFitReport.warnings`). Uncertainties are one standard error
+(``stderr``) and Student-t 95 % intervals (``ci95``).
 
 Everything here is SI: displacement in m, force in N, S in N/m. Plots show
 displacement in mm.
@@ -54,9 +62,10 @@ class SpringFit:
         95 % confidence interval of S, Student-t with n - p degrees of
         freedom [N/m].
     intercept : float
-        c [N]; 0.0 for a fit through the origin.
+        F0 [N], the load cell's zero offset; 0.0 for a fit through the origin.
+        For a pooled fit with one F0 per run, the mean of the runs' F0.
     intercept_stderr : float
-        Standard error of c [N]; 0.0 for a fit through the origin.
+        Standard error of F0 [N]; 0.0 for a fit through the origin.
     r2 : float
         Coefficient of determination: uncentred (1 - SS_res / sum F^2) for
         a fit through the origin, centred for a fit with intercept.
@@ -73,6 +82,11 @@ class SpringFit:
         The data fitted [m], [N].
     run : str
         Run name; ``"pooled"`` for a fit over several runs.
+    intercept_ci95 : tuple of float
+        95 % confidence interval of F0 [N] (0, 0 through the origin).
+    run_intercepts : list of dict
+        Pooled fit with an intercept: each run's own F0, ``{run, intercept_N,
+        intercept_stderr_N, intercept_ci95_N}`` (empty otherwise).
     """
 
     spring_constant: float
@@ -88,11 +102,40 @@ class SpringFit:
     displacement: np.ndarray = field(repr=False)
     force: np.ndarray = field(repr=False)
     run: str = "pooled"
+    intercept_ci95: tuple[float, float] = (0.0, 0.0)
+    run_intercepts: list = field(default_factory=list)
+
+    @property
+    def through_origin(self) -> bool:
+        """Whether F0 was forced to 0."""
+        return self.method.endswith("origin")
+
+    @property
+    def r2_kind(self) -> str:
+        """``"uncentred"`` (through the origin: 1 - SS_res / sum F^2) or ``"centred"``."""
+        return "uncentred" if self.through_origin else "centred"
 
     @property
     def dof(self) -> int:
-        """Residual degrees of freedom, n - 1 (origin) or n - 2 (intercept)."""
-        return self.n - (2 if self.method.endswith("intercept") else 1)
+        """Residual degrees of freedom: n - 1 (origin), n - 2 (intercept), n - 1 - runs (one F0 per run)."""
+        if self.through_origin:
+            return self.n - 1
+        return self.n - 1 - max(1, len(self.run_intercepts))
+
+    @property
+    def intercept_significant(self) -> bool:
+        """Whether the 95 % interval of F0 excludes 0 (never through the origin)."""
+        lo, hi = self.intercept_ci95
+        return (not self.through_origin) and bool(lo > 0.0 or hi < 0.0)
+
+    @property
+    def model(self) -> str:
+        """The fitted model in words."""
+        if self.through_origin:
+            return "F = S delta (forced through the origin: the load cell's tare taken as exact)"
+        if self.run_intercepts:
+            return "F = S delta + F0, one F0 (load-cell tare) per run"
+        return "F = S delta + F0 (F0: load-cell tare)"
 
     def predict(self, displacement) -> np.ndarray:
         """Force [N] of the fitted line at ``displacement`` [m]."""
@@ -108,14 +151,24 @@ class SpringFit:
             "run": self.run,
             "branch": self.branch_label,
             "method": self.method,
+            "model": self.model,
+            "through_origin": self.through_origin,
             "n": int(self.n),
             "spring_constant_N_per_m": json_float(self.spring_constant),
             "stderr_N_per_m": json_float(self.stderr),
             "ci95_N_per_m": [json_float(self.ci95[0]), json_float(self.ci95[1])],
             "intercept_N": json_float(self.intercept),
             "intercept_stderr_N": json_float(self.intercept_stderr),
+            "intercept_ci95_N": [json_float(self.intercept_ci95[0]), json_float(self.intercept_ci95[1])],
+            "intercept_significant": self.intercept_significant,
             "r2": json_float(self.r2),
+            "r2_kind": self.r2_kind,
         }
+        if self.run_intercepts:
+            d["run_intercepts"] = [
+                {k: (json_float(v) if k != "run" and not isinstance(v, list) else v) for k, v in r.items()}
+                for r in self.run_intercepts
+            ]
         if include_residuals:
             d["residuals_N"] = [json_float(r) for r in np.asarray(self.residuals, float)]
         return d
@@ -125,6 +178,10 @@ class SpringFit:
         import pandas as pd
 
         d = self.to_dict()
+        d.pop("run_intercepts", None)
+        flo, fhi = d.pop("intercept_ci95_N")
+        d["intercept_ci95_low_N"] = np.nan if flo is None else flo
+        d["intercept_ci95_high_N"] = np.nan if fhi is None else fhi
         lo, hi = d.pop("ci95_N_per_m")
         row = {}
         for k, v in d.items():
@@ -134,10 +191,14 @@ class SpringFit:
                 row["ci95_high_N_per_m"] = np.nan if hi is None else hi
         return pd.DataFrame([row])
 
-    def _label(self) -> str:
-        text = f"S = {self.spring_constant:.4g} ± {self.stderr:.2g} N/m"
-        if self.method.endswith("intercept"):
-            text += f", c = {self.intercept * 1e3:.3g} mN"
+    def label(self) -> str:
+        """``S = 4.698 ± 0.00052 N/m (± SE), F0 = -0.34 mN`` (F0 only with an intercept)."""
+        text = f"S = {self.spring_constant:.4g} ± {self.stderr:.2g} N/m (± SE)"
+        if not self.through_origin:
+            mean = "mean " if self.run_intercepts else ""
+            text += f", {mean}F0 = {self.intercept * 1e3:.3g} ± {self.intercept_stderr * 1e3:.2g} mN"
+        else:
+            text += ", through the origin"
         return text
 
     def plot(self, ax=None, *, color=None, label: str | None = None):
@@ -155,7 +216,7 @@ class SpringFit:
         lo = min(0.0, float(x.min())) if x.size else 0.0
         hi = float(x.max()) if x.size else 0.0
         xs = np.linspace(lo, hi, 50)
-        ax.plot(xs * 1e3, self.predict(xs), "-", color=line_color, label=f"{name}: {self._label()}")
+        ax.plot(xs * 1e3, self.predict(xs), "-", color=line_color, label=f"{name}: {self.label()}")
         ax.set_xlabel("displacement [mm]")
         ax.set_ylabel("force [N]")
         ax.legend(fontsize="small")
@@ -270,19 +331,27 @@ def _ols(x: np.ndarray, f: np.ndarray, intercept: bool):
 
 def _robust(x: np.ndarray, f: np.ndarray, intercept: bool, s0: float, c0: float, resid0: np.ndarray):
     """(S, c, se_S, se_c, residuals) of a soft_l1 M-estimate started at OLS."""
-    n = x.size
-    p = 2 if intercept else 1
-    # f_scale: the noise level of the inliers, from the OLS residuals; a floor
-    # keeps it positive when most points lie exactly on a line.
-    floor = 1e-12 * max(float(np.max(np.abs(f))), 1e-300)
-    f_scale = max(mad_scale(resid0), floor)
-
     if intercept:
         design = np.column_stack([x, np.ones_like(x)])
         start = np.array([s0, c0])
     else:
         design = x[:, None]
         start = np.array([s0])
+    theta, cov, resid = _robust_design(design, f, start, resid0)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    s = float(theta[0])
+    c = float(theta[1]) if intercept else 0.0
+    se_c = float(se[1]) if intercept else 0.0
+    return s, c, float(se[0]), se_c, resid
+
+
+def _robust_design(design: np.ndarray, f: np.ndarray, start: np.ndarray, resid0: np.ndarray):
+    """(theta, covariance, residuals) of a soft_l1 M-estimate of f = design theta, started at OLS."""
+    n, p = design.shape
+    # f_scale: the noise level of the inliers, from the OLS residuals; a floor
+    # keeps it positive when most points lie exactly on a line.
+    floor = 1e-12 * max(float(np.max(np.abs(f))), 1e-300)
+    f_scale = max(mad_scale(resid0), floor)
 
     def fun(theta):
         return design @ theta - f
@@ -316,11 +385,7 @@ def _robust(x: np.ndarray, f: np.ndarray, intercept: bool, s0: float, c0: float,
         cov = scale2 * np.linalg.inv(wj.T @ wj)
     except np.linalg.LinAlgError:
         cov = np.full((p, p), np.nan)
-    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    s = float(theta[0])
-    c = float(theta[1]) if intercept else 0.0
-    se_c = float(se[1]) if intercept else 0.0
-    return s, c, float(se[0]), se_c, resid
+    return theta, cov, resid
 
 
 def fit_spring(
@@ -406,6 +471,62 @@ def fit_spring(
         displacement=x,
         force=f,
         run=run,
+        intercept_ci95=(float(c - t * se_c), float(c + t * se_c)),
+    )
+
+
+def _pooled_per_run_intercepts(xs, fs, names, *, robust: bool) -> SpringFit:
+    """One S and one F0 per run over all runs: f = S x + F0[run] (least squares, or soft_l1).
+
+    The mean F0 and its standard error come from the covariance of the run F0s.
+    """
+    x, f = np.concatenate(xs), np.concatenate(fs)
+    sizes = [v.size for v in xs]
+    m = len(sizes)
+    design = np.zeros((x.size, m + 1))
+    design[:, 0] = x
+    design[np.arange(x.size), 1 + np.repeat(np.arange(m), sizes)] = 1.0
+    theta, *_ = np.linalg.lstsq(design, f, rcond=None)
+    resid = f - design @ theta
+    dof = x.size - m - 1
+    if dof < 1:
+        raise InputError(
+            f"fit_spring[pooled]: {x.size} points for {m + 1} parameters (S and one F0 per run)",
+            "log more samples, or fit through the origin",
+        )
+    cov = float(np.dot(resid, resid)) / dof * np.linalg.pinv(design.T @ design)
+    if robust:
+        theta, cov, resid = _robust_design(design, f, theta, resid)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    t = float(stats.t.ppf(0.975, dof))
+    runs = [
+        {
+            "run": name,
+            "intercept_N": float(theta[1 + i]),
+            "intercept_stderr_N": float(se[1 + i]),
+            "intercept_ci95_N": [float(theta[1 + i] - t * se[1 + i]), float(theta[1 + i] + t * se[1 + i])],
+        }
+        for i, name in enumerate(names)
+    ]
+    c = float(np.mean(theta[1:]))
+    se_c = float(np.sqrt(max(float(cov[1:, 1:].sum()), 0.0)) / m)
+    s, se_s = float(theta[0]), float(se[0])
+    return SpringFit(
+        spring_constant=s,
+        stderr=se_s,
+        ci95=(s - t * se_s, s + t * se_s),
+        intercept=c,
+        intercept_stderr=se_c,
+        r2=_r2(f, resid, True),
+        n=int(x.size),
+        method=("robust" if robust else "ols") + "-intercept",
+        branch_label="all",
+        residuals=np.asarray(resid, float),
+        displacement=x,
+        force=f,
+        run="pooled",
+        intercept_ci95=(c - t * se_c, c + t * se_c),
+        run_intercepts=runs,
     )
 
 
@@ -429,11 +550,16 @@ class SpringFitReport:
         Per run: the fit over the whole run (``branch_label="all"``), then,
         when the run has both, its ``"loading"`` and ``"unloading"`` fits.
     pooled : SpringFit
-        Fit over all runs concatenated (``run="pooled"``).
+        Fit over all runs (``run="pooled"``): one S, and one F0 per run
+        unless forced through the origin.
+    warnings : list of str
+        What the reader must see: a significant F0, or an origin-forced fit
+        whose data show one.
     """
 
     fits: list[SpringFit]
     pooled: SpringFit
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def spring_constant(self) -> float:
@@ -447,30 +573,134 @@ class SpringFitReport:
         return pd.concat([f.to_pandas() for f in [*self.fits, self.pooled]], ignore_index=True)
 
     def to_dict(self, include_residuals: bool = False) -> dict:
-        """JSON-safe dict: ``spring_constant_N_per_m`` (pooled S), ``pooled``, ``runs``."""
+        """JSON-safe dict: ``spring_constant_N_per_m`` (pooled S), its ``stderr`` and ``ci95``,
+        ``model``, ``r2_kind``, ``warnings``, ``uncertainty`` (what ± means), ``pooled``, ``runs``."""
+        p = self.pooled
         return {
-            "spring_constant_N_per_m": json_float(self.pooled.spring_constant),
-            "method": self.pooled.method,
-            "pooled": self.pooled.to_dict(include_residuals),
+            "spring_constant_N_per_m": json_float(p.spring_constant),
+            "stderr_N_per_m": json_float(p.stderr),
+            "ci95_N_per_m": [json_float(p.ci95[0]), json_float(p.ci95[1])],
+            "method": p.method,
+            "model": p.model,
+            "through_origin": p.through_origin,
+            "r2_kind": p.r2_kind,
+            "uncertainty": UNCERTAINTY_NOTE,
+            "warnings": list(self.warnings),
+            "pooled": p.to_dict(include_residuals),
             "runs": [f.to_dict(include_residuals) for f in self.fits],
         }
 
+    def _whole_runs(self) -> list[SpringFit]:
+        return [f for f in self.fits if f.branch_label == "all"]
+
     def plot(self, ax=None):
-        """Each run's data with its own fit, and the pooled line; returns ``ax``."""
+        """Each run's loading (filled) and unloading (open) points, the pooled fit; returns ``ax``.
+
+        Displacement in mm, force in N. Runs are told apart by colour (named
+        in the legend up to :data:`MAX_NAMED_RUNS`), branches by the marker.
+        """
+        from matplotlib.lines import Line2D
+
         ax = _new_axes(ax)
+        runs = self._whole_runs()
+        for i, fit in enumerate(runs):
+            name = fit.run if len(runs) <= MAX_NAMED_RUNS else None
+            _branch_points(ax, fit.displacement, fit.force, f"C{i % 10}", name)
         x_all = np.asarray(self.pooled.displacement, float)
-        for fit in self.fits:
-            if fit.branch_label != "all":
-                continue
-            pts = ax.plot(np.asarray(fit.displacement) * 1e3, fit.force, ".", ms=3, alpha=0.4, label=fit.run)
-            xs = np.linspace(min(0.0, float(fit.displacement.min())), float(fit.displacement.max()), 50)
-            ax.plot(xs * 1e3, fit.predict(xs), "-", lw=0.8, color=pts[0].get_color())
         xs = np.linspace(min(0.0, float(x_all.min())), float(x_all.max()), 50)
-        ax.plot(xs * 1e3, self.pooled.predict(xs), "k-", lw=1.6, label=f"pooled: {self.pooled._label()}")
+        ax.plot(xs * 1e3, self.pooled.predict(xs), "k-", lw=1.4, label=f"pooled fit: {self.pooled.label()}")
+        handles, _ = ax.get_legend_handles_labels()
+        handles += [
+            Line2D([], [], ls="", marker="o", ms=4, color="0.3", label="loading"),
+            Line2D([], [], ls="", marker="o", ms=4, mfc="none", color="0.3", label="unloading"),
+        ]
         ax.set_xlabel("displacement [mm]")
         ax.set_ylabel("force [N]")
-        ax.legend(fontsize="small")
+        ax.legend(handles=handles, fontsize="small", loc="upper left")
         return ax
+
+    def plot_residuals(self, ax=None):
+        """Residuals of the pooled fit [mN] against displacement [mm], by branch; returns ``ax``."""
+        ax = _new_axes(ax)
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        start = 0
+        for i, fit in enumerate(self._whole_runs()):
+            n = fit.displacement.size
+            r = np.asarray(self.pooled.residuals[start : start + n], float)
+            start += n
+            _branch_points(ax, fit.displacement, r * 1e3, f"C{i % 10}", None)
+        ax.set_xlabel("displacement [mm]")
+        ax.set_ylabel("residual force, measured − fit [mN]")
+        ax.set_title(f"pooled fit ({self.pooled.method}): {self.pooled.model}", fontsize="small")
+        return ax
+
+
+MAX_NAMED_RUNS = 6
+"""Runs named in the plot's legend; more are drawn but not named (a legend stays readable)."""
+
+UNCERTAINTY_NOTE = (
+    "stderr_*: one standard error (the ± of the text output); ci95_*: Student-t 95% confidence "
+    "interval with the fit's residual degrees of freedom"
+)
+"""What the uncertainties of a spring fit are (text and JSON)."""
+
+
+def _branch_points(ax, x, y, color, name) -> None:
+    """Loading points filled, unloading points open, in one colour (mm on the x axis)."""
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    branches = split_branches(x) if x.size else {"loading": np.ones(0, bool)}
+    style = {"loading": {}, "unloading": {"mfc": "none"}}
+    for label, mask in branches.items():
+        ax.plot(
+            x[mask] * 1e3, y[mask], "o", ms=2.5, alpha=0.6, color=color, mew=0.6,
+            label=name if label == "loading" else None, **style[label],
+        )  # fmt: skip
+
+
+def _intercept_warnings(pooled: SpringFit, runs, *, robust: bool) -> list[str]:
+    """Warnings on the load cell's zero: a significant F0, or one an origin-forced fit ignores."""
+    if pooled.through_origin:
+        free = _pooled_per_run_intercepts(
+            [np.asarray(x, float) for _, x, _ in runs],
+            [np.asarray(f, float) for _, _, f in runs],
+            [name for name, _, _ in runs],
+            robust=robust,
+        )
+        if not free.intercept_significant:
+            return []
+        return [
+            f"forced through the origin, but a fit with one F0 per run finds a mean F0 of "
+            f"{_mn(free.intercept)} ({_in_se(free)}): the load cell's zero is off and the "
+            f"origin-forced S = {pooled.spring_constant:.5g} N/m is biased (the fit with F0 gives "
+            f"{free.spring_constant:.5g} N/m); fit with the intercept (the default)"
+        ]
+    out = []
+    if pooled.intercept_significant:
+        out.append(
+            f"the load cell's zero is off: mean F0 = {_mn(pooled.intercept)} ({_in_se(pooled)}); "
+            f"it is fitted as a nuisance, so S is not biased by it, but check the tare"
+        )
+    bad = [r for r in pooled.run_intercepts if r["intercept_ci95_N"][0] > 0 or r["intercept_ci95_N"][1] < 0]
+    if bad and len(pooled.run_intercepts) > 1:
+        out.append(
+            "runs whose own F0 is significant: "
+            + ", ".join(
+                f"{r['run']} {_mn(r['intercept_N'])} ({abs(r['intercept_N']) / r['intercept_stderr_N']:.1f} SE)"
+                for r in bad
+            )
+        )
+    return out
+
+
+def _mn(force: float) -> str:
+    return f"{force * 1e3:+.3g} mN"
+
+
+def _in_se(fit: SpringFit) -> str:
+    lo, hi = fit.intercept_ci95
+    z = abs(fit.intercept) / fit.intercept_stderr if fit.intercept_stderr > 0 else float("inf")
+    return f"{z:.1f} standard errors from 0, 95% CI {_mn(lo)} to {_mn(hi)}"
 
 
 def _check_runs(runs) -> list[tuple[str, np.ndarray, np.ndarray]]:
@@ -499,17 +729,22 @@ def _check_runs(runs) -> list[tuple[str, np.ndarray, np.ndarray]]:
 def fit_spring_runs(
     runs: Sequence[tuple[str, object, object]],
     *,
-    intercept: bool = False,
+    intercept: bool = True,
     robust: bool = False,
     by_branch: bool = True,
 ) -> SpringFitReport:
-    """Fit S per run, per branch and pooled.
+    """Fit S per run, per branch and pooled, with the load cell's zero F0 as a nuisance.
 
     Parameters
     ----------
     runs : sequence of (name, displacement [m], force [N])
         Run names must be unique.
-    intercept, robust : bool
+    intercept : bool
+        Fit F = S delta + F0 (default); the pooled fit has one S and one F0
+        per run, since each run is tared on its own. False forces every fit
+        through the origin (the thesis form), and a warning says if the data
+        show a significant F0.
+    robust : bool
         As in :func:`fit_spring`.
     by_branch : bool
         Also fit the loading and unloading branches (:func:`split_branches`)
@@ -519,7 +754,7 @@ def fit_spring_runs(
     Returns
     -------
     SpringFitReport
-        ``pooled`` is one fit on all runs concatenated.
+        With ``warnings`` on F0.
 
     Raises
     ------
@@ -528,32 +763,36 @@ def fit_spring_runs(
     """
     checked = _check_runs(runs)
     fits: list[SpringFit] = []
-    xs, fs = [], []
     for name, disp, frc in checked:
         whole = fit_spring(disp, frc, intercept=intercept, robust=robust, branch_label="all", run=name)
         fits.append(whole)
-        xs.append(whole.displacement)
-        fs.append(whole.force)
-        if not by_branch:
+        if by_branch:
+            fits.extend(_branch_fits(whole, intercept=intercept, robust=robust))
+    wholes = [f for f in fits if f.branch_label == "all"]
+    xs, fs = [f.displacement for f in wholes], [f.force for f in wholes]
+    if intercept:
+        pooled = _pooled_per_run_intercepts(xs, fs, [f.run for f in wholes], robust=robust)
+    else:
+        pooled = fit_spring(
+            np.concatenate(xs), np.concatenate(fs), intercept=False, robust=robust, run="pooled"
+        )
+    checked = [(f.run, f.displacement, f.force) for f in wholes]
+    return SpringFitReport(fits, pooled, _intercept_warnings(pooled, checked, robust=robust))
+
+
+def _branch_fits(whole: SpringFit, *, intercept: bool, robust: bool) -> list[SpringFit]:
+    """The loading and unloading fits of a run that has both branches."""
+    branches = split_branches(whole.displacement)
+    if len(branches) < 2:
+        return []
+    out = []
+    for label in ("loading", "unloading"):
+        mask = branches[label]
+        bx, bf = whole.displacement[mask], whole.force[mask]
+        if bx.size < 3 or not np.any(bx != 0.0) or (intercept and np.ptp(bx) == 0.0):
             continue
-        branches = split_branches(whole.displacement)
-        if len(branches) < 2:
-            continue
-        for label in ("loading", "unloading"):
-            mask = branches[label]
-            bx, bf = whole.displacement[mask], whole.force[mask]
-            if bx.size < 3 or not np.any(bx != 0.0) or (intercept and np.ptp(bx) == 0.0):
-                continue
-            fits.append(fit_spring(bx, bf, intercept=intercept, robust=robust, branch_label=label, run=name))
-    pooled = fit_spring(
-        np.concatenate(xs),
-        np.concatenate(fs),
-        intercept=intercept,
-        robust=robust,
-        branch_label="all",
-        run="pooled",
-    )
-    return SpringFitReport(fits=fits, pooled=pooled)
+        out.append(fit_spring(bx, bf, intercept=intercept, robust=robust, branch_label=label, run=whole.run))
+    return out
 
 
 def leave_one_out_spring(

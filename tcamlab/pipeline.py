@@ -262,64 +262,99 @@ def build_reports(
     return ReportOutcome(out, entries, index_path, pdf_path)
 
 
+PLOT_FORMATS = (".png", ".svg", ".pdf")
+"""Extensions ``fit-spring --plot`` writes; the extension names the format."""
+
+
 def fit_spring_files(
     paths: Sequence,
     *,
-    intercept: bool = False,
+    intercept: bool = True,
     robust: bool = False,
     by_branch: bool = True,
     plot_path=None,
     drop_na: bool = False,
     max_bytes: int | None = None,
+    force: bool = False,
 ):
-    """Identify S of F = S delta from pull-test CSVs or sensing experiment files.
+    """Identify S of F = S delta + F0 from pull-test CSVs or sensing experiment files.
 
-    Returns a :class:`tcamlab.fitting.SpringFitReport`; writes the fit and
-    residual plot to ``plot_path`` (SVG or PNG by extension) if given.
-    ``drop_na`` and ``max_bytes`` are passed to :func:`tcamlab.io.read_run`.
+    Returns a :class:`tcamlab.fitting.SpringFitReport` (F0, the load cell's
+    zero, is one nuisance per run unless ``intercept=False`` forces the fit
+    through the origin). Writes the fit and residual plot to ``plot_path`` if
+    given, in the format its extension names (:data:`PLOT_FORMATS`), never
+    over an existing file unless ``force``. ``drop_na`` and ``max_bytes`` are
+    passed to :func:`tcamlab.io.read_run`.
+
+    Raises
+    ------
+    InputError
+        No runs, an unreadable run, an unknown plot extension, or an existing plot without ``force``.
     """
-    from tcamlab import io as tio
     from tcamlab.fitting import fit_spring_runs
 
-    read_kw: dict = {"drop_na": drop_na}
-    if max_bytes is not None:
-        read_kw["max_bytes"] = max_bytes
-    runs = []
-    for p in paths:
-        p = Path(p)
-        if p.suffix.lower() == ".toml":
-            exp = load_experiment(p, expected_kind="sensing")
-            for r in exp.read_runs(**read_kw):
-                runs.append(
-                    (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float))
-                )
-        else:
-            r = tio.read_run(p, "sensing", **read_kw)
-            runs.append(
-                (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float))
-            )
-    if not runs:
-        raise InputError("fit-spring: no runs given", hint="pass CSV files or experiment files")
-    names = [n for n, _, _ in runs]
-    if len(set(names)) != len(names):
-        runs = [(f"{i + 1}:{n}", x, f) for i, (n, x, f) in enumerate(runs)]
+    if plot_path is not None:
+        _check_plot_path(Path(plot_path), force)
+    runs = _pull_runs(paths, drop_na, max_bytes)
     report = fit_spring_runs(runs, intercept=intercept, robust=robust, by_branch=by_branch)
     if plot_path is not None:
         import matplotlib
-
-        from tcamlab.report.figures import figure_to_png, figure_to_svg
 
         # Run names come from file names: '$' must not start matplotlib mathtext.
         with matplotlib.rc_context({"text.parse_math": False}):
             fig, (ax1, ax2) = _two_axes()
             report.plot(ax1)
-            report.pooled.plot_residuals(ax2)
-        plot_path = Path(plot_path)
-        if plot_path.suffix.lower() == ".png":
-            atomic_write_bytes(plot_path, figure_to_png(fig))
-        else:
-            atomic_write_text(plot_path, figure_to_svg(fig))
+            report.plot_residuals(ax2)
+        atomic_write_bytes(Path(plot_path), _figure_bytes(fig, Path(plot_path).suffix.lower()))
     return report
+
+
+def _check_plot_path(path: Path, force: bool) -> None:
+    if path.suffix.lower() not in PLOT_FORMATS:
+        raise InputError(
+            f"--plot {path.name}: unknown plot format {path.suffix or '(no extension)'!r}",
+            hint="end the file name in " + ", ".join(PLOT_FORMATS),
+        )
+    if path.exists() and not force:
+        raise InputError(f"--plot {path}: file exists", hint="pass --force to overwrite it")
+
+
+def _pull_runs(paths: Sequence, drop_na: bool, max_bytes: int | None) -> list:
+    """(name, displacement [m], force [N]) of every pull test in CSVs or sensing experiment files."""
+    from tcamlab import io as tio
+
+    read_kw: dict = {"drop_na": drop_na}
+    if max_bytes is not None:
+        read_kw["max_bytes"] = max_bytes
+    frames = []
+    for p in paths:
+        p = Path(p)
+        if p.suffix.lower() == ".toml":
+            frames.extend(load_experiment(p, expected_kind="sensing").read_runs(**read_kw))
+        else:
+            frames.append(tio.read_run(p, "sensing", **read_kw))
+    runs = [
+        (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float)) for r in frames
+    ]
+    if not runs:
+        raise InputError("fit-spring: no runs given", hint="pass CSV files or experiment files")
+    names = [n for n, _, _ in runs]
+    if len(set(names)) != len(names):
+        runs = [(f"{i + 1}:{n}", x, f) for i, (n, x, f) in enumerate(runs)]
+    return runs
+
+
+def _figure_bytes(fig, suffix: str) -> bytes:
+    """A figure as PNG, SVG or PDF bytes, without dates (same input, same bytes)."""
+    from tcamlab.report.figures import figure_to_png, figure_to_svg
+
+    if suffix == ".png":
+        return figure_to_png(fig)
+    if suffix == ".svg":
+        return figure_to_svg(fig).encode()
+    buf = _stdio.BytesIO()
+    fig.savefig(buf, format="pdf", metadata={"CreationDate": None, "ModDate": None})
+    return buf.getvalue()
 
 
 def _two_axes():

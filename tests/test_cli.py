@@ -2,6 +2,7 @@
 
 import hashlib
 import json
+import re
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -174,6 +175,50 @@ def test_fit_spring_json_recovers_the_simulated_spring_constant(lab):
     # the experiment file works as input too
     result = runner.invoke(app, ["fit-spring", str(lab / "experiments/sensing.toml")])
     assert result.exit_code == 0 and "pooled" in result.output
+
+
+@pytest.mark.parametrize(
+    "name, signature",
+    [("fit.pdf", b"%PDF-"), ("fit.png", b"\x89PNG\r\n\x1a\n"), ("fit.SVG", b"<svg")],
+)
+def test_fit_spring_plot_is_the_format_its_extension_names(lab, name, signature):
+    runs = [str(p) for p in sorted((lab / "raw").glob("sensing_run*.csv"))]
+    result = runner.invoke(app, ["fit-spring", *runs, "--plot", str(lab / name)])
+    assert result.exit_code == 0, result.output
+    data = (lab / name).read_bytes()
+    assert data.lstrip().startswith(signature)
+    # never over an existing file without --force
+    again = runner.invoke(app, ["fit-spring", *runs, "--plot", str(lab / name)])
+    assert again.exit_code == 2 and "--force" in again.output
+    forced = runner.invoke(app, ["fit-spring", *runs, "--plot", str(lab / name), "--force"])
+    assert forced.exit_code == 0 and (lab / name).read_bytes() == data  # same input, same bytes
+
+
+@pytest.mark.parametrize("name", ["fit.jpg", "fit", "fit.svg.txt"])
+def test_fit_spring_refuses_an_unknown_plot_format(lab, name):
+    runs = [str(p) for p in sorted((lab / "raw").glob("sensing_run*.csv"))]
+    result = runner.invoke(app, ["fit-spring", *runs, "--plot", str(lab / name)])
+    assert result.exit_code == 2
+    assert ".png, .svg, .pdf" in result.output and "Traceback" not in result.output
+    assert not (lab / name).exists()
+
+
+def test_fit_spring_text_labels_f0_r2_and_the_standard_error(lab):
+    """The bundled pull tests' load cell reads -0.4 mN at rest: the default fit reports F0 and
+    warns; R² is labelled; ± is named a standard error; --origin is labelled and warned about."""
+    runs = [str(p) for p in sorted((lab / "raw").glob("sensing_run*.csv"))]
+    out = runner.invoke(app, ["fit-spring", *runs, "--no-branches"]).output
+    assert "± is one standard error" in out and "R² (centred)" in out
+    pooled = next(line for line in out.splitlines() if line.strip().startswith("pooled"))
+    lo, hi = (float(v) for v in re.search(r"95% CI ([\d.]+) to ([\d.]+)", pooled).groups())
+    assert lo <= 4.7 <= hi
+    assert "mean F0 = -0.3" in pooled and "warning: the load cell's zero is off" in out
+    forced = runner.invoke(app, ["fit-spring", *runs, "--no-branches", "--origin"]).output
+    assert "R² (uncentred)" in forced and "F0 = 0 (forced)" in forced
+    assert "warning: forced through the origin" in forced and "biased" in forced
+    doc = json.loads(runner.invoke(app, ["fit-spring", *runs, "--json"]).output)
+    assert doc["r2_kind"] == "centred" and doc["warnings"] and doc["pooled"]["intercept_significant"]
+    assert doc["ci95_N_per_m"][0] <= 4.7 <= doc["ci95_N_per_m"][1]
 
 
 def test_fit_spring_bad_file_is_a_clear_error(lab):

@@ -308,9 +308,13 @@ def test_fit_spring_runs_per_run_branch_and_pooled():
         assert abs(fit.spring_constant / S_TRUE - 1) < 0.02, (fit.run, fit.branch_label)
     assert abs(rep.pooled.spring_constant / S_TRUE - 1) < 0.02
     assert rep.pooled.run == "pooled" and rep.pooled.n == sum(len(r[1]) for r in runs)
-    # pooled is a single fit on the concatenated data
+    # by default every run has its own F0 (the pooled fit changed from one line through the
+    # origin to one S with a tare per run: the load cell's zero is a nuisance)
+    assert [r["run"] for r in rep.pooled.run_intercepts] == ["a", "b", "c"]
+    # through the origin, pooled is a single fit on the concatenated data
+    origin = fit_spring_runs(runs, intercept=False)
     direct = fit_spring(np.concatenate([r[1] for r in runs]), np.concatenate([r[2] for r in runs]))
-    assert rep.pooled.spring_constant == pytest.approx(direct.spring_constant, rel=1e-14)
+    assert origin.pooled.spring_constant == pytest.approx(direct.spring_constant, rel=1e-14)
 
     d = rep.to_dict()
     json.dumps(d, allow_nan=False)
@@ -350,3 +354,78 @@ def test_leave_one_out():
     with pytest.raises(InputError, match="at least two runs") as info:
         leave_one_out_spring(runs[:1], "a")
     assert "spring_constant_N_per_m" in info.value.hint and "[rig]" in info.value.hint
+
+
+# --------------------------------------------------------------------------
+# the load cell's zero F0
+# --------------------------------------------------------------------------
+
+
+def test_pooled_fit_has_one_intercept_per_run_by_hand():
+    """S from the within-run (demeaned) sums, each F0 = mean F - S mean delta of its run,
+    SE(S) = sqrt(SS_res / (n - 1 - runs) / Sxx_within)."""
+    rng = np.random.default_rng(21)
+    runs = []
+    for name, f0 in (("a", -1e-3), ("b", 2e-3), ("c", 0.5e-3)):
+        x = np.linspace(0.0, 0.05, 40 + len(runs) * 7)
+        runs.append((name, x, S_TRUE * x + f0 + rng.normal(0.0, 1e-3, x.size)))
+    pooled = fit_spring_runs(runs, by_branch=False).pooled
+    sxy = sum(np.dot(x - x.mean(), f - f.mean()) for _, x, f in runs)
+    sxx = sum(np.dot(x - x.mean(), x - x.mean()) for _, x, _ in runs)
+    s = sxy / sxx
+    f0 = [f.mean() - s * x.mean() for _, x, f in runs]
+    ss = sum(np.sum((f - s * x - c) ** 2) for (_, x, f), c in zip(runs, f0))
+    n = sum(x.size for _, x, _ in runs)
+    assert pooled.spring_constant == pytest.approx(s, rel=1e-10)
+    assert [r["intercept_N"] for r in pooled.run_intercepts] == pytest.approx(f0, rel=1e-8)
+    assert pooled.intercept == pytest.approx(np.mean(f0), rel=1e-8)
+    assert pooled.stderr == pytest.approx(math.sqrt(ss / (n - 4) / sxx), rel=1e-8)
+    assert pooled.dof == n - 4 and pooled.r2_kind == "centred"
+    # one common line would not do: the runs' tares differ by 3 mN
+    assert fit_spring_runs(runs, intercept=False).pooled.r2_kind == "uncentred"
+
+
+def test_significant_intercept_is_warned_and_labelled():
+    x = np.repeat(np.linspace(0.0, 0.05, 26), 4)
+    wiggle = np.tile([1e-3, -1e-3, 1e-3, -1e-3], 26)  # symmetric noise: F0 is exactly what is added
+    clean = fit_spring_runs([("r", x, S_TRUE * x + wiggle)], by_branch=False)
+    assert clean.warnings == [] and not clean.pooled.intercept_significant
+    off = fit_spring_runs([("r", x, S_TRUE * x - 0.4e-3 + wiggle)], by_branch=False)
+    assert off.pooled.intercept == pytest.approx(-0.4e-3, rel=1e-9)
+    assert off.pooled.intercept_significant and "zero is off" in off.warnings[0]
+    assert "-0.4 mN" in off.warnings[0]
+    forced = fit_spring_runs([("r", x, S_TRUE * x - 0.4e-3 + wiggle)], intercept=False, by_branch=False)
+    assert "biased" in forced.warnings[0] and "origin" in forced.warnings[0]
+    d = off.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["pooled"]["intercept_significant"] is True and d["r2_kind"] == "centred"
+    assert d["pooled"]["intercept_ci95_N"][1] < 0 and "standard error" in d["uncertainty"]
+    assert forced.to_dict()["r2_kind"] == "uncentred" and forced.to_dict()["through_origin"] is True
+
+
+@pytest.mark.parametrize("noisy_zero", [False, True])
+def test_load_cell_offset_no_longer_biases_s(tmp_path, noisy_zero):
+    """Pull tests from the virtual rig (synthetic: tcamlab.rig.simulate, the sensing template's
+    S = 4.7 N/m, the load cell's -0.4 mN zero offset, or a tare redrawn per run with noisy_zero;
+    seeds 1-8): the 95% CI of S contains 4.7 as a 95% interval should, the origin-forced fit's never."""
+    from tcamlab import rig
+    from tcamlab.pipeline import fit_spring_files
+    from tcamlab.templates import template_path
+
+    covered, z = 0, []
+    for seed in range(1, 9):
+        res = rig.simulate(
+            "sensing",
+            template_path("sensing"),
+            seed=seed,
+            out_dir=tmp_path / str(seed),
+            noisy_zero=noisy_zero,
+        )
+        fit = fit_spring_files([res.experiment_path]).pooled
+        covered += fit.ci95[0] <= S_TRUE <= fit.ci95[1]
+        z.append((fit.spring_constant - S_TRUE) / fit.stderr)
+        origin = fit_spring_files([res.experiment_path], intercept=False).pooled
+        assert not origin.ci95[0] <= S_TRUE <= origin.ci95[1], seed
+        assert abs(origin.spring_constant - S_TRUE) > 5 * origin.stderr
+    assert covered >= 6  # of 8: P(fewer) < 1% for a true 95% interval
+    assert np.max(np.abs(z)) < 4
