@@ -297,9 +297,11 @@ def fit_spring(
 ):
     """Identify the spring constant S of F = S delta + F0 (thesis section 3.3).
 
-    F0, the load cell's zero (tare), is a nuisance fitted per run unless --origin; S and F0
-    with standard error (±) and 95% CI, R² labelled centred or uncentred, per run, per branch
-    and pooled; a warning when F0 is significant.
+    F0, the load cell's zero (tare), is fitted per run unless --origin.
+
+    S and F0 with standard error (±) and 95% CI; R² centred or uncentred; per run, branch, pooled.
+
+    Warns when F0 is significant.
 
     Example: tcamlab fit-spring raw/sensing_run1.csv raw/sensing_run2.csv --json
     """

@@ -166,7 +166,12 @@ class SpringFit:
         }
         if self.run_intercepts:
             d["run_intercepts"] = [
-                {k: (json_float(v) if k != "run" and not isinstance(v, list) else v) for k, v in r.items()}
+                {
+                    "run": r["run"],
+                    "intercept_N": json_float(r["intercept_N"]),
+                    "intercept_stderr_N": json_float(r["intercept_stderr_N"]),
+                    "intercept_ci95_N": [json_float(v) for v in r["intercept_ci95_N"]],
+                }
                 for r in self.run_intercepts
             ]
         if include_residuals:
@@ -193,7 +198,7 @@ class SpringFit:
 
     def label(self) -> str:
         """``S = 4.698 ± 0.00052 N/m (± SE), F0 = -0.34 mN`` (F0 only with an intercept)."""
-        text = f"S = {self.spring_constant:.4g} ± {self.stderr:.2g} N/m (± SE)"
+        text = f"S = {self.spring_constant:.5g} ± {self.stderr:.2g} N/m (± SE)"
         if not self.through_origin:
             mean = "mean " if self.run_intercepts else ""
             text += f", {mean}F0 = {self.intercept * 1e3:.3g} ± {self.intercept_stderr * 1e3:.2g} mN"
@@ -608,7 +613,8 @@ class SpringFitReport:
             _branch_points(ax, fit.displacement, fit.force, f"C{i % 10}", name)
         x_all = np.asarray(self.pooled.displacement, float)
         xs = np.linspace(min(0.0, float(x_all.min())), float(x_all.max()), 50)
-        ax.plot(xs * 1e3, self.pooled.predict(xs), "k-", lw=1.4, label=f"pooled fit: {self.pooled.label()}")
+        ax.plot(xs * 1e3, self.pooled.predict(xs), "k-", lw=1.4, label="pooled fit")
+        ax.set_title(f"pooled fit: {self.pooled.label()}", fontsize="small")
         handles, _ = ax.get_legend_handles_labels()
         handles += [
             Line2D([], [], ls="", marker="o", ms=4, color="0.3", label="loading"),
