@@ -1,0 +1,329 @@
+"""The calibration report (``calibration.html`` / ``calibration.pdf``) as a :class:`Document`.
+
+Renders only: every number comes from the :class:`~tcamlab.calibration.CalibrationResult`
+(its per-run :attr:`~tcamlab.calibration.CalibrationResult.curves` for the overlays
+and residuals, each estimate's ``profile_points`` for the profile plots). The
+first section is the provenance (tool version, command, every input file with
+its path relative to the first experiment file's folder and its SHA-256), so a
+reader sees where the numbers come from before the numbers.
+
+Numbers: each parameter row is printed in the experiment file's lab unit (a
+power of ten moved into the unit when the value is far from 1) with the
+decimals that show two significant digits of its posterior sd.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from tcamlab.report.calibration_figures import (
+    correlation_figure,
+    overlay_figure,
+    parameter_display,
+    quantity_display,
+    residual_figure,
+    stride,
+)
+from tcamlab.report.document import Document, Figure, Section, Table
+from tcamlab.report.validation_report import synthetic_banner
+
+__all__ = ["calibration_document", "parameter_rows", "figure_files"]
+
+DASH = "\u2013"
+
+
+def _decimals(sd: float) -> int:
+    """Decimals that show two significant digits of ``sd`` (0 to 10)."""
+    if not (sd > 0 and math.isfinite(sd)):
+        return 4
+    return int(min(max(1 - math.floor(math.log10(sd)), 0), 10))
+
+
+def _fixed(x: float | None, d: int) -> str:
+    if x is None or not math.isfinite(x):
+        return DASH
+    text = f"{x:.{d}f}"
+    return "0" if float(text) == 0 else text.replace("-", "\u2212")
+
+
+def _interval(lo: float, hi: float, d: int, open_=(False, False)) -> str:
+    left = ("\u2264 " if open_[0] else "") + _fixed(lo, d)
+    right = _fixed(hi, d) + (" \u2191" if open_[1] else "")
+    return f"{left} to {right}"
+
+
+def _prior(p) -> str:
+    source = "stated" if p.stated_sd is not None else "default"
+    shape = "log-normal" if p.positive else "normal"
+    return f"{shape} {100 * p.prior_sd_rel:.3g} % ({source})"
+
+
+def parameter_rows(result) -> list[list[str]]:
+    """Rows of the parameter table, lab units, one per calibrated parameter."""
+    rows = []
+    for p in result.parameters:
+        unit, f = parameter_display(p)
+        d = _decimals(p.posterior_sd * f)
+        stated = f"{p.stated * f:.6g}" + ("" if p.stated_in_file else " (from the logs)")
+        rows.append(
+            [
+                p.symbol,
+                p.name.replace("_", " "),
+                unit,
+                stated.replace("-", "\u2212"),
+                DASH if p.stated_sd is None else f"{p.stated_sd * f:.3g}",
+                _prior(p),
+                _fixed(p.value * f, d),
+                _interval(p.laplace_95[0] * f, p.laplace_95[1] * f, d),
+                _interval(p.profile_95[0] * f, p.profile_95[1] * f, d, p.profile_open),
+                DASH
+                if p.shift_in_stated_sds is None
+                else f"{p.shift_in_stated_sds:+.2f}".replace("-", "\u2212"),
+                "yes" if p.pinned else "no",
+            ]
+        )
+    return rows
+
+
+def _parameter_table(result) -> Table:
+    return Table(
+        [
+            "symbol",
+            "parameter",
+            "unit",
+            "stated",
+            "stated sd",
+            "prior used",
+            "calibrated",
+            "Laplace 95 %",
+            "profile 95 %",
+            "shift [stated sds]",
+            "pinned",
+        ],
+        parameter_rows(result),
+        caption=(
+            "Calibrated parameters in lab units. Shift = (calibrated \u2212 stated) / stated sd. "
+            "Pinned: posterior sd below half the prior sd. \u2264 or \u2191 marks a profile bound "
+            "at the edge of the search box (the data never raised chi-square by 3.84 there)."
+        ),
+    )
+
+
+def _quality_table(result) -> Table:
+    rows = []
+    for q in result.fit:
+        unit, f = quantity_display(q.quantity)
+        rows.append(
+            [
+                q.experiment,
+                q.quantity,
+                f"{q.sigma * f:.3g} {unit}",
+                f"{q.rmse_over_sigma_stated:.2f}",
+                f"{q.rmse_over_sigma_calibrated:.2f}",
+                q.n,
+            ]
+        )
+    return Table(
+        ["experiment", "quantity", "noise sd", "RMS / noise, stated", "RMS / noise, calibrated", "n"],
+        rows,
+        caption=(
+            "Fit quality: RMS of measured \u2212 predicted over the noise floor (second "
+            "differences); stated with the logged zeros, calibrated with the fitted zeros. "
+            "About 1 is a fit to within noise."
+        ),
+    )
+
+
+def _zeros_table(result) -> Table | None:
+    if not result.zeros:
+        return None
+    rows = []
+    for z in result.zeros:
+        unit, f = quantity_display(z.quantity)
+        d = _decimals(z.sd * f)
+        rows.append(
+            [
+                z.experiment,
+                z.run,
+                z.quantity,
+                unit,
+                _fixed(z.value * f, d),
+                _fixed(z.sd * f, d),
+                _interval(z.interval_95[0] * f, z.interval_95[1] * f, d),
+            ]
+        )
+    return Table(
+        ["experiment", "run", "quantity", "unit", "zero", "sd", "95 % interval"],
+        rows,
+        caption=(
+            "Nuisance zeros: each run's offset of measured \u2212 predicted at the calibrated "
+            "values (the logged zero's error), with its interval."
+        ),
+    )
+
+
+def _relative(path: str, base: Path) -> str:
+    p = Path(path)
+    try:
+        return Path(os.path.relpath(p.resolve(), base.resolve())).as_posix()
+    except ValueError:  # another drive (Windows)
+        return p.name
+
+
+def _provenance_section(result, command: str | None) -> Section:
+    from tcamlab import __version__
+
+    base = Path(result.experiments[0]).parent
+    lines = [f"Tool: tcamlab {__version__}."]
+    if command:
+        lines.append(f"Command: {command}")
+    lines.append(
+        f"Input files (paths relative to the folder of {Path(result.experiments[0]).name}) and their SHA-256:"
+    )
+    for entry in result.inputs:
+        lines.append(f"{entry['role']} {_relative(entry['path'], base)}: {entry['sha256']}")
+    return Section("Provenance", paragraphs=lines)
+
+
+def _figure(fig, caption: str) -> Figure:
+    return Figure(fig, caption, alt=caption)
+
+
+def _thinned(curves) -> str:
+    k = max(stride(len(next(iter(c.measured.values())))) for c in curves)
+    return f" One row in {k} drawn (long logs are thinned for the figure only)." if k > 1 else ""
+
+
+def _experiment_figures(result, name: str) -> list[Figure]:
+    curves = [c for c in result.curves if c.experiment == name]
+    if not curves:
+        return []
+    quantities = [q.quantity for q in result.fit if q.experiment == name]
+    sigma = {q.quantity: q.sigma for q in result.fit if q.experiment == name}
+    x = curves[0].x
+    figs = []
+    for q in quantities:
+        figs.append(
+            _figure(
+                overlay_figure(curves, q),
+                f"{name}: measured {q} (points) against the model at the stated values (dashed) "
+                f"and at the calibrated values plus each run's fitted zero (solid), every run."
+                + _thinned(curves),
+            )
+        )
+    figs.append(
+        _figure(
+            residual_figure(curves, quantities, sigma),
+            f"{name}: residuals (measured \u2212 predicted) against {x}, all runs; left at the "
+            "stated values with the logged zeros, right at the calibrated values with the fitted "
+            "zeros. Grey band: \u00b12 noise sd." + _thinned(curves),
+        )
+    )
+    return figs
+
+
+def _labels(result) -> list[str]:
+    several = len(result.experiments) > 1
+    out = []
+    for p in result.parameters:
+        exp = p.name.split(".")[0] if several and "." in p.name else ""
+        out.append(f"{p.symbol} ({exp})" if exp else p.symbol)
+    return out
+
+
+def _title(experiments) -> str:
+    if len(experiments) == 1:
+        return experiments[0].title
+    return "; ".join(e.title for e in experiments)
+
+
+def calibration_document(result, experiments: Sequence, *, command: str | None = None) -> Document:
+    """The calibration report.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        The calibration (with its curves).
+    experiments : sequence of Experiment
+        The calibrated experiments (titles, synthetic banners).
+    command : str, optional
+        The command line shown in the provenance.
+    """
+    from tcamlab.report.calibration_figures import profile_figure
+
+    names = [e.name for e in experiments]
+    quality = Section("Fit quality", tables=[_quality_table(result)])
+    zeros = _zeros_table(result)
+    sections = [
+        _provenance_section(result, command),
+        Section(
+            "Parameters",
+            paragraphs=[
+                f"{len(result.parameters)} parameters calibrated jointly over every run of "
+                + ", ".join(names)
+                + f" ({result.n_points} data points; penalised chi-square {result.chi2:.1f})."
+            ],
+            tables=[_parameter_table(result)],
+            notes=list(result.notes),
+        ),
+        Section("Identifiability", paragraphs=list(result.identifiability)),
+        quality,
+    ]
+    if zeros is not None:
+        sections.append(Section("Nuisance zeros", tables=[zeros]))
+    for name in names:
+        sections.append(
+            Section(f"Model against measurement: {name}", figures=_experiment_figures(result, name))
+        )
+    sections.append(
+        Section(
+            "Profile likelihood",
+            figures=[
+                _figure(
+                    profile_figure(result.parameters),
+                    "Signed root of the profile likelihood, z = \u00b1sqrt(chi-square rise), "
+                    "each parameter re-optimising the others (points: evaluated). Shaded: the 95 % "
+                    "profile interval, where |z| < 1.96; dotted: the Laplace (Jacobian) "
+                    "approximation; dash-dotted: the stated value.",
+                )
+            ],
+        )
+    )
+    sections.append(
+        Section(
+            "Correlation",
+            figures=[
+                _figure(
+                    correlation_figure(_labels(result), result.correlation["matrix"]),
+                    "Posterior correlation of the calibrated parameters (in fitted coordinates: "
+                    "logarithms of positive parameters). Near \u00b11: the logs fix only a "
+                    "combination.",
+                )
+            ],
+        )
+    )
+    banners = [b for b in (synthetic_banner(e) for e in experiments) if b]
+    return Document(
+        title=f"Calibration: {_title(experiments)}",
+        subtitle="Calibration report: " + "+".join(names),
+        sections=sections,
+        metadata={},
+        synthetic_banner=" ".join(dict.fromkeys(banners)) or None,
+    )
+
+
+def figure_files(doc: Document, stem: str = "calibration") -> dict[str, bytes]:
+    """Each figure of ``doc`` as standalone PNG and SVG: ``STEM-figN.png`` / ``.svg``."""
+    from tcamlab.report.figures import figure_to_png, figure_to_svg
+
+    out: dict[str, bytes] = {}
+    n = 0
+    for section in doc.sections:
+        for fig in section.figures:
+            n += 1
+            out[f"{stem}-fig{n}.png"] = figure_to_png(fig.figure)
+            out[f"{stem}-fig{n}.svg"] = figure_to_svg(fig.figure, index=n).encode()
+    return out
