@@ -296,8 +296,8 @@ def correlation_figure(symbols: Sequence[str], matrix):
     """The posterior correlation matrix as an annotated heatmap (fitted coordinates)."""
     m = np.asarray(matrix, float)
     n = len(symbols)
-    size = 1.6 + 0.55 * n
-    fig, axes = _figure(size + 1.0, size, 1, 1)
+    # wide and short: the PDF scales every figure to the text width
+    fig, axes = _figure(6.6, 1.3 + 0.45 * n, 1, 1)
     ax = axes[0, 0]
     labels = [pretty_symbol(s) for s in symbols]
     with report_style(**{"text.parse_math": False}):

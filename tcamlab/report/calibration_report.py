@@ -49,6 +49,14 @@ def _fixed(x: float | None, d: int) -> str:
     return "0" if float(text) == 0 else text.replace("-", "\u2212")
 
 
+def _signed(x: float | None) -> str:
+    """``+0.12`` / ``−1.50``; a value that rounds to zero is ``0.00``, never ``−0.00``."""
+    if x is None or not math.isfinite(x):
+        return DASH
+    text = f"{x:+.2f}"
+    return "0.00" if float(text) == 0 else text.replace("-", "\u2212")
+
+
 def _interval(lo: float, hi: float, d: int, open_=(False, False)) -> str:
     left = ("\u2264 " if open_[0] else "") + _fixed(lo, d)
     right = _fixed(hi, d) + (" \u2191" if open_[1] else "")
@@ -58,7 +66,7 @@ def _interval(lo: float, hi: float, d: int, open_=(False, False)) -> str:
 def _prior(p) -> str:
     source = "stated" if p.stated_sd is not None else "default"
     shape = "log-normal" if p.positive else "normal"
-    return f"{shape} {100 * p.prior_sd_rel:.3g} % ({source})"
+    return f"{shape} {100 * p.prior_sd_rel:.3g}\u00a0% ({source})"
 
 
 def parameter_rows(result) -> list[list[str]]:
@@ -74,14 +82,12 @@ def parameter_rows(result) -> list[list[str]]:
                 p.name.replace("_", " "),
                 unit,
                 stated.replace("-", "\u2212"),
-                DASH if p.stated_sd is None else f"{p.stated_sd * f:.3g}",
+                DASH if p.stated_sd is None else f"{p.stated_sd * f:.6g}",
                 _prior(p),
                 _fixed(p.value * f, d),
                 _interval(p.laplace_95[0] * f, p.laplace_95[1] * f, d),
                 _interval(p.profile_95[0] * f, p.profile_95[1] * f, d, p.profile_open),
-                DASH
-                if p.shift_in_stated_sds is None
-                else f"{p.shift_in_stated_sds:+.2f}".replace("-", "\u2212"),
+                _signed(p.shift_in_stated_sds),
                 "yes" if p.pinned else "no",
             ]
         )
