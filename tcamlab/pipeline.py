@@ -588,10 +588,11 @@ def _calibration_payload(result, exps, params, command) -> dict[str, bytes]:
             "calibrate", *(shown_path(e.path) for e in exps), options=[("--params", params)]
         )
     doc = calibration_document(result, exps, command=command)
+    html = render_html(doc)
     payload = {
         "calibration.json": dumps_json(result.to_dict()).encode(),
-        "calibration.html": render_html(doc).encode(),
+        "calibration.html": html.encode(),
         "calibration.pdf": render_pdf(doc),
     }
-    payload.update(figure_files(doc))
+    payload.update(figure_files(doc, html))
     return payload

@@ -110,6 +110,8 @@ def test_files_written_beside_the_json(written):
     assert len(pngs) == len(svgs) == 4  # overlay, residuals, profiles, correlation
     assert all(p.read_bytes().startswith(b"\x89PNG\r\n\x1a\n") for p in pngs)
     assert all(b"<svg" in s.read_bytes()[:400] for s in svgs)
+    html = (folder / "calibration.html").read_bytes()
+    assert all(s.read_bytes() in html for s in svgs)  # the figures the report shows
     assert not list(folder.glob(".*.tmp"))
 
 

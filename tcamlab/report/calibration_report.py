@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -321,15 +322,19 @@ def calibration_document(result, experiments: Sequence, *, command: str | None =
     )
 
 
-def figure_files(doc: Document, stem: str = "calibration") -> dict[str, bytes]:
-    """Each figure of ``doc`` as standalone PNG and SVG: ``STEM-figN.png`` / ``.svg``."""
+def figure_files(doc: Document, html: str | None = None, stem: str = "calibration") -> dict[str, bytes]:
+    """Each figure of ``doc`` as standalone PNG (150 dpi) and SVG: ``STEM-figN.png`` / ``.svg``.
+
+    With ``html`` (``render_html(doc)``), the SVGs are the ones inlined there (the same
+    bytes ``figure_to_svg`` gives, taken instead of drawn a second time).
+    """
     from tcamlab.report.figures import figure_to_png, figure_to_svg
 
+    figures = [fig for section in doc.sections for fig in section.figures]
+    inlined = re.findall(r"<svg\b.*?</svg>\n?", html or "", flags=re.S)
     out: dict[str, bytes] = {}
-    n = 0
-    for section in doc.sections:
-        for fig in section.figures:
-            n += 1
-            out[f"{stem}-fig{n}.png"] = figure_to_png(fig.figure)
-            out[f"{stem}-fig{n}.svg"] = figure_to_svg(fig.figure, index=n).encode()
+    for n, fig in enumerate(figures, start=1):
+        out[f"{stem}-fig{n}.png"] = figure_to_png(fig.figure)
+        svg = inlined[n - 1] if len(inlined) == len(figures) else figure_to_svg(fig.figure, index=n)
+        out[f"{stem}-fig{n}.svg"] = svg.encode()
     return out
