@@ -282,3 +282,24 @@ def test_decimals_show_two_digits_of_the_sd(written):
         text = row[table[0].index("calibrated")]
         decimals = len(text.split(".")[1]) if "." in text else 0
         assert decimals == max(0, 1 - math.floor(math.log10(p.posterior_sd)))
+
+
+def test_a_profile_bound_the_search_did_not_reach_is_flagged(written):
+    from dataclasses import replace
+
+    from tcamlab.report.calibration_report import parameter_rows, unsure_bounds
+
+    _, path, outcome = written
+    res = outcome.result
+    p = res.parameters[0]
+    assert unsure_bounds(p) == (False, False)
+    # the search stopped at the upper bound with z = 0.5 (as on a strongly correlated static fit)
+    hi = p.profile_95[1]
+    pts = tuple((v, 0.5 if v == hi else z) for v, z in p.profile_points)
+    bad = replace(res, parameters=[replace(p, profile_points=pts), *res.parameters[1:]])
+    assert unsure_bounds(bad.parameters[0]) == (False, True)
+    row = parameter_rows(bad)[0]
+    assert row[8].endswith(" ?") and not row[8].split(" to ")[0].endswith("?")
+    doc = calibration_document(bad, [load_experiment(path)])
+    notes = [n for s in doc.sections for n in s.notes]
+    assert any("upper profile bound of C_th is not a 95 % bound" in n and "+0.50" in n for n in notes)

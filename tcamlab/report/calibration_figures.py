@@ -91,6 +91,11 @@ def parameter_display(p) -> tuple[str, float]:
     return f"\u00d710{str(exp).translate(_SUPERSCRIPT)} {unit}", factor / 10.0**exp
 
 
+def _marker(n: int) -> float:
+    """Marker size [pt]: larger for short logs, so a dozen points stay visible."""
+    return 4.0 if n < 100 else 3.0 if n < 500 else 2.2
+
+
 def stride(n: int) -> int:
     """Every how many rows a run of ``n`` rows is drawn (1 up to :data:`MAX_ROWS`)."""
     return max(1, math.ceil(n / MAX_ROWS))
@@ -167,7 +172,9 @@ def overlay_figure(curves: Sequence, q: str):
         _bottom_labels(axes, n, _label(curves[0].x))
         for ax in axes[:, 0]:
             ax.set_ylabel(_label(q))
-        _legend(fig, handles, ["measured", "model, stated values", "model, calibrated (+ fitted zero)"])
+        zeroed = any(q in c.zero for c in curves)
+        calibrated = "model, calibrated (+ fitted zero)" if zeroed else "model, calibrated"
+        _legend(fig, handles, ["measured", "model, stated values", calibrated])
     return fig
 
 
@@ -205,14 +212,23 @@ def residual_figure(curves: Sequence, quantities: Sequence[str], sigma: dict):
                     k = stride(len(c.measured[q]))
                     x = c.inputs[c.x][::k] * xf
                     r = (c.measured[q] - getattr(c, which)[q])[::k] * f
-                    pts = ax.plot(x, r, "o", ms=1.8, color=colour, alpha=0.6, rasterized=x.size > RASTER)
+                    pts = ax.plot(
+                        x,
+                        r,
+                        "o",
+                        ms=_marker(x.size) * 0.8,
+                        color=colour,
+                        alpha=0.6,
+                        rasterized=x.size > RASTER,
+                    )
                     x_all.append(x)
                 band = _band(ax, np.concatenate(x_all), sigma[q] * f)
                 ax.axhline(0.0, color="0.2", lw=0.7)
                 handles.append(pts[0])
             row[0].set_ylabel(f"{_NAMES.get(q, q)} residual\n[{quantity_display(q)[0]}]")
         axes[0, 0].set_title("stated values", fontsize=9)
-        axes[0, 1].set_title("calibrated values, fitted zeros", fontsize=9)
+        zeroed = any(c.zero for c in curves)
+        axes[0, 1].set_title("calibrated values" + (", fitted zeros" if zeroed else ""), fontsize=9)
         for ax in axes[-1, :]:
             ax.set_xlabel(_label(curves[0].x))
         _legend(

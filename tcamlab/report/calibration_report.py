@@ -58,10 +58,26 @@ def _signed(x: float | None) -> str:
     return "0.00" if float(text) == 0 else text.replace("-", "\u2212")
 
 
-def _interval(lo: float, hi: float, d: int, open_=(False, False)) -> str:
-    left = ("\u2264 " if open_[0] else "") + _fixed(lo, d)
-    right = _fixed(hi, d) + (" \u2191" if open_[1] else "")
+def _interval(lo: float, hi: float, d: int, open_=(False, False), unsure=(False, False)) -> str:
+    left = ("\u2264 " if open_[0] else "") + _fixed(lo, d) + (" ?" if unsure[0] else "")
+    right = _fixed(hi, d) + (" \u2191" if open_[1] else "") + (" ?" if unsure[1] else "")
     return f"{left} to {right}"
+
+
+UNSURE_Z = 0.1
+"""A profile bound whose signed root is further than this from 1.96 was not reached."""
+
+
+def unsure_bounds(p) -> tuple[bool, bool]:
+    """Whether each profile bound is not where z = -1.96 / +1.96: the search stopped
+    (its step limit) before reaching it, and the box edge was not reached either."""
+    from tcamlab.calibration.fit import Z95
+
+    out = []
+    for bound, is_open in zip(p.profile_95, p.profile_open):
+        zs = [abs(z) for v, z in p.profile_points if v == bound]
+        out.append(bool(zs) and not is_open and min(abs(z - Z95) for z in zs) > UNSURE_Z)
+    return out[0], out[1]
 
 
 def _prior(p) -> str:
@@ -87,7 +103,7 @@ def parameter_rows(result) -> list[list[str]]:
                 _prior(p),
                 _fixed(p.value * f, d),
                 _interval(p.laplace_95[0] * f, p.laplace_95[1] * f, d),
-                _interval(p.profile_95[0] * f, p.profile_95[1] * f, d, p.profile_open),
+                _interval(p.profile_95[0] * f, p.profile_95[1] * f, d, p.profile_open, unsure_bounds(p)),
                 _signed(p.shift_in_stated_sds),
                 "yes" if p.pinned else "no",
             ]
@@ -114,9 +130,25 @@ def _parameter_table(result) -> Table:
         caption=(
             "Calibrated parameters in lab units. Shift = (calibrated \u2212 stated) / stated sd. "
             "Pinned: posterior sd below half the prior sd. \u2264 or \u2191 marks a profile bound "
-            "at the edge of the search box (the data never raised chi-square by 3.84 there)."
+            "at the edge of the search box (the data never raised chi-square by 3.84 there); ? a "
+            "bound where the profile search stopped before |z| reached 1.96 (see the notes)."
         ),
     )
+
+
+def _unsure_notes(result) -> list[str]:
+    """A warning for each profile bound the search did not reach."""
+    out = []
+    for p in result.parameters:
+        for side, unsure, bound in zip(("lower", "upper"), unsure_bounds(p), p.profile_95):
+            if unsure:
+                z = min((z for v, z in p.profile_points if v == bound), key=lambda z: abs(abs(z) - 1.96))
+                out.append(
+                    f"The {side} profile bound of {p.symbol} is not a 95 % bound: the search stopped "
+                    f"where z = {z:+.2f}, not \u00b11.96 (see its profile plot); the 95 % bound lies "
+                    "further out."
+                )
+    return out
 
 
 def _quality_table(result) -> Table:
@@ -211,22 +243,27 @@ def _experiment_figures(result, name: str) -> list[Figure]:
     quantities = [q.quantity for q in result.fit if q.experiment == name]
     sigma = {q.quantity: q.sigma for q in result.fit if q.experiment == name}
     x = curves[0].x
+    zeroed = any(c.zero for c in curves)
     figs = []
     for q in quantities:
+        zero = " plus each run's fitted zero" if any(q in c.zero for c in curves) else ""
         figs.append(
             _figure(
                 overlay_figure(curves, q),
                 f"{name}: measured {q} (points) against the model at the stated values (dashed) "
-                f"and at the calibrated values plus each run's fitted zero (solid), every run."
-                + _thinned(curves),
+                f"and at the calibrated values{zero} (solid), every run." + _thinned(curves),
             )
         )
     figs.append(
         _figure(
             residual_figure(curves, quantities, sigma),
             f"{name}: residuals (measured \u2212 predicted) against {x}, all runs; left at the "
-            "stated values with the logged zeros, right at the calibrated values with the fitted "
-            "zeros. Grey band: \u00b12 noise sd." + _thinned(curves),
+            "stated values"
+            + (" with the logged zeros" if zeroed else "")
+            + ", right at the calibrated values"
+            + (" with the fitted zeros" if zeroed else "")
+            + ". Grey band: \u00b12 noise sd."
+            + _thinned(curves),
         )
     )
     return figs
@@ -274,7 +311,7 @@ def calibration_document(result, experiments: Sequence, *, command: str | None =
                 + f" ({result.n_points} data points; penalised chi-square {result.chi2:.1f})."
             ],
             tables=[_parameter_table(result)],
-            notes=list(result.notes),
+            notes=list(result.notes) + _unsure_notes(result),
         ),
         Section("Identifiability", paragraphs=list(result.identifiability)),
         quality,
