@@ -246,7 +246,7 @@ def _laplace_z(p, x_si: np.ndarray) -> np.ndarray:
     return (x_si - p.value) / p.posterior_sd
 
 
-def _profile_panel(ax, p) -> list:
+def _profile_panel(ax, p, label: str) -> list:
     from matplotlib.ticker import MaxNLocator
 
     from tcamlab.calibration.fit import Z95
@@ -279,17 +279,18 @@ def _profile_panel(ax, p) -> list:
         )
     ax.set_xlim(left, right)
     ax.set_ylim(-3.2, 3.2)
-    ax.set_xlabel(f"{pretty_symbol(p.symbol)} [{unit}]")
+    ax.set_xlabel(f"{pretty_symbol(label)} [{unit}]")
     ax.ticklabel_format(axis="x", useOffset=False, style="plain")
     ax.xaxis.set_major_locator(MaxNLocator(nbins=3))
     return handles
 
 
-def profile_figure(parameters: Sequence):
+def profile_figure(parameters: Sequence, labels: Sequence[str] | None = None):
     """Signed root of the profile likelihood against each parameter, one panel each.
 
     The shaded span is the 95 % profile interval, the dashed lines z = +-1.96, the
     dotted line the Laplace approximation, the dash-dotted line the stated value.
+    ``labels`` name the panels (default the symbols).
     """
     n = len(parameters)
     ncols = 1 if n == 1 else 2 if n in (2, 4) else 3
@@ -298,14 +299,20 @@ def profile_figure(parameters: Sequence):
     _hide_unused(axes, n)
     best: list = []
     with report_style(**{"text.parse_math": False}):
-        for ax, p in zip(axes.flat, parameters):
-            handles = _profile_panel(ax, p)
+        for ax, p, label in zip(axes.flat, parameters, labels or [p.symbol for p in parameters]):
+            handles = _profile_panel(ax, p, label)
             best = handles if len(handles) > len(best) else best
         for ax in axes[:, 0]:
             ax.set_ylabel("signed root z")
         labels = ["profile", "Laplace approximation", "z = \u00b11.96 (95 %)", "stated value"]
         _legend(fig, best, labels[: len(best)])
     return fig
+
+
+def _corr_text(r: float) -> str:
+    """``+0.53`` / ``−0.10``; ``0.00`` unsigned."""
+    text = f"{r:+.2f}"
+    return "0.00" if float(text) == 0 else text.replace("-", "\u2212")
 
 
 def correlation_figure(symbols: Sequence[str], matrix):
@@ -323,13 +330,14 @@ def correlation_figure(symbols: Sequence[str], matrix):
                 ax.text(
                     j,
                     i,
-                    f"{m[i, j]:+.2f}",
+                    _corr_text(m[i, j]),
                     ha="center",
                     va="center",
                     fontsize=8,
                     color="white" if abs(m[i, j]) > 0.6 else "black",
                 )
-        ax.set_xticks(range(n), labels)
+        tilted = n > 3 or max(len(s) for s in labels) > 8
+        ax.set_xticks(range(n), labels, rotation=35 if tilted else 0, ha="right" if tilted else "center")
         ax.set_yticks(range(n), labels)
         ax.grid(False)
         ax.tick_params(length=0)

@@ -86,6 +86,12 @@ def _prior(p) -> str:
     return f"{shape} {100 * p.prior_sd_rel:.3g}\u00a0% ({source})"
 
 
+def _name(p) -> str:
+    """``thermal mass``, or ``thermal mass (EXP)`` for a rig parameter of several experiments."""
+    exp, _, _ = p.name.rpartition(".")
+    return p.field.replace("_", " ") + (f" ({exp})" if exp else "")
+
+
 def parameter_rows(result) -> list[list[str]]:
     """Rows of the parameter table, lab units, one per calibrated parameter."""
     rows = []
@@ -96,7 +102,7 @@ def parameter_rows(result) -> list[list[str]]:
         rows.append(
             [
                 p.symbol,
-                p.name.replace("_", " "),
+                _name(p),
                 unit,
                 stated.replace("-", "\u2212"),
                 DASH if p.stated_sd is None else f"{p.stated_sd * f:.6g}",
@@ -279,9 +285,7 @@ def _labels(result) -> list[str]:
 
 
 def _title(experiments) -> str:
-    if len(experiments) == 1:
-        return experiments[0].title
-    return "; ".join(e.title for e in experiments)
+    return "; ".join(dict.fromkeys(e.title for e in experiments))
 
 
 def calibration_document(result, experiments: Sequence, *, command: str | None = None) -> Document:
@@ -327,7 +331,7 @@ def calibration_document(result, experiments: Sequence, *, command: str | None =
             "Profile likelihood",
             figures=[
                 _figure(
-                    profile_figure(result.parameters),
+                    profile_figure(result.parameters, _labels(result)),
                     "Signed root of the profile likelihood, z = \u00b1sqrt(chi-square rise), "
                     "each parameter re-optimising the others (points: evaluated). Shaded: the 95 % "
                     "profile interval, where |z| < 1.96; dotted: the Laplace (Jacobian) "
