@@ -288,6 +288,57 @@ def _title(experiments) -> str:
     return "; ".join(dict.fromkeys(e.title for e in experiments))
 
 
+def _profile_section(result) -> Section:
+    from tcamlab.report.calibration_figures import profile_figure
+
+    return Section(
+        "Profile likelihood",
+        paragraphs=[
+            "Where a profile follows the dotted Laplace line the Jacobian interval can be "
+            "trusted; a bend, a flat stretch or a jump means the data constrain the parameter "
+            "unevenly and only the profile interval holds."
+        ],
+        figures=[
+            _figure(
+                profile_figure(result.parameters, _labels(result)),
+                "Signed root of the profile likelihood, z = \u00b1sqrt(chi-square rise), "
+                "each parameter re-optimising the others (points: evaluated). Shaded: the 95 % "
+                "profile interval, where |z| < 1.96; dotted: the Laplace (Jacobian) "
+                "approximation; dash-dotted: the stated value.",
+            )
+        ],
+    )
+
+
+def _correlation_section(result) -> Section:
+    return Section(
+        "Correlation",
+        paragraphs=[
+            "Two parameters correlated near \u00b11 are fixed by these logs only as a "
+            "combination (see Identifiability)."
+        ],
+        figures=[
+            _figure(
+                correlation_figure(_labels(result), result.correlation["matrix"]),
+                "Posterior correlation of the calibrated parameters (in fitted coordinates: "
+                "logarithms of positive parameters). Near \u00b11: the logs fix only a "
+                "combination.",
+            )
+        ],
+    )
+
+
+def _measurement_section(result, name: str) -> Section:
+    return Section(
+        f"Model against measurement: {name}",
+        paragraphs=[
+            "The overlays show each whole run; the residual panels show the difference at the "
+            "scale of the noise, where stated and calibrated values can be told apart."
+        ],
+        figures=_experiment_figures(result, name),
+    )
+
+
 def calibration_document(result, experiments: Sequence, *, command: str | None = None) -> Document:
     """The calibration report.
 
@@ -300,10 +351,7 @@ def calibration_document(result, experiments: Sequence, *, command: str | None =
     command : str, optional
         The command line shown in the provenance.
     """
-    from tcamlab.report.calibration_figures import profile_figure
-
     names = [e.name for e in experiments]
-    quality = Section("Fit quality", tables=[_quality_table(result)])
     zeros = _zeros_table(result)
     sections = [
         _provenance_section(result, command),
@@ -318,41 +366,12 @@ def calibration_document(result, experiments: Sequence, *, command: str | None =
             notes=list(result.notes) + _unsure_notes(result),
         ),
         Section("Identifiability", paragraphs=list(result.identifiability)),
-        quality,
+        Section("Fit quality", tables=[_quality_table(result)]),
     ]
     if zeros is not None:
         sections.append(Section("Nuisance zeros", tables=[zeros]))
-    for name in names:
-        sections.append(
-            Section(f"Model against measurement: {name}", figures=_experiment_figures(result, name))
-        )
-    sections.append(
-        Section(
-            "Profile likelihood",
-            figures=[
-                _figure(
-                    profile_figure(result.parameters, _labels(result)),
-                    "Signed root of the profile likelihood, z = \u00b1sqrt(chi-square rise), "
-                    "each parameter re-optimising the others (points: evaluated). Shaded: the 95 % "
-                    "profile interval, where |z| < 1.96; dotted: the Laplace (Jacobian) "
-                    "approximation; dash-dotted: the stated value.",
-                )
-            ],
-        )
-    )
-    sections.append(
-        Section(
-            "Correlation",
-            figures=[
-                _figure(
-                    correlation_figure(_labels(result), result.correlation["matrix"]),
-                    "Posterior correlation of the calibrated parameters (in fitted coordinates: "
-                    "logarithms of positive parameters). Near \u00b11: the logs fix only a "
-                    "combination.",
-                )
-            ],
-        )
-    )
+    sections += [_measurement_section(result, name) for name in names]
+    sections += [_profile_section(result), _correlation_section(result)]
     banners = [b for b in (synthetic_banner(e) for e in experiments) if b]
     return Document(
         title=f"Calibration: {_title(experiments)}",
