@@ -303,3 +303,22 @@ def test_a_profile_bound_the_search_did_not_reach_is_flagged(written):
     doc = calibration_document(bad, [load_experiment(path)])
     notes = [n for s in doc.sections for n in s.notes]
     assert any("upper profile bound of C_th is not a 95 % bound" in n and "+0.50" in n for n in notes)
+
+
+def test_long_logs_are_drawn_as_envelopes_that_keep_every_outlier():
+    import numpy as np
+
+    from tcamlab.report.calibration_figures import MAX_ROWS, envelope
+
+    # synthetic: numpy default_rng(3), 300 001 rows of unit noise with two spikes
+    rng = np.random.default_rng(3)
+    x = np.arange(300_001, dtype=float)
+    y = rng.normal(size=x.size)
+    y[1234], y[-1] = 40.0, -40.0
+    px, py = envelope(x, y)
+    assert px.size <= MAX_ROWS + 2
+    assert 40.0 in py and -40.0 in py
+    assert px[list(py).index(40.0)] == 1234.0
+    assert np.all(np.diff(px) > 0)
+    short = np.arange(10.0)
+    assert envelope(short, short)[1] is short

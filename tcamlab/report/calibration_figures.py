@@ -4,8 +4,9 @@ Every figure is a :class:`matplotlib.figure.Figure` on an Agg canvas (through
 :func:`tcamlab.report.figures.new_figure`'s style), drawn with mathtext off so
 run names (file names, user text) are shown as they are. Values are shown in
 lab units (:mod:`tcamlab.units`); legends have at most four entries, drawn once
-per figure. Long logs are thinned to :data:`MAX_ROWS` rows per run (every k-th
-row, said in the caption) so a report stays small.
+per figure. Logs longer than :data:`MAX_ROWS` rows per run are drawn as the lowest
+and highest point of each bin (:func:`envelope`; model curves every k-th row), said
+in the caption, so a report stays small and no outlier is lost.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ __all__ = [
     "parameter_display",
     "pretty_symbol",
     "stride",
+    "envelope",
     "overlay_figure",
     "residual_figure",
     "profile_figure",
@@ -97,8 +99,30 @@ def _marker(n: int) -> float:
 
 
 def stride(n: int) -> int:
-    """Every how many rows a run of ``n`` rows is drawn (1 up to :data:`MAX_ROWS`)."""
+    """Every how many rows a model curve of ``n`` rows is drawn (1 up to :data:`MAX_ROWS`)."""
     return max(1, math.ceil(n / MAX_ROWS))
+
+
+def envelope(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points of a long log drawn faithfully: up to :data:`MAX_ROWS` rows as they are,
+    beyond that the lowest and the highest point of each bin of ``2 * stride(n)``
+    consecutive rows (so no outlier disappears)."""
+    n = len(y)
+    if n <= MAX_ROWS:
+        return x, y
+    k = 2 * stride(n)
+    m = (n // k) * k
+    idx = np.arange(m).reshape(-1, k)
+    rows = np.concatenate(
+        [
+            idx[np.arange(len(idx)), np.argmin(y[:m].reshape(-1, k), axis=1)],
+            idx[np.arange(len(idx)), np.argmax(y[:m].reshape(-1, k), axis=1)],
+        ]
+    )
+    if m < n:
+        rows = np.concatenate([rows, [m + int(np.argmin(y[m:])), m + int(np.argmax(y[m:]))]])
+    rows = np.unique(rows)
+    return x[rows], y[rows]
 
 
 def _figure(w: float, h: float, nrows: int, ncols: int):
@@ -156,14 +180,15 @@ def overlay_figure(curves: Sequence, q: str):
         for ax, c in zip(axes.flat, curves):
             k = stride(len(c.measured[q]))
             x = c.inputs[c.x][::k] * xf
+            px, py = envelope(c.inputs[c.x] * xf, c.measured[q] * f)
             m = ax.plot(
-                x,
-                c.measured[q][::k] * f,
+                px,
+                py,
                 "o",
-                ms=2.2,
+                ms=_marker(px.size),
                 color=COLOURS["measured"],
                 alpha=0.8,
-                rasterized=x.size > RASTER,
+                rasterized=px.size > RASTER,
             )
             s = ax.plot(x, c.stated[q][::k] * f, "--", lw=1.3, color=COLOURS["stated"])
             a = ax.plot(x, c.calibrated[q][::k] * f, "-", lw=1.3, color=COLOURS["calibrated"])
@@ -209,9 +234,7 @@ def residual_figure(curves: Sequence, quantities: Sequence[str], sigma: dict):
                 colour = COLOURS[which]
                 x_all = []
                 for c in curves:
-                    k = stride(len(c.measured[q]))
-                    x = c.inputs[c.x][::k] * xf
-                    r = (c.measured[q] - getattr(c, which)[q])[::k] * f
+                    x, r = envelope(c.inputs[c.x] * xf, (c.measured[q] - getattr(c, which)[q]) * f)
                     pts = ax.plot(
                         x,
                         r,

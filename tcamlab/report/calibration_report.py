@@ -239,7 +239,12 @@ def _figure(fig, caption: str) -> Figure:
 
 def _thinned(curves) -> str:
     k = max(stride(len(next(iter(c.measured.values())))) for c in curves)
-    return f" One row in {k} drawn (long logs are thinned for the figure only)." if k > 1 else ""
+    if k == 1:
+        return ""
+    return (
+        f" Long log: measured points drawn as the lowest and highest of each {2 * k}-row bin, model "
+        f"curves every {k}th row (figure only)."
+    )
 
 
 def _experiment_figures(result, name: str) -> list[Figure]:
