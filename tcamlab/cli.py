@@ -432,13 +432,26 @@ def calibrate(
     params: str | None = typer.Option(
         None, "--params", help="Comma-separated parameters to calibrate (default: all of the kinds')."
     ),
-    out: Annotated[Path | None, typer.Option("--out", help="Write OUT/NAME/calibration.json.")] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Write OUT/NAME/calibration.json, the report calibration.html and .pdf, "
+            "and its figures as calibration-figN.png and .svg.",
+        ),
+    ] = None,
     as_json: Json = False,
-    force: bool = typer.Option(False, "--force", help="Overwrite an existing NAME.calibrated.toml."),
+    force: bool = typer.Option(
+        False, "--force", help="Overwrite an existing NAME.calibrated.toml or calibration output."
+    ),
 ):
     """Calibrate the model parameters from the logs, with profile intervals and identifiability.
 
-    Writes NAME.calibrated.toml beside each experiment file.
+    Writes NAME.calibrated.toml beside each experiment file; with --out, the JSON and the report.
+
+    The report (HTML, PDF) shows the parameters, identifiability, zeros, fits and profiles.
+
+    Nothing is overwritten without --force.
 
     Example: tcamlab calibrate experiments/dynamic.toml --out reports --json
     """

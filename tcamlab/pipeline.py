@@ -555,14 +555,19 @@ class CalibrateOutcome:
     files: list = field(default_factory=list)
 
 
-def calibrate_experiment(paths, *, params=None, out_dir=None, force: bool = False) -> CalibrateOutcome:
+def calibrate_experiment(
+    paths, *, params=None, out_dir=None, force: bool = False, command: str | None = None
+) -> CalibrateOutcome:
     """Calibrate one or more experiments of one sample and write the results.
 
-    Writes ``NAME.calibrated.toml`` beside each experiment file (never the file itself;
-    an existing one only with ``force``) and, with ``out_dir``,
-    ``out_dir/NAME/calibration.json`` (NAME joins the experiment names with ``+``).
-    Nothing is written unless the calibration succeeds; a failed write of the JSON
-    removes the calibrated files just written.
+    Writes ``NAME.calibrated.toml`` beside each experiment file (never the file itself)
+    and, with ``out_dir``, ``out_dir/NAME/`` (NAME joins the experiment names with ``+``)
+    with ``calibration.json``, the report ``calibration.html`` and ``calibration.pdf``
+    (:mod:`tcamlab.report.calibration_report`) and each report figure as
+    ``calibration-figN.png`` / ``.svg``. An existing output is overwritten only with
+    ``force``, checked before the calibration runs. Nothing is written unless the
+    calibration and the reports succeed; a failed write removes the files just written.
+    ``command`` is the command line shown in the report (default: built from the options).
     """
     from tcamlab.calibration import calibrate, calibrated_path, calibrated_text, load_experiments
 
@@ -571,19 +576,58 @@ def calibrate_experiment(paths, *, params=None, out_dir=None, force: bool = Fals
     for e, t in zip(exps, targets):
         if t == e.path:
             raise InputError(f"{t}: refusing to overwrite the experiment file itself")
-        if t.exists() and not force:
-            raise InputError(f"{t}: calibrated file exists", "pass --force to overwrite it")
+    folder = Path(out_dir) / "+".join(e.name for e in exps) if out_dir is not None else None
+    if not force:
+        _refuse_existing(targets, folder)
     result = calibrate(exps, params)
+    payload = _calibration_payload(result, exps, params, command) if folder is not None else {}
     files: list[Path] = []
     try:
         for e, t in zip(exps, targets):
             files.append(atomic_write_text(t, calibrated_text(e, result)))
-        if out_dir is not None:
-            name = "+".join(e.name for e in exps)
-            payload = {"calibration.json": dumps_json(result.to_dict()).encode()}
-            files += write_all_or_nothing(Path(out_dir) / name, payload)
+        if folder is not None:
+            files += write_all_or_nothing(folder, payload)
     except BaseException:
         for f in files:
             f.unlink(missing_ok=True)
         raise
     return CalibrateOutcome(result, files)
+
+
+CALIBRATION_FILES = ("calibration.json", "calibration.html", "calibration.pdf")
+"""The fixed files of a calibration's output folder (figures come as calibration-figN.*)."""
+
+
+def _refuse_existing(targets, folder) -> None:
+    """InputError when a calibrated file or a calibration output already exists."""
+    existing = [t for t in targets if t.exists()]
+    if folder is not None and folder.is_dir():
+        existing += [folder / n for n in CALIBRATION_FILES if (folder / n).exists()]
+        existing += sorted(folder.glob("calibration-fig*"))
+    if existing:
+        more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+        raise InputError(f"{existing[0]}: calibration output exists{more}", "pass --force to overwrite it")
+
+
+def _calibration_payload(result, exps, params, command) -> dict[str, bytes]:
+    """calibration.json, the HTML and PDF report and the standalone figures, in memory."""
+    from tcamlab.report.calibration_report import calibration_document, figure_files
+    from tcamlab.report.html import render_html
+    from tcamlab.report.pdf import render_pdf
+    from tcamlab.text import command_line, shown_path
+
+    if command is None:
+        if params is not None and not isinstance(params, str):
+            params = ",".join(params)
+        command = command_line(
+            "calibrate", *(shown_path(e.path) for e in exps), options=[("--params", params)]
+        )
+    doc = calibration_document(result, exps, command=command)
+    html = render_html(doc)
+    payload = {
+        "calibration.json": dumps_json(result.to_dict()).encode(),
+        "calibration.html": html.encode(),
+        "calibration.pdf": render_pdf(doc),
+    }
+    payload.update(figure_files(doc, html))
+    return payload

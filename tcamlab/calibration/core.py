@@ -11,9 +11,16 @@ import numpy as np
 from tcamlab.calibration.fit import Z95, laplace_covariance, map_fit, profile_interval
 from tcamlab.calibration.identify import PINNED_RATIO, directions, identifiability_text
 from tcamlab.calibration.problem import CalibrationProblem
-from tcamlab.calibration.result import CalibrationResult, FitQuality, ParameterEstimate, ZeroEstimate
+from tcamlab.calibration.result import (
+    CalibrationResult,
+    FitQuality,
+    ParameterEstimate,
+    RunCurves,
+    ZeroEstimate,
+)
 from tcamlab.config import Experiment, load_experiment
 from tcamlab.errors import InputError
+from tcamlab.io import sha256_file
 
 __all__ = ["calibrate", "load_experiments"]
 
@@ -38,6 +45,14 @@ def load_experiments(experiments: Sequence) -> list[Experiment]:
     if len(set(names)) < len(names):
         raise InputError("calibrate: two experiment files share the name " + repr(names[0]))
     return loaded
+
+
+def _profile_points(spec, u_hat: float, sides) -> tuple[tuple[float, float], ...]:
+    """The profile points of both sides in SI with the signed root, MAP included, by value."""
+    pts = [(spec.from_u(u_hat), 0.0)]
+    for side, prof in zip((-1, 1), sides):
+        pts += [(spec.from_u(float(c)), side * float(z)) for c, z in prof.points]
+    return tuple(sorted(pts))
 
 
 def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> ParameterEstimate:
@@ -68,6 +83,8 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
         shift_in_stated_sds=(value - s.stated) / stated_sd if stated_sd else None,
         pinned=sd_u < PINNED_RATIO * s.sd_u,
         pinned_by=s.param.pinned_by,
+        profile_points=_profile_points(s, float(u[k]), sides),
+        positive=s.param.positive,
     )
 
 
@@ -115,6 +132,44 @@ def _quality(problem, u: np.ndarray) -> list[FitQuality]:
     return out
 
 
+def _curves(problem, u: np.ndarray) -> list[RunCurves]:
+    """Measured and predicted curves of every run at the stated values and at ``u``."""
+    out = []
+    for i, exp in enumerate(problem.experiments):
+        kind = problem.kinds[i]
+        for j, run in enumerate(problem.runs[i]):
+            before, after = problem.predict_run(i, j, problem.u0), problem.predict_run(i, j, u)
+            qs = problem.quantities[i]
+            measured = {q: problem.measured(i, j, q) for q in qs}
+            zero = {q: float(np.mean(measured[q] - after[q])) for q in qs if problem.is_zeroed(i, q)}
+            cols = [c for c in dict.fromkeys((kind.x_column, "time")) if c in run.data]
+            out.append(
+                RunCurves(
+                    experiment=exp.name,
+                    run=Path(getattr(run, "path", f"run{j + 1}")).name,
+                    kind=exp.kind,
+                    x=kind.x_column,
+                    inputs={c: run.data[c].to_numpy(float) for c in cols},
+                    measured=measured,
+                    stated={q: np.asarray(before[q], float) for q in qs},
+                    calibrated={q: np.asarray(after[q], float) + zero.get(q, 0.0) for q in qs},
+                    zero=zero,
+                )
+            )
+    return out
+
+
+def _inputs(exps, runs) -> list[dict]:
+    """Every file read, with its SHA-256: the experiment files, then their runs."""
+    out = []
+    for e, rs in zip(exps, runs):
+        out.append(
+            {"experiment": e.name, "role": "experiment", "path": str(e.path), "sha256": sha256_file(e.path)}
+        )
+        out += [{"experiment": e.name, "role": "run", "path": str(r.path), "sha256": r.sha256} for r in rs]
+    return out
+
+
 def _describe_logs(problem) -> str:
     parts = []
     for e, qs, runs in zip(problem.experiments, problem.quantities, problem.runs):
@@ -146,7 +201,8 @@ def calibrate(
     exps = load_experiments(experiments)
     if isinstance(params, str):
         params = [p.strip() for p in params.split(",") if p.strip()]
-    problem = CalibrationProblem(exps, [e.read_runs(drop_na=drop_na) for e in exps], params)
+    runs = [e.read_runs(drop_na=drop_na) for e in exps]
+    problem = CalibrationProblem(exps, runs, params)
     fit = map_fit(problem)
     cov, _ = laplace_covariance(problem, fit.u)
     estimates = []
@@ -170,4 +226,6 @@ def calibrate(
         identifiability=identifiability_text(estimates, dirs, _describe_logs(problem)),
         chi2=fit.chi2,
         n_points=problem.size,
+        inputs=_inputs(exps, runs),
+        curves=_curves(problem, fit.u),
     )

@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
-__all__ = ["SCHEMA_VERSION", "ParameterEstimate", "ZeroEstimate", "FitQuality", "CalibrationResult"]
+import numpy as np
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "ParameterEstimate",
+    "ZeroEstimate",
+    "FitQuality",
+    "RunCurves",
+    "CalibrationResult",
+]
 
 SCHEMA_VERSION = 1
 """Version of ``calibration.json``."""
@@ -46,6 +55,13 @@ class ParameterEstimate:
         Posterior sd below half the prior sd.
     pinned_by : str
         The experiment that would pin it.
+    profile_points : tuple of (float, float)
+        The profile likelihood as evaluated by the interval search, sorted by value:
+        ``(value [unit], signed root z)`` with ``z = sign(value - MAP) * sqrt(chi2_profile
+        - chi2_min)`` [-]; the MAP point ``(value, 0)`` included. ``|z| = 1.96`` is the
+        95 % bound.
+    positive : bool
+        Fitted as its logarithm: a log-normal prior of relative sd ``prior_sd_rel``.
     """
 
     name: str
@@ -68,6 +84,8 @@ class ParameterEstimate:
     shift_in_stated_sds: float | None
     pinned: bool
     pinned_by: str
+    profile_points: tuple[tuple[float, float], ...] = ()
+    positive: bool = True
 
 
 @dataclass(frozen=True)
@@ -119,6 +137,41 @@ class FitQuality:
 
 
 @dataclass(frozen=True)
+class RunCurves:
+    """One run's measured and predicted curves at the stated and calibrated values, for the
+    report's overlays and residual plots (not in ``calibration.json``).
+
+    Attributes
+    ----------
+    experiment, run, kind : str
+        Experiment name, run file name, rig kind.
+    x : str
+        Internal name of the physical input the residuals are drawn against
+        (:attr:`tcamlab.kinds.Kind.x_column`: time, temperature, cable...).
+    inputs : dict of str to ndarray
+        ``x`` (and ``time`` when logged) per row [SI].
+    measured : dict of str to ndarray
+        Each fitted quantity as logged [SI].
+    stated : dict of str to ndarray
+        Predicted at the stated values, with the logged zero [SI].
+    calibrated : dict of str to ndarray
+        Predicted at the calibrated values plus the run's fitted zero [SI].
+    zero : dict of str to float
+        The fitted nuisance zero of each zero-referenced quantity [SI].
+    """
+
+    experiment: str
+    run: str
+    kind: str
+    x: str
+    inputs: dict[str, np.ndarray]
+    measured: dict[str, np.ndarray]
+    stated: dict[str, np.ndarray]
+    calibrated: dict[str, np.ndarray]
+    zero: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class CalibrationResult:
     """Outcome of :func:`tcamlab.calibration.calibrate`.
 
@@ -141,6 +194,13 @@ class CalibrationResult:
         Penalised chi-square at the MAP point [-].
     n_points : int
         Data points fitted.
+    notes : list of str
+        Remarks.
+    inputs : list of dict
+        Every input file read: ``experiment``, ``role`` ("experiment" or "run"),
+        ``path`` (as given or as listed in the experiment file) and ``sha256``.
+    curves : list of RunCurves
+        Per-run curves for the report; arrays, so left out of :meth:`to_dict`.
     """
 
     experiments: list[str]
@@ -154,14 +214,18 @@ class CalibrationResult:
     chi2: float
     n_points: int
     notes: list[str] = field(default_factory=list)
+    inputs: list[dict] = field(default_factory=list)
+    curves: list[RunCurves] = field(default_factory=list, repr=False, compare=False)
 
     def parameter(self, name: str) -> ParameterEstimate:
         """The estimate called ``name``."""
         return next(p for p in self.parameters if p.name == name)
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary (``tcamlab.jsonutil.dumps_json``), schema_version 1."""
+        """JSON-ready dictionary (``tcamlab.jsonutil.dumps_json``), schema_version 1;
+        without :attr:`curves`."""
         from tcamlab import __version__
 
-        out = asdict(self)
+        out = asdict(replace(self, curves=[]))
+        del out["curves"]
         return {"schema_version": SCHEMA_VERSION, "tool": f"tcamlab {__version__}", **out}
