@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from tcamlab.calibration.fit import Z95, laplace_covariance, map_fit, profile_interval
-from tcamlab.calibration.identify import PINNED_RATIO, directions, identifiability_text
+from tcamlab.calibration.identify import directions, identifiability_text, tier
 from tcamlab.calibration.problem import CalibrationProblem
 from tcamlab.calibration.result import CalibrationResult, FitQuality, ParameterEstimate, ZeroEstimate
 from tcamlab.config import Experiment, load_experiment
@@ -70,6 +70,8 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
     lap = (s.from_u(u[k] - Z95 * sd_u), s.from_u(u[k] + Z95 * sd_u))
     post_sd = value * sd_u if s.param.positive else sd_u * s.prior_sd
     stated_sd = s.prior_sd if s.sd_stated else None
+    post_rel = sd_u if s.param.positive else post_sd / abs(value)
+    prior_rel = float(s.sd_u) if s.param.positive else s.prior_sd / abs(s.stated)
     return ParameterEstimate(
         name=s.name,
         field=s.param.field,
@@ -83,13 +85,13 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
         prior_sd=s.prior_sd,
         value=value,
         posterior_sd=post_sd,
-        posterior_sd_rel=sd_u if s.param.positive else post_sd / abs(value),
-        prior_sd_rel=float(s.sd_u) if s.param.positive else s.prior_sd / abs(s.stated),
+        posterior_sd_rel=post_rel,
+        prior_sd_rel=prior_rel,
         laplace_95=lap,
         profile_95=(s.from_u(sides[0].bound), s.from_u(sides[1].bound)),
         profile_open=(sides[0].open, sides[1].open),
         shift_in_stated_sds=(value - s.stated) / stated_sd if stated_sd else None,
-        pinned=sd_u < PINNED_RATIO * s.sd_u,
+        pinned=tier(post_rel, prior_rel) == "pinned",
         pinned_by=s.param.pinned_by,
     )
 
@@ -172,10 +174,10 @@ def calibrate(
     with one_numba_thread():
         problem = CalibrationProblem(exps, [e.read_runs(drop_na=drop_na) for e in exps], params)
         fit = map_fit(problem)
-        cov, _ = laplace_covariance(problem, fit.u)
+        cov, jac = laplace_covariance(problem, fit.u)
         estimates = []
         for k in range(len(problem.specs)):
-            sides = [profile_interval(problem, fit, cov, k, side) for side in (-1, 1)]
+            sides = [profile_interval(problem, fit, cov, k, side, jac) for side in (-1, 1)]
             estimates.append(_estimate(problem, k, fit.u, cov, sides))
         zeros = _zeros(problem, fit.u, cov)
         quality = _quality(problem, fit.u)

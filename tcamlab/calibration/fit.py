@@ -115,10 +115,11 @@ def map_fit(problem: CalibrationProblem) -> MapFit:
 
 
 def laplace_covariance(problem: CalibrationProblem, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Posterior covariance of ``u`` (Gauss-Newton, priors included) and the data-only Jacobian."""
+    """Posterior covariance of ``u`` (Gauss-Newton, priors included) and the Jacobian of the
+    residuals (data rows, then the prior rows)."""
     jac = problem.jacobian(u)
     cov = np.linalg.pinv(jac.T @ jac)
-    return cov, jac[: problem.size]
+    return cov, jac
 
 
 class _Stop(Exception):
@@ -130,14 +131,39 @@ class _ProfileSearch:
     nearest point already fitted, moved along the Laplace conditional mean (or, if that
     start leaves the model's domain, not moved)."""
 
-    def __init__(self, problem: CalibrationProblem, fit: MapFit, cov: np.ndarray, k: int):
+    def __init__(self, problem: CalibrationProblem, fit: MapFit, cov: np.ndarray, k: int, jac: np.ndarray):
         self.problem, self.fit, self.k = problem, fit, k
         self.slope = cov[:, k] / cov[k, k]
+        self.sd = float(np.sqrt(max(cov[k, k], 1e-16)))
         self.free = [m for m in range(len(fit.u)) if m != k]
         self.known: list[tuple[float, float, np.ndarray]] = [(float(fit.u[k]), 0.0, fit.u)]
         self.points: list[tuple[float, float]] = []
         self.tries = 0
         self.ftol = min(max(PROFILE_CHI2_TOL / max(fit.chi2, 1e-300), 1e-12), 1e-6)
+        self.jac_free = jac[:, self.free]
+
+    def _refit(self, start: np.ndarray) -> tuple[np.ndarray, float]:
+        """Refit the free parameters from ``start``: one Gauss-Newton step with the MAP's
+        Jacobian, kept when the chi-square it predicts is met to PROFILE_CHI2_TOL (the model
+        is linear over the step, so the step lands on the minimum: two evaluations);
+        otherwise the optimiser from the better of the two points."""
+        r0 = self.problem.residuals(start)
+        chi0 = float(r0 @ r0)
+        if not self.problem.failed(chi0):
+            step = np.linalg.lstsq(self.jac_free, -r0, rcond=None)[0]
+            predicted = r0 + self.jac_free @ step
+            u1 = start.copy()
+            u1[self.free] += step
+            lo, hi = self.problem.bounds()
+            if np.all((u1 >= lo) & (u1 <= hi)):
+                r1 = self.problem.residuals(u1)
+                chi1 = float(r1 @ r1)
+                if abs(chi1 - float(predicted @ predicted)) <= PROFILE_CHI2_TOL:
+                    return u1, chi1
+                if chi1 < chi0:
+                    start = u1
+        u, chi2, _ = _solve(self.problem, start, self.free, self.ftol, PROFILE_NFEV)
+        return u, chi2
 
     def z(self, c: float) -> float:
         """``sqrt(chi2_profile(c) - chi2_min)``; ``inf`` where the model has no solution."""
@@ -147,12 +173,15 @@ class _ProfileSearch:
         self.tries += 1
         near = min((p for p in self.known if np.isfinite(p[1])), key=lambda p: abs(p[0] - c))
         best_u, best = None, np.inf
+        # a second start only where the first is steeper than the Laplace approximation
+        # (where a stuck refit would show); the third only if neither solved
+        z_laplace = abs(c - self.known[0][0]) / self.sd
         for base, slope in self._starts(near):
-            if best_u is not None and slope is not self.slope:
+            if best_u is not None and (slope is not self.slope or best - self.fit.chi2 <= z_laplace**2):
                 break
             start = base[2] + slope * (c - base[0])
             start[self.k] = c
-            u, chi2, _ = _solve(self.problem, start, self.free, self.ftol, PROFILE_NFEV)
+            u, chi2 = self._refit(start)
             if not self.problem.failed(chi2) and chi2 < best:
                 best_u, best = u, chi2
         if best_u is None:
@@ -186,8 +215,18 @@ class _ProfileSearch:
         return Profile(float(c), self.points, False)
 
 
-def profile_interval(problem: CalibrationProblem, fit: MapFit, cov: np.ndarray, k: int, side: int) -> Profile:
+def profile_interval(
+    problem: CalibrationProblem,
+    fit: MapFit,
+    cov: np.ndarray,
+    k: int,
+    side: int,
+    jac: np.ndarray | None = None,
+) -> Profile:
     """One side (``side`` = -1 or +1) of the 95 % profile interval of parameter ``k``.
+
+    ``jac`` is the Jacobian of the residuals at the MAP (priors included; computed when
+    not given), for the Gauss-Newton refits.
 
     Root of ``z(c) - Z95`` with ``z(c) = sqrt(chi2_profile(c) - chi2_min)``, nearly
     linear in ``c``: steps out from the Laplace bound until the root is bracketed (or
@@ -199,7 +238,8 @@ def profile_interval(problem: CalibrationProblem, fit: MapFit, cov: np.ndarray, 
     edge = float(hi[k] if side > 0 else lo[k])
     sd = float(np.sqrt(max(cov[k, k], 1e-16)))
     centre = float(fit.u[k])
-    search = _ProfileSearch(problem, fit, cov, k)
+    jac = problem.jacobian(fit.u) if jac is None else jac
+    search = _ProfileSearch(problem, fit, cov, k, jac)
     step, inside = Z95 * sd, centre
     while search.tries < PROFILE_STEPS:
         c = centre + side * step
