@@ -120,10 +120,11 @@ def identifiability_text(params: list, dirs: list[Direction], experiments: str) 
             f"Pinned by {experiments}: " + "; ".join(f"{p.symbol} ({_sds(p)})" for p in pinned) + "."
         )
     for dvec in dirs:
+        # a pinned combination says something only about parameters not pinned on their own
         involved = [n for n in dvec.exponents if tiers[n] != "pinned"]
-        if dvec.pinned and len(dvec.exponents) > 1 and involved:
+        if dvec.pinned and len(involved) > 1:
             lines.append(
-                f"Not fixed separately: {', '.join(symbols[n] for n in dvec.exponents)}; the data pin "
+                f"Not fixed separately: {', '.join(symbols[n] for n in involved)}; the data pin "
                 f"only {dvec.name(symbols)} (to {100 * dvec.relative_sd:.3g}%)."
             )
     for p in params:
