@@ -23,10 +23,10 @@ CHI2_95 = 3.841458820694124
 Z95 = 1.959963984540054
 """sqrt(CHI2_95): the signed-root target of the profile search."""
 
-PROFILE_TOL = 0.02
+PROFILE_TOL = 0.05
 """Stop the profile search when the signed root is within this of :data:`Z95`."""
 
-BOUND_TOL = 0.02
+BOUND_TOL = 0.05
 """Stop the profile search when the bound is bracketed to this fraction of its Laplace sd
 (the same precision as :data:`PROFILE_TOL` where the profile is quadratic)."""
 
