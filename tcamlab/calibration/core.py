@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from tcamlab.calibration.fit import Z95, laplace_covariance, map_fit, profile_interval
-from tcamlab.calibration.identify import PINNED_RATIO, directions, identifiability_text
+from tcamlab.calibration.identify import directions, identifiability_text, tier
 from tcamlab.calibration.problem import CalibrationProblem
 from tcamlab.calibration.result import (
     CalibrationResult,
@@ -22,7 +23,7 @@ from tcamlab.config import Experiment, load_experiment
 from tcamlab.errors import InputError
 from tcamlab.io import sha256_file
 
-__all__ = ["calibrate", "load_experiments"]
+__all__ = ["calibrate", "load_experiments", "one_numba_thread"]
 
 
 def load_experiments(experiments: Sequence) -> list[Experiment]:
@@ -55,6 +56,28 @@ def _profile_points(spec, u_hat: float, sides) -> tuple[tuple[float, float], ...
     return tuple(sorted(pts))
 
 
+@contextmanager
+def one_numba_thread() -> Iterator[None]:
+    """Run the models' numba kernels on one thread (restored after).
+
+    A calibration makes thousands of small predictions (26 points a static run); waking
+    numba's thread pool for each costs far more than the work: on this 2-core machine,
+    under load, 5 ms against 0.1 ms a static prediction. The setting is numba's own,
+    per calling thread.
+    """
+    try:
+        import numba
+    except ImportError:  # pragma: no cover - numba is a dependency of the models
+        yield
+        return
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
 def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> ParameterEstimate:
     s = problem.specs[k]
     sd_u = float(math.sqrt(max(cov[k, k], 0.0)))
@@ -62,6 +85,8 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
     lap = (s.from_u(u[k] - Z95 * sd_u), s.from_u(u[k] + Z95 * sd_u))
     post_sd = value * sd_u if s.param.positive else sd_u * s.prior_sd
     stated_sd = s.prior_sd if s.sd_stated else None
+    post_rel = sd_u if s.param.positive else post_sd / abs(value)
+    prior_rel = float(s.sd_u) if s.param.positive else s.prior_sd / abs(s.stated)
     return ParameterEstimate(
         name=s.name,
         field=s.param.field,
@@ -75,13 +100,14 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
         prior_sd=s.prior_sd,
         value=value,
         posterior_sd=post_sd,
-        posterior_sd_rel=sd_u if s.param.positive else post_sd / abs(value),
-        prior_sd_rel=float(s.sd_u) if s.param.positive else s.prior_sd / abs(s.stated),
+        posterior_sd_rel=post_rel,
+        prior_sd_rel=prior_rel,
         laplace_95=lap,
         profile_95=(s.from_u(sides[0].bound), s.from_u(sides[1].bound)),
         profile_open=(sides[0].open, sides[1].open),
         shift_in_stated_sds=(value - s.stated) / stated_sd if stated_sd else None,
-        pinned=sd_u < PINNED_RATIO * s.sd_u,
+        pinned=tier(post_rel, prior_rel) == "pinned",
+        identification=tier(post_rel, prior_rel),
         pinned_by=s.param.pinned_by,
         profile_points=_profile_points(s, float(u[k]), sides),
         positive=s.param.positive,
@@ -202,13 +228,17 @@ def calibrate(
     if isinstance(params, str):
         params = [p.strip() for p in params.split(",") if p.strip()]
     runs = [e.read_runs(drop_na=drop_na) for e in exps]
-    problem = CalibrationProblem(exps, runs, params)
-    fit = map_fit(problem)
-    cov, _ = laplace_covariance(problem, fit.u)
-    estimates = []
-    for k in range(len(problem.specs)):
-        sides = [profile_interval(problem, fit, cov, k, side) for side in (-1, 1)]
-        estimates.append(_estimate(problem, k, fit.u, cov, sides))
+    with one_numba_thread():
+        problem = CalibrationProblem(exps, runs, params)
+        fit = map_fit(problem)
+        cov, jac = laplace_covariance(problem, fit.u)
+        estimates = []
+        for k in range(len(problem.specs)):
+            sides = [profile_interval(problem, fit, cov, k, side, jac) for side in (-1, 1)]
+            estimates.append(_estimate(problem, k, fit.u, cov, sides))
+        zeros = _zeros(problem, fit.u, cov)
+        quality = _quality(problem, fit.u)
+        curves = _curves(problem, fit.u)
     names = [s.name for s in problem.specs]
     dirs = directions(names, problem.sd_u, cov)
     sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
@@ -216,8 +246,8 @@ def calibrate(
         experiments=[str(e.path) for e in exps],
         kinds=[e.kind for e in exps],
         parameters=estimates,
-        zeros=_zeros(problem, fit.u, cov),
-        fit=_quality(problem, fit.u),
+        zeros=zeros,
+        fit=quality,
         correlation={"names": names, "matrix": (cov / np.outer(sd, sd)).tolist()},
         directions=[
             {"exponents": d.exponents, "ratio": d.ratio, "relative_sd": d.relative_sd, "pinned": d.pinned}
@@ -227,5 +257,5 @@ def calibrate(
         chi2=fit.chi2,
         n_points=problem.size,
         inputs=_inputs(exps, runs),
-        curves=_curves(problem, fit.u),
+        curves=curves,
     )

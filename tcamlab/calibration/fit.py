@@ -23,11 +23,22 @@ CHI2_95 = 3.841458820694124
 Z95 = 1.959963984540054
 """sqrt(CHI2_95): the signed-root target of the profile search."""
 
-PROFILE_TOL = 0.02
+PROFILE_TOL = 0.05
 """Stop the profile search when the signed root is within this of :data:`Z95`."""
+
+BOUND_TOL = 0.05
+"""Stop the profile search when the bound is bracketed to this fraction of its Laplace sd
+(the same precision as :data:`PROFILE_TOL` where the profile is quadratic)."""
 
 PROFILE_STEPS = 8
 """Most profile evaluations per side of an interval."""
+
+PROFILE_NFEV = 40
+"""Most residual evaluations of one profile refit (a refit stuck against the model's domain
+edge otherwise runs to the optimiser's limit)."""
+
+PROFILE_CHI2_TOL = 2e-3
+"""Absolute chi-square precision of one profile point (0.0005 in the signed root near 1.96)."""
 
 
 @dataclass
@@ -42,8 +53,10 @@ class MapFit:
 
 @dataclass
 class Profile:
-    """One side's result: the bound in fitted coordinates, the points tried, and whether the
-    bound is open (the box was reached before chi-square rose by CHI2_95)."""
+    """One side's result: the bound in fitted coordinates, the profile points ``(c, z)``
+    (signed root; points where the model has no solution are left out), and whether the
+    bound is open: the box, or the edge of the model's domain, was reached before
+    chi-square rose by CHI2_95."""
 
     bound: float
     points: list[tuple[float, float]]
@@ -51,9 +64,16 @@ class Profile:
 
 
 def _solve(
-    problem: CalibrationProblem, u_start: np.ndarray, free: list[int]
+    problem: CalibrationProblem,
+    u_start: np.ndarray,
+    free: list[int],
+    ftol: float = 1e-10,
+    max_nfev: int = 100,
 ) -> tuple[np.ndarray, float, int]:
-    """Minimise chi2 over the ``free`` coordinates from ``u_start``; the rest stay fixed."""
+    """Minimise chi2 over the ``free`` coordinates from ``u_start``; the rest stay fixed.
+
+    Forward-difference Jacobian (its centre is the optimiser's own cached evaluation).
+    """
     u = np.array(u_start, float)
     lo, hi = problem.bounds()
     if not free:
@@ -68,7 +88,7 @@ def _solve(
     def jac(x):
         v = u.copy()
         v[free] = x
-        return problem.jacobian(v, free)
+        return problem.jacobian(v, free, central=False)
 
     x0 = np.clip(u[free], lo[free] + 1e-12, hi[free] - 1e-12)
     sol = optimize.least_squares(
@@ -79,9 +99,9 @@ def _solve(
         x_scale=problem.sd_u[free],
         method="trf",
         xtol=1e-8,
-        ftol=1e-10,
+        ftol=ftol,
         gtol=1e-10,
-        max_nfev=100,
+        max_nfev=max_nfev,
     )
     u[free] = sol.x
     return u, float(2 * sol.cost), int(sol.nfev)
@@ -95,36 +115,163 @@ def map_fit(problem: CalibrationProblem) -> MapFit:
 
 
 def laplace_covariance(problem: CalibrationProblem, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Posterior covariance of ``u`` (Gauss-Newton, priors included) and the data-only Jacobian."""
+    """Posterior covariance of ``u`` (Gauss-Newton, priors included) and the Jacobian of the
+    residuals (data rows, then the prior rows)."""
     jac = problem.jacobian(u)
     cov = np.linalg.pinv(jac.T @ jac)
-    return cov, jac[: problem.size]
+    return cov, jac
 
 
-def profile_interval(problem: CalibrationProblem, fit: MapFit, cov: np.ndarray, k: int, side: int) -> Profile:
+class _Stop(Exception):
+    """Raised inside the bracketed search when a point meets :data:`PROFILE_TOL`."""
+
+
+class _ProfileSearch:
+    """Profile points of parameter ``k``: each a refit of the others, warm-started from the
+    nearest point already fitted, moved along the Laplace conditional mean (or, if that
+    start leaves the model's domain, not moved)."""
+
+    def __init__(self, problem: CalibrationProblem, fit: MapFit, cov: np.ndarray, k: int, jac: np.ndarray):
+        self.problem, self.fit, self.k = problem, fit, k
+        self.slope = cov[:, k] / cov[k, k]
+        self.sd = float(np.sqrt(max(cov[k, k], 1e-16)))
+        self.free = [m for m in range(len(fit.u)) if m != k]
+        self.known: list[tuple[float, float, np.ndarray]] = [(float(fit.u[k]), 0.0, fit.u)]
+        self.points: list[tuple[float, float]] = []
+        self.tries = 0
+        self.ftol = min(max(PROFILE_CHI2_TOL / max(fit.chi2, 1e-300), 1e-12), 1e-6)
+        self.jac_free = jac[:, self.free]
+
+    def _refit(self, start: np.ndarray) -> tuple[np.ndarray, float]:
+        """Refit the free parameters from ``start``: one Gauss-Newton step with the MAP's
+        Jacobian, kept when the chi-square it predicts is met to PROFILE_CHI2_TOL (the model
+        is linear over the step, so the step lands on the minimum: two evaluations);
+        otherwise the optimiser from the better of the two points."""
+        r0 = self.problem.residuals(start)
+        chi0 = float(r0 @ r0)
+        if not self.problem.failed(chi0):
+            step = np.linalg.lstsq(self.jac_free, -r0, rcond=None)[0]
+            predicted = r0 + self.jac_free @ step
+            u1 = start.copy()
+            u1[self.free] += step
+            lo, hi = self.problem.bounds()
+            if np.all((u1 >= lo) & (u1 <= hi)):
+                r1 = self.problem.residuals(u1)
+                chi1 = float(r1 @ r1)
+                if abs(chi1 - float(predicted @ predicted)) <= PROFILE_CHI2_TOL:
+                    return u1, chi1
+                if chi1 < chi0:
+                    start = u1
+        u, chi2, _ = _solve(self.problem, start, self.free, self.ftol, PROFILE_NFEV)
+        return u, chi2
+
+    def z(self, c: float) -> float:
+        """``sqrt(chi2_profile(c) - chi2_min)``; ``inf`` where the model has no solution."""
+        for ck, zk, _ in self.known:
+            if ck == c:
+                return zk
+        self.tries += 1
+        near = min((p for p in self.known if np.isfinite(p[1])), key=lambda p: abs(p[0] - c))
+        best_u, best = None, np.inf
+        # a second start only where the first is steeper than the Laplace approximation
+        # (where a stuck refit would show); the third only if neither solved
+        z_laplace = abs(c - self.known[0][0]) / self.sd
+        for base, slope in self._starts(near):
+            if best_u is not None and (slope is not self.slope or best - self.fit.chi2 <= z_laplace**2):
+                break
+            start = base[2] + slope * (c - base[0])
+            start[self.k] = c
+            u, chi2 = self._refit(start)
+            if not self.problem.failed(chi2) and chi2 < best:
+                best_u, best = u, chi2
+        if best_u is None:
+            self.known.append((c, np.inf, u))
+            return np.inf
+        z = float(np.sqrt(max(best - self.fit.chi2, 0.0)))
+        self.points.append((c, z))
+        self.known.append((c, z, best_u))
+        return z
+
+    def _starts(self, near):
+        """Starts of a refit, the best kept: the nearest point and the MAP, each moved along
+        the conditional mean (next to the model's domain edge a refit can stick on the way,
+        overstating z); the nearest point unmoved if both leave the domain."""
+        yield near, self.slope
+        if near is not self.known[0]:
+            yield self.known[0], self.slope
+        yield near, np.zeros_like(self.slope)
+
+    def result(self, c: float) -> Profile:
+        """The bound at ``c``, unless the model's domain ends first on the way out: then the
+        last point inside it, open."""
+        centre = float(self.fit.u[self.k])
+        inside = float(centre)
+        for ck, zk, _ in sorted(self.known, key=lambda p: abs(p[0] - centre)):
+            if zk >= Z95 - PROFILE_TOL and np.isfinite(zk):
+                break
+            if not np.isfinite(zk):
+                return Profile(inside, self.points, True)
+            inside = ck
+        return Profile(float(c), self.points, False)
+
+
+def profile_interval(
+    problem: CalibrationProblem,
+    fit: MapFit,
+    cov: np.ndarray,
+    k: int,
+    side: int,
+    jac: np.ndarray | None = None,
+) -> Profile:
     """One side (``side`` = -1 or +1) of the 95 % profile interval of parameter ``k``.
 
-    Secant search on the signed root ``z(c) = sqrt(chi2_profile(c) - chi2_min)``,
-    nearly linear in ``c``; every profile point re-optimises the other parameters
-    from the Laplace conditional mean.
+    ``jac`` is the Jacobian of the residuals at the MAP (priors included; computed when
+    not given), for the Gauss-Newton refits.
+
+    Root of ``z(c) - Z95`` with ``z(c) = sqrt(chi2_profile(c) - chi2_min)``, nearly
+    linear in ``c``: steps out from the Laplace bound until the root is bracketed (or
+    the box is reached), then Brent's method to :data:`BOUND_TOL` Laplace sds, stopping
+    early when a point is within :data:`PROFILE_TOL` of the target. Every point refits
+    the other parameters (:class:`_ProfileSearch`).
     """
     lo, hi = problem.bounds()
-    edge = hi[k] if side > 0 else lo[k]
+    edge = float(hi[k] if side > 0 else lo[k])
     sd = float(np.sqrt(max(cov[k, k], 1e-16)))
-    free = [m for m in range(len(fit.u)) if m != k]
-    step = Z95 * sd
-    points: list[tuple[float, float]] = []
-    for _ in range(PROFILE_STEPS):
-        c = fit.u[k] + side * step
+    centre = float(fit.u[k])
+    jac = problem.jacobian(fit.u) if jac is None else jac
+    search = _ProfileSearch(problem, fit, cov, k, jac)
+    step, inside = Z95 * sd, centre
+    while search.tries < PROFILE_STEPS:
+        c = centre + side * step
         at_edge = side * (c - edge) >= 0
         c = edge if at_edge else c
-        start = fit.u + cov[:, k] / cov[k, k] * (c - fit.u[k])
-        start[k] = c
-        _, chi2, _ = _solve(problem, start, free)
-        z = float(np.sqrt(max(chi2 - fit.chi2, 0.0)))
-        points.append((c, z))
-        if abs(z - Z95) < PROFILE_TOL or (at_edge and z < Z95):
-            return Profile(c, points, bool(at_edge and z < Z95 - PROFILE_TOL))
-        ratio = Z95 / z if z > 0 else 4.0
-        step = abs(c - fit.u[k]) * min(max(ratio, 0.25), 4.0)
-    return Profile(points[-1][0], points, False)
+        z = search.z(c)
+        if abs(z - Z95) < PROFILE_TOL:
+            return Profile(c, search.points, False)
+        if z > Z95:
+            return _bracketed(search, inside, c, sd)
+        if at_edge:
+            return Profile(c, search.points, z < Z95 - PROFILE_TOL)
+        inside = c
+        step = abs(c - centre) * (min(Z95 / z, 4.0) if z > 0 else 4.0)
+    return search.result(search.known[-1][0])
+
+
+def _bracketed(search: _ProfileSearch, inside: float, outside: float, sd: float) -> Profile:
+    """Brent's method on ``z - Z95`` between a point inside and one outside the interval
+    (a point without a model solution counts as outside: the search then finds the edge
+    of the model's domain)."""
+
+    def g(c: float) -> float:
+        tries = search.tries
+        z = search.z(c)
+        value = z - Z95 if np.isfinite(z) else Z95
+        if search.tries > tries and abs(value) < PROFILE_TOL or search.tries >= PROFILE_STEPS:
+            raise _Stop
+        return value
+
+    try:
+        c = optimize.brentq(g, inside, outside, xtol=BOUND_TOL * sd, maxiter=PROFILE_STEPS)
+    except _Stop:
+        c = min(search.known, key=lambda p: abs(p[1] - Z95))[0]
+    return search.result(c)

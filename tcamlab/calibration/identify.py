@@ -13,11 +13,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PINNED_RATIO", "Direction", "directions", "identifiability_text"]
+__all__ = [
+    "PINNED_REL_SD",
+    "PINNED_RATIO",
+    "CONSTRAINED_RATIO",
+    "Direction",
+    "directions",
+    "tier",
+    "identifiability_text",
+]
 
-PINNED_RATIO = 0.5
-"""A parameter or combination is pinned when its posterior sd is below this fraction of
-its prior sd."""
+PINNED_REL_SD = 0.10
+"""A parameter or combination is pinned only if its posterior sd is at most 10 % of its value
+(in log space) ..."""
+
+PINNED_RATIO = 1 / 3
+"""... and at most a third of its prior sd: the logs, not the prior, fix it."""
+
+CONSTRAINED_RATIO = 0.5
+"""Otherwise it is constrained when the logs at least halve its prior sd, and rests on its
+prior when they do not."""
 
 COMPONENT_SHARE = 0.3
 """Exponents below this fraction of the largest are left out of a combination's name."""
@@ -36,7 +51,7 @@ class Direction:
     relative_sd : float
         Posterior sd of ``log(prod(theta_k ** a_k))`` [-] (about its relative sd).
     pinned : bool
-        ``ratio < PINNED_RATIO``.
+        ``relative_sd <= PINNED_REL_SD`` and ``ratio <= PINNED_RATIO``.
     """
 
     exponents: dict[str, float]
@@ -48,9 +63,10 @@ class Direction:
         """``C_th^1 lambda^-1``-style name; ratios and products named as such."""
         terms = [(symbols[k], a) for k, a in self.exponents.items()]
         text = " ".join(f"{s}^{a:+.2f}".replace("+", "") for s, a in terms)
-        if len(terms) == 2 and abs(abs(terms[0][1]) - abs(terms[1][1])) < 0.25:
+        if len(terms) == 2 and abs(abs(terms[0][1]) - abs(terms[1][1])) < 0.35:
             (s1, a1), (s2, a2) = terms
-            word = f"the ratio {s1}/{s2}" if a1 * a2 < 0 else f"the product {s1}*{s2}"
+            about = "" if abs(abs(a1) - abs(a2)) < 0.15 else "about "
+            word = about + (f"the ratio {s1}/{s2}" if a1 * a2 < 0 else f"the product {s1}*{s2}")
             if {s1, s2} == {"C_th", "lambda"} and a1 * a2 < 0:
                 word += " (the thermal time constant tau)"
             text += f", i.e. {word}"
@@ -70,43 +86,58 @@ def directions(names: list[str], sd_u: np.ndarray, cov: np.ndarray) -> list[Dire
         ratio = float(np.sqrt(max(lam[k], 0.0)))
         rel = float(np.sqrt(max(a @ cov @ a, 0.0)))
         exps = {n: float(x) for n, x, kp in zip(names, a, keep) if kp}
-        out.append(Direction(exps, ratio, rel, ratio < PINNED_RATIO))
+        out.append(Direction(exps, ratio, rel, tier(rel, rel / ratio if ratio > 0 else np.inf) == "pinned"))
     return sorted(out, key=lambda x: x.ratio)
 
 
+def tier(posterior_sd_rel: float, prior_sd_rel: float) -> str:
+    """``"pinned"``, ``"constrained"`` or ``"prior"`` (rests on its prior), from the relative
+    posterior and prior sds [-] (see :data:`PINNED_REL_SD`, :data:`PINNED_RATIO`,
+    :data:`CONSTRAINED_RATIO`)."""
+    ratio = posterior_sd_rel / prior_sd_rel if prior_sd_rel > 0 else np.inf
+    if posterior_sd_rel <= PINNED_REL_SD and ratio <= PINNED_RATIO:
+        return "pinned"
+    return "constrained" if ratio <= CONSTRAINED_RATIO else "prior"
+
+
+def _sds(p) -> str:
+    return f"posterior sd {100 * p.posterior_sd_rel:.3g}% vs prior {100 * p.prior_sd_rel:.3g}%"
+
+
 def identifiability_text(params: list, dirs: list[Direction], experiments: str) -> list[str]:
-    """Sentences: what the logs pin, what rests on the prior and what would pin it.
+    """Sentences: what the logs pin, what they only constrain, what rests on the prior, and
+    the experiment that would pin the rest.
 
     ``params`` are :class:`~tcamlab.calibration.result.ParameterEstimate`; ``experiments``
     names the logs (e.g. "dynamic (5 runs; displacement)").
     """
     symbols = {p.name: p.symbol for p in params}
-    pinned = [p for p in params if p.pinned]
-    loose = [p for p in params if not p.pinned]
+    tiers = {p.name: tier(p.posterior_sd_rel, p.prior_sd_rel) for p in params}
+    pinned = [p for p in params if tiers[p.name] == "pinned"]
     lines = []
     if pinned:
         lines.append(
-            f"Pinned by {experiments}: "
-            + "; ".join(
-                f"{p.symbol} (posterior sd {100 * p.posterior_sd_rel:.3g}% vs prior "
-                f"{100 * p.prior_sd_rel:.3g}%)"
-                for p in pinned
-            )
-            + "."
+            f"Pinned by {experiments}: " + "; ".join(f"{p.symbol} ({_sds(p)})" for p in pinned) + "."
         )
     for dvec in dirs:
-        involved = [n for n in dvec.exponents if not next(p for p in params if p.name == n).pinned]
-        if dvec.pinned and len(dvec.exponents) > 1 and involved:
+        # a pinned combination says something only about parameters not pinned on their own
+        involved = [n for n in dvec.exponents if tiers[n] != "pinned"]
+        if dvec.pinned and len(involved) > 1:
             lines.append(
-                f"Not fixed separately: {', '.join(symbols[n] for n in dvec.exponents)}; the data pin "
+                f"Not fixed separately: {', '.join(symbols[n] for n in involved)}; the data pin "
                 f"only {dvec.name(symbols)} (to {100 * dvec.relative_sd:.3g}%)."
             )
-    for p in loose:
-        lines.append(
-            f"Rests on its prior: {p.symbol} (posterior sd {100 * p.posterior_sd_rel:.3g}% vs prior "
-            f"{100 * p.prior_sd_rel:.3g}%); to pin it: {p.pinned_by}."
-        )
-    if not loose and len(params) > 1:
+    for p in params:
+        if tiers[p.name] == "constrained":
+            lines.append(
+                f"Constrained, not pinned: {p.symbol} ({_sds(p)}: the logs narrow it "
+                f"{p.prior_sd_rel / p.posterior_sd_rel:.3g}-fold, not to {100 * PINNED_REL_SD:.0f}%); "
+                f"to pin it: {p.pinned_by}."
+            )
+    for p in params:
+        if tiers[p.name] == "prior":
+            lines.append(f"Rests on its prior: {p.symbol} ({_sds(p)}); to pin it: {p.pinned_by}.")
+    if len(pinned) == len(params) and len(params) > 1:
         lines.append(
             f"Every calibrated parameter is fixed separately by these logs; the tightest combination "
             f"is {dirs[0].name(symbols)} ({100 * dirs[0].relative_sd:.3g}%), the loosest "

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -27,8 +28,13 @@ __all__ = ["Spec", "CalibrationProblem", "FAIL_RESIDUAL", "FD_STEP"]
 FAIL_RESIDUAL = 1.0e3
 """Normalised residual of every point when the model fails (outside its domain)."""
 
-FD_STEP = 1e-3
-"""Central-difference step of the Jacobian in ``u`` (0.1 % of a positive parameter)."""
+FD_STEP = 1e-5
+"""Finite-difference step of the Jacobian in ``u`` (1e-5 of a positive parameter): the
+models are smooth to about 1e-10 of a residual at this scale, and the curvature kind's
+R0 column is curved enough that a 1e-3 step puts 7 % into a forward difference."""
+
+CACHE_SIZE = 8
+"""Residual sets kept per experiment (the centre of a Jacobian and its last steps)."""
 
 MAX_LOG_SPAN = math.log(1e3)
 """Largest excursion of a positive parameter from its stated value, in log space."""
@@ -129,6 +135,12 @@ class CalibrationProblem:
         self.specs = self._select(specs, names)
         self.u0 = np.array([s.u0 for s in self.specs])
         self.sd_u = np.array([s.sd_u for s in self.specs])
+        self._measured: dict[tuple[int, int, str], np.ndarray] = {}
+        self._reach = [
+            np.array([k for k, s in enumerate(self.specs) if i in s.experiments], int)
+            for i in range(len(self.experiments))
+        ]
+        self._cache = [OrderedDict() for _ in self.experiments]
         self.quantities = [self._quantities(i) for i in range(len(self.experiments))]
         self.sigma = self._noise()
         self.size = sum(len(r.data) * len(q) for rs, q in zip(self.runs, self.quantities) for r in rs)
@@ -234,18 +246,41 @@ class CalibrationProblem:
         return out
 
     def measured(self, i: int, j: int, q: str) -> np.ndarray:
-        return self.runs[i][j].data[q].to_numpy(float)
+        """Logged column ``q`` of run ``j`` of experiment ``i`` [SI] (read once)."""
+        key = (i, j, q)
+        if key not in self._measured:
+            self._measured[key] = self.runs[i][j].data[q].to_numpy(float)
+        return self._measured[key]
+
+    def experiment_residuals(self, i: int, u: np.ndarray) -> list[tuple[int, str, np.ndarray]] | None:
+        """``(run, quantity, measured - predicted [SI])`` of experiment ``i``, or None outside the
+        domain. The last few are cached by the coordinates that reach experiment ``i``, so a
+        Jacobian column of another experiment's rig parameter costs no prediction here."""
+        key = np.asarray(u, float)[self._reach[i]].tobytes()
+        cache = self._cache[i]
+        if key in cache:
+            cache.move_to_end(key)
+            return cache[key]
+        out = []
+        try:
+            for j in range(len(self.runs[i])):
+                pred = self.predict_run(i, j, u)
+                out.extend((j, q, self.measured(i, j, q) - pred[q]) for q in self.quantities[i])
+        except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError, ValueError):
+            out = None
+        cache[key] = out
+        if len(cache) > CACHE_SIZE:
+            cache.popitem(last=False)
+        return out
 
     def raw_residuals(self, u: np.ndarray) -> list[tuple[int, int, str, np.ndarray]] | None:
         """``(experiment, run, quantity, measured - predicted [SI])``, or None outside the domain."""
         out = []
-        try:
-            for i, qs in enumerate(self.quantities):
-                for j in range(len(self.runs[i])):
-                    pred = self.predict_run(i, j, u)
-                    out.extend((i, j, q, self.measured(i, j, q) - pred[q]) for q in qs)
-        except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError, ValueError):
-            return None
+        for i in range(len(self.experiments)):
+            part = self.experiment_residuals(i, u)
+            if part is None:
+                return None
+            out.extend((i, j, q, r) for j, q, r in part)
         return out
 
     def is_zeroed(self, i: int, q: str) -> bool:
@@ -278,20 +313,35 @@ class CalibrationProblem:
             parts.append(((r - r.mean()) if self.is_zeroed(i, q) else r) / self.sigma[(i, q)])
         return np.concatenate(parts)
 
+    def failed(self, chi2: float) -> bool:
+        """Whether a chi-square comes from :data:`FAIL_RESIDUAL` (the model has no solution)."""
+        return chi2 >= 0.5 * self.size * FAIL_RESIDUAL**2
+
     def residuals(self, u: np.ndarray) -> np.ndarray:
         """Data residuals followed by the prior residuals (u - u0) / sd_u."""
         return np.concatenate([self.data_residuals(u), (np.asarray(u) - self.u0) / self.sd_u])
 
-    def jacobian(self, u: np.ndarray, cols: Sequence[int] | None = None, fn=None) -> np.ndarray:
-        """Central-difference Jacobian of ``fn`` (default :meth:`residuals`) in the given columns."""
+    def jacobian(
+        self, u: np.ndarray, cols: Sequence[int] | None = None, fn=None, *, central: bool = True
+    ) -> np.ndarray:
+        """Finite-difference Jacobian of ``fn`` (default :meth:`residuals`) in the given columns.
+
+        Central differences (two evaluations a column) for the covariance; forward
+        differences (one, the centre is cached) inside the optimiser, whose steps need
+        no more than their direction.
+        """
         fn = fn or self.residuals
         cols = range(len(u)) if cols is None else cols
+        f0 = None if central else fn(u)
         out = []
         for k in cols:
             up, dn = np.array(u, float), np.array(u, float)
             up[k] += FD_STEP
-            dn[k] -= FD_STEP
-            out.append((fn(up) - fn(dn)) / (2 * FD_STEP))
+            if central:
+                dn[k] -= FD_STEP
+                out.append((fn(up) - fn(dn)) / (2 * FD_STEP))
+            else:
+                out.append((fn(up) - f0) / FD_STEP)
         return np.column_stack(out) if out else np.zeros((len(fn(u)), 0))
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:

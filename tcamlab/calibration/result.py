@@ -52,7 +52,11 @@ class ParameterEstimate:
     shift_in_stated_sds : float or None
         (value - stated) / stated_sd [-]; None without a stated sd.
     pinned : bool
-        Posterior sd below half the prior sd.
+        ``identification == "pinned"``.
+    identification : str
+        ``"pinned"`` (relative posterior sd at most 10 % and at most a third of the prior's),
+        ``"constrained"`` (the logs at least halve the prior sd) or ``"prior"`` (rests on its
+        prior); see :func:`tcamlab.calibration.identify.tier`.
     pinned_by : str
         The experiment that would pin it.
     profile_points : tuple of (float, float)
@@ -83,6 +87,7 @@ class ParameterEstimate:
     profile_open: tuple[bool, bool]
     shift_in_stated_sds: float | None
     pinned: bool
+    identification: str
     pinned_by: str
     profile_points: tuple[tuple[float, float], ...] = ()
     positive: bool = True

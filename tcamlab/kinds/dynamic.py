@@ -296,7 +296,9 @@ CALIBRATION = (
         "C_th",
         "J/K",
         0.5,
-        "log temperature during the pulse (the initial heating rate is V^2/(R C_th))",
+        "a logged temperature during the pulse (the initial heating rate is V^2/(R C_th)), or a "
+        "static oven test of the same sample calibrated jointly (it fixes the displacement per "
+        "kelvin: tcamlab calibrate static.toml dynamic.toml)",
     ),
     CalibrationParam(
         "heat_loss",
@@ -304,8 +306,8 @@ CALIBRATION = (
         "lambda",
         "W/K",
         1.0,
-        "a longer pulse that reaches the steady temperature (T - T_a = V^2/(R lambda)), "
-        "or a logged temperature",
+        "whatever pins C_th (the cooling tail fixes tau = C_th/lambda), or a pulse long enough "
+        "to reach the steady temperature with a logged temperature (T - T_a = V^2/(R lambda))",
     ),
     CalibrationParam(
         "damping",
@@ -315,9 +317,29 @@ CALIBRATION = (
         0.3,
         "log faster than the mechanical time constant b/k (e.g. 1 kHz), or a load step",
     ),
+    CalibrationParam(
+        "radial_cte",
+        "sample",
+        "rho",
+        "1/K",
+        0.3,
+        "a static oven test of the same sample, calibrated jointly "
+        "(tcamlab calibrate static.toml dynamic.toml)",
+    ),
+    CalibrationParam(
+        "shear_modulus_slope",
+        "sample",
+        "G_t slope",
+        "Pa/K",
+        0.3,
+        "a static oven test of the same sample, calibrated jointly "
+        "(tcamlab calibrate static.toml dynamic.toml)",
+    ),
 )
 """Calibratable parameters of the voltage-step test; the default prior sds are wide
-(the thesis's own sds are 32 %, 181 % and 14 %)."""
+(the thesis's own sds are 32 %, 181 % and 14 %). rho and the G_t slope are calibrated too:
+the displacement sees the temperature only through them, so without them the pulse would
+seem to fix C_th and lambda separately on the strength of the sample's stated rho alone."""
 
 
 KIND = Kind(

@@ -111,7 +111,7 @@ def parameter_rows(result) -> list[list[str]]:
                 _interval(p.laplace_95[0] * f, p.laplace_95[1] * f, d),
                 _interval(p.profile_95[0] * f, p.profile_95[1] * f, d, p.profile_open, unsure_bounds(p)),
                 _signed(p.shift_in_stated_sds),
-                "yes" if p.pinned else "no",
+                p.identification,
             ]
         )
     return rows
@@ -130,12 +130,13 @@ def _parameter_table(result) -> Table:
             "Laplace 95 %",
             "profile 95 %",
             "shift [stated sds]",
-            "pinned",
+            "identified",
         ],
         parameter_rows(result),
         caption=(
             "Calibrated parameters in lab units. Shift = (calibrated \u2212 stated) / stated sd. "
-            "Pinned: posterior sd below half the prior sd. \u2264 or \u2191 marks a profile bound "
+            "Identified: pinned (relative posterior sd at most 10 % and a third of the prior's), "
+            "constrained (the logs at least halve the prior sd) or prior (rests on its prior). \u2264 or \u2191 marks a profile bound "
             "at the edge of the search box (the data never raised chi-square by 3.84 there); ? a "
             "bound where the profile search stopped before |z| reached 1.96 (see the notes)."
         ),
