@@ -13,19 +13,19 @@ Arduino with the laser chain of :mod:`tcamlab.instruments`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
-from tcamlab import instruments
+from tcamlab import band, instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions
 from tcamlab.models import dynamic as _dyn
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure, Section, Table
 from tcamlab.report.figures import legend_label, new_figure
-
-MC_GRID = 0.01
-"""Time step of the Monte Carlo band grid [s] (interpolated onto the log)."""
+from tcamlab.signals import second_difference_sigma
 
 COOLING_WINDOW_S = 3.0
 """Rows up to this long after a pulse ends are labelled "cooling" by the diagnosis [s]."""
@@ -113,53 +113,155 @@ def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarra
     return {"phase": lab}
 
 
-def monte_carlo_band(experiment, prediction, *, draws: int, seed: int, call):
-    """The 95 % Monte Carlo band of one run and its summary, or (None, None) without uncertainties.
+def parameter_distribution(experiment):
+    """The distribution the band draws from, or None without any uncertainty.
+
+    A calibrated file's ``[calibration]`` (joint, :func:`tcamlab.band.from_calibration`);
+    otherwise the stated sds of ``[rig.uncertainty]`` (fields of
+    :data:`tcamlab.models.dynamic.MC_PARAMS`) and ``[sample.uncertainty]``, independent.
+    """
+    sample, rig = experiment.sample, experiment.rig
+    joint = experiment.calibration
+    if joint is not None:
+        values = {f: getattr(sample if f[0] == "sample" else rig, f[1]) for f in joint.fields}
+        return band.from_calibration(joint, values)
+    stated = {
+        ("rig", k): (float(getattr(rig, k)), float(sd))
+        for k, sd in rig.uncertainty.items()
+        if k in _dyn.MC_PARAMS
+    }
+    stated |= {
+        ("sample", k): (float(getattr(sample, k)), float(sd))
+        for k, sd in experiment.sample_uncertainty.items()
+        if k in _DRAWN_SAMPLE
+    }
+    return band.from_stated(stated)
+
+
+_DRAWN_SAMPLE = tuple(k for k in Sample.__dataclass_fields__ if k != "thread_plies")
+"""Sample fields the band can draw (the kernel takes every one but the ply count)."""
+
+
+def _drawable(field: tuple[str, str]) -> bool:
+    where, name = field
+    return name in _dyn.MC_PARAMS if where == "rig" else name in _DRAWN_SAMPLE
+
+
+def _rest_rows(t: np.ndarray, v: np.ndarray, zeroing_row: bool) -> np.ndarray:
+    """Rows before the voltage first comes on, without the zeroing row."""
+    on = np.abs(v) > 0.01 * max(np.abs(v).max(), 1e-12)
+    first = int(np.argmax(on)) if on.any() else t.size
+    rest = np.arange(t.size) < first
+    rest[0] &= not zeroing_row
+    return rest
+
+
+def run_band(experiment, prediction, dist, *, draws: int, seed: int, call, zero_sd: float | None = None):
+    """The band of one run on its rows, and its summary (lengths [m] in the band, mm in the summary).
 
     ``call(fn, *args, **kwargs)`` runs a model and names the run in its errors.
+    ``zero_sd`` [m]: sd of the run's zero when estimated elsewhere (default from the
+    rest rows, :func:`tcamlab.band.rest_zero`). Returns (None, summary) when every
+    draw left the model's domain.
     """
-    rig = experiment.rig
-    if not draws or not rig.uncertainty:
-        return None, None
-    t = prediction.data["time"].to_numpy(float)
-    grid = np.arange(t[0], t[-1] + MC_GRID / 2, MC_GRID)
-    idx = np.searchsorted(t, grid, side="right") - 1
-    volts = prediction.data["voltage"].to_numpy(float)[np.clip(idx, 0, t.size - 1)]
-    mc = call(_dyn.monte_carlo, grid, volts, experiment.sample, rig, n_draws=draws, seed=seed)
-    lo, med, hi = (np.interp(t, mc.time, q) for q in mc.band())
-    meas = prediction.data["displacement"].to_numpy(float)
-    coverage = float(np.mean((meas >= lo) & (meas <= hi)))
-    summary = {"draws": draws, "out_of_range": mc.n_invalid, "coverage_95": coverage}
-    return {"lower": lo, "median": med, "upper": hi}, summary
+    data = prediction.data
+    t, v = data["time"].to_numpy(float), data["voltage"].to_numpy(float)
+    meas = data["displacement"].to_numpy(float)
+    pred = prediction.predicted[KIND.primary]["displacement"]
+    idx, decimated = band.band_grid(t, v)
+    values = dist.draw(draws, np.random.default_rng(seed))
+    kernel = {f[1]: x for f, x in values.items() if _drawable(f)}
+    mc = call(_dyn.monte_carlo, t[idx], v[idx], experiment.sample, experiment.rig, draws=kernel)
+    sigma = second_difference_sigma(meas - pred)
+    zeroing_row = bool(meas[0] == 0.0)
+    zero, zero_sd, n_rest = band.rest_zero(meas - pred, _rest_rows(t, v, zeroing_row), sigma, zero_sd)
+    spread = math.hypot(sigma, zero_sd)
+    summary = {
+        "draws": draws,
+        "out_of_range": mc.n_invalid,
+        "noise_sd_mm": sigma * 1e3,
+        "zero_mm": zero * 1e3,
+        "zero_sd_mm": zero_sd * 1e3,
+        "rest_rows": n_rest,
+        "grid_points": int(idx.size),
+        "decimated": decimated,
+    }
+    if mc.displacement.shape[0] == 0:
+        return None, summary
+    lo, hi = (np.interp(t, t[idx], q) for q in band.mixture_interval(mc.displacement + zero, spread))
+    plo, phi = band.parameter_interval(mc.displacement)
+    counted = np.ones(t.size, bool)
+    counted[0] = not zeroing_row
+    informative = band.informative_rows(np.interp(t, t[idx], (phi - plo) / 2), spread) & counted
+    summary |= {
+        "rows": int(counted.sum()),
+        "coverage": band.coverage(meas, lo, hi, counted),
+        "informative_rows": int(informative.sum()),
+        "coverage_informative": band.coverage(meas, lo, hi, informative),
+    }
+    centre = np.interp(t, t[idx], np.median(mc.displacement, axis=0)) + zero
+    return {"lower": lo, "median": centre, "upper": hi}, summary
+
+
+def _band_note(name: str, label: str, s: dict) -> str:
+    inf = (
+        f"{s['coverage_informative']:.3f} over {s['informative_rows']} informative rows"
+        if s["informative_rows"]
+        else "no informative rows (the parameter part stays below half the noise part)"
+    )
+    grid = (
+        f"; computed on a decimated grid of {s['grid_points']} rows and interpolated"
+        if s["decimated"]
+        else ""
+    )
+    return f"{name}: {label} covers {s['coverage']:.3f} of {s['rows']} measured points; {inf}{grid}"
 
 
 def validation_extras(experiment, predictions, *, mc_draws: int, seed: int, call) -> tuple[list, dict]:
-    """Attach the Monte Carlo band to every run; notes and the ``monte_carlo`` extras."""
+    """Attach the band to every run; notes and the ``prediction_band`` extras."""
+    dist = parameter_distribution(experiment) if mc_draws else None
+    if dist is None:
+        why = (
+            "--mc-draws 0" if not mc_draws else "no [rig.uncertainty], [sample.uncertainty] or [calibration]"
+        )
+        return [f"{why}: no band drawn"], {}
+    label = band.band_label(dist.calibrated)
     notes, summary = [], {}
     for p in predictions:
-        band, info = monte_carlo_band(
+        b, info = run_band(
             experiment,
             p,
+            dist,
             draws=mc_draws,
             seed=seed,
             call=lambda fn, *a, _n=p.name, **k: call(_n, fn, *a, **k),
         )
-        if band is None:
-            continue
-        p.band = band
         summary[p.name] = info
         if info["out_of_range"]:
             notes.append(
-                f"{p.name}: {info['out_of_range']} of {mc_draws} Monte Carlo draws heated the "
-                f"actuator past the G_t' > 0 limit of eq. (2.13) and were left out of "
-                f"the band"
+                f"{p.name}: {info['out_of_range']} of {mc_draws} draws left the model's domain "
+                f"(e.g. past the G_t' > 0 limit of eq. (2.13)) and were left out of the band"
             )
-    if not summary:
-        notes.append("no [rig.uncertainty] given: no Monte Carlo prediction band")
-        return notes, {}
-    params = sorted(k for k in experiment.rig.uncertainty if k in _dyn.MC_PARAMS)
-    dist = "log-normal, moment-matched to the stated mean and sd"
-    return notes, {"monte_carlo": {"distribution": dist, "parameters": params, "runs": summary}}
+        if b is None:
+            continue
+        p.band = b
+        notes.append(_band_note(p.name, label, info))
+    held = [".".join(f) for f in dist.fields if not _drawable(f)]
+    return notes, {
+        "prediction_band": {
+            "label": label,
+            "calibrated": dist.calibrated,
+            "nominal": band.NOMINAL,
+            "distribution": dist.description,
+            "parameters": [".".join(f) for f in dist.fields if _drawable(f)],
+            "held_at_value": held,
+            "noise": "noise floor (second differences of the residuals) and the run's zero "
+            "(mean residual of the rest rows before the pulse)",
+            "informative_rows": f"rows where the parameter part's half-width is at least "
+            f"{band.INFORMATIVE_RATIO:g} x the noise part's",
+            "runs": summary,
+        }
+    }
 
 
 def figures(result) -> list[Figure]:
