@@ -3,8 +3,9 @@
 The model is (2.14)-(2.19): the electro-thermal balance (2.18) heats the
 actuator, whose mass-spring-damper follows the static force (2.15). Effect
 terms of :class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
-resistance_tc, heat_loss_tc, delay. Validation adds a Monte Carlo band from
-the stated uncertainties of C_th, lambda and b.
+resistance_tc, heat_loss_tc, delay. Validation adds a band for the measured
+points (:mod:`tcamlab.band`): a prediction band from a calibrated file's joint
+posterior (``[calibration]``), else a stated-uncertainty band from the stated sds.
 
 The virtual rig's voltage step (:func:`protocol`, :func:`measure`): a pulse
 from the template's rig after a quiet baseline, logged at 100 Hz by the
@@ -24,7 +25,7 @@ from tcamlab.kinds import CalibrationParam, Kind, RunOptions
 from tcamlab.models import dynamic as _dyn
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure, Section, Table
-from tcamlab.report.figures import legend_label, new_figure
+from tcamlab.report.figures import draw_band, legend_label, new_figure
 from tcamlab.signals import second_difference_sigma
 
 COOLING_WINDOW_S = 3.0
@@ -168,7 +169,7 @@ def run_band(experiment, prediction, dist, *, draws: int, seed: int, call, zero_
     t, v = data["time"].to_numpy(float), data["voltage"].to_numpy(float)
     meas = data["displacement"].to_numpy(float)
     pred = prediction.predicted[KIND.primary]["displacement"]
-    idx, decimated = band.band_grid(t, v)
+    idx, decimated = band.band_grid(t, v, band.MAX_GRID_POINTS)
     values = dist.draw(draws, np.random.default_rng(seed))
     kernel = {f[1]: x for f, x in values.items() if _drawable(f)}
     mc = call(_dyn.monte_carlo, t[idx], v[idx], experiment.sample, experiment.rig, draws=kernel)
@@ -265,12 +266,20 @@ def validation_extras(experiment, predictions, *, mc_draws: int, seed: int, call
 
 
 def figures(result) -> list[Figure]:
-    """Displacement against time with the Monte Carlo band, as thesis figure 2.9."""
+    """Displacement against time with the band (labelled as what it is), as thesis figure 2.9."""
     fig, ax = new_figure()
+    info = result.extras.get("prediction_band") or {}
+    label = info.get("label")
+    for p in result.predictions:
+        if p.band is not None:
+            # one grey band per run under the points; one legend entry for all of them
+            t = p.data["time"].to_numpy()
+            draw_band(
+                ax, t, p.band["lower"] * 1e3, p.band["upper"] * 1e3, label=label, color="0.55", alpha=0.3
+            )
+            label = None
     for p in result.predictions:
         t = p.data["time"].to_numpy()
-        if p.band is not None:
-            ax.fill_between(t, p.band["lower"] * 1e3, p.band["upper"] * 1e3, alpha=0.15)
         name = legend_label(p.name)
         (line,) = ax.plot(t, p.data["displacement"] * 1e3, ".", ms=1.5, label=f"{name} measured")
         ax.plot(
@@ -284,34 +293,85 @@ def figures(result) -> list[Figure]:
     ax.set_xlabel("time [s]")
     ax.set_ylabel("displacement [mm]")
     ax.legend(fontsize=6, ncol=2)
-    caption = (
-        "Displacement against time under the voltage pulse: measured (points), model (line) "
-        "and 95% Monte Carlo band (shaded), as in thesis figure 2.9."
+    return [Figure(fig, _figure_caption(info), alt="dynamic plot")]
+
+
+def _figure_caption(info: dict) -> str:
+    text = "Displacement against time under the voltage pulse: measured (points), model (line)"
+    if not info:
+        return text + ", as in thesis figure 2.9."
+    what = (
+        "for measured points: calibrated parameters drawn jointly, noise and the run's zero"
+        if info["calibrated"]
+        else "drawn from the stated sds independently, plus noise and the run's zero; the "
+        "parameters are not calibrated, so this is not a prediction band"
     )
-    return [Figure(fig, caption, alt="dynamic plot")]
+    grid = (
+        " Computed on a decimated grid and interpolated."
+        if any(r.get("decimated") for r in info["runs"].values())
+        else ""
+    )
+    return f"{text} and {info['label']} (grey, one per run; {what}), as in thesis figure 2.9.{grid}"
 
 
 def extras_section(result) -> Section | None:
-    """The Monte Carlo band's draws and coverage per run, as a report section."""
-    if not result.extras.get("monte_carlo"):
+    """The band's label, distribution and coverage per run, as a report section."""
+    info = result.extras.get("prediction_band")
+    if not info:
         return None
-    mc = result.extras["monte_carlo"]
-    rows = [[name, s["draws"], s["out_of_range"], s["coverage_95"]] for name, s in mc["runs"].items()]
+    rows = [
+        [
+            name,
+            s["draws"],
+            s["out_of_range"],
+            f"{s['noise_sd_mm']:.4g}",
+            f"{s['zero_mm']:.4g} ± {s['zero_sd_mm']:.2g}",
+            s.get("rows", "-"),
+            _fmt_cov(s.get("coverage")),
+            s.get("informative_rows", "-"),
+            _fmt_cov(s.get("coverage_informative")),
+            f"{s['grid_points']} (decimated)" if s["decimated"] else f"{s['grid_points']} (every row)",
+        ]
+        for name, s in info["runs"].items()
+    ]
+    paragraphs = [
+        f"{info['label'][0].upper()}{info['label'][1:]}, nominal {info['nominal']:.0%}. Parameters drawn: "
+        f"{', '.join(info['parameters']) or 'none'} ({info['distribution']}); plus {info['noise']}.",
+        f"Coverage counts every measured row but the zeroing row (logged as exactly 0); informative "
+        f"rows are the {info['informative_rows']}. Elsewhere the band is the noise band and covers "
+        f"about {info['nominal']:.0%} whatever the parameters.",
+    ]
+    if info["held_at_value"]:
+        paragraphs.append(
+            "Held at their values (the model cannot draw them): " + ", ".join(info["held_at_value"])
+        )
+    if not info["calibrated"]:
+        paragraphs.append(
+            "The parameters are not calibrated: the band draws the stated sds independently, so it is "
+            "a stated-uncertainty band, not a prediction band, and its coverage is no test of the "
+            "model. Run tcamlab calibrate and validate the NAME.calibrated.toml it writes."
+        )
+    head = [
+        "run",
+        "draws",
+        "out of range",
+        "noise sd [mm]",
+        "zero [mm]",
+        "rows",
+        "coverage",
+        "informative rows",
+        "coverage (informative)",
+        "grid rows",
+    ]
     return Section(
-        "Monte Carlo prediction band",
-        paragraphs=[
-            f"Parameters drawn: {', '.join(mc['parameters'])}; distribution: "
-            f"{mc['distribution']} (keeps every parameter positive although the stated sd "
-            f"of lambda exceeds its value)."
-        ],
-        tables=[
-            Table(
-                ["run", "draws", "out of range", "coverage of the 95% band"],
-                rows,
-                caption="Monte Carlo band per run",
-            )
-        ],
+        info["label"][0].upper() + info["label"][1:],
+        paragraphs=paragraphs,
+        tables=[Table(head, rows, caption=f"{info['label']} per run")],
     )
+
+
+def _fmt_cov(x) -> str:
+    return "-" if x is None else f"{x:.3f}"
 
 
 # --- virtual rig ---------------------------------------------------------------------------
@@ -425,7 +485,7 @@ CALIBRATION = (
 KIND = Kind(
     name="dynamic",
     description="voltage-step test (thesis section 2.5.2): displacement against time, "
-    "model (2.14)-(2.19) with a Monte Carlo band from the parameter uncertainties",
+    "model (2.14)-(2.19) with a band for the measured points (prediction band once calibrated)",
     required_columns=("time_s", "voltage_V", "displacement_mm"),
     optional_columns=("temperature_C", "current_A", "resistance_ohm"),
     min_rows=10,
