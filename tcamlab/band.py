@@ -96,6 +96,9 @@ class ParameterDistribution:
         From a calibration's joint posterior (True) or independent stated sds.
     description : str
         How it was made, for reports.
+    below, above : ndarray or None
+        Sds below and above the mean (split-normal marginals, e.g. from profile
+        intervals); the covariance then only gives the correlations. None: normal.
     """
 
     fields: tuple[tuple[str, str], ...]
@@ -104,17 +107,28 @@ class ParameterDistribution:
     covariance: np.ndarray
     calibrated: bool
     description: str
+    below: np.ndarray | None = None
+    above: np.ndarray | None = None
 
     def draw(self, n: int, rng: np.random.Generator) -> dict[tuple[str, str], np.ndarray]:
         """``n`` parameter vectors, {(where, field): ndarray of n} [SI].
 
         Correlated normal draws in the fitted coordinates (eigen-decomposition,
         so a singular covariance is fine), mapped back with ``exp`` for log ones.
+        With ``below``/``above`` the correlated standard normals are scaled by
+        the sd of their side (a Gaussian copula with split-normal marginals).
         """
-        u = rng.multivariate_normal(self.mean, self.covariance, size=n, method="eigh")
-        u = np.atleast_2d(u).reshape(n, len(self.fields))
+        k = len(self.fields)
+        if self.below is None:
+            u = rng.multivariate_normal(self.mean, self.covariance, size=n, method="eigh")
+        else:
+            sd = np.sqrt(np.clip(np.diag(self.covariance), 1e-300, None))
+            corr = self.covariance / np.outer(sd, sd)
+            z = rng.multivariate_normal(np.zeros(k), corr, size=n, method="eigh").reshape(n, k)
+            u = self.mean + np.where(z < 0, z * self.below, z * self.above)
+        u = np.asarray(u).reshape(n, k)
         return {
-            f: (np.exp(u[:, k]) if lg else u[:, k]) for k, (f, lg) in enumerate(zip(self.fields, self.log))
+            f: (np.exp(u[:, i]) if lg else u[:, i]) for i, (f, lg) in enumerate(zip(self.fields, self.log))
         }
 
 
@@ -136,14 +150,24 @@ def from_calibration(joint, values: Mapping[tuple[str, str], float]) -> Paramete
     mean = np.array(
         [math.log(values[f]) if lg else float(values[f]) for f, lg in zip(joint.fields, joint.log)]
     )
+    if joint.sd_below is None:
+        how = "Gaussian with the Laplace sds and correlations"
+        below = above = None
+    else:
+        how = (
+            "Laplace correlations, each marginal split-normal with the sds of its "
+            "profile-likelihood 95% interval below and above the value"
+        )
+        below, above = np.asarray(joint.sd_below, float), np.asarray(joint.sd_above, float)
     return ParameterDistribution(
         tuple(joint.fields),
         tuple(joint.log),
         mean,
         joint.covariance(),
         True,
-        "calibrated joint posterior ([calibration]: Laplace at the MAP point, correlations kept; "
-        "Gaussian in log for positive parameters)",
+        f"calibrated joint posterior ([calibration]): {how}, in log for positive parameters",
+        below,
+        above,
     )
 
 

@@ -32,8 +32,10 @@ how the CSV headers map to canonical columns and the acceptance thresholds::
     [calibration]          # optional: written by tcamlab calibrate
     parameters = ["rig.thermal_mass_J_per_K", "rig.damping_N_s_per_m"]
     coordinates = ["log", "log"]   # log: sd relative [-]; linear: sd in the key's unit
-    sd = [0.004, 0.03]
+    sd = [0.004, 0.03]             # Laplace sds
     correlation = [[1.0, 0.2], [0.2, 1.0]]
+    sd_below = [0.004, 0.035]      # optional, together: profile 95 % interval / 1.96
+    sd_above = [0.004, 0.028]
 
 The file is validated with pydantic models (unknown keys are errors) and
 every problem is reported as a one-line :class:`tcamlab.errors.ConfigError`
@@ -148,6 +150,8 @@ class _CalibrationTable(BaseModel):
     coordinates: list[Literal["log", "linear"]]
     sd: list[float]
     correlation: list[list[float]]
+    sd_below: list[float] | None = None
+    sd_above: list[float] | None = None
 
 
 class _ExperimentFile(BaseModel):
@@ -219,9 +223,12 @@ class CalibratedJoint:
     log : tuple of bool
         Whether each is fitted as its logarithm.
     sd : tuple of float
-        Posterior sd in the fitted coordinate: relative [-] for log, SI otherwise.
+        Posterior sd in the fitted coordinate (Laplace): relative [-] for log, SI otherwise.
     correlation : tuple of tuple of float
         Posterior correlation matrix in the fitted coordinates [-].
+    sd_below, sd_above : tuple of float or None
+        Sds below and above the value from the profile-likelihood 95 % interval
+        (its distance from the value / 1.96), same units as ``sd``; None when not written.
     """
 
     keys: tuple[str, ...]
@@ -229,6 +236,8 @@ class CalibratedJoint:
     log: tuple[bool, ...]
     sd: tuple[float, ...]
     correlation: tuple[tuple[float, ...], ...]
+    sd_below: tuple[float, ...] | None = None
+    sd_above: tuple[float, ...] | None = None
 
     def covariance(self) -> np.ndarray:
         """Posterior covariance in the fitted coordinates (log: [-]; linear: SI squared)."""
@@ -741,29 +750,45 @@ def _calibration(
     if table is None:
         return None
     n = len(table.parameters)
-    for name in ("coordinates", "sd"):
-        if len(getattr(table, name)) != n:
+    for name in ("coordinates", "sd", "sd_below", "sd_above"):
+        got = getattr(table, name)
+        if got is not None and len(got) != n:
             raise ConfigError(
-                f"{shown}: calibration.{name}: {len(getattr(table, name))} entries for {n} parameters",
+                f"{shown}: calibration.{name}: {len(got)} entries for {n} parameters",
                 "one entry per calibration.parameters entry, in the same order",
             )
+    if (table.sd_below is None) != (table.sd_above is None):
+        raise ConfigError(
+            f"{shown}: calibration: sd_below and sd_above go together", "give both (or neither)"
+        )
     fields = _calibration_fields(table, sample, rig, shown)
-    sds = []
-    for i, value in enumerate(table.sd):
-        v = _finite(shown, f"calibration.sd[{i}]", value)
-        if v < 0:
-            raise ConfigError(f"{shown}: calibration.sd[{i}] = {value!r} must not be negative")
-        log = table.coordinates[i] == "log"
-        where, key = fields[i][0], table.parameters[i].partition(".")[2]
-        sds.append(v if log else v * {"rig": RIG_KEYS, "sample": SAMPLE_KEYS}[where][key][1])
+    sds = {name: _calibration_sds(table, name, fields, shown) for name in ("sd", "sd_below", "sd_above")}
     c = _correlation_matrix(table.correlation, n, shown)
     return CalibratedJoint(
         keys=tuple(table.parameters),
         fields=tuple(fields),
         log=tuple(x == "log" for x in table.coordinates),
-        sd=tuple(sds),
+        sd=sds["sd"],
         correlation=tuple(tuple(float(x) for x in row) for row in c),
+        sd_below=sds["sd_below"],
+        sd_above=sds["sd_above"],
     )
+
+
+def _calibration_sds(table: _CalibrationTable, name: str, fields, shown: str) -> tuple[float, ...] | None:
+    """``calibration.<name>`` as fitted-coordinate sds: relative for log, SI for linear; non-negative."""
+    values = getattr(table, name)
+    if values is None:
+        return None
+    out = []
+    for i, value in enumerate(values):
+        v = _finite(shown, f"calibration.{name}[{i}]", value)
+        if v < 0:
+            raise ConfigError(f"{shown}: calibration.{name}[{i}] = {value!r} must not be negative")
+        key = table.parameters[i].partition(".")[2]
+        factor = {"rig": RIG_KEYS, "sample": SAMPLE_KEYS}[fields[i][0]][key][1]
+        out.append(v if table.coordinates[i] == "log" else v * factor)
+    return tuple(out)
 
 
 # Rig fields that must be positive / non-negative; ambient above absolute zero.

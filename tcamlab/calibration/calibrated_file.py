@@ -5,8 +5,10 @@ its marginal posterior sd in ``[rig.uncertainty]`` / ``[sample.uncertainty]``,
 and the joint posterior in a ``[calibration]`` table: the parameter keys, the
 coordinates the calibration fits (``log`` for a positive parameter, whose sd is
 then relative; ``linear`` otherwise, sd in the key's unit), their sds and
-correlation matrix (Laplace, at the MAP point). The dynamic prediction band
-draws from it (:mod:`tcamlab.band`). The provenance of every value (stated
+correlation matrix (Laplace, at the MAP point), and the sds below and above the
+value from the profile-likelihood 95 % interval (``sd_below``, ``sd_above``:
+distance / 1.96; wider than the Laplace sd where the likelihood is skewed). The
+dynamic prediction band draws from it (:mod:`tcamlab.band`). The provenance of every value (stated
 value, shift in stated sds, profile interval) is a comment block at the top.
 Run paths stay valid: the file sits in the original's folder.
 """
@@ -14,6 +16,7 @@ Run paths stay valid: the file sits in the original's folder.
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
 from tcamlab.config import Experiment, dumps_toml
@@ -118,7 +121,8 @@ def joint_table(applied, result) -> dict:
     -------
     dict
         ``parameters`` (``"rig.KEY"``), ``coordinates`` (``"log"``/``"linear"``), ``sd``
-        (relative for log, lab units for linear) and ``correlation`` (rows).
+        (Laplace; relative for log, lab units for linear), ``correlation`` (rows), and
+        ``sd_below`` / ``sd_above`` (the profile 95 % interval's distances / 1.96).
     """
     names = result.correlation["names"]
     matrix = result.correlation["matrix"]
@@ -127,12 +131,26 @@ def joint_table(applied, result) -> dict:
     sd = [p.posterior_sd_rel if log else p.posterior_sd / lab for (p, lab), log in zip(applied, logs)]
     # full precision: rounded entries can leave a nearly singular matrix indefinite
     corr = [[1.0 if i == j else float(matrix[i][j]) for j in idx] for i in idx]
+    below, above = zip(*(_profile_sds(p, lab, log) for (p, lab), log in zip(applied, logs)))
     return {
         "parameters": [f"{p.where}.{p.key}" for p, _ in applied],
         "coordinates": ["log" if log else "linear" for log in logs],
         "sd": [_round(float(x)) for x in sd],
         "correlation": corr,
+        "sd_below": [_round(x) for x in below],
+        "sd_above": [_round(x) for x in above],
     }
+
+
+def _profile_sds(p, lab: float, log: bool) -> tuple[float, float]:
+    """Sds below and above the value from its profile 95 % interval (distance / 1.96), in the
+    fitted coordinate: relative for log, lab units otherwise."""
+    from tcamlab.calibration.fit import Z95
+
+    lo, hi = p.profile_95
+    if log:
+        return math.log(p.value / lo) / Z95, math.log(hi / p.value) / Z95
+    return (p.value - lo) / Z95 / lab, (hi - p.value) / Z95 / lab
 
 
 def calibrated_text(experiment: Experiment, result) -> str:
