@@ -513,3 +513,20 @@ def test_calibration_log_coordinate_needs_a_positive_value(lab):
         load_experiment,
         write_toml(lab, body),
     )
+
+
+def test_calibration_profile_sds_go_together_and_convert_units(lab):
+    body = CAL_HEAD + CAL_OK + "sd_below = [0.005, 0.04]\nsd_above = [0.003, 0.02]\n"
+    cal = load_experiment(write_toml(lab, body)).calibration
+    assert cal.sd_below == pytest.approx((0.005, 0.04), rel=RTOL)
+    assert cal.sd_above == pytest.approx((0.003, 0.02), rel=RTOL)
+    raises_config(
+        ["calibration", "sd_below and sd_above go together"],
+        load_experiment,
+        write_toml(lab, CAL_HEAD + CAL_OK + "sd_below = [0.005, 0.04]\n", "one.toml"),
+    )
+    raises_config(
+        ["calibration.sd_above[0]", "must not be negative"],
+        load_experiment,
+        write_toml(lab, body.replace("sd_above = [0.003", "sd_above = [-0.003"), "neg.toml"),
+    )
