@@ -223,7 +223,35 @@ def test_band_is_centred_on_the_runs_zero(withheld):
             s = res.extras["prediction_band"]["runs"][p.name]
             t = p.data["time"].to_numpy()
             mid = (p.band["lower"] + p.band["upper"]) / 2
-            assert np.median(mid[(t > 0) & (t < 0.5)]) == pytest.approx(s["zero_mm"] * 1e-3, abs=1e-7)
+            rest = (t > 0) & (t < 0.5)
+            # the logged rest rows' mean (minus a zero validation may have subtracted already)
+            want = np.mean(p.data["displacement"].to_numpy()[rest])
+            assert np.median(mid[rest]) == pytest.approx(want, abs=0.1 * s["noise_sd_mm"] * 1e-3)
+            assert abs(s["zero_mm"]) > 0  # a noisy zero, not the exact tare
+
+
+def test_a_zero_validation_already_subtracted_is_not_applied_twice():
+    """Validation may estimate each run's zero and subtract it (``RunPrediction.zeros``):
+    the band is then centred on the model and takes the estimate's standard error."""
+    from types import SimpleNamespace
+
+    from tcamlab.validation import RunPrediction
+
+    exp = load_experiment(Path(__file__).resolve().parent.parent / "experiments" / "dynamic.toml")
+    res = validate(exp, mc_draws=0, **({"zeros": False} if "zeros" in validate.__code__.co_varnames else {}))
+    p = res.predictions[0]
+    logged = p.data["displacement"].to_numpy()
+    zero = float(np.mean(logged[1:50]))
+    moved = RunPrediction(p.name, p.data.assign(displacement=logged - zero), p.predicted)
+    moved.zeros = {"displacement": SimpleNamespace(value=zero, stderr=2e-6, rows=49)}
+    dist = kd.parameter_distribution(exp)
+    b, info = kd.run_band(exp, moved, dist, draws=100, seed=0, call=lambda fn, *a, **k: fn(*a, **k))
+    assert info["zero_mm"] == pytest.approx(zero * 1e3) and info["zero_sd_mm"] == pytest.approx(2e-3)
+    assert info["rest_rows"] == 49 and info["rows"] == len(logged) - 1  # row 0 was the zeroing row
+    assert np.allclose((b["lower"][:40] + b["upper"][:40]) / 2, 0.0, atol=1e-9)
+    own, own_info = kd.run_band(exp, p, dist, draws=100, seed=0, call=lambda fn, *a, **k: fn(*a, **k))
+    assert own_info["zero_mm"] == pytest.approx(zero * 1e3) and own_info["rest_rows"] == 49
+    assert np.allclose((own["lower"][:40] + own["upper"][:40]) / 2, zero, atol=1e-9)
 
 
 def test_uncalibrated_file_gets_a_stated_uncertainty_band_labelled_as_such(withheld):

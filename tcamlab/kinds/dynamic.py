@@ -157,13 +157,31 @@ def _rest_rows(t: np.ndarray, v: np.ndarray, zeroing_row: bool) -> np.ndarray:
     return rest
 
 
+def _run_zero(prediction, meas, pred, t, v, sigma: float, zero_sd: float | None):
+    """The band's zero shift, the run's zero shown, its sd, its rows and whether row 0 is the
+    zeroing row [m]. Where validation already estimated and subtracted the zero
+    (``prediction.zeros``), the shift is 0 and its standard error is the sd; else the
+    zero is the mean residual of the rest rows (:func:`tcamlab.band.rest_zero`)."""
+    est = (getattr(prediction, "zeros", None) or {}).get("displacement")
+    if est is None:
+        zeroing_row = bool(meas[0] == 0.0)
+        zero, sd, n = band.rest_zero(meas - pred, _rest_rows(t, v, zeroing_row), sigma, zero_sd)
+        return zero, zero, sd, n, zeroing_row
+    # the logged row 0 is data + zero: exactly 0 when the log was zeroed on it
+    zeroing_row = bool(meas[0] + est.value == 0.0)
+    if zero_sd is None:
+        zero_sd = float(est.stderr) if math.isfinite(est.stderr) else sigma
+    return 0.0, float(est.value), float(zero_sd), int(est.rows), zeroing_row
+
+
 def run_band(experiment, prediction, dist, *, draws: int, seed: int, call, zero_sd: float | None = None):
     """The band of one run on its rows, and its summary (lengths [m] in the band, mm in the summary).
 
     ``call(fn, *args, **kwargs)`` runs a model and names the run in its errors.
-    ``zero_sd`` [m]: sd of the run's zero when estimated elsewhere (default from the
-    rest rows, :func:`tcamlab.band.rest_zero`). Returns (None, summary) when every
-    draw left the model's domain.
+    ``zero_sd`` [m]: sd of the run's zero when estimated elsewhere (default: the standard
+    error of the zero validation subtracted, ``prediction.zeros["displacement"]``, else
+    from the rest rows, :func:`tcamlab.band.rest_zero`). Returns (None, summary) when
+    every draw left the model's domain.
     """
     data = prediction.data
     t, v = data["time"].to_numpy(float), data["voltage"].to_numpy(float)
@@ -174,14 +192,13 @@ def run_band(experiment, prediction, dist, *, draws: int, seed: int, call, zero_
     kernel = {f[1]: x for f, x in values.items() if _drawable(f)}
     mc = call(_dyn.monte_carlo, t[idx], v[idx], experiment.sample, experiment.rig, draws=kernel)
     sigma = second_difference_sigma(meas - pred)
-    zeroing_row = bool(meas[0] == 0.0)
-    zero, zero_sd, n_rest = band.rest_zero(meas - pred, _rest_rows(t, v, zeroing_row), sigma, zero_sd)
+    zero, shown, zero_sd, n_rest, zeroing_row = _run_zero(prediction, meas, pred, t, v, sigma, zero_sd)
     spread = math.hypot(sigma, zero_sd)
     summary = {
         "draws": draws,
         "out_of_range": mc.n_invalid,
         "noise_sd_mm": sigma * 1e3,
-        "zero_mm": zero * 1e3,
+        "zero_mm": shown * 1e3,
         "zero_sd_mm": zero_sd * 1e3,
         "rest_rows": n_rest,
         "grid_points": int(idx.size),
@@ -257,7 +274,7 @@ def validation_extras(experiment, predictions, *, mc_draws: int, seed: int, call
             "parameters": [".".join(f) for f in dist.fields if _drawable(f)],
             "held_at_value": held,
             "noise": "noise floor (second differences of the residuals) and the run's zero "
-            "(mean residual of the rest rows before the pulse)",
+            "(the mean residual of the rest rows before the pulse, or validation's estimate)",
             "informative_rows": f"rows where the parameter part's half-width is at least "
             f"{band.INFORMATIVE_RATIO:g} x the noise part's",
             "runs": summary,
