@@ -50,6 +50,7 @@ __all__ = [
     "from_calibration",
     "from_stated",
     "band_grid",
+    "draws_for",
     "rest_zero",
     "mixture_interval",
     "mixture_quantile",
@@ -68,6 +69,13 @@ MAX_GRID_POINTS = 5000
 INFORMATIVE_RATIO = 0.5
 """A row is informative when the parameter part's half-width is at least this times the
 noise part's (z * sqrt(sigma^2 + zero_sd^2)) [-]."""
+
+DRAW_SECONDS = 200_000.0
+"""Budget of draws x simulated seconds per run [s] (about 5 s of integration on a 2-core
+machine); a longer log gets fewer draws, never fewer than :data:`MIN_DRAWS`."""
+
+MIN_DRAWS = 100
+"""Fewest draws on a long log [-]."""
 
 PREDICTION_LABEL = "prediction band"
 """Label of a band drawn from a calibrated joint distribution."""
@@ -236,6 +244,15 @@ def band_grid(
     even = np.unique(np.linspace(0, n - 1, max_points).round().astype(int))
     changes = np.flatnonzero(np.diff(inputs) != 0) + 1
     return np.union1d(even, changes), True
+
+
+def draws_for(duration: float, requested: int) -> int:
+    """Draws for a run of ``duration`` [s]: ``requested``, cut to the :data:`DRAW_SECONDS`
+    budget on a long log (the integration grows with the simulated time), at least
+    :data:`MIN_DRAWS` (or ``requested`` if fewer)."""
+    if duration <= 0:
+        return requested
+    return min(requested, max(MIN_DRAWS, int(DRAW_SECONDS / duration)))
 
 
 def rest_zero(

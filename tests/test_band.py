@@ -118,6 +118,13 @@ def test_band_grid_decimates_a_long_log_and_keeps_every_input_change():
     assert not dec and np.array_equal(short, np.arange(500))
 
 
+def test_long_logs_get_fewer_draws_within_the_budget():
+    assert band.draws_for(10.0, 1000) == 1000
+    assert band.draws_for(1000.0, 1000) == int(band.DRAW_SECONDS / 1000.0)
+    assert band.draws_for(1e6, 1000) == band.MIN_DRAWS
+    assert band.draws_for(1e6, 30) == 30
+
+
 def test_rest_zero_and_its_sd():
     r = np.r_[np.full(49, 2e-6), np.full(100, 5e-5)]
     rest = np.arange(r.size) < 49

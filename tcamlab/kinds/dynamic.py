@@ -188,6 +188,7 @@ def run_band(experiment, prediction, dist, *, draws: int, seed: int, call, zero_
     meas = data["displacement"].to_numpy(float)
     pred = prediction.predicted[KIND.primary]["displacement"]
     idx, decimated = band.band_grid(t, v, band.MAX_GRID_POINTS)
+    draws = band.draws_for(float(t[-1] - t[0]), draws)
     values = dist.draw(draws, np.random.default_rng(seed))
     kernel = {f[1]: x for f, x in values.items() if _drawable(f)}
     mc = call(_dyn.monte_carlo, t[idx], v[idx], experiment.sample, experiment.rig, draws=kernel)
@@ -221,7 +222,7 @@ def run_band(experiment, prediction, dist, *, draws: int, seed: int, call, zero_
     return {"lower": lo, "median": centre, "upper": hi}, summary
 
 
-def _band_note(name: str, label: str, s: dict) -> str:
+def _band_note(name: str, label: str, s: dict, requested: int) -> str:
     inf = (
         f"{s['coverage_informative']:.3f} over {s['informative_rows']} informative rows"
         if s["informative_rows"]
@@ -232,6 +233,8 @@ def _band_note(name: str, label: str, s: dict) -> str:
         if s["decimated"]
         else ""
     )
+    if s["draws"] < requested:
+        grid += f"; {s['draws']} draws instead of {requested} on this long log (integration budget)"
     return f"{name}: {label} covers {s['coverage']:.3f} of {s['rows']} measured points; {inf}{grid}"
 
 
@@ -257,13 +260,13 @@ def validation_extras(experiment, predictions, *, mc_draws: int, seed: int, call
         summary[p.name] = info
         if info["out_of_range"]:
             notes.append(
-                f"{p.name}: {info['out_of_range']} of {mc_draws} draws left the model's domain "
+                f"{p.name}: {info['out_of_range']} of {info['draws']} draws left the model's domain "
                 f"(e.g. past the G_t' > 0 limit of eq. (2.13)) and were left out of the band"
             )
         if b is None:
             continue
         p.band = b
-        notes.append(_band_note(p.name, label, info))
+        notes.append(_band_note(p.name, label, info, mc_draws))
     held = [".".join(f) for f in dist.fields if not _drawable(f)]
     return notes, {
         "prediction_band": {
