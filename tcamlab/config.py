@@ -29,6 +29,14 @@ how the CSV headers map to canonical columns and the acceptance thresholds::
     [thresholds]
     rmse_mm = 0.5
 
+    [calibration]          # optional: written by tcamlab calibrate
+    parameters = ["rig.thermal_mass_J_per_K", "rig.damping_N_s_per_m"]
+    coordinates = ["log", "log"]   # log: sd relative [-]; linear: sd in the key's unit
+    sd = [0.004, 0.03]             # Laplace sds
+    correlation = [[1.0, 0.2], [0.2, 1.0]]
+    sd_below = [0.004, 0.035]      # optional, together: profile 95 % interval / 1.96
+    sd_above = [0.004, 0.028]
+
 The file is validated with pydantic models (unknown keys are errors) and
 every problem is reported as a one-line :class:`tcamlab.errors.ConfigError`
 naming the file and the key. Lab units in key names are converted to SI with
@@ -47,6 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from tcamlab import io as tio
@@ -57,6 +66,7 @@ from tcamlab.text import did_you_mean
 __all__ = [
     "KINDS",
     "Experiment",
+    "CalibratedJoint",
     "load_experiment",
     "write_experiment",
     "dumps_toml",
@@ -131,6 +141,19 @@ class _ColumnTable(BaseModel):
     offset: float | None = None
 
 
+class _CalibrationTable(BaseModel):
+    """``[calibration]``: the joint posterior of calibrated parameters (checked further in
+    :func:`_calibration`)."""
+
+    model_config = _STRICT
+    parameters: list[str] = Field(min_length=1)
+    coordinates: list[Literal["log", "linear"]]
+    sd: list[float]
+    correlation: list[list[float]]
+    sd_below: list[float] | None = None
+    sd_above: list[float] | None = None
+
+
 class _ExperimentFile(BaseModel):
     model_config = _STRICT
     kind: Literal[KINDS]  # type: ignore[valid-type]
@@ -142,6 +165,7 @@ class _ExperimentFile(BaseModel):
     rig: _RigTable | None = None  # type: ignore[valid-type]
     columns: dict[str, Any] = Field(default_factory=dict)
     thresholds: dict[str, Any] = Field(default_factory=dict)
+    calibration: _CalibrationTable | None = None
 
 
 class _TemplateFile(_ExperimentFile):
@@ -161,6 +185,7 @@ _ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
     ("sample", "uncertainty"): _model_keys(_SampleUncertainty),
     ("rig",): _model_keys(_RigTable),
     ("rig", "uncertainty"): _model_keys(_RigUncertainty),
+    ("calibration",): _model_keys(_CalibrationTable),
 }
 
 _EXPECTED = {
@@ -179,6 +204,45 @@ _EXPECTED = {
 }
 
 # --- the result ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CalibratedJoint:
+    """The ``[calibration]`` table: the joint posterior of the calibrated parameters.
+
+    The centre is the calibrated value in ``[rig]`` / ``[sample]``; the spread is
+    Gaussian in the coordinates the calibration fits (:mod:`tcamlab.calibration`):
+    ``log(value)`` for a positive parameter, the value itself otherwise.
+
+    Attributes
+    ----------
+    keys : tuple of str
+        As written, ``"rig.thermal_mass_J_per_K"``.
+    fields : tuple of (str, str)
+        ``("rig" or "sample", SI field)`` of each key.
+    log : tuple of bool
+        Whether each is fitted as its logarithm.
+    sd : tuple of float
+        Posterior sd in the fitted coordinate (Laplace): relative [-] for log, SI otherwise.
+    correlation : tuple of tuple of float
+        Posterior correlation matrix in the fitted coordinates [-].
+    sd_below, sd_above : tuple of float or None
+        Sds below and above the value from the profile-likelihood 95 % interval
+        (its distance from the value / 1.96), same units as ``sd``; None when not written.
+    """
+
+    keys: tuple[str, ...]
+    fields: tuple[tuple[str, str], ...]
+    log: tuple[bool, ...]
+    sd: tuple[float, ...]
+    correlation: tuple[tuple[float, ...], ...]
+    sd_below: tuple[float, ...] | None = None
+    sd_above: tuple[float, ...] | None = None
+
+    def covariance(self) -> np.ndarray:
+        """Posterior covariance in the fitted coordinates (log: [-]; linear: SI squared)."""
+        sd = np.asarray(self.sd, float)
+        return np.asarray(self.correlation, float) * np.outer(sd, sd)
 
 
 @dataclass(frozen=True)
@@ -218,6 +282,8 @@ class Experiment:
         The parsed TOML document.
     sample_uncertainty : dict of str to float
         ``[sample.uncertainty]``: standard deviations of sample fields [SI], by SI field name.
+    calibration : CalibratedJoint or None
+        ``[calibration]``: the joint posterior of a calibrated file (``tcamlab calibrate``).
     """
 
     path: Path
@@ -234,6 +300,7 @@ class Experiment:
     provenance: dict[str, str] = field(default_factory=dict)
     raw: dict = field(default_factory=dict)
     sample_uncertainty: dict[str, float] = field(default_factory=dict)
+    calibration: CalibratedJoint | None = None
 
     @property
     def preset(self) -> str | None:
@@ -427,6 +494,7 @@ def load_experiment(
         provenance={**sample_prov, **rig_prov, **{f"sd({k})": EXPERIMENT_FILE for k in sample_unc}},
         raw=raw,
         sample_uncertainty=sample_unc,
+        calibration=_calibration(doc.calibration, sample, rig, shown),
     )
 
 
@@ -615,6 +683,112 @@ def _rig_values(table: Mapping[str, Any], shown: str, where: str, sd: bool) -> d
         v = _finite(shown, f"{where}.{key}", value)
         out[si_name] = v * factor
     return out
+
+
+def _calibration_fields(table, sample: Sample, rig: Rig, shown: str) -> list[tuple[str, str]]:
+    """``(where, SI field)`` of each ``calibration.parameters`` key, checked to be known and valued."""
+    out: list[tuple[str, str]] = []
+    for i, key in enumerate(table.parameters):
+        where, _, name = key.partition(".")
+        keys = {"rig": RIG_KEYS, "sample": SAMPLE_KEYS}.get(where)
+        if keys is None or name not in keys or name in _LIST_KEYS:
+            known = [f"rig.{k}" for k in RIG_KEYS if k not in _LIST_KEYS] + [
+                f"sample.{k}" for k in SAMPLE_KEYS
+            ]
+            raise ConfigError(
+                f"{shown}: calibration.parameters[{i}]: {key!r} is not a rig or sample key"
+                + did_you_mean(key, known),
+                'write it as "rig.KEY" or "sample.KEY", e.g. "rig.thermal_mass_J_per_K"',
+            )
+        si = keys[name][0]
+        if (where, si) in out:
+            raise ConfigError(f"{shown}: calibration.parameters[{i}]: {key!r} is listed twice")
+        value = getattr(sample if where == "sample" else rig, si)
+        log = table.coordinates[i] == "log" if i < len(table.coordinates) else False
+        if value is None or (log and not value > 0):
+            raise ConfigError(
+                f"{shown}: calibration.parameters[{i}]: {key} has "
+                + (
+                    "no value"
+                    if value is None
+                    else f"the value {value!r}, not positive as a log coordinate needs"
+                ),
+                f"state it in [{where}]",
+            )
+        out.append((where, si))
+    return out
+
+
+def _correlation_matrix(rows: list[list[float]], n: int, shown: str) -> np.ndarray:
+    """The ``calibration.correlation`` matrix, checked to be a correlation matrix of size ``n``."""
+    if len(rows) != n or any(len(r) != n for r in rows):
+        raise ConfigError(
+            f"{shown}: calibration.correlation: expected {n} rows of {n} numbers (one per parameter)"
+        )
+    c = np.array(rows, float)
+    bad = np.argwhere(~np.isfinite(c) | (np.abs(c) > 1.0 + 1e-9))
+    if bad.size:
+        i, j = bad[0]
+        raise ConfigError(f"{shown}: calibration.correlation[{i}][{j}] = {rows[i][j]!r} is not in [-1, 1]")
+    off = np.argwhere((np.abs(c - c.T) > 1e-6) | (np.eye(n, dtype=bool) & (np.abs(c - 1.0) > 1e-6)))
+    if off.size:
+        i, j = off[0]
+        what = "the diagonal must be 1" if i == j else f"differs from calibration.correlation[{j}][{i}]"
+        raise ConfigError(f"{shown}: calibration.correlation[{i}][{j}] = {rows[i][j]!r}: {what}")
+    if np.linalg.eigvalsh((c + c.T) / 2).min() < -1e-6:
+        raise ConfigError(
+            f"{shown}: calibration.correlation is not positive semi-definite",
+            "write the matrix tcamlab calibrate reports, not edited entries",
+        )
+    return c
+
+
+def _calibration(
+    table: _CalibrationTable | None, sample: Sample, rig: Rig, shown: str
+) -> CalibratedJoint | None:
+    """``[calibration]`` checked against the file's values: equal lengths, finite sds, a correlation matrix."""
+    if table is None:
+        return None
+    n = len(table.parameters)
+    for name in ("coordinates", "sd", "sd_below", "sd_above"):
+        got = getattr(table, name)
+        if got is not None and len(got) != n:
+            raise ConfigError(
+                f"{shown}: calibration.{name}: {len(got)} entries for {n} parameters",
+                "one entry per calibration.parameters entry, in the same order",
+            )
+    if (table.sd_below is None) != (table.sd_above is None):
+        raise ConfigError(
+            f"{shown}: calibration: sd_below and sd_above go together", "give both (or neither)"
+        )
+    fields = _calibration_fields(table, sample, rig, shown)
+    sds = {name: _calibration_sds(table, name, fields, shown) for name in ("sd", "sd_below", "sd_above")}
+    c = _correlation_matrix(table.correlation, n, shown)
+    return CalibratedJoint(
+        keys=tuple(table.parameters),
+        fields=tuple(fields),
+        log=tuple(x == "log" for x in table.coordinates),
+        sd=sds["sd"],
+        correlation=tuple(tuple(float(x) for x in row) for row in c),
+        sd_below=sds["sd_below"],
+        sd_above=sds["sd_above"],
+    )
+
+
+def _calibration_sds(table: _CalibrationTable, name: str, fields, shown: str) -> tuple[float, ...] | None:
+    """``calibration.<name>`` as fitted-coordinate sds: relative for log, SI for linear; non-negative."""
+    values = getattr(table, name)
+    if values is None:
+        return None
+    out = []
+    for i, value in enumerate(values):
+        v = _finite(shown, f"calibration.{name}[{i}]", value)
+        if v < 0:
+            raise ConfigError(f"{shown}: calibration.{name}[{i}] = {value!r} must not be negative")
+        key = table.parameters[i].partition(".")[2]
+        factor = {"rig": RIG_KEYS, "sample": SAMPLE_KEYS}[fields[i][0]][key][1]
+        out.append(v if table.coordinates[i] == "log" else v * factor)
+    return tuple(out)
 
 
 # Rig fields that must be positive / non-negative; ambient above absolute zero.

@@ -415,3 +415,118 @@ def test_only_first_problem_reported_on_one_line(lab):
     p = write_toml(lab, 'kind = "x"\ntitle = 1\nruns = 2\nbogus = 3\n')
     err = raises_config([str(p), "more problems"], load_experiment, p)
     assert "\n" not in err.one_line()
+
+
+# --- [calibration]: the joint posterior of a calibrated file -------------------------
+
+CAL_HEAD = (
+    HEAD + '[sample]\npreset = "thesis-tca"\n[rig]\nthermal_mass_J_per_K = 0.02\ndamping_N_s_per_m = 0.7\n'
+)
+CAL_OK = (
+    '[calibration]\nparameters = ["rig.thermal_mass_J_per_K", "rig.damping_N_s_per_m"]\n'
+    'coordinates = ["log", "linear"]\nsd = [0.004, 0.03]\ncorrelation = [[1.0, -0.6], [-0.6, 1]]\n'
+)
+
+
+def test_calibration_table_parsed_in_si_with_its_covariance(lab):
+    exp = load_experiment(write_toml(lab, CAL_HEAD + CAL_OK))
+    cal = exp.calibration
+    assert cal.keys == ("rig.thermal_mass_J_per_K", "rig.damping_N_s_per_m")
+    assert cal.fields == (("rig", "thermal_mass"), ("rig", "damping"))
+    assert cal.log == (True, False)
+    # log sd is relative (no unit); the linear sd is in the key's unit, N s/m = SI here
+    assert cal.sd == pytest.approx((0.004, 0.03), rel=RTOL)
+    cov = cal.covariance()
+    assert cov[0, 1] == pytest.approx(-0.6 * 0.004 * 0.03, rel=RTOL)
+    assert cov[1, 1] == pytest.approx(0.03**2, rel=RTOL)
+    assert load_experiment(write_toml(lab, CAL_HEAD, "plain.toml")).calibration is None
+
+
+def test_calibration_linear_sd_converted_from_lab_units(lab):
+    body = CAL_HEAD.replace("damping_N_s_per_m = 0.7\n", "damping_N_s_per_m = 0.7\nload_g = 50\n") + (
+        '[calibration]\nparameters = ["rig.load_g"]\ncoordinates = ["linear"]\nsd = [2.0]\ncorrelation = [[1]]\n'
+    )
+    assert load_experiment(write_toml(lab, body)).calibration.sd == pytest.approx((2e-3,), rel=RTOL)
+
+
+@pytest.mark.parametrize(
+    ("edit", "parts"),
+    [
+        (
+            ("sd = [0.004, 0.03]", "sd = [0.004, 0.03]\nmethod = 1"),
+            ["unknown key 'calibration.method'", "[calibration]"],
+        ),
+        (
+            ('"rig.damping_N_s_per_m"]', '"rig.dampng_N_s_per_m"]'),
+            ["calibration.parameters[1]", "did you mean"],
+        ),
+        (
+            ('"rig.damping_N_s_per_m"]', '"damping_N_s_per_m"]'),
+            ["calibration.parameters[1]", "rig or sample key"],
+        ),
+        (
+            ('"rig.damping_N_s_per_m"]', '"rig.thermal_mass_J_per_K"]'),
+            ["calibration.parameters[1]", "listed twice"],
+        ),
+        (("sd = [0.004, 0.03]", "sd = [0.004]"), ["calibration.sd", "1 entries for 2 parameters"]),
+        (("sd = [0.004, 0.03]", "sd = [0.004, -0.03]"), ["calibration.sd[1]", "must not be negative"]),
+        (('"log", "linear"', '"log", "logit"'), ["calibration.coordinates[1]", "expected one of"]),
+        (
+            ("[-0.6, 1]]", "[-0.5, 1]]"),
+            ["calibration.correlation[0][1]", "differs from calibration.correlation[1][0]"],
+        ),
+        (("[[1.0, -0.6]", "[[0.9, -0.6]"), ["calibration.correlation[0][0]", "diagonal must be 1"]),
+        (
+            ("[[1.0, -0.6], [-0.6, 1]]", "[[1.0, -1.6], [-1.6, 1]]"),
+            ["calibration.correlation[0][1]", "not in [-1, 1]"],
+        ),
+        (("[[1.0, -0.6], [-0.6, 1]]", "[[1.0, -0.6]]"), ["calibration.correlation", "2 rows of 2 numbers"]),
+        (("[[1.0, -0.6], [-0.6, 1]]", '"none"'), ["calibration.correlation", "expected a list"]),
+    ],
+)
+def test_calibration_table_errors_are_one_line_and_name_the_key(lab, edit, parts):
+    old, new = edit
+    assert old in CAL_OK
+    raises_config(parts, load_experiment, write_toml(lab, CAL_HEAD + CAL_OK.replace(old, new, 1)))
+
+
+def test_calibration_correlation_must_be_positive_semidefinite(lab):
+    three = (
+        '[calibration]\nparameters = ["rig.thermal_mass_J_per_K", "rig.damping_N_s_per_m", "rig.heat_loss_W_per_K"]\n'
+        'coordinates = ["log", "log", "log"]\nsd = [0.01, 0.01, 0.01]\n'
+        "correlation = [[1, 0.9, -0.9], [0.9, 1, 0.9], [-0.9, 0.9, 1]]\n"
+    )
+    raises_config(
+        ["calibration.correlation", "not positive semi-definite"],
+        load_experiment,
+        write_toml(lab, CAL_HEAD + three),
+    )
+
+
+def test_calibration_log_coordinate_needs_a_positive_value(lab):
+    body = (
+        CAL_HEAD
+        + '[calibration]\nparameters = ["rig.spring_constant_N_per_m"]\ncoordinates = ["log"]\nsd = [0.1]\ncorrelation = [[1]]\n'
+    )
+    raises_config(
+        ["calibration.parameters[0]", "rig.spring_constant_N_per_m has no value", "[rig]"],
+        load_experiment,
+        write_toml(lab, body),
+    )
+
+
+def test_calibration_profile_sds_go_together_and_convert_units(lab):
+    body = CAL_HEAD + CAL_OK + "sd_below = [0.005, 0.04]\nsd_above = [0.003, 0.02]\n"
+    cal = load_experiment(write_toml(lab, body)).calibration
+    assert cal.sd_below == pytest.approx((0.005, 0.04), rel=RTOL)
+    assert cal.sd_above == pytest.approx((0.003, 0.02), rel=RTOL)
+    raises_config(
+        ["calibration", "sd_below and sd_above go together"],
+        load_experiment,
+        write_toml(lab, CAL_HEAD + CAL_OK + "sd_below = [0.005, 0.04]\n", "one.toml"),
+    )
+    raises_config(
+        ["calibration.sd_above[0]", "must not be negative"],
+        load_experiment,
+        write_toml(lab, body.replace("sd_above = [0.003", "sd_above = [-0.003"), "neg.toml"),
+    )

@@ -1,20 +1,27 @@
 """The calibrated experiment file ``NAME.calibrated.toml``, written beside the original.
 
-It is the original document with each calibrated value replaced (lab units) and
-its posterior sd in ``[rig.uncertainty]`` / ``[sample.uncertainty]``; the
-provenance of every value (stated value, shift in stated sds, profile interval)
-is a comment block at the top, since experiment files take no unknown tables.
+It is the original document with each calibrated value replaced (lab units),
+its marginal posterior sd in ``[rig.uncertainty]`` / ``[sample.uncertainty]``,
+and the joint posterior in a ``[calibration]`` table: the parameter keys, the
+coordinates the calibration fits (``log`` for a positive parameter, whose sd is
+then relative; ``linear`` otherwise, sd in the key's unit), their sds and
+correlation matrix (Laplace, at the MAP point), and the sds below and above the
+value from the profile-likelihood 95 % interval (``sd_below``, ``sd_above``:
+distance / 1.96; wider than the Laplace sd where the likelihood is skewed). The
+dynamic prediction band draws from it (:mod:`tcamlab.band`). The provenance of every value (stated
+value, shift in stated sds, profile interval) is a comment block at the top.
 Run paths stay valid: the file sits in the original's folder.
 """
 
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
 from tcamlab.config import Experiment, dumps_toml
 
-__all__ = ["calibrated_path", "calibrated_document", "calibrated_text", "SIGNIFICANT"]
+__all__ = ["calibrated_path", "calibrated_document", "calibrated_text", "joint_table", "SIGNIFICANT"]
 
 SIGNIFICANT = 6
 """Significant digits of the values written."""
@@ -70,8 +77,10 @@ def calibrated_document(experiment: Experiment, result) -> tuple[dict, str]:
         f"Calibrated experiment file written by tcamlab calibrate from {experiment.path.name}",
         "(all experiments: " + ", ".join(Path(e).name for e in result.experiments) + ").",
         "Each calibrated value replaces the stated one; its marginal posterior sd (Laplace) is in",
-        "[rig.uncertainty] / [sample.uncertainty]; correlations are in calibration.json.",
+        "[rig.uncertainty] / [sample.uncertainty]; the joint posterior (sds in the fitted",
+        "coordinates and correlations) is in [calibration].",
     ]
+    applied = []
     for p in result.parameters:
         if not _applies(p, experiment):
             continue
@@ -80,7 +89,68 @@ def calibrated_document(experiment: Experiment, result) -> tuple[dict, str]:
         table[p.key] = _round(p.value / lab)
         table.setdefault("uncertainty", {})[p.key] = _round(p.posterior_sd / lab)
         lines.append(_provenance(p, lab))
+        applied.append((p, lab))
+    doc.pop("calibration", None)
+    if applied:
+        doc["calibration"] = joint_table(applied, result)
     return doc, "\n".join(lines)
+
+
+def _positive(p, kinds) -> bool:
+    """Whether the calibration fitted ``p`` as its logarithm (the kind's CalibrationParam)."""
+    from tcamlab.kinds import get_kind
+
+    for kind in kinds:
+        for c in get_kind(kind).calibration:
+            if (c.field, c.where) == (p.field, p.where):
+                return c.positive
+    return p.value > 0
+
+
+def joint_table(applied, result) -> dict:
+    """The ``[calibration]`` table of the parameters written to one file.
+
+    Parameters
+    ----------
+    applied : list of (ParameterEstimate, float)
+        The parameters written and their SI per lab unit.
+    result : CalibrationResult
+        For the correlation matrix (fitted coordinates) and the kinds.
+
+    Returns
+    -------
+    dict
+        ``parameters`` (``"rig.KEY"``), ``coordinates`` (``"log"``/``"linear"``), ``sd``
+        (Laplace; relative for log, lab units for linear), ``correlation`` (rows), and
+        ``sd_below`` / ``sd_above`` (the profile 95 % interval's distances / 1.96).
+    """
+    names = result.correlation["names"]
+    matrix = result.correlation["matrix"]
+    idx = [names.index(p.name) for p, _ in applied]
+    logs = [_positive(p, result.kinds) for p, _ in applied]
+    sd = [p.posterior_sd_rel if log else p.posterior_sd / lab for (p, lab), log in zip(applied, logs)]
+    # full precision: rounded entries can leave a nearly singular matrix indefinite
+    corr = [[1.0 if i == j else float(matrix[i][j]) for j in idx] for i in idx]
+    below, above = zip(*(_profile_sds(p, lab, log) for (p, lab), log in zip(applied, logs)))
+    return {
+        "parameters": [f"{p.where}.{p.key}" for p, _ in applied],
+        "coordinates": ["log" if log else "linear" for log in logs],
+        "sd": [_round(float(x)) for x in sd],
+        "correlation": corr,
+        "sd_below": [_round(x) for x in below],
+        "sd_above": [_round(x) for x in above],
+    }
+
+
+def _profile_sds(p, lab: float, log: bool) -> tuple[float, float]:
+    """Sds below and above the value from its profile 95 % interval (distance / 1.96), in the
+    fitted coordinate: relative for log, lab units otherwise."""
+    from tcamlab.calibration.fit import Z95
+
+    lo, hi = p.profile_95
+    if log:
+        return math.log(p.value / lo) / Z95, math.log(hi / p.value) / Z95
+    return (p.value - lo) / Z95 / lab, (hi - p.value) / Z95 / lab
 
 
 def calibrated_text(experiment: Experiment, result) -> str:

@@ -3,8 +3,9 @@
 The model is (2.14)-(2.19): the electro-thermal balance (2.18) heats the
 actuator, whose mass-spring-damper follows the static force (2.15). Effect
 terms of :class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
-resistance_tc, heat_loss_tc, delay. Validation adds a Monte Carlo band from
-the stated uncertainties of C_th, lambda and b.
+resistance_tc, heat_loss_tc, delay. Validation adds a band for the measured
+points (:mod:`tcamlab.band`): a prediction band from a calibrated file's joint
+posterior (``[calibration]``), else a stated-uncertainty band from the stated sds.
 
 The virtual rig's voltage step (:func:`protocol`, :func:`measure`): a pulse
 from the template's rig after a quiet baseline, logged at 100 Hz by the
@@ -13,19 +14,19 @@ Arduino with the laser chain of :mod:`tcamlab.instruments`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
-from tcamlab import instruments
+from tcamlab import band, instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions
 from tcamlab.models import dynamic as _dyn
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure, Section, Table
-from tcamlab.report.figures import legend_label, new_figure
-
-MC_GRID = 0.01
-"""Time step of the Monte Carlo band grid [s] (interpolated onto the log)."""
+from tcamlab.report.figures import draw_band, legend_label, new_figure
+from tcamlab.signals import second_difference_sigma
 
 COOLING_WINDOW_S = 3.0
 """Rows up to this long after a pulse ends are labelled "cooling" by the diagnosis [s]."""
@@ -113,62 +114,192 @@ def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarra
     return {"phase": lab}
 
 
-def monte_carlo_band(experiment, prediction, *, draws: int, seed: int, call):
-    """The 95 % Monte Carlo band of one run and its summary, or (None, None) without uncertainties.
+def parameter_distribution(experiment):
+    """The distribution the band draws from, or None without any uncertainty.
+
+    A calibrated file's ``[calibration]`` (joint, :func:`tcamlab.band.from_calibration`);
+    otherwise the stated sds of ``[rig.uncertainty]`` (fields of
+    :data:`tcamlab.models.dynamic.MC_PARAMS`) and ``[sample.uncertainty]``, independent.
+    """
+    sample, rig = experiment.sample, experiment.rig
+    joint = experiment.calibration
+    if joint is not None:
+        values = {f: getattr(sample if f[0] == "sample" else rig, f[1]) for f in joint.fields}
+        return band.from_calibration(joint, values)
+    stated = {
+        ("rig", k): (float(getattr(rig, k)), float(sd))
+        for k, sd in rig.uncertainty.items()
+        if k in _dyn.MC_PARAMS
+    }
+    stated |= {
+        ("sample", k): (float(getattr(sample, k)), float(sd))
+        for k, sd in experiment.sample_uncertainty.items()
+        if k in _DRAWN_SAMPLE
+    }
+    return band.from_stated(stated)
+
+
+_DRAWN_SAMPLE = tuple(k for k in Sample.__dataclass_fields__ if k != "thread_plies")
+"""Sample fields the band can draw (the kernel takes every one but the ply count)."""
+
+
+def _drawable(field: tuple[str, str]) -> bool:
+    where, name = field
+    return name in _dyn.MC_PARAMS if where == "rig" else name in _DRAWN_SAMPLE
+
+
+def _rest_rows(t: np.ndarray, v: np.ndarray, zeroing_row: bool) -> np.ndarray:
+    """Rows before the voltage first comes on, without the zeroing row."""
+    on = np.abs(v) > 0.01 * max(np.abs(v).max(), 1e-12)
+    first = int(np.argmax(on)) if on.any() else t.size
+    rest = np.arange(t.size) < first
+    rest[0] &= not zeroing_row
+    return rest
+
+
+def _run_zero(prediction, meas, pred, t, v, sigma: float, zero_sd: float | None):
+    """The band's zero shift, the run's zero shown, its sd, its rows and whether row 0 is the
+    zeroing row [m]. Where validation already estimated and subtracted the zero
+    (``prediction.zeros``), the shift is 0 and its standard error is the sd; else the
+    zero is the mean residual of the rest rows (:func:`tcamlab.band.rest_zero`)."""
+    est = (getattr(prediction, "zeros", None) or {}).get("displacement")
+    if est is None:
+        zeroing_row = bool(meas[0] == 0.0)
+        zero, sd, n = band.rest_zero(meas - pred, _rest_rows(t, v, zeroing_row), sigma, zero_sd)
+        return zero, zero, sd, n, zeroing_row
+    # the logged row 0 is data + zero: exactly 0 when the log was zeroed on it
+    zeroing_row = bool(meas[0] + est.value == 0.0)
+    if zero_sd is None:
+        zero_sd = float(est.stderr) if math.isfinite(est.stderr) else sigma
+    return 0.0, float(est.value), float(zero_sd), int(est.rows), zeroing_row
+
+
+def run_band(experiment, prediction, dist, *, draws: int, seed: int, call, zero_sd: float | None = None):
+    """The band of one run on its rows, and its summary (lengths [m] in the band, mm in the summary).
 
     ``call(fn, *args, **kwargs)`` runs a model and names the run in its errors.
+    ``zero_sd`` [m]: sd of the run's zero when estimated elsewhere (default: the standard
+    error of the zero validation subtracted, ``prediction.zeros["displacement"]``, else
+    from the rest rows, :func:`tcamlab.band.rest_zero`). Returns (None, summary) when
+    every draw left the model's domain.
     """
-    rig = experiment.rig
-    if not draws or not rig.uncertainty:
-        return None, None
-    t = prediction.data["time"].to_numpy(float)
-    grid = np.arange(t[0], t[-1] + MC_GRID / 2, MC_GRID)
-    idx = np.searchsorted(t, grid, side="right") - 1
-    volts = prediction.data["voltage"].to_numpy(float)[np.clip(idx, 0, t.size - 1)]
-    mc = call(_dyn.monte_carlo, grid, volts, experiment.sample, rig, n_draws=draws, seed=seed)
-    lo, med, hi = (np.interp(t, mc.time, q) for q in mc.band())
-    meas = prediction.data["displacement"].to_numpy(float)
-    coverage = float(np.mean((meas >= lo) & (meas <= hi)))
-    summary = {"draws": draws, "out_of_range": mc.n_invalid, "coverage_95": coverage}
-    return {"lower": lo, "median": med, "upper": hi}, summary
+    data = prediction.data
+    t, v = data["time"].to_numpy(float), data["voltage"].to_numpy(float)
+    meas = data["displacement"].to_numpy(float)
+    pred = prediction.predicted[KIND.primary]["displacement"]
+    idx, decimated = band.band_grid(t, v, band.MAX_GRID_POINTS)
+    draws = band.draws_for(float(t[-1] - t[0]), draws)
+    values = dist.draw(draws, np.random.default_rng(seed))
+    kernel = {f[1]: x for f, x in values.items() if _drawable(f)}
+    mc = call(_dyn.monte_carlo, t[idx], v[idx], experiment.sample, experiment.rig, draws=kernel)
+    sigma = second_difference_sigma(meas - pred)
+    zero, shown, zero_sd, n_rest, zeroing_row = _run_zero(prediction, meas, pred, t, v, sigma, zero_sd)
+    spread = math.hypot(sigma, zero_sd)
+    summary = {
+        "draws": draws,
+        "out_of_range": mc.n_invalid,
+        "noise_sd_mm": sigma * 1e3,
+        "zero_mm": shown * 1e3,
+        "zero_sd_mm": zero_sd * 1e3,
+        "rest_rows": n_rest,
+        "grid_points": int(idx.size),
+        "decimated": decimated,
+    }
+    if mc.displacement.shape[0] == 0:
+        return None, summary
+    lo, hi = (np.interp(t, t[idx], q) for q in band.mixture_interval(mc.displacement + zero, spread))
+    plo, phi = band.parameter_interval(mc.displacement)
+    counted = np.ones(t.size, bool)
+    counted[0] = not zeroing_row
+    informative = band.informative_rows(np.interp(t, t[idx], (phi - plo) / 2), spread) & counted
+    summary |= {
+        "rows": int(counted.sum()),
+        "coverage": band.coverage(meas, lo, hi, counted),
+        "informative_rows": int(informative.sum()),
+        "coverage_informative": band.coverage(meas, lo, hi, informative),
+    }
+    centre = np.interp(t, t[idx], np.median(mc.displacement, axis=0)) + zero
+    return {"lower": lo, "median": centre, "upper": hi}, summary
+
+
+def _band_note(name: str, label: str, s: dict, requested: int) -> str:
+    inf = (
+        f"{s['coverage_informative']:.3f} over {s['informative_rows']} informative rows"
+        if s["informative_rows"]
+        else "no informative rows (the parameter part stays below half the noise part)"
+    )
+    grid = (
+        f"; computed on a decimated grid of {s['grid_points']} rows and interpolated"
+        if s["decimated"]
+        else ""
+    )
+    if s["draws"] < requested:
+        grid += f"; {s['draws']} draws instead of {requested} on this long log (integration budget)"
+    return f"{name}: {label} covers {s['coverage']:.3f} of {s['rows']} measured points; {inf}{grid}"
 
 
 def validation_extras(experiment, predictions, *, mc_draws: int, seed: int, call) -> tuple[list, dict]:
-    """Attach the Monte Carlo band to every run; notes and the ``monte_carlo`` extras."""
+    """Attach the band to every run; notes and the ``prediction_band`` extras."""
+    dist = parameter_distribution(experiment) if mc_draws else None
+    if dist is None:
+        why = (
+            "--mc-draws 0" if not mc_draws else "no [rig.uncertainty], [sample.uncertainty] or [calibration]"
+        )
+        return [f"{why}: no band drawn"], {}
+    label = band.band_label(dist.calibrated)
     notes, summary = [], {}
     for p in predictions:
-        band, info = monte_carlo_band(
+        b, info = run_band(
             experiment,
             p,
+            dist,
             draws=mc_draws,
             seed=seed,
             call=lambda fn, *a, _n=p.name, **k: call(_n, fn, *a, **k),
         )
-        if band is None:
-            continue
-        p.band = band
         summary[p.name] = info
         if info["out_of_range"]:
             notes.append(
-                f"{p.name}: {info['out_of_range']} of {mc_draws} Monte Carlo draws heated the "
-                f"actuator past the G_t' > 0 limit of eq. (2.13) and were left out of "
-                f"the band"
+                f"{p.name}: {info['out_of_range']} of {info['draws']} draws left the model's domain "
+                f"(e.g. past the G_t' > 0 limit of eq. (2.13)) and were left out of the band"
             )
-    if not summary:
-        notes.append("no [rig.uncertainty] given: no Monte Carlo prediction band")
-        return notes, {}
-    params = sorted(k for k in experiment.rig.uncertainty if k in _dyn.MC_PARAMS)
-    dist = "log-normal, moment-matched to the stated mean and sd"
-    return notes, {"monte_carlo": {"distribution": dist, "parameters": params, "runs": summary}}
+        if b is None:
+            continue
+        p.band = b
+        notes.append(_band_note(p.name, label, info, mc_draws))
+    held = [".".join(f) for f in dist.fields if not _drawable(f)]
+    return notes, {
+        "prediction_band": {
+            "label": label,
+            "calibrated": dist.calibrated,
+            "nominal": band.NOMINAL,
+            "distribution": dist.description,
+            "parameters": [".".join(f) for f in dist.fields if _drawable(f)],
+            "held_at_value": held,
+            "noise": "noise floor (second differences of the residuals) and the run's zero "
+            "(the mean residual of the rest rows before the pulse, or validation's estimate)",
+            "informative_rows": f"rows where the parameter part's half-width is at least "
+            f"{band.INFORMATIVE_RATIO:g} x the noise part's",
+            "runs": summary,
+        }
+    }
 
 
 def figures(result) -> list[Figure]:
-    """Displacement against time with the Monte Carlo band, as thesis figure 2.9."""
+    """Displacement against time with the band (labelled as what it is), as thesis figure 2.9."""
     fig, ax = new_figure()
+    info = result.extras.get("prediction_band") or {}
+    label = info.get("label")
+    for p in result.predictions:
+        if p.band is not None:
+            # one grey band per run under the points; one legend entry for all of them
+            t = p.data["time"].to_numpy()
+            draw_band(
+                ax, t, p.band["lower"] * 1e3, p.band["upper"] * 1e3, label=label, color="0.55", alpha=0.3
+            )
+            label = None
     for p in result.predictions:
         t = p.data["time"].to_numpy()
-        if p.band is not None:
-            ax.fill_between(t, p.band["lower"] * 1e3, p.band["upper"] * 1e3, alpha=0.15)
         name = legend_label(p.name)
         (line,) = ax.plot(t, p.data["displacement"] * 1e3, ".", ms=1.5, label=f"{name} measured")
         ax.plot(
@@ -182,34 +313,85 @@ def figures(result) -> list[Figure]:
     ax.set_xlabel("time [s]")
     ax.set_ylabel("displacement [mm]")
     ax.legend(fontsize=6, ncol=2)
-    caption = (
-        "Displacement against time under the voltage pulse: measured (points), model (line) "
-        "and 95% Monte Carlo band (shaded), as in thesis figure 2.9."
+    return [Figure(fig, _figure_caption(info), alt="dynamic plot")]
+
+
+def _figure_caption(info: dict) -> str:
+    text = "Displacement against time under the voltage pulse: measured (points), model (line)"
+    if not info:
+        return text + ", as in thesis figure 2.9."
+    what = (
+        "for measured points: calibrated parameters drawn jointly, noise and the run's zero"
+        if info["calibrated"]
+        else "drawn from the stated sds independently, plus noise and the run's zero; the "
+        "parameters are not calibrated, so this is not a prediction band"
     )
-    return [Figure(fig, caption, alt="dynamic plot")]
+    grid = (
+        " Computed on a decimated grid and interpolated."
+        if any(r.get("decimated") for r in info["runs"].values())
+        else ""
+    )
+    return f"{text} and {info['label']} (grey, one per run; {what}), as in thesis figure 2.9.{grid}"
 
 
 def extras_section(result) -> Section | None:
-    """The Monte Carlo band's draws and coverage per run, as a report section."""
-    if not result.extras.get("monte_carlo"):
+    """The band's label, distribution and coverage per run, as a report section."""
+    info = result.extras.get("prediction_band")
+    if not info:
         return None
-    mc = result.extras["monte_carlo"]
-    rows = [[name, s["draws"], s["out_of_range"], s["coverage_95"]] for name, s in mc["runs"].items()]
+    rows = [
+        [
+            name,
+            s["draws"],
+            s["out_of_range"],
+            f"{s['noise_sd_mm']:.4g}",
+            f"{s['zero_mm']:.4g} ± {s['zero_sd_mm']:.2g}",
+            s.get("rows", "-"),
+            _fmt_cov(s.get("coverage")),
+            s.get("informative_rows", "-"),
+            _fmt_cov(s.get("coverage_informative")),
+            f"{s['grid_points']} (decimated)" if s["decimated"] else f"{s['grid_points']} (every row)",
+        ]
+        for name, s in info["runs"].items()
+    ]
+    paragraphs = [
+        f"{info['label'][0].upper()}{info['label'][1:]}, nominal {info['nominal']:.0%}. Parameters drawn: "
+        f"{', '.join(info['parameters']) or 'none'} ({info['distribution']}); plus {info['noise']}.",
+        f"Coverage counts every measured row but the zeroing row (logged as exactly 0); informative "
+        f"rows are the {info['informative_rows']}. Elsewhere the band is the noise band and covers "
+        f"about {info['nominal']:.0%} whatever the parameters.",
+    ]
+    if info["held_at_value"]:
+        paragraphs.append(
+            "Held at their values (the model cannot draw them): " + ", ".join(info["held_at_value"])
+        )
+    if not info["calibrated"]:
+        paragraphs.append(
+            "The parameters are not calibrated: the band draws the stated sds independently, so it is "
+            "a stated-uncertainty band, not a prediction band, and its coverage is no test of the "
+            "model. Run tcamlab calibrate and validate the NAME.calibrated.toml it writes."
+        )
+    head = [
+        "run",
+        "draws",
+        "out of range",
+        "noise sd [mm]",
+        "zero [mm]",
+        "rows",
+        "coverage",
+        "informative rows",
+        "coverage (informative)",
+        "grid rows",
+    ]
     return Section(
-        "Monte Carlo prediction band",
-        paragraphs=[
-            f"Parameters drawn: {', '.join(mc['parameters'])}; distribution: "
-            f"{mc['distribution']} (keeps every parameter positive although the stated sd "
-            f"of lambda exceeds its value)."
-        ],
-        tables=[
-            Table(
-                ["run", "draws", "out of range", "coverage of the 95% band"],
-                rows,
-                caption="Monte Carlo band per run",
-            )
-        ],
+        info["label"][0].upper() + info["label"][1:],
+        paragraphs=paragraphs,
+        tables=[Table(head, rows, caption=f"{info['label']} per run")],
     )
+
+
+def _fmt_cov(x) -> str:
+    return "-" if x is None else f"{x:.3f}"
 
 
 # --- virtual rig ---------------------------------------------------------------------------
@@ -345,7 +527,7 @@ seem to fix C_th and lambda separately on the strength of the sample's stated rh
 KIND = Kind(
     name="dynamic",
     description="voltage-step test (thesis section 2.5.2): displacement against time, "
-    "model (2.14)-(2.19) with a Monte Carlo band from the parameter uncertainties",
+    "model (2.14)-(2.19) with a band for the measured points (prediction band once calibrated)",
     required_columns=("time_s", "voltage_V", "displacement_mm"),
     optional_columns=("temperature_C", "current_A", "resistance_ohm"),
     min_rows=10,

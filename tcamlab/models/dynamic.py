@@ -519,6 +519,7 @@ def monte_carlo(
     store_every=1,
     rtol=1e-6,
     atol=(1e-4, 1e-8, 1e-7),
+    draws=None,
 ):
     """Prediction band from parameter uncertainty, by Monte Carlo (parallel, JIT).
 
@@ -543,6 +544,11 @@ def monte_carlo(
     rtol, atol :
         Integrator tolerances (looser defaults than :func:`response`: the band
         is a statistical quantity).
+    draws : mapping, optional
+        {field: ndarray of n_draws} [SI]: parameter draws to use instead of the
+        independent log-normal ones (e.g. from a calibrated joint distribution,
+        :mod:`tcamlab.band`); rig fields of ``MC_PARAMS`` and sample fields. A
+        field not given keeps its value; ``uncertainty`` is then ignored.
 
     Returns
     -------
@@ -552,32 +558,19 @@ def monte_carlo(
     from tcamlab.models import _dynamic_kernel as K
 
     t, v = _check_grid(time, voltage)
-    rng = np.random.default_rng(seed)
-    unc = dict(rig.uncertainty if uncertainty is None else uncertainty)
     base = {name: float(getattr(rig, name)) for name in MC_PARAMS}
-    draws = {name: lognormal_draws(base[name], float(unc.get(name, 0.0)), n_draws, rng) for name in MC_PARAMS}
     skw = sample.model_kwargs()
     if shear_modulus_slope is not None:
         skw["shear_modulus_slope"] = shear_modulus_slope
-    p0 = _pack(
-        **skw,
-        load=base["load"],
-        damping=base["damping"],
-        thermal_mass=base["thermal_mass"],
-        heat_loss=base["heat_loss"],
-        resistance=base["resistance"],
-        ambient=rig.ambient,
-        resistance_tc=0.0,
-        heat_loss_tc=0.0,
-    )
-    ps = np.tile(p0, (n_draws, 1))
-    ps[:, K.P_MASS] = draws["load"]
-    ps[:, K.P_DAMP] = draws["damping"]
-    ps[:, K.P_CTH] = draws["thermal_mass"]
-    ps[:, K.P_LAM] = draws["heat_loss"]
-    ps[:, K.P_RES] = draws["resistance"]
-    ps[:, K.P_FEXT] = draws["load"] * G_ACCEL
-    x0 = _static.displacement(0.0, draws["load"] * G_ACCEL, **skw)
+    if draws is None:
+        rng = np.random.default_rng(seed)
+        unc = dict(rig.uncertainty if uncertainty is None else uncertainty)
+        draws = {n: lognormal_draws(base[n], float(unc.get(n, 0.0)), n_draws, rng) for n in MC_PARAMS}
+    else:
+        draws = {n: np.asarray(x, float) for n, x in draws.items()}
+        n_draws = len(next(iter(draws.values()))) if draws else n_draws
+    full = {n: draws.get(n, np.full(n_draws, base[n])) for n in MC_PARAMS}
+    ps, x0, ok = _draw_rows(skw, full, draws, n_draws, rig.ambient)
     y0s = np.column_stack([np.full(n_draws, rig.ambient), x0, np.zeros(n_draws)])
     n_store = (t.size - 1) // store_every + 1
     out_T = np.empty((n_draws, n_store))
@@ -587,9 +580,40 @@ def monte_carlo(
     K.integrate_many(
         t, v, y0s, ps, np.asarray(atol, float), float(rtol), int(store_every), out_T, out_x, status, fail_at
     )
+    status[~ok] = K.ERR_PITCH
     if np.any((status == K.ERR_NONFINITE) | (status == K.ERR_STEPS)):
         k = int(np.flatnonzero((status == K.ERR_NONFINITE) | (status == K.ERR_STEPS))[0])
         _raise_status(int(status[k]), int(fail_at[k]), t, ps[k])
     valid = status == K.OK
     disp = out_x[valid] - x0[valid, None]
-    return MonteCarloResult(t[::store_every][:n_store], disp, draws, valid)
+    return MonteCarloResult(t[::store_every][:n_store], disp, dict(draws), valid)
+
+
+def _draw_rows(skw, rig_draws, draws, n_draws, ambient):
+    """Kernel parameter rows and start extensions of the draws; ``ok`` is False where a
+    draw of sample fields has no static equilibrium (those rows are left at the first row)."""
+    from tcamlab.models import _dynamic_kernel as K
+
+    rig0 = {n: float(x[0]) for n, x in rig_draws.items()}
+    p0 = _pack(**skw, **rig0, ambient=ambient, resistance_tc=0.0, heat_loss_tc=0.0)
+    ps = np.tile(p0, (n_draws, 1))
+    ok = np.ones(n_draws, bool)
+    sample_fields = [n for n in draws if n in skw]
+    if sample_fields:
+        x0 = np.empty(n_draws)
+        for k in range(n_draws):
+            kw = {**skw, **{n: float(draws[n][k]) for n in sample_fields}}
+            rk = {n: float(x[k]) for n, x in rig_draws.items()}
+            try:
+                ps[k] = _pack(**kw, **rk, ambient=ambient, resistance_tc=0.0, heat_loss_tc=0.0)
+                x0[k] = float(_static.displacement(0.0, rk["load"] * G_ACCEL, **kw))
+            except ModelDomainError:
+                ok[k], x0[k] = False, 0.0
+        return ps, x0, ok
+    ps[:, K.P_MASS] = rig_draws["load"]
+    ps[:, K.P_DAMP] = rig_draws["damping"]
+    ps[:, K.P_CTH] = rig_draws["thermal_mass"]
+    ps[:, K.P_LAM] = rig_draws["heat_loss"]
+    ps[:, K.P_RES] = rig_draws["resistance"]
+    ps[:, K.P_FEXT] = rig_draws["load"] * G_ACCEL
+    return ps, _static.displacement(0.0, rig_draws["load"] * G_ACCEL, **skw), ok

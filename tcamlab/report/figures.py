@@ -201,3 +201,45 @@ def legend_label(name: str) -> str:
     where report figures are drawn.
     """
     return " " + name if name.startswith("_") else name
+
+
+BAND_MAX_POINTS = 2000
+"""Most columns a shaded band is drawn with; a longer band is drawn as its min/max envelope."""
+
+
+def draw_band(ax, x, lower, upper, *, label: str | None = None, color=None, alpha: float = 0.18):
+    """Shade a band between ``lower`` and ``upper`` (a legend entry when ``label`` is given).
+
+    A band longer than :data:`BAND_MAX_POINTS` is drawn as the envelope of
+    consecutive blocks (lowest lower, highest upper per block), so a long log
+    stays a small figure and never looks narrower than it is.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    x, lower, upper : array_like
+        Abscissa and the band's bounds, in plot units.
+    label : str, optional
+        Legend text, e.g. ``"95% prediction band"``.
+    color : optional
+        Fill colour (default: the axes' next colour).
+    alpha : float
+        Fill opacity.
+
+    Returns
+    -------
+    matplotlib.collections.PolyCollection
+    """
+    import numpy as np
+
+    x, lo, hi = (np.asarray(a, float) for a in (x, lower, upper))
+    if x.size > BAND_MAX_POINTS:
+        edges = np.linspace(0, x.size, BAND_MAX_POINTS + 1).astype(int)[:-1]
+        x = x[edges]
+        lo, hi = np.minimum.reduceat(lo, edges), np.maximum.reduceat(hi, edges)
+    kw = {"alpha": alpha, "linewidth": 0}
+    if color is not None:
+        kw["color"] = color
+    if label is not None:
+        kw["label"] = label
+    return ax.fill_between(x, lo, hi, **kw)
