@@ -125,17 +125,25 @@ class _ColumnTable(BaseModel):
     """One inline table of ``[columns]``."""
 
     model_config = ConfigDict(extra="forbid", strict=True, populate_by_name=True)
-    from_: str = Field(alias="from")
+    from_: str | int = Field(alias="from")
     unit: str | None = None
     scale: float | None = None
     offset: float | None = None
+
+
+class _RunTable(BaseModel):
+    """A run given as a table: its file and its own ``[columns]`` overrides (a per-run scale)."""
+
+    model_config = _STRICT
+    file: str
+    columns: dict[str, Any] = Field(default_factory=dict)
 
 
 class _ExperimentFile(BaseModel):
     model_config = _STRICT
     kind: Literal[KINDS]  # type: ignore[valid-type]
     title: str
-    runs: list[str] = Field(min_length=1)
+    runs: list[str | _RunTable] = Field(min_length=1)
     notes: str | None = None
     synthetic: _Synthetic | None = None
     sample: _SampleTable | None = None  # type: ignore[valid-type]
@@ -147,7 +155,7 @@ class _ExperimentFile(BaseModel):
 class _TemplateFile(_ExperimentFile):
     """An experiment file used as a simulation template: ``runs`` may be empty or absent."""
 
-    runs: list[str] = Field(default_factory=list)
+    runs: list[str | _RunTable] = Field(default_factory=list)
 
 
 def _model_keys(model: type[BaseModel]) -> list[str]:
@@ -161,6 +169,7 @@ _ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
     ("sample", "uncertainty"): _model_keys(_SampleUncertainty),
     ("rig",): _model_keys(_RigTable),
     ("rig", "uncertainty"): _model_keys(_RigUncertainty),
+    ("runs",): _model_keys(_RunTable),
 }
 
 _EXPECTED = {
@@ -218,6 +227,10 @@ class Experiment:
         The parsed TOML document.
     sample_uncertainty : dict of str to float
         ``[sample.uncertainty]``: standard deviations of sample fields [SI], by SI field name.
+    run_columns : tuple of dict
+        Each run's ``[columns]``: the table merged with the run's own overrides
+        (``runs = [{ file = "...", columns = { displacement_mm = { scale = 0.35 } } }]``);
+        empty when no run has any.
     """
 
     path: Path
@@ -234,6 +247,7 @@ class Experiment:
     provenance: dict[str, str] = field(default_factory=dict)
     raw: dict = field(default_factory=dict)
     sample_uncertainty: dict[str, float] = field(default_factory=dict)
+    run_columns: tuple[dict, ...] = ()
 
     @property
     def preset(self) -> str | None:
@@ -256,11 +270,10 @@ class Experiment:
         -------
         list of tcamlab.io.RunData
         """
+        columns = self.run_columns or (self.columns,) * len(self.runs)
         return [
-            tio.read_run(
-                p, self.kind, self.columns, drop_na=drop_na, max_bytes=max_bytes, shown=_display_path(p)
-            )
-            for p in self.runs
+            tio.read_run(p, self.kind, cols, drop_na=drop_na, max_bytes=max_bytes, shown=_display_path(p))
+            for p, cols in zip(self.runs, columns)
         ]
 
 
@@ -283,11 +296,19 @@ def _short(value: Any) -> str:
 
 
 def _translate(err: ValidationError, shown: str, prefix: tuple = ()) -> ConfigError:
-    """One-line :class:`ConfigError` from the first pydantic error."""
+    """One-line :class:`ConfigError` naming every problem pydantic found, so all are fixed at once."""
     # An unknown key usually explains a "missing" one (a typo): report it first.
     errors = sorted(err.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
-    more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
-    return _describe(errors[0], shown, prefix, more)
+    described = [_describe(e, shown, prefix) for e in errors]
+    if len(described) == 1:
+        return described[0]
+    head = f"{shown}: "
+    parts = [d.message[len(head) :] if d.message.startswith(head) else d.message for d in described]
+    hints = [d.hint for d in described if d.hint]
+    return ConfigError(
+        f"{shown}: {len(parts)} problems: " + "; ".join(f"({i + 1}) {m}" for i, m in enumerate(parts)),
+        " | ".join(dict.fromkeys(hints)) or None,
+    )
 
 
 def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = "") -> ConfigError:
@@ -397,6 +418,7 @@ def load_experiment(
     """
     p, shown = Path(path), str(path)
     raw = _read_toml(p, shown)
+    _refuse_placeholders(raw, shown)
     try:
         doc = (_ExperimentFile if require_runs else _TemplateFile).model_validate(raw)
     except ValidationError as exc:
@@ -407,8 +429,9 @@ def load_experiment(
             f"{shown}: this is a {kind!r} experiment, not {expected_kind!r}",
             f"run it with the '{kind}' subcommand",
         )
-    runs = _resolve_runs(doc.runs, p, shown, require_runs)
-    columns, thresholds = _columns(doc, kind, shown), _thresholds(doc, shown)
+    runs = _resolve_runs([r if isinstance(r, str) else r.file for r in doc.runs], p, shown, require_runs)
+    columns, thresholds = _columns(doc.columns, kind, shown), _thresholds(doc, shown)
+    run_columns = _run_columns(doc, columns, kind, shown)
     sample, sample_prov = _build_sample(doc, shown)
     sample_unc = _sample_uncertainty(doc, shown)
     rig, rig_prov = _build_rig(doc, shown)
@@ -427,7 +450,22 @@ def load_experiment(
         provenance={**sample_prov, **rig_prov, **{f"sd({k})": EXPERIMENT_FILE for k in sample_unc}},
         raw=raw,
         sample_uncertainty=sample_unc,
+        run_columns=run_columns,
     )
+
+
+def _refuse_placeholders(raw: dict, shown: str) -> None:
+    """Refuse a starter file (``tcamlab init``) whose placeholders are not all filled in, naming every one."""
+    from tcamlab.starter import PLACEHOLDER, placeholders
+
+    left = placeholders(raw)
+    if left:
+        raise ConfigError(
+            f"{shown}: {len(left)} value{'s' if len(left) > 1 else ''} still to fill in "
+            f'(left as "{PLACEHOLDER} ..." by tcamlab init): ' + ", ".join(left),
+            "replace each with the measured number (or the header / column number); "
+            "the comment above each key says what it is and how to measure it",
+        )
 
 
 def _read_bytes(p: Path, shown: str) -> bytes:
@@ -461,6 +499,12 @@ def _read_bytes(p: Path, shown: str) -> bytes:
 def _read_toml(p: Path, shown: str) -> dict:
     """The parsed TOML document, with a one-line error for anything that is not UTF-8 TOML."""
     data = _read_bytes(p, shown)
+    if p.suffix.lower() in (".csv", ".tsv", ".dat", ".txt"):
+        raise ConfigError(
+            f"{shown}: is a CSV log, not an experiment file",
+            "an experiment file (TOML) lists the CSV runs with the sample and rig; write one "
+            "from this log with: tcamlab init KIND --csv " + shown,
+        )
     # Editors on Windows often save UTF-8 with a byte-order mark, which
     # tomllib refuses as an "invalid statement" at line 1: accept it.
     if data.startswith(b"\xef\xbb\xbf"):
@@ -514,18 +558,52 @@ def _resolve_runs(run_list, p: Path, shown: str, require_runs: bool) -> list[Pat
     return runs
 
 
-def _columns(doc: _ExperimentFile, kind: str, shown: str) -> dict[str, Any]:
-    """The [columns] table, each entry checked against the kind's canonical columns."""
-    columns: dict[str, Any] = {}
-    for canon, spec in doc.columns.items():
-        if isinstance(spec, Mapping):
-            try:
-                _ColumnTable.model_validate(spec)
-            except ValidationError as exc:
-                raise _translate(exc, shown, prefix=("columns", canon)) from None
-        tio.column_spec(kind, canon, spec, where=f"{shown}: columns", error=ConfigError)
+def _columns(table: Mapping[str, Any], kind: str, shown: str, where: str = "columns") -> dict[str, Any]:
+    """A [columns] table: its layout keys (``header_row``, ``units_row``) and each entry checked
+    against the kind's canonical columns."""
+    fmt, entries = tio.file_format(table, where=f"{shown}: {where}", error=ConfigError)
+    columns: dict[str, Any] = {k: table[k] for k in tio.FORMAT_KEYS if k in table}
+    problems: list[ConfigError] = []
+    for canon, spec in entries.items():
+        try:
+            if isinstance(spec, Mapping):
+                try:
+                    _ColumnTable.model_validate(spec)
+                except ValidationError as exc:
+                    raise _translate(exc, shown, prefix=tuple(where.split(".")) + (canon,)) from None
+            tio.column_spec(kind, canon, spec, where=f"{shown}: {where}", error=ConfigError)
+        except ConfigError as exc:
+            problems.append(exc)
         columns[canon] = dict(spec) if isinstance(spec, Mapping) else spec
+    if len(problems) == 1:
+        raise problems[0]
+    if problems:  # every bad entry at once, not one per run of the command
+        head = f"{shown}: "
+        parts = [e.message[len(head) :] if e.message.startswith(head) else e.message for e in problems]
+        raise ConfigError(
+            f"{shown}: {len(parts)} problems in [{where}]: "
+            + "; ".join(f"({i + 1}) {m}" for i, m in enumerate(parts)),
+            " | ".join(dict.fromkeys(e.hint for e in problems if e.hint)) or None,
+        )
     return columns
+
+
+def _run_columns(doc: _ExperimentFile, columns: dict[str, Any], kind: str, shown: str) -> tuple[dict, ...]:
+    """Each run's [columns]: the table with the run's own overrides merged in, key by key."""
+    if all(isinstance(r, str) or not r.columns for r in doc.runs):
+        return ()
+    out = []
+    for i, run in enumerate(doc.runs):
+        merged = dict(columns)
+        for canon, spec in ({} if isinstance(run, str) else run.columns).items():
+            base = merged.get(canon)
+            if isinstance(spec, Mapping) and canon not in tio.FORMAT_KEYS:
+                base = {"from": base} if isinstance(base, str) else dict(base or {})
+                merged[canon] = base | dict(spec)
+            else:
+                merged[canon] = spec
+        out.append(_columns(merged, kind, shown, where=f"runs[{i}].columns"))
+    return tuple(out)
 
 
 def _thresholds(doc: _ExperimentFile, shown: str) -> dict[str, float]:

@@ -51,7 +51,7 @@ import pandas as pd
 
 from tcamlab import kinds as _kinds
 from tcamlab.errors import InputError
-from tcamlab.text import did_you_mean
+from tcamlab.text import close_matches, did_you_mean
 from tcamlab.units import QUANTITIES
 
 __all__ = [
@@ -63,6 +63,11 @@ __all__ = [
     "REQUIRED",
     "SI_UNITS",
     "UNITS",
+    "UNIT_ALIASES",
+    "CLOCK_UNITS",
+    "FORMAT_KEYS",
+    "FileFormat",
+    "file_format",
     "VARIABLE_MAP",
     "ColumnSpec",
     "RunData",
@@ -72,6 +77,8 @@ __all__ = [
     "internal_to_canonical",
     "read_run",
     "sha256_file",
+    "unit_key",
+    "unit_suggestion",
 ]
 
 # --- units ------------------------------------------------------------------
@@ -93,6 +100,7 @@ UNITS: dict[str, tuple[str, float, float]] = {
     "cm": ("length", 1e-2, 0.0),
     "mm": ("length", 1e-3, 0.0),
     "um": ("length", 1e-6, 0.0),
+    "nm": ("length", 1e-9, 0.0),
     "in": ("length", 0.0254, 0.0),
     # force -> N
     "N": ("force", 1.0, 0.0),
@@ -112,12 +120,115 @@ UNITS: dict[str, tuple[str, float, float]] = {
     # current -> A
     "A": ("current", 1.0, 0.0),
     "mA": ("current", 1e-3, 0.0),
+    "uA": ("current", 1e-6, 0.0),
     # curvature -> 1/m
     "per_m": ("curvature", 1.0, 0.0),
     "per_cm": ("curvature", 1e2, 0.0),
     "per_mm": ("curvature", 1e3, 0.0),
 }
 """Unit name -> (dimension, factor, offset); ``SI = value * factor + offset``."""
+
+
+def _aliases() -> dict[str, str]:
+    table = {
+        "s": "s sec secs second seconds",
+        "ms": "ms msec millisecond milliseconds",
+        "us": "us µs μs usec microsecond microseconds",
+        "min": "min mins minute minutes",
+        "h": "h hr hrs hour hours",
+        "degC": "degC °C ºC ℃ C deg_C deg.C celsius Celsius",
+        "degF": "degF °F ºF ℉ F deg_F deg.F fahrenheit Fahrenheit",
+        "K": "K kelvin Kelvin",
+        "m": "m metre meter metres meters",
+        "cm": "cm",
+        "mm": "mm millimetre millimeter millimetres millimeters",
+        "um": "um µm μm micron microns micrometre micrometer micrometres micrometers",
+        "nm": "nm nanometre nanometer nanometres nanometers",
+        "in": "in inch inches",
+        "N": "N newton newtons Newton",
+        "mN": "mN",
+        "kN": "kN",
+        "gf": "gf",
+        "kgf": "kgf",
+        "lbf": "lbf",
+        "ohm": "ohm ohms Ohm Ohms OHM Ω Ω",
+        "mohm": "mohm mOhm mΩ mΩ",
+        "kohm": "kohm kOhm kΩ kΩ KOhm",
+        "Mohm": "Mohm MOhm MΩ MΩ",
+        "V": "V volt volts Volt",
+        "mV": "mV",
+        "A": "A amp amps ampere amperes",
+        "mA": "mA",
+        "uA": "uA µA μA",
+        "per_m": "per_m 1/m m^-1 m-1",
+        "per_cm": "per_cm 1/cm cm^-1 cm-1",
+        "per_mm": "per_mm 1/mm mm^-1 mm-1",
+    }
+    out = {}
+    for unit, words in table.items():
+        for word in words.split():
+            out[word] = unit
+    return out
+
+
+UNIT_ALIASES: dict[str, str] = _aliases()
+"""Spelling of a unit in a header or ``[columns]`` -> its key in :data:`UNITS`
+(``"µm"`` and ``"um"`` -> ``"um"``, ``"Ω"`` and ``"Ohm"`` -> ``"ohm"``, ``"°C"`` -> ``"degC"``,
+``"F"`` -> ``"degF"``). Case matters where a prefix does (``"mohm"`` milli, ``"Mohm"`` mega)."""
+
+
+def unit_key(text: str) -> str | None:
+    """The :data:`UNITS` key of a unit as written (an alias of :data:`UNIT_ALIASES`), or None.
+
+    Spaces and a leading ``"deg "`` / ``"°"`` spelled apart are tolerated
+    (``"deg C"``, ``"° C"``); a different letter case is accepted only where
+    it cannot change the prefix (``"OHMS"`` but never ``"MM"`` for ``"mm"``).
+    """
+    if not isinstance(text, str):
+        return None
+    word = text.strip()
+    if word in UNIT_ALIASES:
+        return UNIT_ALIASES[word]
+    squeezed = "".join(word.split())
+    if squeezed.lower().startswith("deg") and len(squeezed) == 4:
+        squeezed = "deg" + squeezed[3:].upper()
+    if squeezed in UNIT_ALIASES:
+        return UNIT_ALIASES[squeezed]
+    lowered = {}
+    for alias, key in UNIT_ALIASES.items():
+        if len(alias) > 2:
+            lowered.setdefault(alias.lower(), set()).add(key)
+    keys = lowered.get(squeezed.lower(), set())
+    return next(iter(keys)) if len(keys) == 1 else None
+
+
+def unit_suggestion(text: str, dimension: str | None = None) -> str:
+    """``"; did you mean 'x'?"`` among real units (of ``dimension`` when given), or ``""``.
+
+    A unit that differs from ``text`` only by a prefix or by letter case is
+    never proposed: ``"xm"`` is not answered ``"m"`` (a factor of 10^3..10^6).
+    """
+    choices = [a for a, k in UNIT_ALIASES.items() if dimension is None or UNITS[k][0] == dimension]
+    word = str(text).strip()
+    ok = [
+        c
+        for c in close_matches(word, choices, n=3)
+        if not (c.endswith(word) or word.endswith(c) or c.lower() == word.lower())
+    ]
+    return "; did you mean " + repr(ok[0]) + "?" if ok else ""
+
+
+CLOCK_UNITS: tuple[str, ...] = ("datetime", "clock")
+"""``unit`` values of a ``time_s`` column holding wall-clock time stamps
+(``2019-06-11 14:03:52.123456`` or ``14:03:52.1``), read as seconds from the first row."""
+
+FORMAT_KEYS: dict[str, str] = {
+    "header_row": "line of the header, 1 = first line; lines above it are skipped (a title); "
+    "0 = the file has no header, columns are named by number (from = 1)",
+    "units_row": "line holding the units under the header (skipped; gives the unit of a column "
+    "whose [columns] entry states none)",
+}
+"""Keys of ``[columns]`` that describe the file's layout, not a column -> what they mean."""
 
 SI_UNITS: dict[str, str] = {
     "time": "s",
@@ -191,6 +302,7 @@ def convert(values: Any, from_unit: str, to_unit: str) -> Any:
     ValueError
         If a unit is unknown or the dimensions differ.
     """
+    from_unit, to_unit = unit_key(from_unit) or from_unit, unit_key(to_unit) or to_unit
     for u in (from_unit, to_unit):
         if u not in UNITS:
             raise ValueError(f"unknown unit {u!r}")
@@ -266,8 +378,8 @@ class ColumnSpec:
     ----------
     canonical : str
         Canonical column name (a key of :data:`VARIABLE_MAP`).
-    header : str
-        Header of the column in the file.
+    header : str or int
+        Header of the column in the file, or its number (1 = first column).
     unit : str
         Unit of ``raw * scale + offset`` (a key of :data:`UNITS`).
     scale : float
@@ -276,14 +388,26 @@ class ColumnSpec:
         Added after scaling, in ``unit``.
     explicit : bool
         True when the experiment file named this column in ``[columns]``.
+    clock : bool
+        True for wall-clock time stamps (``unit = "datetime"``), read as
+        seconds from the first row.
+    unit_given : bool
+        True when ``[columns]`` states the unit (else a units row may give it).
     """
 
     canonical: str
-    header: str
+    header: str | int
     unit: str
     scale: float = 1.0
     offset: float = 0.0
     explicit: bool = False
+    clock: bool = False
+    unit_given: bool = False
+
+    @property
+    def label(self) -> str:
+        """The column as error messages name it: its header, or ``column N``."""
+        return f"column {self.header}" if isinstance(self.header, int) else repr(self.header)
 
     def to_si(self, raw: np.ndarray) -> np.ndarray:
         """``to_SI(raw * scale + offset, unit)`` as float64 [SI]."""
@@ -357,12 +481,27 @@ def column_spec(
                 "allowed keys: from, unit, scale, offset",
             )
     header = spec.get("from", canonical)
-    if not isinstance(header, str) or not header.strip():
-        raise error(f"{where}.{canonical}.from: expected a header name, got {header!r}")
-    unit = spec.get("unit", canon_unit)
-    if not isinstance(unit, str) or unit not in UNITS:
+    if isinstance(header, int) and not isinstance(header, bool):
+        if header < 1:
+            raise error(f"{where}.{canonical}.from: column numbers start at 1, got {header!r}")
+    elif not isinstance(header, str) or not header.strip():
         raise error(
-            f"{where}.{canonical}.unit: unknown unit {unit!r}{did_you_mean(str(unit), list(UNITS))}",
+            f"{where}.{canonical}.from: expected a header name or a column number, got {header!r}",
+            'e.g. from = "Load [mN]" or from = 3 (the third column)',
+        )
+    else:
+        header = header.strip()
+    written = spec.get("unit", canon_unit)
+    if written in CLOCK_UNITS:
+        if canonical != "time_s":
+            raise error(f"{where}.{canonical}.unit: {written!r} (wall-clock time stamps) is for time_s only")
+        numbers = _numbers(spec, where, canonical, error)
+        return ColumnSpec(canonical, header, "s", *numbers, explicit=True, clock=True, unit_given=True)
+    unit = unit_key(written) if isinstance(written, str) else None
+    if unit is None:
+        raise error(
+            f"{where}.{canonical}.unit: unknown unit {written!r}"
+            + unit_suggestion(str(written), _dimension(canon_unit)),
             f"{_dimension(canon_unit)} units: "
             + ", ".join(u for u, v in UNITS.items() if v[0] == _dimension(canon_unit)),
         )
@@ -373,6 +512,12 @@ def column_spec(
             f"{_dimension(canon_unit)} units: "
             + ", ".join(u for u, v in UNITS.items() if v[0] == _dimension(canon_unit)),
         )
+    scale, offset = _numbers(spec, where, canonical, error)
+    return ColumnSpec(canonical, header, unit, scale, offset, explicit=True, unit_given="unit" in spec)
+
+
+def _numbers(spec: Mapping, where: str, canonical: str, error: type[Exception]) -> tuple[float, float]:
+    """``(scale, offset)`` of a ``[columns]`` entry, checked finite, scale not zero."""
     numbers = {}
     for key, default in (("scale", 1.0), ("offset", 0.0)):
         value = spec.get(key, default)
@@ -381,7 +526,7 @@ def column_spec(
         numbers[key] = float(value)
     if numbers["scale"] == 0.0:
         raise error(f"{where}.{canonical}.scale: must not be zero")
-    return ColumnSpec(canonical, header.strip(), unit, numbers["scale"], numbers["offset"], explicit=True)
+    return numbers["scale"], numbers["offset"]
 
 
 # --- reading ----------------------------------------------------------------
@@ -452,62 +597,163 @@ def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:
     return h.hexdigest()
 
 
+@dataclass(frozen=True)
+class FileFormat:
+    """The layout of a log as ``[columns]`` declares it (:data:`FORMAT_KEYS`).
+
+    Attributes
+    ----------
+    header_row : int or None
+        1-based line of the header; 0 for a file without one; None to find it
+        (the first line that is not blank or a ``#`` comment).
+    units_row : int
+        1-based line of a units row under the header, 0 when there is none.
+    """
+
+    header_row: int | None = None
+    units_row: int = 0
+
+
+def file_format(
+    columns: Mapping[str, Any] | None, *, where: str = "[columns]", error: type[Exception] = InputError
+) -> tuple[FileFormat, dict[str, Any]]:
+    """Split ``[columns]`` into the file's layout and the column entries.
+
+    Parameters
+    ----------
+    columns : mapping or None
+        The ``[columns]`` table: :data:`FORMAT_KEYS` and canonical column entries.
+    where : str
+        Prefix for error messages.
+    error : exception class
+        :class:`InputError` or :class:`tcamlab.errors.ConfigError`.
+
+    Returns
+    -------
+    (FileFormat, dict)
+        The layout and the column entries (every other key).
+    """
+    columns = dict(columns or {})
+    rows = {}
+    for key in FORMAT_KEYS:
+        if key not in columns:
+            continue
+        value = columns.pop(key)
+        low = 0 if key == "header_row" else 1
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise error(
+                f"{where}.{key}: expected a line number >= {low}, got {value!r}", f"{key}: {FORMAT_KEYS[key]}"
+            )
+        rows[key] = value
+    fmt = FileFormat(rows.get("header_row"), rows.get("units_row", 0))
+    if fmt.units_row and fmt.header_row == 0:
+        raise error(f"{where}.units_row: a file without a header (header_row = 0) has no units row")
+    if fmt.units_row and fmt.header_row is not None and fmt.units_row <= fmt.header_row:
+        raise error(
+            f"{where}.units_row = {fmt.units_row} must come after header_row = {fmt.header_row}",
+            "the units row is the line under the header",
+        )
+    return fmt, columns
+
+
 @dataclass
 class _Layout:
     """What the file's preamble and header look like."""
 
-    header_line: int  # 1-based
+    header_line: int  # 1-based; 0 when the file has no header
     headers: list[str]
     sep: str
     decimal: str
     encoding: str
+    data_start: int = 0  # lines before the first data line
+    units: list[str] = field(default_factory=list)
 
 
-def _sniff(path: Path, shown: str) -> _Layout:
-    """Find the header line, encoding, delimiter and decimal mark."""
+def _check_text(first: bytes, shown: str) -> None:
+    if first.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(
+            f"{shown}: file is UTF-16 encoded",
+            "save it as CSV in UTF-8 (or Latin-1); in Excel: 'CSV UTF-8 (comma delimited)'",
+        )
+    nul = first.find(b"\x00")
+    if nul >= 0:
+        raise InputError(
+            f"{shown}: not a text CSV file (NUL byte at byte {nul + 1})",
+            "a run is a text CSV file; check that the right file is named",
+        )
+
+
+def _scan(path: Path, shown: str, fmt: FileFormat) -> tuple[list[bytes], int | None, list[bytes]]:
+    """The lines up to the header (or first data line), its index, and up to 50 data lines after it."""
     with open(path, "rb") as fh:
-        first = fh.read(8192)
-        if first.startswith((b"\xff\xfe", b"\xfe\xff")):
-            raise InputError(
-                f"{shown}: file is UTF-16 encoded",
-                "save it as CSV in UTF-8 (or Latin-1); in Excel: 'CSV UTF-8 (comma delimited)'",
-            )
-        nul = first.find(b"\x00")
-        if nul >= 0:
-            raise InputError(
-                f"{shown}: not a text CSV file (NUL byte at byte {nul + 1})",
-                "a run is a text CSV file; check that the right file is named",
-            )
+        _check_text(fh.read(8192), shown)
         fh.seek(0)
         raw_lines: list[bytes] = []
-        header_idx = None
+        found = None
         for i, line in enumerate(fh):
             if i == 0 and line.startswith(b"\xef\xbb\xbf"):
                 line = line[3:]
             raw_lines.append(line)
             stripped = line.strip()
-            if stripped and not stripped.startswith(b"#"):
-                header_idx = i
+            if fmt.header_row:
+                if i + 1 == fmt.header_row:
+                    found = i
+                    break
+            elif stripped and not stripped.startswith(b"#"):
+                found = i
                 break
-            if i >= _MAX_PREAMBLE_LINES:
+            if i >= max(_MAX_PREAMBLE_LINES, fmt.header_row or 0):
                 break
         data_sample: list[bytes] = []
-        if header_idx is not None:
+        if found is not None:
+            skip = max(fmt.units_row - found - 1, 0) if fmt.units_row else 0
             for line in fh:
+                if skip:
+                    skip -= 1
+                    continue
                 if line.strip():
                     data_sample.append(line)
                 if len(data_sample) >= 50:
                     break
-    if header_idx is None:
-        if all(not line.strip() for line in raw_lines):
-            raise InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
-        raise InputError(
-            f"{shown}: no header line found (only '#' comments and blank lines"
-            + (
-                f" in the first {_MAX_PREAMBLE_LINES} lines)" if len(raw_lines) > _MAX_PREAMBLE_LINES else ")"
-            ),
-            "a run needs a header line and data rows after any '#' comment lines",
+    return raw_lines, found, data_sample
+
+
+def _no_header_found(shown: str, raw_lines: list[bytes], fmt: FileFormat) -> InputError:
+    if fmt.header_row:
+        return InputError(
+            f"{shown}: header_row = {fmt.header_row} but the file has only {len(raw_lines)} lines",
+            "header_row in [columns] is the 1-based line of the header",
         )
+    if all(not line.strip() for line in raw_lines):
+        return InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
+    return InputError(
+        f"{shown}: no header line found (only '#' comments and blank lines"
+        + (f" in the first {_MAX_PREAMBLE_LINES} lines)" if len(raw_lines) > _MAX_PREAMBLE_LINES else ")"),
+        "a run needs a header line and data rows after any '#' comment lines",
+    )
+
+
+def _split_line(text: str, sep: str, shown: str, line: int) -> list[str]:
+    try:
+        cells = next(csv.reader([text], delimiter=sep, quotechar='"', skipinitialspace=True))
+    except (csv.Error, StopIteration) as exc:
+        raise InputError(f"{shown}: line {line}: cannot parse the line ({exc})") from None
+    return [h.strip() for h in cells]
+
+
+def _is_number(cell: str, decimal: str) -> bool:
+    try:
+        float(cell.replace(",", ".") if decimal == "," else cell)
+        return True
+    except ValueError:
+        return False
+
+
+def _sniff(path: Path, shown: str, fmt: FileFormat = FileFormat()) -> _Layout:
+    """Find the header line (or the first data line), encoding, delimiter and decimal mark."""
+    raw_lines, found, data_sample = _scan(path, shown, fmt)
+    if found is None:
+        raise _no_header_found(shown, raw_lines, fmt)
     head = b"".join(raw_lines)
     if b"\x00" in head:
         raise InputError(f"{shown}: not a text CSV file (binary content before the header)")
@@ -516,8 +762,8 @@ def _sniff(path: Path, shown: str) -> _Layout:
         encoding = "utf-8-sig"
     except UnicodeDecodeError:
         encoding = "latin-1"
-    header_text = raw_lines[header_idx].decode("utf-8" if encoding == "utf-8-sig" else "latin-1")
-    header_text = header_text.rstrip("\r\n")
+    text_of = lambda b: b.decode("utf-8" if encoding == "utf-8-sig" else "latin-1", "replace")  # noqa: E731
+    header_text = text_of(raw_lines[found]).rstrip("\r\n")
     if ";" in header_text and "," not in header_text:
         sep = ";"
         sample = b"".join(data_sample)
@@ -526,12 +772,26 @@ def _sniff(path: Path, shown: str) -> _Layout:
         sep, decimal = "\t", "."
     else:
         sep, decimal = ",", "."
-    try:
-        headers = next(csv.reader([header_text], delimiter=sep, quotechar='"', skipinitialspace=True))
-    except (csv.Error, StopIteration) as exc:
-        raise InputError(f"{shown}: line {header_idx + 1}: cannot parse the header ({exc})") from None
-    headers = [h.strip() for h in headers]
-    return _Layout(header_idx + 1, headers, sep, decimal, encoding)
+    cells = _split_line(header_text, sep, shown, found + 1)
+    if fmt.header_row == 0:
+        headers = [str(i + 1) for i in range(len(cells))]
+        return _Layout(0, headers, sep, decimal, encoding, data_start=found)
+    if fmt.header_row is None and cells and all(_is_number(c, decimal) for c in cells if c):
+        raise InputError(
+            f"{shown}: line {found + 1} holds only numbers, so it looks like data, not a header; "
+            "it is not read as one (that would lose the first data row)",
+            "if the file has no header, write header_row = 0 in [columns] and name the columns "
+            "by number, e.g. time_s = { from = 1 }; tcamlab init KIND --csv FILE writes this for you",
+        )
+    units: list[str] = []
+    if fmt.units_row:
+        with open(path, "rb") as fh:
+            line = b""
+            for _ in range(fmt.units_row):
+                line = fh.readline()
+        units = _split_line(text_of(line).rstrip("\r\n"), sep, shown, fmt.units_row)
+    data_start = max(found + 1, fmt.units_row)
+    return _Layout(found + 1, cells, sep, decimal, encoding, data_start=data_start, units=units)
 
 
 def _count_trailing_blank_lines(path: Path, size: int) -> int:
@@ -564,7 +824,7 @@ def _read_frame(path: Path, shown: str, layout: _Layout, usecols: list[int], dty
                 decimal=layout.decimal,
                 header=None,
                 names=list(range(len(layout.headers))),
-                skiprows=layout.header_line,
+                skiprows=layout.data_start,
                 usecols=usecols,
                 dtype=dtype,
                 engine="c",
@@ -614,7 +874,7 @@ def _locate_bad_cell(path: Path, shown: str, layout: _Layout, usecols: list[int]
         pos, col, value = first_bad
         value = value if len(value) <= 40 else value[:37] + "..."
         raise InputError(
-            f"{shown}: line {layout.header_line + 1 + pos}, column {layout.headers[col]!r}: "
+            f"{shown}: line {layout.data_start + 1 + pos}, column {_column_label(layout, col)}: "
             f"non-numeric value {value!r}",
             "data rows must hold numbers only; '#' comments may appear only before the header",
         )
@@ -711,6 +971,81 @@ def _check_file(p: Path, shown: str, kind: str, max_bytes: int) -> int:
     return size
 
 
+def _column_label(layout: _Layout, col: int) -> str:
+    """A column as messages name it: its header, or ``column N`` in a file without one."""
+    return repr(layout.headers[col]) if layout.header_line else f"column {col + 1}"
+
+
+def _missing_column(shown: str, kind: str, layout: _Layout, spec: ColumnSpec, canon: str) -> InputError:
+    """The error for a column the file lacks, proposing the ``[columns]`` line that maps a near header."""
+    headers = layout.headers
+    required = canon in REQUIRED[kind]
+    what = "required" if required else "mapped"
+    if isinstance(spec.header, int):
+        return InputError(
+            f"{shown}: {canon} is mapped to column {spec.header} but the file has {len(headers)} columns",
+            "column numbers start at 1 at the left",
+        )
+    if not layout.header_line:
+        return InputError(
+            f"{shown}: the file has no header (header_row = 0), so {canon} needs a column number",
+            f"e.g. {canon} = {{ from = 1 }} in [columns]",
+        )
+    near = close_matches(spec.header, headers)
+    if near:
+        entry = {"from": near[0]}
+        if spec.unit_given or spec.unit != VARIABLE_MAP[canon][1]:
+            entry["unit"] = spec.unit
+        if spec.scale != 1.0:
+            entry["scale"] = spec.scale
+        if spec.offset != 0.0:
+            entry["offset"] = spec.offset
+        hint = f"the file has {near[0]!r}; map it in the experiment file's [columns] as {_toml_entry(canon, entry)}"
+    else:
+        hint = _COLUMNS_HINT
+    return InputError(
+        f"{shown}: line {layout.header_line}: {what} column {spec.header!r}"
+        + (f" (for {canon})" if spec.header != canon else "")
+        + f" not found in the header of a {kind} run (headers: "
+        + ", ".join(repr(h) for h in headers[:12])
+        + (", ..." if len(headers) > 12 else "")
+        + ")",
+        hint,
+    )
+
+
+def _toml_entry(canon: str, entry: Mapping[str, Any]) -> str:
+    """``canon = { from = "...", unit = "..." }`` as valid TOML."""
+    parts = []
+    for k, v in entry.items():
+        text = (
+            '"' + str(v).replace("\\", "\\\\").replace('"', '\\"') + '"' if isinstance(v, str) else f"{v:g}"
+        )
+        parts.append(f"{k} = {text}")
+    return f"{canon} = {{ " + ", ".join(parts) + " }"
+
+
+def _unit_from_row(shown: str, layout: _Layout, spec: ColumnSpec, idx: int) -> ColumnSpec:
+    """The spec with the units row's unit when ``[columns]`` states none."""
+    if spec.unit_given or not layout.units or idx >= len(layout.units):
+        return spec
+    written = layout.units[idx].strip().strip("()[]{} ")
+    if not written:
+        return spec
+    unit = unit_key(written)
+    dim = _dimension(VARIABLE_MAP[spec.canonical][1])
+    if unit is None or _dimension(unit) != dim:
+        what = f"which is not a {dim} unit tcamlab knows" if unit is None else f"a {_dimension(unit)} unit"
+        raise InputError(
+            f"{shown}: line {layout.header_line + 1}, column {_column_label(layout, idx)}: the units row "
+            f"says {written!r}, {what}, but {spec.canonical} holds a {dim}" + unit_suggestion(written, dim),
+            f'state the unit in [columns], e.g. {spec.canonical} = {{ from = ..., unit = "{VARIABLE_MAP[spec.canonical][1]}" }}',
+        )
+    return ColumnSpec(
+        spec.canonical, spec.header, unit, spec.scale, spec.offset, spec.explicit, spec.clock, True
+    )
+
+
 def _select_columns(shown: str, kind: str, layout: _Layout, specs: dict) -> dict[str, tuple[ColumnSpec, int]]:
     """Internal name -> (column spec, position in the file) of every column the kind reads."""
     headers = layout.headers
@@ -720,40 +1055,69 @@ def _select_columns(shown: str, kind: str, layout: _Layout, specs: dict) -> dict
     selected: dict[str, tuple[ColumnSpec, int]] = {}
     for canon in REQUIRED[kind] + OPTIONAL[kind]:
         spec = specs.get(canon) or column_spec(kind, canon)
-        where = positions.get(spec.header)
+        if isinstance(spec.header, int):
+            where = [spec.header - 1] if spec.header <= len(headers) else None
+        else:
+            where = positions.get(spec.header) if layout.header_line else None
         if where is None:
-            required = canon in REQUIRED[kind]
-            if not required and not spec.explicit:
+            if canon not in REQUIRED[kind] and not spec.explicit:
                 continue
-            what = "required" if required else "mapped"
-            raise InputError(
-                f"{shown}: line {layout.header_line}: {what} column {spec.header!r}"
-                + (f" (for {canon})" if spec.header != canon else "")
-                + f" not found in the header of a {kind} run"
-                + did_you_mean(spec.header, headers)
-                + " (headers: "
-                + ", ".join(repr(h) for h in headers[:12])
-                + (", ..." if len(headers) > 12 else "")
-                + ")",
-                _COLUMNS_HINT,
-            )
+            raise _missing_column(shown, kind, layout, spec, canon)
         if len(where) > 1:
             raise InputError(
                 f"{shown}: line {layout.header_line}: header {spec.header!r} appears in "
                 f"columns {', '.join(str(i + 1) for i in where)}",
-                "rename the duplicates so each header is unique",
+                f"name the column by its number in [columns], e.g. {canon} = {{ from = {where[0] + 1} }}",
             )
-        selected[VARIABLE_MAP[canon][0]] = (spec, where[0])
+        selected[VARIABLE_MAP[canon][0]] = (_unit_from_row(shown, layout, spec, where[0]), where[0])
     return selected
+
+
+def _clock_seconds(text: pd.Series, shown: str, layout: _Layout, col: int) -> np.ndarray:
+    """Wall-clock time stamps as seconds from the first one; blank cells give NaN."""
+    s = text.astype("string").str.strip()
+    blank = s.isna() | (s == "")
+    best = None
+    for parse in (
+        lambda x: pd.to_datetime(x, format="ISO8601", errors="coerce"),
+        lambda x: pd.to_timedelta(x, errors="coerce"),
+    ):
+        try:
+            t = parse(s.where(~blank).astype(object))
+        except (ValueError, TypeError):
+            continue
+        bad = t.isna().to_numpy() & ~blank.to_numpy()
+        if best is None or bad.sum() < best[1].sum():
+            best = (t, bad)
+    if best is None or best[1].any():
+        pos = 0 if best is None else int(np.flatnonzero(best[1])[0])
+        raise InputError(
+            f"{shown}: line {layout.data_start + 1 + pos}, column {_column_label(layout, col)}: "
+            f"{str(text.iloc[pos])!r} is not a time stamp",
+            'unit = "datetime" reads time stamps like 2019-06-11 14:03:52.123456 or 14:03:52.1',
+        )
+    t = best[0]
+    valid = np.flatnonzero(~blank.to_numpy())
+    if valid.size == 0:
+        return np.full(len(t), np.nan)
+    delta = t - t.iloc[int(valid[0])]
+    return (delta.dt.total_seconds() if hasattr(delta, "dt") else delta).to_numpy(
+        dtype=np.float64, na_value=np.nan
+    )
 
 
 def _read_values(p: Path, shown: str, layout: _Layout, selected: dict, size: int) -> pd.DataFrame:
     """The selected columns' raw numbers, trailing blank lines dropped; refuses a header without data."""
-    usecols = sorted({idx for _, idx in selected.values()})
+    clocks = sorted({idx for spec, idx in selected.values() if spec.clock})
+    usecols = sorted({idx for _, idx in selected.values()} - set(clocks))
     try:
         raw = _read_frame(p, shown, layout, usecols, dtype=np.float64)
     except ValueError:  # a cell that is not a number: find and name it
         raw = _locate_bad_cell(p, shown, layout, usecols)
+    if clocks:
+        text = _read_frame(p, shown, layout, clocks, dtype=str)
+        for idx in clocks:
+            raw[idx] = _clock_seconds(text[idx], shown, layout, idx)
     n_trailing = _count_trailing_blank_lines(p, size)
     if n_trailing:
         n_keep = len(raw) - n_trailing
@@ -762,7 +1126,7 @@ def _read_values(p: Path, shown: str, layout: _Layout, selected: dict, size: int
             raw = raw.iloc[:n_keep]
     if len(raw) == 0:
         raise InputError(
-            f"{shown}: line {layout.header_line}: header only, no data rows",
+            f"{shown}: line {layout.data_start}: header only, no data rows",
             "a run needs data rows after the header",
         )
     return raw
@@ -779,7 +1143,7 @@ class _Where:
 
     def line(self, j: int) -> int:
         """Editor line of the j-th kept data row."""
-        return self.layout.header_line + 1 + int(self.kept_pos[j])
+        return self.layout.data_start + 1 + int(self.kept_pos[j])
 
     def column(self, name: str) -> str:
         spec = self.selected[name][0]
@@ -862,10 +1226,9 @@ def _read_run(
 ) -> RunData:
     """:func:`read_run` without the translation of OSError."""
     size = _check_file(p, shown, kind, max_bytes)
-    specs = {
-        c: column_spec(kind, c, spec, where=f"{shown}: [columns]") for c, spec in (columns or {}).items()
-    }
-    layout = _sniff(p, shown)
+    fmt, entries = file_format(columns, where=f"{shown}: [columns]")
+    specs = {c: column_spec(kind, c, spec, where=f"{shown}: [columns]") for c, spec in entries.items()}
+    layout = _sniff(p, shown, fmt)
     selected = _select_columns(shown, kind, layout, specs)
     raw = _read_values(p, shown, layout, selected, size)
     data = {name: spec.to_si(raw[idx].to_numpy(dtype=np.float64)) for name, (spec, idx) in selected.items()}
@@ -888,7 +1251,10 @@ def _read_run(
         sha256=sha256_file(p),
         n_rows_raw=len(raw),
         n_dropped=n_dropped,
-        source_columns={name: spec.header for name, (spec, _) in selected.items()},
+        source_columns={
+            name: layout.headers[idx] if layout.header_line else f"column {idx + 1}"
+            for name, (_, idx) in selected.items()
+        },
         header_line=layout.header_line,
         displacement_zero=displacement_zero,
         units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in selected.items()},
@@ -912,10 +1278,15 @@ def _check_pull_force(shown: str, data: dict[str, np.ndarray], selected: dict) -
     if int(negative.sum()) * 2 > n_loaded:
         spec = selected["force"][0]
         median = float(np.median(force[loaded]))
+        entry: dict[str, Any] = {"from": spec.header}
+        if spec.unit != VARIABLE_MAP["force_N"][1] or spec.unit_given:
+            entry["unit"] = spec.unit
+        entry["scale"] = -spec.scale
+        if spec.offset:
+            entry["offset"] = -spec.offset
         raise InputError(
-            f"{shown}: column {spec.header!r} (force_N): {int(negative.sum())} of {n_loaded} rows "
+            f"{shown}: column {spec.label} (force_N): {int(negative.sum())} of {n_loaded} rows "
             f"with displacement > 0 read a negative force (median {median:.4g} N); a pull test "
             "stretches the sensor, so the force should be positive",
-            f'if the load cell reads tension as negative, map it as force_N = {{ from = "{spec.header}", '
-            "scale = -1 }} in [columns]",
+            f"if the load cell reads tension as negative, map it in [columns] as {_toml_entry('force_N', entry)}",
         )

@@ -9,6 +9,7 @@ identical inputs (no timestamps, no absolute paths).
 from __future__ import annotations
 
 import io as _stdio
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,7 @@ __all__ = [
     "validate_experiment",
     "ValidateOutcome",
     "build_reports",
+    "report_names",
     "ReportOutcome",
     "fit_spring_files",
     "simulate_experiment",
@@ -101,9 +103,10 @@ def validate_experiment(
     drop_na: bool = False,
     max_bytes: int | None = None,
     command: str | None = None,
+    out_name: str | None = None,
 ) -> ValidateOutcome:
     """Validate one experiment and write ``out_dir/NAME/{report.html, report.pdf,
-    metrics.json, predictions.csv}``.
+    metrics.json, predictions.csv}`` (NAME: ``out_name``, default the file stem).
 
     Parameters
     ----------
@@ -135,7 +138,7 @@ def validate_experiment(
     exp = load_experiment(path, expected_kind=expected_kind)
     kw = {} if mc_draws is None else {"mc_draws": mc_draws}
     result = validation.validate(exp, drop_na=drop_na, max_bytes=max_bytes, **kw)
-    target = Path(out_dir) / exp.name
+    target = Path(out_dir) / (out_name or exp.name)
     files = _write_validation(result, target, formats, command)
     return ValidateOutcome(result, target, files)
 
@@ -216,18 +219,18 @@ def build_reports(
             )
     out = Path(out_dir)
     entries, docs = [], []
+    names = report_names(paths)
+    kw = {"mc_draws": mc_draws, "drop_na": drop_na, "max_bytes": max_bytes, "command": None}
     for i, p in enumerate(paths):
         p = Path(p)
         if progress:
             progress(p.name, i, len(paths))
         try:
-            outcome = validate_experiment(
-                p, out, mc_draws=mc_draws, drop_na=drop_na, max_bytes=max_bytes, command=None
-            )
+            outcome = validate_experiment(p, out, out_name=names[i], **kw)
         except TcamlabError as exc:
             entries.append(
                 IndexEntry(
-                    name=p.stem,
+                    name=names[i],
                     title=p.stem,
                     kind="?",
                     status="error",
@@ -240,12 +243,12 @@ def build_reports(
         res = outcome.result
         entries.append(
             IndexEntry(
-                name=res.experiment.name,
+                name=names[i],
                 title=res.experiment.title,
                 kind=res.kind,
                 status="pass" if res.passed else "fail",
                 metrics=_headline(res),
-                link=f"{quote(res.experiment.name)}/report.html",
+                link=f"{quote(names[i])}/report.html",
                 error=None,
             )
         )
@@ -260,6 +263,28 @@ def build_reports(
     index_path = atomic_write_text(out / "index.html", render_index_html(index))
     pdf_path = atomic_write_bytes(out / "reports.pdf", render_combined_pdf(docs, index))
     return ReportOutcome(out, entries, index_path, pdf_path)
+
+
+def report_names(paths: Sequence) -> list[str]:
+    """The report folder of each experiment file: its stem, or where two files share a stem
+    (``lab1/case.toml``, ``lab2/case.toml``), its path below their common folder joined
+    with ``-`` (``lab1-case``, ``lab2-case``), so no report overwrites another."""
+    resolved = [Path(p).resolve() for p in paths]
+    stems = [p.stem for p in resolved]
+    names = []
+    for p, stem in zip(resolved, stems):
+        same = [q for q in resolved if q.stem.lower() == stem.lower()]
+        if len(set(same)) <= 1:
+            names.append(stem)
+            continue
+        common = Path(os.path.commonpath([q.parent for q in same]))
+        names.append("-".join(p.relative_to(common).with_suffix("").parts))
+    seen: dict[str, int] = {}
+    for i, n in enumerate(names):  # the same file given twice: one folder each
+        seen[n] = seen.get(n, 0) + 1
+        if seen[n] > 1:
+            names[i] = f"{n}-{seen[n]}"
+    return names
 
 
 def fit_spring_files(
@@ -372,8 +397,11 @@ def simulate_experiment(
     oven: str = "heating",
     parameter_error: float = 0.0,
     noisy_zero: bool = False,
+    force: bool = False,
 ):
     """Virtual rig: write ``out_dir/{experiments,raw,truth}/`` for one simulated experiment.
+
+    Existing files are never replaced unless ``force`` (checked before anything is written).
 
     ``experiment`` is a template experiment file, or a bare kind ('static')
     naming the template shipped in :mod:`tcamlab.templates`. ``effects`` and
@@ -403,9 +431,11 @@ def simulate_experiment(
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
     )
+    template = resolve_template(experiment)
+    _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force)
     return rig.simulate(
         kind,
-        resolve_template(experiment),
+        template,
         seed=seed,
         out_dir=out_dir,
         effects=effects or {},
@@ -418,6 +448,18 @@ def simulate_experiment(
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
     )
+
+
+def _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force) -> None:
+    """The files simulate would write must not exist yet (unless ``force``)."""
+    from tcamlab.rig import DEFAULT_RUNS
+    from tcamlab.rig.writers import output_paths, refuse_overwrite
+
+    if force:
+        return
+    stem = Path(template).stem if name is None else str(name)
+    n = DEFAULT_RUNS[kind] if runs is None else max(int(runs), 1)
+    refuse_overwrite(output_paths(out_dir, stem, n), force=force)
 
 
 # -- diagnose ---------------------------------------------------------------------------
