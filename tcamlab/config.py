@@ -458,7 +458,8 @@ def _refuse_placeholders(raw: dict, shown: str) -> None:
     """Refuse a starter file (``tcamlab init``) whose placeholders are not all filled in, naming every one."""
     from tcamlab.starter import PLACEHOLDER, placeholders
 
-    left = placeholders(raw)
+    # only where init writes them: a title such as "Fill in the oven log" is not one
+    left = placeholders({k: raw[k] for k in ("runs", "columns", "sample", "rig") if k in raw})
     if left:
         raise ConfigError(
             f"{shown}: {len(left)} value{'s' if len(left) > 1 else ''} still to fill in "

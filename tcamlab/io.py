@@ -227,6 +227,8 @@ FORMAT_KEYS: dict[str, str] = {
     "0 = the file has no header, columns are named by number (from = 1)",
     "units_row": "line holding the units under the header (skipped; gives the unit of a column "
     "whose [columns] entry states none)",
+    "skip_rows": "lines at the top to skip before the header or, with header_row = 0, before the data "
+    "(a title above a file without a header)",
 }
 """Keys of ``[columns]`` that describe the file's layout, not a column -> what they mean."""
 
@@ -608,10 +610,13 @@ class FileFormat:
         (the first line that is not blank or a ``#`` comment).
     units_row : int
         1-based line of a units row under the header, 0 when there is none.
+    skip_rows : int
+        Lines at the top never read as the header or data (a title).
     """
 
     header_row: int | None = None
     units_row: int = 0
+    skip_rows: int = 0
 
 
 def file_format(
@@ -639,13 +644,18 @@ def file_format(
         if key not in columns:
             continue
         value = columns.pop(key)
-        low = 0 if key == "header_row" else 1
+        low = 1 if key == "units_row" else 0
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise error(
                 f"{where}.{key}: expected a line number >= {low}, got {value!r}", f"{key}: {FORMAT_KEYS[key]}"
             )
         rows[key] = value
-    fmt = FileFormat(rows.get("header_row"), rows.get("units_row", 0))
+    fmt = FileFormat(rows.get("header_row"), rows.get("units_row", 0), rows.get("skip_rows", 0))
+    if fmt.skip_rows and fmt.header_row and fmt.skip_rows >= fmt.header_row:
+        raise error(
+            f"{where}.skip_rows = {fmt.skip_rows} skips the header (header_row = {fmt.header_row})",
+            "with header_row, the lines above it are skipped anyway: leave skip_rows out",
+        )
     if fmt.units_row and fmt.header_row == 0:
         raise error(f"{where}.units_row: a file without a header (header_row = 0) has no units row")
     if fmt.units_row and fmt.header_row is not None and fmt.units_row <= fmt.header_row:
@@ -695,6 +705,8 @@ def _scan(path: Path, shown: str, fmt: FileFormat) -> tuple[list[bytes], int | N
                 line = line[3:]
             raw_lines.append(line)
             stripped = line.strip()
+            if i < fmt.skip_rows:
+                continue
             if fmt.header_row:
                 if i + 1 == fmt.header_row:
                     found = i
@@ -702,7 +714,7 @@ def _scan(path: Path, shown: str, fmt: FileFormat) -> tuple[list[bytes], int | N
             elif stripped and not stripped.startswith(b"#"):
                 found = i
                 break
-            if i >= max(_MAX_PREAMBLE_LINES, fmt.header_row or 0):
+            if i >= max(_MAX_PREAMBLE_LINES, fmt.header_row or 0, fmt.skip_rows):
                 break
         data_sample: list[bytes] = []
         if found is not None:

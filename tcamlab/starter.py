@@ -359,6 +359,8 @@ class CsvLayout:
         The first data rows' cells.
     title_rows : list of str
         Lines above the header that are not ``#`` comments (an instrument's title).
+    skip_rows : int
+        Lines to skip above the data of a file without a header that has a title.
     """
 
     header_row: int
@@ -367,6 +369,7 @@ class CsvLayout:
     units: list[str | None]
     sample: list[list[str]]
     title_rows: list[str] = field(default_factory=list)
+    skip_rows: int = 0
 
 
 def _number(cell: str) -> bool:
@@ -429,25 +432,49 @@ def inspect_csv(path: str | os.PathLike) -> CsvLayout:
             cells.pop()  # trailing separators: a title row "Export 2019,," has one cell
         if cells and not cells[0].startswith("#"):
             rows.append((n, cells))
-    widths = Counter(len(r) for _, r in rows)
     if not rows:
         raise InputError(f"{p}: no rows found", "a run needs data rows")
+    widths = Counter(len(r) for _, r in rows)
     width = max(widths, key=lambda w: (widths[w], w))
     wide = [(n, r) for n, r in rows if len(r) == width]
-    title_rows = [",".join(r) for n, r in rows if n < wide[0][0]]
-    first_n, first = wide[0]
-    if all(_number(c) for c in first if c):
-        data = [r for _, r in wide]
-        return CsvLayout(0, 0, [f"column {i + 1}" for i in range(width)], [None] * width, data, title_rows)
-    units_row, split = 0, [split_header(h) for h in first]
+    first_data = next((k for k, (_, r) in enumerate(wide) if _datalike(r)), None)
+    if first_data is None:
+        raise InputError(f"{p}: no data rows found in the first {_SCAN_LINES} lines", "a run needs data rows")
+    data = [r for _, r in wide[first_data:]]
+    heads = wide[:first_data]  # full-width lines above the data: header, then maybe units
+    if not heads:
+        start = wide[first_data][0]
+        titles = [",".join(r) for n, r in rows if n < start]
+        layout = CsvLayout(0, 0, [f"column {i + 1}" for i in range(width)], [None] * width, data, titles)
+        layout.skip_rows = start - 1 if titles else 0
+        return layout
+    header_n, header = heads[-1]
+    units_row = 0
+    if len(heads) > 1 and _units_like(heads[-1][1]):
+        units_row = heads[-1][0]
+        header_n, header = heads[-2]
+    split = [split_header(h) for h in header]
     units: list[str | None] = [u for _, u in split]
-    if len(wide) > 1 and not all(_number(c) for c in wide[1][1] if c):
-        cand = [c.strip("()[] ") for c in wide[1][1]]
-        if sum(bool(tio.unit_key(c)) or c == "%" for c in cand) >= max(1, len([c for c in cand if c]) // 2):
-            units_row = wide[1][0]
-            units = [c if c else u for c, u in zip(cand, units)]
-    data = [r for n, r in wide if n > max(first_n, units_row)]
-    return CsvLayout(first_n, units_row, list(first), units, data, title_rows)
+    if units_row:
+        cells = [c.strip("()[]{} ") for c in heads[-1][1]]
+        units = [c if c else u for c, u in zip(cells, units)]
+    titles = [",".join(r) for n, r in rows if n < header_n]
+    return CsvLayout(header_n, units_row, list(header), units, data, titles)
+
+
+_STAMP = re.compile(r"^[\d\-/:.T ]*\d[\d\-/:.T ]*$")
+
+
+def _datalike(cells: list[str]) -> bool:
+    """Every cell a number or a time stamp (a data row, not a header, title or units row)."""
+    filled = [c for c in cells if c]
+    return bool(filled) and all(_number(c) or _STAMP.match(c) for c in filled)
+
+
+def _units_like(cells: list[str]) -> bool:
+    """At least half of the filled cells are units (``s``, ``[µm]``, ``(N)``, ``%``)."""
+    filled = [c.strip("()[]{} ") for c in cells if c]
+    return sum(bool(tio.unit_key(c)) or c == "%" for c in filled) * 2 >= len(filled) > 0
 
 
 # --- the mapping ---------------------------------------------------------------------
@@ -568,10 +595,12 @@ def _column_lines(kind: str, layout: CsvLayout, m: ColumnMapping) -> list[str]:
         "# The log's own headers and units -> tcamlab's columns: value = convert(raw * scale + offset, unit).",
         "# `from` is the header as written, or the column number (1 = first column).",
     ]
-    if layout.title_rows:
+    if layout.title_rows and layout.header_row:
         lines.append(f"header_row = {layout.header_row}   # the lines above the header are a title")
     if layout.header_row == 0:
         lines.append("header_row = 0   # no header in this log: every column is named by its number")
+        if layout.skip_rows:
+            lines.append(f"skip_rows = {layout.skip_rows}   # the lines above the data are a title")
         first = layout.sample[0] if layout.sample else []
         lines.append("# first data row: " + ", ".join(f"column {i + 1} = {c}" for i, c in enumerate(first)))
     if layout.units_row:

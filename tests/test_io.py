@@ -812,3 +812,20 @@ def test_per_run_scale_overrides_in_the_experiment_file(tmp_path):
     a, b = load_experiment(exp).read_runs()
     assert a.data["displacement"].iloc[2] == pytest.approx(-0.2e-3)  # 1 % of 20 mm
     assert b.data["displacement"].iloc[2] == pytest.approx(-0.3e-3)  # 1 % of 30 mm
+
+
+def test_skip_rows_and_bad_layout_keys(tmp_path):
+    p = write(tmp_path, "Vibrometer 7\n" + "".join(f"{25 + i},{0.1 * i}\n" for i in range(12)))
+    cols = {"header_row": 0, "skip_rows": 1, "temperature_C": {"from": 1}, "displacement_mm": {"from": 2}}
+    assert len(read_run(p, "static", cols).data) == 12
+    raises_input(["header_row: expected a line number >= 0"], read_run, p, "static", {"header_row": -1})
+    raises_input(["units_row", "no units row"], read_run, p, "static", {"header_row": 0, "units_row": 2})
+    raises_input(
+        ["units_row = 1 must come after header_row = 2"],
+        read_run,
+        p,
+        "static",
+        {"header_row": 2, "units_row": 1},
+    )
+    raises_input(["skip_rows = 3 skips the header"], read_run, p, "static", {"header_row": 2, "skip_rows": 3})
+    raises_input(["header_row = 40", "only"], read_run, p, "static", {"header_row": 40})

@@ -275,3 +275,40 @@ def test_semicolon_decimal_comma_latin1_export(tmp_path):
     (run,) = load_experiment(res.path).read_runs()
     assert run.data["temperature"].iloc[1] == pytest.approx(26.5)
     assert run.data["displacement"].iloc[2] == pytest.approx(-3e-6)
+
+
+def test_metadata_block_above_the_header_and_a_headerless_log_with_a_title(tmp_path):
+    """Full-width metadata lines above the header, and a title above a header-less log."""
+    rows = ["Operator,Jane,2019-06-11", "Sample,TCA 3,50 g", "Time,Voltage,Displacement", "s,V,mm"]
+    rows += [f"{0.1 * i:.1f},{10 if i else 0},{-0.01 * i:.3f}" for i in range(12)]
+    csv = write(tmp_path / "meta.csv", "\n".join(rows) + "\n")
+    layout = inspect_csv(csv)
+    assert (layout.header_row, layout.units_row) == (3, 4) and len(layout.title_rows) == 2
+    doc = tomllib.loads(starter_text("dynamic", csv, tmp_path / "m.toml"))
+    assert doc["columns"]["header_row"] == 3 and doc["columns"]["voltage_V"] == {
+        "from": "Voltage",
+        "unit": "V",
+    }
+
+    rows = ["Vibrometer log 2019-06-11"] + [f"{0.001 * i:.3f},{25 + i},{0.5 * i:.2f}" for i in range(15)]
+    csv = write(tmp_path / "vib.csv", "\n".join(rows) + "\n")
+    res = write_starter("static", csv, tmp_path / "exp" / "vib.toml")
+    text = res.path.read_text(encoding="utf-8")
+    assert "header_row = 0" in text and "skip_rows = 1" in text
+    sample = dict(
+        SAMPLE, fiber_diameter_mm=0.17, fiber_length_mm=95.0, coil_length_mm=20.0, coil_diameter_mm=0.36
+    )
+    sample |= {"temperature_C.from": 2, "displacement_mm.from": 3}
+    res.path.write_text(fill(text, sample), encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    assert len(run.data) == 15 and run.data["temperature"].iloc[0] == 25.0  # first data row kept
+
+
+def test_a_title_that_says_fill_in_is_not_a_placeholder(tmp_path):
+    csv = rheometer_csv(tmp_path)
+    res = write_starter("sensing", csv, tmp_path / "experiments" / "pull.toml")
+    text = fill(res.path.read_text(encoding="utf-8"), SAMPLE).replace(
+        'title = "', 'title = "Fill in later: ', 1
+    )
+    res.path.write_text(text, encoding="utf-8")
+    assert load_experiment(res.path).title.startswith("Fill in later")
