@@ -1231,6 +1231,24 @@ def _check_values(data: dict, kind: str, where: _Where, n_dropped: int) -> None:
             "absolute zero (-273.15 degC)",
             "check the temperature unit (degC, degF or K) in [columns]",
         )
+    _check_kelvin(data, where)
+
+
+def _check_kelvin(data: dict, where: _Where) -> None:
+    """Refuse a temperature column read as degC whose every row is above 200 degC: nylon
+    melts near 260 degC, so such a log is almost surely in kelvin (293 K is 20 degC)."""
+    if "temperature" not in data or not data["temperature"].size:
+        return
+    spec = where.selected["temperature"][0]
+    t = data["temperature"]
+    if spec.unit == "degC" and float(np.min(t)) > 200.0:
+        entry = {"from": spec.header, "unit": "K"} | ({"scale": spec.scale} if spec.scale != 1.0 else {})
+        raise InputError(
+            f"{where.shown}: column {where.column('temperature')}: every temperature is above 200 degC "
+            f"({float(np.min(t)):.5g} to {float(np.max(t)):.5g}); a twisted-and-coiled nylon fiber melts "
+            "near 260 degC, so is this column in kelvin?",
+            f"if it is, map it in [columns] as {_toml_entry('temperature_C', entry)}",
+        )
 
 
 def _read_run(

@@ -308,8 +308,9 @@ def candidates(kind: str, header: str, unit_text: str | None, cells: list[str]) 
             scored.append((-score, canon.index(c), c))
     out = []
     for _, _, c in sorted(scored):
-        if unit_text == "%" and c == "displacement_mm":
-            out.append(Recognised(c, "%", "a strain in % of the coil length"))
+        if c == "displacement_mm" and (unit_text == "%" or (dim is None and "strain" in header.lower())):
+            # a strain: its scale to mm needs the coil length, which the log does not hold
+            out.append(Recognised(c, "%" if unit_text == "%" else "strain", "a strain of the coil length"))
         elif unit_text is None or unit is not None:
             out.append(Recognised(c, unit or tio.VARIABLE_MAP[c][1]))
     return out
@@ -509,10 +510,16 @@ def _entry(kind: str, layout: CsvLayout, i: int, rec: Recognised, by_position: b
     header = layout.headers[i]
     entry: dict = {"from": i + 1 if by_position else header}
     note = rec.note
-    if rec.unit == "%":
+    if rec.unit in ("%", "strain"):
+        shorter = "contract" in header.lower()  # contraction counts shortening as positive
+        sign, per = ("-" if shorter else ""), (" / 100" if rec.unit == "%" else "")
         entry["unit"] = "mm"
-        entry["scale"] = f"{PLACEHOLDER}: -coil_length_mm / 100 (contraction in % of the coil length -> mm)"
-        note = "a strain in %: scale = coil_length_mm / 100, negative when the column counts contraction"
+        entry["scale"] = f"{PLACEHOLDER}: {sign}coil_length_mm{per} (a strain of the coil length -> mm)"
+        note = (
+            f"a strain{' in %' if per else ''}: scale = {sign}coil_length_mm{per}"
+            + (", negative as the column counts contraction" if shorter else "")
+            + "; samples of other lengths: a per-run scale in runs"
+        )
     else:
         entry["unit"] = rec.unit
     if tio.VARIABLE_MAP[rec.canonical][0] in get_kind(kind).tension_outputs:

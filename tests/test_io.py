@@ -829,3 +829,19 @@ def test_skip_rows_and_bad_layout_keys(tmp_path):
     )
     raises_input(["skip_rows = 3 skips the header"], read_run, p, "static", {"header_row": 2, "skip_rows": 3})
     raises_input(["header_row = 40", "only"], read_run, p, "static", {"header_row": 40})
+
+
+def test_temperatures_in_kelvin_read_as_degc_are_questioned(tmp_path):
+    rows = ["T,displacement_mm"] + [f"{293.15 + 5 * i:.2f},{-0.01 * i:.3f}" for i in range(12)]
+    p = write(tmp_path, "\n".join(rows) + "\n")
+    err = raises_input(
+        ["every temperature is above 200 degC", "is this column in kelvin?"],
+        read_run,
+        p,
+        "static",
+        {"temperature_C": "T"},
+    )
+    line = 'temperature_C = { from = "T", unit = "K" }'
+    assert line in err.hint and tomllib.loads(line)
+    run = read_run(p, "static", tomllib.loads(line))
+    assert run.data["temperature"].iloc[0] == pytest.approx(20.0)
