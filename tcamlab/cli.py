@@ -351,6 +351,28 @@ def init(
     typer.echo(f"wrote {res.path}; fill it in, then: tcamlab validate {kind} {res.path}")
 
 
+@app.command("check")
+def check(
+    experiment: Experiment,
+    rows: int = typer.Option(3, "--rows", min=0, help="First rows of each run shown in SI."),
+):
+    """Dry run: what tcamlab makes of an experiment file, writing nothing.
+
+    Prints each run's column mapping with the file's and the SI units, its first rows
+    in SI, every sample and rig value with where it comes from, warnings, and every
+    problem at once (the file's and each run's); exits 2 if there is a problem.
+
+    Example: tcamlab check experiments/pull.toml
+    """
+    from tcamlab.starter import check_experiment
+
+    report = _run(check_experiment, experiment, rows)
+    for line in report.lines():
+        typer.echo(line)
+    if report.problems:
+        raise typer.Exit(code=2)
+
+
 # -- simulate ---------------------------------------------------------------------------
 
 

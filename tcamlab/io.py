@@ -563,6 +563,9 @@ class RunData:
         already starts at zero or has no displacement column.
     units : dict of str to str
         Internal column name -> its SI unit (``"s"``, ``"m"``, ``"degC"`` ...).
+    source_units : dict of str to str
+        Internal column name -> how the file's numbers were read (``"um"``,
+        ``"mN, scale -1"``, ``"datetime"``).
     """
 
     path: Path
@@ -575,6 +578,7 @@ class RunData:
     header_line: int = 1
     displacement_zero: float = 0.0
     units: dict[str, str] = field(default_factory=dict)
+    source_units: dict[str, str] = field(default_factory=dict)
 
 
 def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:
@@ -1288,7 +1292,18 @@ def _read_run(
         header_line=layout.header_line,
         displacement_zero=displacement_zero,
         units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in selected.items()},
+        source_units={name: _how_read(spec) for name, (spec, _) in selected.items()},
     )
+
+
+def _how_read(spec: ColumnSpec) -> str:
+    """``"um"``, ``"mN, scale -1"``, ``"datetime"``: how a column's numbers were read."""
+    text = "datetime" if spec.clock else spec.unit
+    if spec.scale != 1.0:
+        text += f", scale {spec.scale:g}"
+    if spec.offset != 0.0:
+        text += f", offset {spec.offset:g}"
+    return text
 
 
 def _check_pull_force(shown: str, data: dict[str, np.ndarray], selected: dict) -> None:

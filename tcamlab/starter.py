@@ -42,6 +42,8 @@ __all__ = [
     "starter_text",
     "write_starter",
     "placeholders",
+    "CheckReport",
+    "check_experiment",
 ]
 
 PLACEHOLDER = "FILL IN"
@@ -747,3 +749,146 @@ def placeholders(doc, prefix: str = "") -> list[str]:
         elif isinstance(v, (dict, list)):
             out += placeholders(v, key)
     return out
+
+
+# --- check: a dry run of an experiment file --------------------------------------------
+
+
+@dataclass
+class RunCheck:
+    """What one run's file gives: the column mapping, its first rows in SI, or its problem."""
+
+    file: str
+    rows: int = 0
+    mapping: list[str] = field(default_factory=list)
+    head: list[str] = field(default_factory=list)
+    problem: str | None = None
+
+
+@dataclass
+class CheckReport:
+    """What ``tcamlab check`` found (:func:`check_experiment`)."""
+
+    path: str
+    kind: str = "?"
+    runs: list[RunCheck] = field(default_factory=list)
+    parameters: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        """The report as text lines."""
+        out = [f"{self.path}: {self.kind} experiment, {len(self.runs)} run{'s' * (len(self.runs) != 1)}"]
+        for r in self.runs:
+            out.append(f"run {r.file}" + (f": {r.rows} rows" if r.rows else ""))
+            out += [f"  {m}" for m in r.mapping] + [f"  {h}" for h in r.head]
+        if self.parameters:
+            out.append("parameters (value in the key's unit, where it comes from):")
+            out += [f"  {p}" for p in self.parameters]
+        out += [f"warning: {w}" for w in self.warnings]
+        out += [f"problem: {p}" for p in self.problems] or ["no problems found"]
+        return out
+
+
+def _run_check(run, rows: int) -> RunCheck:
+    from tcamlab.text import shown_path
+
+    rc = RunCheck(shown_path(run.path), rows=len(run.data))
+    for name, header in run.source_columns.items():
+        q = tio.INTERNAL_TO_CANONICAL[name]
+        rc.mapping.append(
+            f"{q:<16s} <- {header!r} [{run.source_units.get(name, '')}] -> {name} [{run.units.get(name, '')}]"
+        )
+    head = run.data.head(rows)
+    rc.head.append("first rows in SI: " + ", ".join(f"{c} [{run.units.get(c, '')}]" for c in head.columns))
+    rc.head += ["  " + ", ".join(f"{v:.6g}" for v in row) for row in head.to_numpy()]
+    return rc
+
+
+def _parameter_lines_of(exp) -> list[str]:
+    from tcamlab.units import PARAMETER_UNITS
+
+    out = []
+    rig_fields = get_kind(exp.kind).report_rig_fields
+    for where, obj in (("sample", exp.sample), ("rig", exp.rig)):
+        for name, source in exp.provenance.items():
+            if name.startswith("sd(") or not hasattr(obj, name) or name not in PARAMETER_UNITS:
+                continue
+            if where == "rig" and name not in rig_fields:
+                continue  # a rig value this kind's models do not use
+            value = getattr(obj, name)
+            if value is None:
+                continue
+            unit, factor = PARAMETER_UNITS[name]
+            shown = (
+                [round(v * factor, 12) for v in value]
+                if isinstance(value, tuple)
+                else f"{value * factor:.6g}"
+            )
+            out.append(f"{where}.{name} = {shown} {unit}  ({source})")
+    return out
+
+
+def _warnings(exp, runs) -> list[str]:
+    """Values that load but cannot be: a coil longer than its straight fiber or shorter than
+    nothing, an input that never changes."""
+    out = []
+    s = exp.sample
+    for r in runs:
+        d = r.data
+        if "displacement" in d:
+            lo, hi = float(d["displacement"].min()), float(d["displacement"].max())
+            if hi > s.fiber_length - s.coil_length or -lo > s.coil_length:
+                out.append(
+                    f"{r.path.name}: displacement spans {1e3 * lo:.4g} to {1e3 * hi:.4g} mm, but a "
+                    f"{1e3 * s.coil_length:.4g} mm coil of {1e3 * s.fiber_length:.4g} mm fiber can only "
+                    "move within that length: check the displacement unit and scale, and the lengths"
+                )
+        for name in get_kind(exp.kind).inputs:
+            if name in d and float(np.ptp(d[name].to_numpy())) == 0.0:
+                out.append(f"{r.path.name}: {name} never changes, so the model has nothing to follow")
+    return out
+
+
+def check_experiment(path: str | os.PathLike, rows: int = 3) -> CheckReport:
+    """Load an experiment file and read its runs without writing anything; every problem at once.
+
+    Parameters
+    ----------
+    path : path-like
+        The experiment file.
+    rows : int
+        First rows of each run shown in SI.
+
+    Returns
+    -------
+    CheckReport
+        The mapping, units and first rows of each run, every parameter with its source,
+        warnings, and the problems (the file's, then each run's).
+    """
+    from tcamlab.config import load_experiment
+    from tcamlab.errors import TcamlabError
+
+    report = CheckReport(str(path))
+    try:
+        exp = load_experiment(path)
+    except TcamlabError as exc:
+        report.problems.append(exc.one_line())
+        return report
+    report.kind = exp.kind
+    report.parameters = _parameter_lines_of(exp)
+    columns = exp.run_columns or (exp.columns,) * len(exp.runs)
+    read = []
+    for p, cols in zip(exp.runs, columns):
+        try:
+            run = tio.read_run(p, exp.kind, cols)
+        except TcamlabError as exc:  # every run is read: all problems at once
+            from tcamlab.text import shown_path
+
+            report.runs.append(RunCheck(shown_path(p), problem=exc.one_line()))
+            report.problems.append(exc.one_line())
+            continue
+        read.append(run)
+        report.runs.append(_run_check(run, rows))
+    report.warnings = _warnings(exp, read)
+    return report

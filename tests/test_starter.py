@@ -312,3 +312,30 @@ def test_a_title_that_says_fill_in_is_not_a_placeholder(tmp_path):
     )
     res.path.write_text(text, encoding="utf-8")
     assert load_experiment(res.path).title.startswith("Fill in later")
+
+
+def test_check_is_a_dry_run_listing_every_problem(tmp_path):
+    csv = rheometer_csv(tmp_path)
+    res = write_starter("sensing", csv, tmp_path / "experiments" / "pull.toml")
+    r = runner.invoke(app, ["check", str(res.path)])
+    assert r.exit_code == 2 and "6 values still to fill in" in r.output and "Traceback" not in r.output
+    res.path.write_text(fill(res.path.read_text(encoding="utf-8"), SAMPLE), encoding="utf-8")
+    r = runner.invoke(app, ["check", str(res.path), "--rows", "2"])
+    assert r.exit_code == 0, r.output
+    out = r.output
+    assert "displacement_mm  <- 'Gap' [um] -> displacement [m]" in out
+    assert "force_N          <- 'Axial force' [N, scale -1] -> force [N]" in out
+    assert "first rows in SI: displacement [m], force [N], resistance [ohm], time [s]" in out
+    assert "    2e-05, 0.005, 30.02, 0.5\n" in out  # row 2 in SI: 20 µm, a 5 mN pull, at 0.5 s
+    assert "sample.coil_length = 90 mm  (experiment file)" in out and "no problems found" in out
+    assert not list((tmp_path / "experiments").glob("*.html"))  # writes nothing
+    # two broken runs: both problems listed, not only the first
+    bad = csv.with_name("bad.csv")
+    bad.write_text(csv.read_text().replace("0.5,1020.0", "0.5,abc"))
+    text = res.path.read_text(encoding="utf-8").replace(
+        'runs = ["../raw/pull1.csv"]', 'runs = ["../raw/bad.csv", "../raw/pull1.csv", "../raw/bad.csv"]'
+    )
+    res.path.write_text(text, encoding="utf-8")
+    r = runner.invoke(app, ["check", str(res.path)])
+    assert r.exit_code == 2 and r.output.count("problem: ") == 2 and "non-numeric value 'abc'" in r.output
+    assert "pull1.csv: 12 rows" in r.output
