@@ -131,12 +131,23 @@ class _ColumnTable(BaseModel):
     offset: float | None = None
 
 
-class _RunTable(BaseModel):
-    """A run given as a table: its file and its own ``[columns]`` overrides (a per-run scale)."""
+class _JoinTable(BaseModel):
+    """A second instrument's file joined to a run on time (its own clock, ``offset_s`` added)."""
 
     model_config = _STRICT
     file: str
     columns: dict[str, Any] = Field(default_factory=dict)
+    offset_s: float = 0.0
+
+
+class _RunTable(BaseModel):
+    """A run given as a table: its file, its own ``[columns]`` overrides (a per-run scale) and
+    a second instrument's file to join on time."""
+
+    model_config = _STRICT
+    file: str
+    columns: dict[str, Any] = Field(default_factory=dict)
+    join: _JoinTable | None = None
 
 
 class _ExperimentFile(BaseModel):
@@ -170,6 +181,7 @@ _ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
     ("rig",): _model_keys(_RigTable),
     ("rig", "uncertainty"): _model_keys(_RigUncertainty),
     ("runs",): _model_keys(_RunTable),
+    ("runs", "join"): _model_keys(_JoinTable),
 }
 
 _EXPECTED = {
@@ -231,6 +243,9 @@ class Experiment:
         Each run's ``[columns]``: the table merged with the run's own overrides
         (``runs = [{ file = "...", columns = { displacement_mm = { scale = 0.35 } } }]``);
         empty when no run has any.
+    run_joins : tuple of dict or None
+        Each run's second instrument file (``{"file", "columns", "offset_s", "shown"}`` for
+        :func:`tcamlab.io.read_run`'s ``join``) or None; empty when no run has one.
     """
 
     path: Path
@@ -248,6 +263,7 @@ class Experiment:
     raw: dict = field(default_factory=dict)
     sample_uncertainty: dict[str, float] = field(default_factory=dict)
     run_columns: tuple[dict, ...] = ()
+    run_joins: tuple[dict | None, ...] = ()
 
     @property
     def preset(self) -> str | None:
@@ -271,9 +287,12 @@ class Experiment:
         list of tcamlab.io.RunData
         """
         columns = self.run_columns or (self.columns,) * len(self.runs)
+        joins = self.run_joins or (None,) * len(self.runs)
         return [
-            tio.read_run(p, self.kind, cols, drop_na=drop_na, max_bytes=max_bytes, shown=_display_path(p))
-            for p, cols in zip(self.runs, columns)
+            tio.read_run(
+                p, self.kind, c, drop_na=drop_na, max_bytes=max_bytes, shown=_display_path(p), join=j
+            )
+            for p, c, j in zip(self.runs, columns, joins)
         ]
 
 
@@ -298,7 +317,7 @@ def _short(value: Any) -> str:
 def _translate(err: ValidationError, shown: str, prefix: tuple = ()) -> ConfigError:
     """One-line :class:`ConfigError` naming every problem pydantic found, so all are fixed at once."""
     # An unknown key usually explains a "missing" one (a typo): report it first.
-    errors = sorted(err.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
+    errors = sorted(_one_branch(err.errors(include_url=False)), key=lambda e: e["type"] != "extra_forbidden")
     described = [_describe(e, shown, prefix) for e in errors]
     if len(described) == 1:
         return described[0]
@@ -309,6 +328,21 @@ def _translate(err: ValidationError, shown: str, prefix: tuple = ()) -> ConfigEr
         f"{shown}: {len(parts)} problems: " + "; ".join(f"({i + 1}) {m}" for i, m in enumerate(parts)),
         " | ".join(dict.fromkeys(hints)) or None,
     )
+
+
+def _one_branch(errors: list) -> list:
+    """A run is a file name or a table: keep the errors of the form the user wrote (a table's
+    for a table, the string's otherwise), without pydantic's branch names in the location."""
+    out = []
+    for e in errors:
+        loc = tuple(e["loc"])
+        if loc[:1] == ("runs",) and len(loc) > 2 and loc[2] in ("str", "_RunTable"):
+            wrote_table = isinstance(e.get("input"), Mapping) if len(loc) == 3 else True
+            if (loc[2] == "str") == wrote_table:
+                continue
+            e = {**e, "loc": loc[:2] + loc[3:]}
+        out.append(e)
+    return out or errors
 
 
 def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = "") -> ConfigError:
@@ -339,9 +373,12 @@ def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = 
         return ConfigError(f"{shown}: {key}: needs at least one entry{more}", _hint_for(loc))
     if kind in _EXPECTED:
         numeric = kind.startswith(("float", "int"))
+        hint = (
+            "numbers are written without quotes in TOML" if numeric and isinstance(e["input"], str) else None
+        )
         return ConfigError(
             f"{shown}: {key}: expected {_EXPECTED[kind]}, got {_short(e['input'])}{more}",
-            "numbers are written without quotes in TOML" if numeric and isinstance(e["input"], str) else None,
+            hint or (_hint_for(loc) if loc[:1] == ("runs",) else None),
         )
     return ConfigError(f"{shown}: {key}: {e['msg']}{more}")
 
@@ -358,7 +395,8 @@ def _hint_for(loc: tuple) -> str | None:
     hints = {
         "kind": f'kind = "{KINDS[0]}" (or {", ".join(KINDS[1:])})',
         "title": 'title = "what this experiment is"',
-        "runs": 'runs = ["../raw/run1.csv"] (paths relative to the experiment file)',
+        "runs": 'runs = ["../raw/run1.csv"] (paths relative to the experiment file), or a run as a '
+        'table: { file = "../raw/run2.csv", columns = { displacement_mm = { scale = -0.3 } } }',
     }
     return hints.get(loc[0]) if loc else None
 
@@ -432,6 +470,7 @@ def load_experiment(
     runs = _resolve_runs([r if isinstance(r, str) else r.file for r in doc.runs], p, shown, require_runs)
     columns, thresholds = _columns(doc.columns, kind, shown), _thresholds(doc, shown)
     run_columns = _run_columns(doc, columns, kind, shown)
+    run_joins = _run_joins(doc, p, kind, shown, require_runs)
     sample, sample_prov = _build_sample(doc, shown)
     sample_unc = _sample_uncertainty(doc, shown)
     rig, rig_prov = _build_rig(doc, shown)
@@ -451,6 +490,7 @@ def load_experiment(
         raw=raw,
         sample_uncertainty=sample_unc,
         run_columns=run_columns,
+        run_joins=run_joins,
     )
 
 
@@ -604,6 +644,29 @@ def _run_columns(doc: _ExperimentFile, columns: dict[str, Any], kind: str, shown
             else:
                 merged[canon] = spec
         out.append(_columns(merged, kind, shown, where=f"runs[{i}].columns"))
+    return tuple(out)
+
+
+def _run_joins(doc: _ExperimentFile, p: Path, kind: str, shown: str, require_runs: bool) -> tuple:
+    """Each run's join table resolved: the second file (relative to the experiment file), its
+    checked [columns] (``time_s`` required) and ``offset_s``; () when no run has one."""
+    if all(isinstance(r, str) or r.join is None for r in doc.runs):
+        return ()
+    out: list[dict | None] = []
+    for i, run in enumerate(doc.runs):
+        if isinstance(run, str) or run.join is None:
+            out.append(None)
+            continue
+        where = f"runs[{i}].join"
+        (jp,) = _resolve_runs([run.join.file], p, f"{shown}: {where}", require_runs)
+        cols = _columns(run.join.columns, kind, shown, where=f"{where}.columns")
+        if not [c for c in cols if c not in tio.FORMAT_KEYS and c != "time_s"]:
+            raise ConfigError(
+                f"{shown}: {where}.columns: names no column to take from {run.join.file}",
+                'e.g. columns = { time_s = "t", temperature_C = "T (C)" }',
+            )
+        offset = _finite(shown, f"{where}.offset_s", run.join.offset_s)
+        out.append({"file": jp, "columns": cols, "offset_s": offset, "shown": _display_path(jp)})
     return tuple(out)
 
 

@@ -566,6 +566,10 @@ class RunData:
     source_units : dict of str to str
         Internal column name -> how the file's numbers were read (``"um"``,
         ``"mN, scale -1"``, ``"datetime"``).
+    join : dict or None
+        For a run joined with a second instrument's file: the file, ``offset_s`` [s],
+        the overlap [s], rows of the run outside it (dropped), the joined rows and
+        columns, and the resampling.
     """
 
     path: Path
@@ -579,6 +583,7 @@ class RunData:
     displacement_zero: float = 0.0
     units: dict[str, str] = field(default_factory=dict)
     source_units: dict[str, str] = field(default_factory=dict)
+    join: dict | None = None
 
 
 def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:
@@ -905,6 +910,7 @@ def read_run(
     drop_na: bool = False,
     max_bytes: int = DEFAULT_MAX_BYTES,
     shown: str | None = None,
+    join: Mapping[str, Any] | None = None,
 ) -> RunData:
     """Read one rig CSV log into validated SI data.
 
@@ -930,6 +936,12 @@ def read_run(
         checked before anything is read.
     shown : str, optional
         How error messages name the file (default: ``str(path)``).
+    join : mapping, optional
+        A second instrument's file logged on its own clock: ``{"file": path,
+        "columns": {time_s: ..., temperature_C: ...}, "offset_s": s, "shown": name}``.
+        Its columns (all but ``time_s``) are linearly interpolated onto this
+        file's time at (its time + ``offset_s``); rows outside its span are
+        dropped and reported in :attr:`RunData.join`.
 
     Returns
     -------
@@ -950,7 +962,7 @@ def read_run(
     if "\x00" in str(path):
         raise InputError(f"{shown!r}: not a file name (it holds a NUL character)")
     try:
-        return _read_run(Path(path), shown, kind, columns, drop_na, max_bytes)
+        return _read_run(Path(path), shown, kind, columns, drop_na, max_bytes, join)
     except OSError as exc:  # unreadable, a FIFO that vanished, name too long ...
         raise InputError(
             f"{shown}: cannot read the file ({exc.strerror or exc})",
@@ -1062,21 +1074,26 @@ def _unit_from_row(shown: str, layout: _Layout, spec: ColumnSpec, idx: int) -> C
     )
 
 
-def _select_columns(shown: str, kind: str, layout: _Layout, specs: dict) -> dict[str, tuple[ColumnSpec, int]]:
-    """Internal name -> (column spec, position in the file) of every column the kind reads."""
+def _select_columns(
+    shown: str, kind: str, layout: _Layout, specs: dict, wanted=None, required=None
+) -> dict[str, tuple[ColumnSpec, int]]:
+    """Internal name -> (column spec, position in the file) of every column the kind reads
+    (``wanted``, default all of the kind's; ``required``, default the kind's required ones)."""
     headers = layout.headers
     positions: dict[str, list[int]] = {}
     for i, h in enumerate(headers):
         positions.setdefault(h, []).append(i)
     selected: dict[str, tuple[ColumnSpec, int]] = {}
-    for canon in REQUIRED[kind] + OPTIONAL[kind]:
+    wanted = REQUIRED[kind] + OPTIONAL[kind] if wanted is None else wanted
+    required = REQUIRED[kind] if required is None else required
+    for canon in wanted:
         spec = specs.get(canon) or column_spec(kind, canon)
         if isinstance(spec.header, int):
             where = [spec.header - 1] if spec.header <= len(headers) else None
         else:
             where = positions.get(spec.header) if layout.header_line else None
         if where is None:
-            if canon not in REQUIRED[kind] and not spec.explicit:
+            if canon not in required and not spec.explicit:
                 continue
             raise _missing_column(shown, kind, layout, spec, canon)
         if len(where) > 1:
@@ -1163,7 +1180,7 @@ class _Where:
 
     def column(self, name: str) -> str:
         spec = self.selected[name][0]
-        return repr(spec.header) + (f" ({spec.canonical})" if spec.header != spec.canonical else "")
+        return spec.label + (f" ({spec.canonical})" if spec.header != spec.canonical else "")
 
     def cell(self, j: int, name: str) -> str:
         return f"{self.shown}: line {self.line(j)}, column {self.column(name)}"
@@ -1255,19 +1272,91 @@ def _check_kelvin(data: dict, where: _Where) -> None:
         )
 
 
-def _read_run(
-    p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None, drop_na: bool, max_bytes: int
-) -> RunData:
-    """:func:`read_run` without the translation of OSError."""
+def _read_columns(
+    p: Path, shown: str, kind: str, columns, drop_na: bool, max_bytes: int, wanted=None, required=None
+):
+    """One file's selected columns in SI: (data, where, layout, selected, raw row count, rows dropped)."""
     size = _check_file(p, shown, kind, max_bytes)
     fmt, entries = file_format(columns, where=f"{shown}: [columns]")
     specs = {c: column_spec(kind, c, spec, where=f"{shown}: [columns]") for c, spec in entries.items()}
     layout = _sniff(p, shown, fmt)
-    selected = _select_columns(shown, kind, layout, specs)
+    selected = _select_columns(shown, kind, layout, specs, wanted, required)
     raw = _read_values(p, shown, layout, selected, size)
     data = {name: spec.to_si(raw[idx].to_numpy(dtype=np.float64)) for name, (spec, idx) in selected.items()}
     where = _Where(shown, layout, selected, np.arange(len(raw)))
     data, n_dropped = _drop_blank(data, where, drop_na)
+    return data, where, layout, selected, len(raw), n_dropped
+
+
+def _join(data: dict, where: _Where, kind: str, join: Mapping[str, Any], drop_na: bool, max_bytes: int):
+    """Interpolate a second instrument's columns onto the run's time; (data, join record, its columns).
+
+    The second file's time plus ``offset_s`` is the run's time; rows of the run outside
+    the second file's span are dropped (counted in the record), never extrapolated.
+    """
+    jp = Path(join["file"])
+    jshown = str(join.get("shown", jp))
+    _, entries = file_format(join.get("columns"), where=f"{jshown}: join columns")
+    joined = tuple(c for c in entries if c != "time_s")
+    if "time" not in data:
+        raise InputError(
+            f"{where.shown}: a run joined with {jshown} needs its own time_s column to join on",
+            "map the run's time in [columns]; the two files are joined on time",
+        )
+    offset = float(join.get("offset_s", 0.0))
+    jdata, jwhere, _, jsel, _, _ = _read_columns(
+        jp, jshown, kind, join.get("columns"), drop_na, max_bytes, ("time_s", *joined), ("time_s", *joined)
+    )
+    _check_values(jdata, kind, jwhere, 0)
+    t, tj = data["time"], jdata["time"] + offset
+    inside = (t >= tj[0]) & (t <= tj[-1])
+    if not inside.any():
+        raise InputError(
+            f"{where.shown}: its time ({t[0]:.6g} to {t[-1]:.6g} s) and {jshown}'s time plus offset_s = "
+            f"{offset:g} ({tj[0]:.6g} to {tj[-1]:.6g} s) do not overlap",
+            "check offset_s in the run's join table: it is added to the joined file's time",
+        )
+    data = {k: v[inside] for k, v in data.items()}
+    where.kept_pos = where.kept_pos[inside]
+    names = [VARIABLE_MAP[c][0] for c in joined]
+    for name in names:
+        data[name] = np.interp(data["time"], tj, jdata[name])
+        where.selected[name] = jsel[name]
+    record = {
+        "file": jshown,
+        "sha256": sha256_file(jp),
+        "offset_s": offset,
+        "overlap_s": [float(data["time"][0]), float(data["time"][-1])],
+        "rows_outside_overlap": int((~inside).sum()),
+        "joined_rows": int(tj.size),
+        "columns": [VARIABLE_MAP[c][0] for c in joined],
+        "resampling": "linear interpolation onto the run's time",
+    }
+    return data, record, {n: jsel[n] for n in names}
+
+
+def _read_run(
+    p: Path,
+    shown: str,
+    kind: str,
+    columns: Mapping[str, Any] | None,
+    drop_na: bool,
+    max_bytes: int,
+    join=None,
+) -> RunData:
+    """:func:`read_run` without the translation of OSError."""
+    wanted = None
+    if join:
+        _, jentries = file_format(
+            join.get("columns"), where=f"{join.get('shown', join['file'])}: join columns"
+        )
+        wanted = tuple(c for c in REQUIRED[kind] + OPTIONAL[kind] if c not in jentries or c == "time_s")
+    data, where, layout, selected, n_raw, n_dropped = _read_columns(
+        p, shown, kind, columns, drop_na, max_bytes, wanted
+    )
+    record, jsel = None, {}
+    if join:
+        data, record, jsel = _join(data, where, kind, join, drop_na, max_bytes)
     _check_values(data, kind, where, n_dropped)
     displacement_zero = 0.0
     if "displacement" in data:
@@ -1283,16 +1372,18 @@ def _read_run(
         kind=kind,
         data=frame,
         sha256=sha256_file(p),
-        n_rows_raw=len(raw),
+        n_rows_raw=n_raw,
         n_dropped=n_dropped,
         source_columns={
             name: layout.headers[idx] if layout.header_line else f"column {idx + 1}"
             for name, (_, idx) in selected.items()
-        },
+        }
+        | {name: f"{record['file']}: {spec.header}" for name, (spec, _) in jsel.items()},
         header_line=layout.header_line,
         displacement_zero=displacement_zero,
-        units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in selected.items()},
-        source_units={name: _how_read(spec) for name, (spec, _) in selected.items()},
+        units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in (selected | jsel).items()},
+        source_units={name: _how_read(spec) for name, (spec, _) in (selected | jsel).items()},
+        join=record,
     )
 
 

@@ -799,6 +799,13 @@ def _run_check(run, rows: int) -> RunCheck:
         rc.mapping.append(
             f"{q:<16s} <- {header!r} [{run.source_units.get(name, '')}] -> {name} [{run.units.get(name, '')}]"
         )
+    if run.join:
+        j = run.join
+        rc.mapping.append(
+            f"joined {j['file']} ({j['joined_rows']} rows) on time + offset_s {j['offset_s']:g} s: overlap "
+            f"{j['overlap_s'][0]:.6g} to {j['overlap_s'][1]:.6g} s, {j['rows_outside_overlap']} rows outside "
+            f"it dropped, {j['resampling']}"
+        )
     head = run.data.head(rows)
     rc.head.append("first rows in SI: " + ", ".join(f"{c} [{run.units.get(c, '')}]" for c in head.columns))
     rc.head += ["  " + ", ".join(f"{v:.6g}" for v in row) for row in head.to_numpy()]
@@ -878,10 +885,11 @@ def check_experiment(path: str | os.PathLike, rows: int = 3) -> CheckReport:
     report.kind = exp.kind
     report.parameters = _parameter_lines_of(exp)
     columns = exp.run_columns or (exp.columns,) * len(exp.runs)
+    joins = exp.run_joins or (None,) * len(exp.runs)
     read = []
-    for p, cols in zip(exp.runs, columns):
+    for p, cols, join in zip(exp.runs, columns, joins):
         try:
-            run = tio.read_run(p, exp.kind, cols)
+            run = tio.read_run(p, exp.kind, cols, join=join)
         except TcamlabError as exc:  # every run is read: all problems at once
             from tcamlab.text import shown_path
 

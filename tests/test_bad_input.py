@@ -542,3 +542,32 @@ def test_every_bad_columns_entry_is_listed_at_once(lab):
     result = validate("static", exp, lab / "out")
     assert_bad_input(result, "2 problems in [columns]", "'tme_s'", "did you mean 'time_s'", "'furlong'")
     assert "more problem" not in result.output
+
+
+@pytest.mark.parametrize(
+    "runs, parts",
+    [
+        (
+            '[{ file = "../raw/static_run1.csv", join = { file = "../raw/static_run2.csv", ofset_s = 1 } }]',
+            [
+                "unknown key 'runs[0].join.ofset_s'",
+                "did you mean 'offset_s'",
+                "allowed keys: file, columns, offset_s",
+            ],
+        ),
+        ('["../raw/static_run1.csv", 3]', ["runs[1]: expected a string, got 3"]),
+        (
+            '[{ file = "../raw/static_run1.csv", join = { file = "../raw/static_run2.csv" } }]',
+            ["runs[0].join.columns: names no column to take from"],
+        ),
+        ('[{ file = "../raw/nope.csv" }]', ["runs[0]: run file", "not found"]),
+    ],
+)
+def test_run_tables_errors_name_the_key(lab, runs, parts):
+    text = (lab / "experiments" / "static.toml").read_text()
+    text = re.sub(r"runs = \[[^\]]*\]", lambda m: f"runs = {runs}", text, flags=re.S)
+    p = lab / "experiments" / "bad.toml"
+    p.write_text(text)
+    result = runner.invoke(app, ["validate", "static", str(p), "--out", str(lab / "out")])
+    assert_bad_input(result, *parts)
+    assert "_RunTable" not in result.output and ".str" not in result.output

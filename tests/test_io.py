@@ -845,3 +845,55 @@ def test_temperatures_in_kelvin_read_as_degc_are_questioned(tmp_path):
     assert line in err.hint and tomllib.loads(line)
     run = read_run(p, "static", tomllib.loads(line))
     assert run.data["temperature"].iloc[0] == pytest.approx(20.0)
+
+
+# --- two instruments, two clocks ---------------------------------------------------------
+
+
+def two_clock_lab(tmp_path: Path, offset: float) -> Path:
+    """A laser logging displacement at 10 Hz and a thermocouple logger at 1 Hz on its own clock."""
+    raw = tmp_path / "raw"
+    raw.mkdir(exist_ok=True)
+    (raw / "laser.csv").write_text(
+        "Time [s],Position (mm)\n" + "".join(f"{0.1 * i:.1f},{-0.01 * i:.3f}\n" for i in range(101))
+    )
+    (raw / "tc.csv").write_text("t,T (C)\n" + "".join(f"{i},{25 + 5 * i}\n" for i in range(13)))
+    exp = tmp_path / "oven.toml"
+    exp.write_text(
+        'kind = "static"\ntitle = "two clocks"\n'
+        'runs = [{ file = "raw/laser.csv", join = { file = "raw/tc.csv", offset_s = '
+        + repr(offset)
+        + ', columns = { time_s = "t", temperature_C = "T (C)" } } }]\n'
+        '[sample]\npreset = "thesis-tca"\n'
+        '[columns]\ntime_s = "Time [s]"\ndisplacement_mm = "Position (mm)"\n'
+    )
+    return exp
+
+
+def test_two_files_two_clocks_joined_on_time_with_an_offset(tmp_path):
+    from tcamlab.config import load_experiment
+
+    (run,) = load_experiment(two_clock_lab(tmp_path, -0.5)).read_runs()
+    t = run.data["time"].to_numpy()
+    # the logger's clock runs 0.5 s ahead: its reading at t + 0.5 s belongs to the laser's t
+    np.testing.assert_allclose(run.data["temperature"].to_numpy(), 25 + 5 * (t + 0.5), rtol=1e-12)
+    assert len(run.data) == 101 and run.join["rows_outside_overlap"] == 0
+    assert run.join["offset_s"] == -0.5 and run.join["overlap_s"] == [0.0, 10.0]
+    assert run.join["sha256"] == sha256_file(tmp_path / "raw" / "tc.csv")
+    assert run.source_columns["temperature"] == "raw/tc.csv: T (C)" or run.source_columns[
+        "temperature"
+    ].endswith("tc.csv: T (C)")
+    # a later start: the laser's rows before the logger's first reading are dropped, not extrapolated
+    (late,) = load_experiment(two_clock_lab(tmp_path, 2.0)).read_runs()
+    assert late.join["rows_outside_overlap"] == 20 and late.data["time"].iloc[0] == pytest.approx(2.0)
+    assert late.data["temperature"].iloc[0] == pytest.approx(25.0)
+    with pytest.raises(InputError, match="do not overlap"):
+        load_experiment(two_clock_lab(tmp_path, 50.0)).read_runs()
+
+
+def test_two_clock_check_reports_the_join(tmp_path):
+    from tcamlab.starter import check_experiment
+
+    text = "\n".join(check_experiment(two_clock_lab(tmp_path, -0.5)).lines())
+    assert "joined" in text and "tc.csv (13 rows) on time + offset_s -0.5 s" in text
+    assert "overlap 0 to 10 s, 0 rows outside it dropped, linear interpolation" in text
