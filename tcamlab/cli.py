@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.core import TyperGroup
 
 from tcamlab import __version__
 from tcamlab.kinds import KINDS
@@ -33,9 +34,36 @@ app = typer.Typer(
     # Plain help: rich markup would swallow "[columns]" and "[rig.uncertainty]" and show <bool>.
     rich_markup_mode=None,
 )
+
+
+class _ValidateGroup(TyperGroup):
+    """``validate EXP.toml`` takes the kind from the file; ``validate KIND EXP.toml`` still works."""
+
+    def parse_args(self, ctx, args):
+        first = args[0] if args else ""
+        if first and first not in self.commands and (Path(first).suffix or Path(first).exists()):
+            args = [_kind_in_file(first), *args]  # a file, not a misspelt kind
+        return super().parse_args(ctx, args)
+
+
+def _kind_in_file(path: str) -> str:
+    """The ``kind`` of an experiment file, or the first kind when it cannot be read (loading
+    the file then reports what is wrong with it)."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:  # an experiment file is small: never read a big log whole
+            kind = tomllib.loads(fh.read(1 << 20).decode("utf-8-sig")).get("kind")
+    except (OSError, ValueError):
+        kind = None
+    return kind if kind in KINDS else KINDS[0]
+
+
 validate_app = typer.Typer(
-    help="Validate a model against an experiment's runs and write its report.\n\n"
-    "Example: tcamlab validate static experiments/static.toml --out reports",
+    cls=_ValidateGroup,
+    help="Validate a model against an experiment's runs and write its report; the kind is read "
+    "from the file (or named first).\n\n"
+    "Example: tcamlab validate experiments/static.toml --out reports",
     no_args_is_help=True,
     rich_markup_mode=None,
 )
@@ -277,6 +305,13 @@ def fit_spring(
     as_json: Json = False,
     drop_na: DropNa = False,
     max_bytes: MaxBytes = None,
+    column: list[str] | None = typer.Option(
+        None,
+        "--column",
+        metavar="CANON=HEADER[:UNIT]",
+        help="Map a bare CSV's column, e.g. 'force_N=Load [mN]:mN' (repeatable); a CSV needs only "
+        "displacement_mm and force_N.",
+    ),
 ):
     """Identify the spring constant S of F = S delta (thesis section 3.3).
 
@@ -296,6 +331,7 @@ def fit_spring(
         plot_path=plot,
         drop_na=drop_na,
         max_bytes=max_bytes,
+        columns=column or None,
     )
     if as_json:
         _print_json(rep.to_dict())

@@ -467,10 +467,11 @@ def load_experiment(
             f"{shown}: this is a {kind!r} experiment, not {expected_kind!r}",
             f"run it with the '{kind}' subcommand",
         )
-    runs = _resolve_runs([r if isinstance(r, str) else r.file for r in doc.runs], p, shown, require_runs)
+    entries = _expand_globs(doc.runs, p, shown) if require_runs else list(doc.runs)
+    runs = _resolve_runs([r if isinstance(r, str) else r.file for r in entries], p, shown, require_runs)
     columns, thresholds = _columns(doc.columns, kind, shown), _thresholds(doc, shown)
-    run_columns = _run_columns(doc, columns, kind, shown)
-    run_joins = _run_joins(doc, p, kind, shown, require_runs)
+    run_columns = _run_columns(entries, columns, kind, shown)
+    run_joins = _run_joins(entries, p, kind, shown, require_runs)
     sample, sample_prov = _build_sample(doc, shown)
     sample_unc = _sample_uncertainty(doc, shown)
     rig, rig_prov = _build_rig(doc, shown)
@@ -568,6 +569,27 @@ def _read_toml(p: Path, shown: str) -> dict:
         ) from None
 
 
+def _expand_globs(entries: list, p: Path, shown: str) -> list:
+    """Run names with ``*``, ``?`` or ``[`` expanded (relative to the experiment file, sorted)."""
+    base = p.resolve().parent
+    out: list = []
+    for i, run in enumerate(entries):
+        if not isinstance(run, str) or not any(ch in run for ch in "*?[") or Path(run).is_absolute():
+            out.append(run)
+            continue
+        try:
+            found = sorted(q for q in base.glob(run) if q.is_file())
+        except (ValueError, OSError) as exc:
+            raise ConfigError(f"{shown}: runs[{i}]: {_short(run)} is not a usable pattern ({exc})") from None
+        if not found:
+            raise ConfigError(
+                f"{shown}: runs[{i}]: the pattern {_short(run)} matches no file (looked in {_display_path(base)})",
+                'patterns are relative to the experiment file, e.g. runs = ["../raw/pull_*.csv"]',
+            )
+        out += [os.path.relpath(q, base) for q in found]
+    return out
+
+
 def _resolve_runs(run_list, p: Path, shown: str, require_runs: bool) -> list[Path]:
     """Run paths resolved against the experiment file's folder, checked to be files."""
     base = p.resolve().parent
@@ -629,12 +651,12 @@ def _columns(table: Mapping[str, Any], kind: str, shown: str, where: str = "colu
     return columns
 
 
-def _run_columns(doc: _ExperimentFile, columns: dict[str, Any], kind: str, shown: str) -> tuple[dict, ...]:
+def _run_columns(entries: list, columns: dict[str, Any], kind: str, shown: str) -> tuple[dict, ...]:
     """Each run's [columns]: the table with the run's own overrides merged in, key by key."""
-    if all(isinstance(r, str) or not r.columns for r in doc.runs):
+    if all(isinstance(r, str) or not r.columns for r in entries):
         return ()
     out = []
-    for i, run in enumerate(doc.runs):
+    for i, run in enumerate(entries):
         merged = dict(columns)
         for canon, spec in ({} if isinstance(run, str) else run.columns).items():
             base = merged.get(canon)
@@ -647,13 +669,13 @@ def _run_columns(doc: _ExperimentFile, columns: dict[str, Any], kind: str, shown
     return tuple(out)
 
 
-def _run_joins(doc: _ExperimentFile, p: Path, kind: str, shown: str, require_runs: bool) -> tuple:
+def _run_joins(entries: list, p: Path, kind: str, shown: str, require_runs: bool) -> tuple:
     """Each run's join table resolved: the second file (relative to the experiment file), its
     checked [columns] (``time_s`` required) and ``offset_s``; () when no run has one."""
-    if all(isinstance(r, str) or r.join is None for r in doc.runs):
+    if all(isinstance(r, str) or r.join is None for r in entries):
         return ()
     out: list[dict | None] = []
-    for i, run in enumerate(doc.runs):
+    for i, run in enumerate(entries):
         if isinstance(run, str) or run.join is None:
             out.append(None)
             continue

@@ -73,6 +73,7 @@ __all__ = [
     "RunData",
     "canonical_to_internal",
     "column_spec",
+    "column_option",
     "convert",
     "internal_to_canonical",
     "read_run",
@@ -911,6 +912,7 @@ def read_run(
     max_bytes: int = DEFAULT_MAX_BYTES,
     shown: str | None = None,
     join: Mapping[str, Any] | None = None,
+    only: tuple[str, ...] | None = None,
 ) -> RunData:
     """Read one rig CSV log into validated SI data.
 
@@ -942,6 +944,9 @@ def read_run(
         Its columns (all but ``time_s``) are linearly interpolated onto this
         file's time at (its time + ``offset_s``); rows outside its span are
         dropped and reported in :attr:`RunData.join`.
+    only : tuple of str, optional
+        Read just these canonical columns, all required (fit-spring reads a bare
+        pull test's ``displacement_mm`` and ``force_N``; F = S delta needs no more).
 
     Returns
     -------
@@ -962,7 +967,7 @@ def read_run(
     if "\x00" in str(path):
         raise InputError(f"{shown!r}: not a file name (it holds a NUL character)")
     try:
-        return _read_run(Path(path), shown, kind, columns, drop_na, max_bytes, join)
+        return _read_run(Path(path), shown, kind, columns, drop_na, max_bytes, join, only)
     except OSError as exc:  # unreadable, a FIFO that vanished, name too long ...
         raise InputError(
             f"{shown}: cannot read the file ({exc.strerror or exc})",
@@ -1343,16 +1348,17 @@ def _read_run(
     drop_na: bool,
     max_bytes: int,
     join=None,
+    only=None,
 ) -> RunData:
     """:func:`read_run` without the translation of OSError."""
-    wanted = None
+    wanted = only
     if join:
         _, jentries = file_format(
             join.get("columns"), where=f"{join.get('shown', join['file'])}: join columns"
         )
         wanted = tuple(c for c in REQUIRED[kind] + OPTIONAL[kind] if c not in jentries or c == "time_s")
     data, where, layout, selected, n_raw, n_dropped = _read_columns(
-        p, shown, kind, columns, drop_na, max_bytes, wanted
+        p, shown, kind, columns, drop_na, max_bytes, wanted, only
     )
     record, jsel = None, {}
     if join:
@@ -1385,6 +1391,27 @@ def _read_run(
         source_units={name: _how_read(spec) for name, (spec, _) in (selected | jsel).items()},
         join=record,
     )
+
+
+def column_option(text: str) -> tuple[str, Any]:
+    """A command-line column mapping ``CANON=HEADER`` or ``CANON=HEADER:UNIT`` as a
+    ``[columns]`` entry (``force_N=Load [mN]:mN`` -> ``("force_N", {"from": "Load [mN]", "unit": "mN"})``).
+
+    Raises
+    ------
+    InputError
+        Without ``=``.
+    """
+    canon, sep, header = text.partition("=")
+    if not sep or not canon.strip() or not header.strip():
+        raise InputError(
+            f"--column {text!r}: expected CANON=HEADER or CANON=HEADER:UNIT",
+            'e.g. --column "force_N=Load [mN]:mN" --column "displacement_mm=Extension (µm):um"',
+        )
+    name, colon, unit = header.rpartition(":")
+    if colon and name.strip() and unit_key(unit.strip()):
+        return canon.strip(), {"from": name.strip(), "unit": unit.strip()}
+    return canon.strip(), {"from": header.strip()}
 
 
 def _how_read(spec: ColumnSpec) -> str:

@@ -296,12 +296,15 @@ def fit_spring_files(
     plot_path=None,
     drop_na: bool = False,
     max_bytes: int | None = None,
+    columns=None,
 ):
     """Identify S of F = S delta from pull-test CSVs or sensing experiment files.
 
     Returns a :class:`tcamlab.fitting.SpringFitReport`; writes the fit and
     residual plot to ``plot_path`` (SVG or PNG by extension) if given.
     ``drop_na`` and ``max_bytes`` are passed to :func:`tcamlab.io.read_run`.
+    A bare CSV needs only ``displacement_mm`` and ``force_N``, mapped by ``columns``
+    (a ``[columns]`` table, or ``CANON=HEADER[:UNIT]`` strings, the CLI's ``--column``).
     """
     from tcamlab import io as tio
     from tcamlab.fitting import fit_spring_runs
@@ -309,6 +312,8 @@ def fit_spring_files(
     read_kw: dict = {"drop_na": drop_na}
     if max_bytes is not None:
         read_kw["max_bytes"] = max_bytes
+    if columns is not None and not isinstance(columns, dict):
+        columns = dict(tio.column_option(c) for c in columns)
     runs = []
     for p in paths:
         p = Path(p)
@@ -319,7 +324,7 @@ def fit_spring_files(
                     (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float))
                 )
         else:
-            r = tio.read_run(p, "sensing", **read_kw)
+            r = tio.read_run(p, "sensing", columns, only=("displacement_mm", "force_N"), **read_kw)
             runs.append(
                 (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float))
             )

@@ -571,3 +571,41 @@ def test_run_tables_errors_name_the_key(lab, runs, parts):
     result = runner.invoke(app, ["validate", "static", str(p), "--out", str(lab / "out")])
     assert_bad_input(result, *parts)
     assert "_RunTable" not in result.output and ".str" not in result.output
+
+
+def test_validate_takes_the_kind_from_the_file(lab):
+    out = lab / "out"
+    result = runner.invoke(
+        app, ["validate", str(lab / "experiments" / "static.toml"), "--out", str(out), "--format", "html"]
+    )
+    assert result.exit_code == 0, result.output
+    assert (out / "static" / "report.html").exists()
+    # the subcommands stay, and a wrong one still says so
+    result = runner.invoke(app, ["validate", "sensing", str(lab / "experiments" / "static.toml")])
+    assert_bad_input(result, "this is a 'static' experiment, not 'sensing'")
+    assert "No such command" in runner.invoke(app, ["validate", "statc", "x.toml"]).output
+
+
+def test_fit_spring_on_a_bare_csv_needs_only_displacement_and_force(tmp_path):
+    """A pull test with no resistance column, in µm and mN: S = 0.47 mN / 100 µm = 4.7 N/m."""
+    rows = ["Time [s],Extension (µm),Load [mN]"] + [
+        f"{0.1 * i:.1f},{100.0 * i:.1f},{0.47 * i:.4f}" for i in range(30)
+    ]
+    p = tmp_path / "pull.csv"
+    p.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    args = [
+        "fit-spring",
+        str(p),
+        "--column",
+        "displacement_mm=Extension (µm):um",
+        "--column",
+        "force_N=Load [mN]:mN",
+    ]
+    result = runner.invoke(app, [*args, "--json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    assert doc["spring_constant_N_per_m"] == pytest.approx(4.7, rel=1e-9)
+    assert_bad_input(runner.invoke(app, ["fit-spring", str(p)]), "required column 'displacement_mm'")
+    assert_bad_input(
+        runner.invoke(app, ["fit-spring", str(p), "--column", "force_N"]), "expected CANON=HEADER"
+    )

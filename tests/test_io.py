@@ -897,3 +897,26 @@ def test_two_clock_check_reports_the_join(tmp_path):
     text = "\n".join(check_experiment(two_clock_lab(tmp_path, -0.5)).lines())
     assert "joined" in text and "tc.csv (13 rows) on time + offset_s -0.5 s" in text
     assert "overlap 0 to 10 s, 0 rows outside it dropped, linear interpolation" in text
+
+
+def test_globs_in_runs_expand_sorted_relative_to_the_experiment_file(tmp_path):
+    from tcamlab.config import load_experiment
+    from tcamlab.errors import ConfigError
+
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    for name in ("pull_2", "pull_10", "pull_1", "other"):
+        (raw / f"{name}.csv").write_text(
+            "temperature_C,displacement_mm\n" + "".join(f"{25 + i},{-0.01 * i}\n" for i in range(12))
+        )
+    (tmp_path / "e").mkdir()
+    exp = tmp_path / "e" / "oven.toml"
+    exp.write_text(
+        'kind = "static"\ntitle = "globbed"\nruns = ["../raw/pull_*.csv"]\n[sample]\npreset = "thesis-tca"\n'
+    )
+    loaded = load_experiment(exp)
+    assert [r.name for r in loaded.runs] == ["pull_1.csv", "pull_10.csv", "pull_2.csv"]
+    assert len(loaded.read_runs()) == 3
+    exp.write_text(exp.read_text().replace("pull_*", "nothing_*"))
+    with pytest.raises(ConfigError, match="matches no file"):
+        load_experiment(exp)
