@@ -308,9 +308,9 @@ def fit_spring(
     column: list[str] | None = typer.Option(
         None,
         "--column",
-        metavar="CANON=HEADER[:UNIT]",
-        help="Map a bare CSV's column, e.g. 'force_N=Load [mN]:mN' (repeatable); a CSV needs only "
-        "displacement_mm and force_N.",
+        metavar="CANON=HEADER[:UNIT[:SCALE]]",
+        help="Map a bare CSV's column, e.g. 'force_N=Load [mN]:mN:-1' (repeatable; also "
+        "header_row=N, units_row=N); a CSV needs only displacement_mm and force_N.",
     ),
 ):
     """Identify the spring constant S of F = S delta (thesis section 3.3).
@@ -379,9 +379,8 @@ def init(
             typer.echo(f"{canon} = {entry}")
             continue
         entry = entry if isinstance(entry, dict) else {"from": entry}
-        typer.echo(
-            f"{canon:<16s} <- {entry.get('from')!r}" + (f" [{entry['unit']}]" if "unit" in entry else "")
-        )
+        extra = "".join(f", {k} {entry[k]}" for k in ("scale", "offset") if k in entry)
+        typer.echo(f"{canon:<16s} <- {entry.get('from')!r} [{entry.get('unit', '')}{extra}]")
     if res.placeholders:
         typer.echo(f"{len(res.placeholders)} values to fill in: " + ", ".join(res.placeholders))
     typer.echo(f"wrote {res.path}; fill it in, then: tcamlab validate {kind} {res.path}")

@@ -1394,8 +1394,9 @@ def _read_run(
 
 
 def column_option(text: str) -> tuple[str, Any]:
-    """A command-line column mapping ``CANON=HEADER`` or ``CANON=HEADER:UNIT`` as a
-    ``[columns]`` entry (``force_N=Load [mN]:mN`` -> ``("force_N", {"from": "Load [mN]", "unit": "mN"})``).
+    """A command-line column mapping ``CANON=HEADER``, ``CANON=HEADER:UNIT`` or
+    ``CANON=HEADER:UNIT:SCALE`` as a ``[columns]`` entry (``force_N=Load [mN]:mN`` -> ``("force_N", {"from": "Load [mN]", "unit": "mN"})``);
+    a layout key takes a line number (``header_row=2``).
 
     Raises
     ------
@@ -1408,6 +1409,19 @@ def column_option(text: str) -> tuple[str, Any]:
             f"--column {text!r}: expected CANON=HEADER or CANON=HEADER:UNIT",
             'e.g. --column "force_N=Load [mN]:mN" --column "displacement_mm=Extension (µm):um"',
         )
+    if canon.strip() in FORMAT_KEYS:
+        try:
+            return canon.strip(), int(header)
+        except ValueError:
+            raise InputError(f"--column {text!r}: {canon.strip()} takes a line number") from None
+    parts = header.rsplit(":", 2)
+    if (
+        len(parts) == 3
+        and parts[0].strip()
+        and unit_key(parts[1].strip())
+        and _is_number(parts[2].strip(), ".")
+    ):
+        return canon.strip(), {"from": parts[0].strip(), "unit": parts[1].strip(), "scale": float(parts[2])}
     name, colon, unit = header.rpartition(":")
     if colon and name.strip() and unit_key(unit.strip()):
         return canon.strip(), {"from": name.strip(), "unit": unit.strip()}

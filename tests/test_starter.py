@@ -240,6 +240,7 @@ def test_init_never_overwrites_and_cli_exit_codes(tmp_path):
     r = runner.invoke(app, ["init", "sensing", "--csv", str(csv), "--out", str(out)])
     assert r.exit_code == 0, r.output
     assert "displacement_mm  <- 'Gap' [um]" in r.output and "values to fill in" in r.output
+    assert "force_N          <- 'Axial force' [N, scale -1]" in r.output
     before = out.read_bytes()
     r = runner.invoke(app, ["init", "sensing", "--csv", str(csv), "--out", str(out)])
     assert r.exit_code == 2 and "already exists" in r.output and "Traceback" not in r.output
@@ -339,3 +340,12 @@ def test_check_is_a_dry_run_listing_every_problem(tmp_path):
     r = runner.invoke(app, ["check", str(res.path)])
     assert r.exit_code == 2 and r.output.count("problem: ") == 2 and "non-numeric value 'abc'" in r.output
     assert "pull1.csv: 12 rows" in r.output
+
+
+def test_the_own_data_guide_defines_every_parameter():
+    """docs/own_data.md lists every key the starter explains, so the two cannot drift apart."""
+    from tcamlab.starter import GUIDE
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "own_data.md").read_text(encoding="utf-8")
+    for key, g in GUIDE.items():
+        assert f"| `{key}`" in text and g.definition in text, key
