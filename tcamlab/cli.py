@@ -381,6 +381,8 @@ def init(
         entry = entry if isinstance(entry, dict) else {"from": entry}
         extra = "".join(f", {k} {entry[k]}" for k in ("scale", "offset") if k in entry)
         typer.echo(f"{canon:<16s} <- {entry.get('from')!r} [{entry.get('unit', '')}{extra}]")
+    if res.unused:
+        typer.echo("not used: " + ", ".join(res.unused))
     if res.placeholders:
         typer.echo(f"{len(res.placeholders)} values to fill in: " + ", ".join(res.placeholders))
     typer.echo(f"wrote {res.path}; fill it in, then: tcamlab validate {kind} {res.path}")

@@ -16,6 +16,7 @@ placeholders (:data:`PLACEHOLDER`) that loading refuses, naming each key
 from __future__ import annotations
 
 import csv
+import json
 import os
 import re
 from collections import Counter
@@ -304,6 +305,8 @@ def candidates(kind: str, header: str, unit_text: str | None, cells: list[str]) 
         if dim is not None and dim != c_dim:
             continue
         score = 10 if header.strip() == c else 2 * _word_match(header, tio.VARIABLE_MAP[c][0])
+        if header.strip() == "T":  # physics' convention: t is time, T temperature
+            score = 4 if c == "temperature_C" else (0 if c == "time_s" else score)
         # a unit of the only column of its dimension names it ("Weg [µm]" in an oven test)
         score += (1 + (dims.count(dim) == 1)) if dim == c_dim else 0
         if score >= 2:
@@ -567,8 +570,6 @@ def map_columns(kind: str, layout: CsvLayout) -> ColumnMapping:
 
 def _toml(v) -> str:
     """A TOML value: strings as basic strings (JSON escapes are TOML's), numbers, lists, inline tables."""
-    import json
-
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, (int, float)):
@@ -728,6 +729,7 @@ def write_starter(
             "pick another name with --out experiments/NAME.toml, or move the old file away",
         )
     text = starter_text(kind, csv_path, out)
+    unused = map_columns(kind, inspect_csv(csv_path)).unused
     doc = tomllib.loads(text)  # the starter must always be valid TOML
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
@@ -735,7 +737,7 @@ def write_starter(
             fh.write(text)
     except FileExistsError:
         raise ConfigError(f"{out}: already exists; tcamlab init never overwrites a file") from None
-    return Starter(out, dict(doc.get("columns", {})), [], placeholders(doc))
+    return Starter(out, dict(doc.get("columns", {})), unused, placeholders(doc))
 
 
 def placeholders(doc, prefix: str = "") -> list[str]:

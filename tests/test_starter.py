@@ -349,3 +349,14 @@ def test_the_own_data_guide_defines_every_parameter():
     text = (Path(__file__).resolve().parents[1] / "docs" / "own_data.md").read_text(encoding="utf-8")
     for key, g in GUIDE.items():
         assert f"| `{key}`" in text and g.definition in text, key
+
+
+def test_unknown_channels_are_listed_not_guessed(tmp_path):
+    rows = ["Time [s],Torque [µNm],T,Extension (µm),Normal stress [Pa]"]
+    rows += [f"{0.1 * i:.1f},{0.5 * i},{25 + i},{10.0 * i},{100 * i}" for i in range(12)]
+    csv = write(tmp_path / "rheo.csv", "\n".join(rows) + "\n")
+    r = runner.invoke(app, ["init", "static", "--csv", str(csv), "--out", str(tmp_path / "o.toml")])
+    assert r.exit_code == 0, r.output
+    assert "not used: 'Torque [µNm]' (column 2), 'Normal stress [Pa]' (column 5)" in r.output
+    cols = tomllib.loads((tmp_path / "o.toml").read_text(encoding="utf-8"))["columns"]
+    assert cols["temperature_C"] == {"from": "T", "unit": "degC"} and cols["time_s"]["from"] == "Time [s]"
