@@ -574,8 +574,8 @@ def _toml(v) -> str:
         return "true" if v else "false"
     if isinstance(v, (int, float)):
         return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
+    if isinstance(v, str):  # DEL is the one control character JSON leaves and TOML refuses
+        return json.dumps(v, ensure_ascii=False).replace("\x7f", "\\u007f")
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml(x) for x in v) + "]"
     items = ", ".join(f"{k} = {_toml(x)}" for k, x in v.items())
@@ -612,7 +612,9 @@ def _column_lines(kind: str, layout: CsvLayout, m: ColumnMapping) -> list[str]:
         if layout.skip_rows:
             lines.append(f"skip_rows = {layout.skip_rows}   # the lines above the data are a title")
         first = layout.sample[0] if layout.sample else []
-        lines.append("# first data row: " + ", ".join(f"column {i + 1} = {c}" for i, c in enumerate(first)))
+        lines.append(
+            "# first data row: " + ", ".join(f"column {i + 1} = {_toml(c)}" for i, c in enumerate(first))
+        )
     if layout.units_row:
         lines.append(f"units_row = {layout.units_row}   # the line under the header holds units")
     if len(set(layout.headers)) < len(layout.headers) and layout.header_row:

@@ -172,7 +172,7 @@ def test_headerless_vibrometer_log_keeps_its_first_row(tmp_path):
     csv = write(tmp_path / "vib.csv", "\n".join(rows) + "\n")
     res = write_starter("static", csv, tmp_path / "exp" / "vib.toml")
     text = res.path.read_text(encoding="utf-8")
-    assert "header_row = 0" in text and "first data row: column 1 = 0.000" in text
+    assert "header_row = 0" in text and 'first data row: column 1 = "0.000"' in text
     assert "columns.temperature_C.from" in res.placeholders
     filled = fill(
         text,
