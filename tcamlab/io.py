@@ -278,7 +278,8 @@ _NONNEGATIVE = ("resistance", "r1", "r2")
 _MAX_PREAMBLE_LINES = 10_000
 _COLUMNS_HINT = (
     "map the file's header to the canonical name in the experiment file's "
-    '[columns] table, e.g. time_s = { from = "reltime", unit = "ms" }'
+    '[columns] table, e.g. time_s = { from = "reltime", unit = "ms" } (tcamlab init KIND --csv FILE '
+    "writes one; fit-spring also takes --column CANON=HEADER[:UNIT])"
 )
 
 
