@@ -15,13 +15,13 @@ SEED=1
 
 if tcamlab simulate --help >/dev/null 2>&1; then
     for kind in $KINDS; do
-        tcamlab simulate "$kind" --experiment "$kind" --seed "$SEED" --out .
+        tcamlab simulate "$kind" --experiment "$kind" --seed "$SEED" --out . --force
     done
 else
     # The CLI is not installed yet: call the library with the same arguments
     # (and the same recorded command line), which writes the same bytes.
     for kind in $KINDS; do
-        python -c "import sys; from tcamlab.pipeline import simulate_experiment; simulate_experiment(sys.argv[1], sys.argv[2], seed=int(sys.argv[3]), out_dir='.')" \
+        python -c "import sys; from tcamlab.pipeline import simulate_experiment; simulate_experiment(sys.argv[1], sys.argv[2], seed=int(sys.argv[3]), out_dir='.', force=True)" \
             "$kind" "$kind" "$SEED"
     done
 fi

@@ -15,30 +15,67 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.core import TyperGroup
 
 from tcamlab import __version__
 from tcamlab.kinds import KINDS
+
+_KIND_CHOICES = "[" + "|".join(KINDS) + "]"
 
 app = typer.Typer(
     name="tcamlab",
     help="Lab pipeline for twisted-and-coiled artificial muscles: ingest rig logs, run the "
     "thesis models, validate, identify the spring constant, diagnose the sim-to-real "
-    "gap, and write HTML/PDF reports.\n\nExample: tcamlab report",
+    "gap, and write HTML/PDF reports.\n\nYour own CSV logs: tcamlab init KIND --csv FILE writes a "
+    "starter experiment file whose [columns] table maps your headers and units.\n\nExample: tcamlab report",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # Plain help: rich markup would swallow "[columns]" and "[rig.uncertainty]" and show <bool>.
+    rich_markup_mode=None,
 )
+
+
+class _ValidateGroup(TyperGroup):
+    """``validate EXP.toml`` takes the kind from the file; ``validate KIND EXP.toml`` still works."""
+
+    def parse_args(self, ctx, args):
+        first = args[0] if args else ""
+        if first and first not in self.commands and (Path(first).suffix or Path(first).exists()):
+            args = [_kind_in_file(first), *args]  # a file, not a misspelt kind
+        return super().parse_args(ctx, args)
+
+
+def _kind_in_file(path: str) -> str:
+    """The ``kind`` of an experiment file, or the first kind when it cannot be read (loading
+    the file then reports what is wrong with it)."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:  # an experiment file is small: never read a big log whole
+            kind = tomllib.loads(fh.read(1 << 20).decode("utf-8-sig")).get("kind")
+    except (OSError, ValueError):
+        kind = None
+    return kind if kind in KINDS else KINDS[0]
+
+
 validate_app = typer.Typer(
-    help="Validate a model against an experiment's runs and write its report.\n\n"
-    "Example: tcamlab validate static experiments/static.toml --out reports",
+    cls=_ValidateGroup,
+    help="Validate a model against an experiment's runs and write its report; the kind is read "
+    "from the file (or named first).\n\n"
+    "Example: tcamlab validate experiments/static.toml --out reports",
     no_args_is_help=True,
+    rich_markup_mode=None,
 )
 benchmark_app = typer.Typer(
-    help="Benchmarks of the diagnosis.\n\nExample: tcamlab benchmark diagnose --quick", no_args_is_help=True
+    help="Benchmarks of the diagnosis.\n\nExample: tcamlab benchmark diagnose --quick",
+    no_args_is_help=True,
+    rich_markup_mode=None,
 )
 effects_app = typer.Typer(
     help="The unmodelled-effect library.\n\nExample: tcamlab effects list --kind sensing",
     no_args_is_help=True,
+    rich_markup_mode=None,
 )
 app.add_typer(validate_app, name="validate")
 app.add_typer(benchmark_app, name="benchmark")
@@ -294,6 +331,13 @@ def fit_spring(
     as_json: Json = False,
     drop_na: DropNa = False,
     max_bytes: MaxBytes = None,
+    column: list[str] | None = typer.Option(
+        None,
+        "--column",
+        metavar="CANON=HEADER[:UNIT[:SCALE]]",
+        help="Map a bare CSV's column, e.g. 'force_N=Load [mN]:mN:-1' (repeatable; also "
+        "header_row=N, units_row=N); a CSV needs only displacement_mm and force_N.",
+    ),
 ):
     """Identify the spring constant S of F = S delta + F0 (thesis section 3.3).
 
@@ -317,6 +361,7 @@ def fit_spring(
         drop_na=drop_na,
         max_bytes=max_bytes,
         force=force,
+        columns=column or None,
     )
     if as_json:
         _print_json(rep.to_dict())
@@ -353,33 +398,104 @@ def _spring_line(f) -> str:
     return text + f", R² ({f.r2_kind}) {f.r2:.5f}, n {f.n}, {f.method}"
 
 
+# -- init -------------------------------------------------------------------------------
+
+
+@app.command("init")
+def init(
+    kind: str = typer.Argument(..., help="Rig kind of the log.", metavar=_KIND_CHOICES),
+    csv: Path = typer.Option(
+        ..., "--csv", help="One of your CSV logs (read only, never changed).", metavar="FILE"
+    ),
+    out: Path | None = typer.Option(
+        None,
+        "--out",
+        help="Experiment file to write (default experiments/<CSV name>.toml); never overwritten.",
+    ),
+):
+    """Write a starter experiment file for your own CSV log.
+
+    Reads the log's header (a title row above it, a units row under it, or no header
+    at all), recognises common spellings and units ("Extension (µm)", "Load [mN]",
+    "Temp (F)", "R (Ohm)") and writes the [columns] mapping, every [sample] and [rig]
+    key of the kind with its definition, unit, how to measure it and a typical value.
+    What the log cannot tell is left as "FILL IN" placeholders, which validate refuses,
+    naming each key, until they are filled in.
+
+    Example: tcamlab init sensing --csv raw/pull1.csv --out experiments/pull.toml
+    """
+    from tcamlab.starter import write_starter
+
+    res = _run(write_starter, kind, csv, out)
+    for canon, entry in res.mapped.items():
+        if canon in ("header_row", "units_row"):
+            typer.echo(f"{canon} = {entry}")
+            continue
+        entry = entry if isinstance(entry, dict) else {"from": entry}
+        extra = "".join(f", {k} {entry[k]}" for k in ("scale", "offset") if k in entry)
+        typer.echo(f"{canon:<16s} <- {entry.get('from')!r} [{entry.get('unit', '')}{extra}]")
+    if res.unused:
+        typer.echo("not used: " + ", ".join(res.unused))
+    if res.placeholders:
+        typer.echo(f"{len(res.placeholders)} values to fill in: " + ", ".join(res.placeholders))
+    typer.echo(f"wrote {res.path}; fill it in, then: tcamlab validate {kind} {res.path}")
+
+
+@app.command("check")
+def check(
+    experiment: Experiment,
+    rows: int = typer.Option(3, "--rows", min=0, help="First rows of each run shown in SI."),
+):
+    """Dry run: what tcamlab makes of an experiment file, writing nothing.
+
+    Prints each run's column mapping with the file's and the SI units, its first rows
+    in SI, every sample and rig value with where it comes from, warnings, and every
+    problem at once (the file's and each run's); exits 2 if there is a problem.
+
+    Example: tcamlab check experiments/pull.toml
+    """
+    from tcamlab.starter import check_experiment
+
+    report = _run(check_experiment, experiment, rows)
+    for line in report.lines():
+        typer.echo(line)
+    if report.problems:
+        raise typer.Exit(code=2)
+
+
 # -- simulate ---------------------------------------------------------------------------
 
 
 @app.command("simulate")
 def simulate(
-    kind: str = typer.Argument(..., help="static, dynamic, sensing or curvature."),
+    kind: str = typer.Argument(..., help="Rig kind to simulate.", metavar=_KIND_CHOICES),
     experiment: str = typer.Option(
         ...,
         "--experiment",
+        metavar="TEMPLATE.toml|KIND",
         help="Template experiment file (sample and rig), or a kind naming the shipped template.",
     ),
     seed: int = typer.Option(..., "--seed", help="Seed of the random generator."),
     out: Out = ...,
     effect: list[str] | None = typer.Option(
-        None, "--effect", help="NAME=STRENGTH, strength in multiples of the noise RMS (repeatable)."
+        None,
+        "--effect",
+        metavar="NAME=STRENGTH",
+        help="NAME=STRENGTH, strength in multiples of the noise RMS (repeatable).",
     ),
     runs: int | None = typer.Option(None, "--runs", help="Number of runs (default 3)."),
     name: str | None = typer.Option(None, "--name", help="Experiment name (default: the kind)."),
     scatter: list[str] | None = typer.Option(
         None,
         "--scatter",
+        metavar="FIELD=REL",
         help="FIELD=REL: relative sd of a Sample/Rig field between runs, e.g. twists=0.002 (repeatable; default: the rig's small realistic scatter).",
     ),
     noise_scale: float = typer.Option(1.0, "--noise-scale", help="Multiply every instrument noise sd."),
     oven: str = typer.Option(
         "heating",
         "--oven",
+        metavar="[heating|heat-cool]",
         help="Static oven program: heating (thesis, 25->150 degC) or heat-cool (and back down).",
     ),
     parameter_error: float = typer.Option(
@@ -391,12 +507,16 @@ def simulate(
     noisy_zero: bool = typer.Option(
         False, "--noisy-zero", help="Zero each run on one noisy reading instead of the averaged tare."
     ),
+    force: bool = typer.Option(
+        False, "--force", help="Replace files that exist (default: refuse and write nothing)."
+    ),
 ):
     """Virtual rig: write synthetic run CSVs and an experiment file from the models.
 
     Realistic measurement chains (noise, ADC quantisation, the thesis's protocols).
     Writes OUT/experiments/, OUT/raw/ and OUT/truth/; effects are hidden from the
-    experiment file, the truth goes to truth/NAME.truth.json.
+    experiment file, the truth goes to truth/NAME.truth.json. Refuses to replace
+    existing files (nothing is written) unless --force.
 
     Example: tcamlab simulate static --experiment static --seed 1 --out .
     """
@@ -416,6 +536,7 @@ def simulate(
         oven=oven,
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
+        force=force,
     )
     typer.echo(f"wrote {res.experiment_path} and {len(res.run_paths)} runs")
 
@@ -577,7 +698,7 @@ def benchmark_diagnose(
 
 @effects_app.command("list")
 def effects_list(
-    kind: str | None = typer.Option(None, "--kind", help="Only this rig kind."),
+    kind: str | None = typer.Option(None, "--kind", help="Only this rig kind.", metavar=_KIND_CHOICES),
     as_json: Json = False,
 ):
     """List the unmodelled effects with their parameters and physical causes.

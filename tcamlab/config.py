@@ -135,7 +135,7 @@ class _ColumnTable(BaseModel):
     """One inline table of ``[columns]``."""
 
     model_config = ConfigDict(extra="forbid", strict=True, populate_by_name=True)
-    from_: str = Field(alias="from")
+    from_: str | int = Field(alias="from")
     unit: str | None = None
     scale: float | None = None
     offset: float | None = None
@@ -154,11 +154,30 @@ class _CalibrationTable(BaseModel):
     sd_above: list[float] | None = None
 
 
+class _JoinTable(BaseModel):
+    """A second instrument's file joined to a run on time (its own clock, ``offset_s`` added)."""
+
+    model_config = _STRICT
+    file: str
+    columns: dict[str, Any] = Field(default_factory=dict)
+    offset_s: float = 0.0
+
+
+class _RunTable(BaseModel):
+    """A run given as a table: its file, its own ``[columns]`` overrides (a per-run scale) and
+    a second instrument's file to join on time."""
+
+    model_config = _STRICT
+    file: str
+    columns: dict[str, Any] = Field(default_factory=dict)
+    join: _JoinTable | None = None
+
+
 class _ExperimentFile(BaseModel):
     model_config = _STRICT
     kind: Literal[KINDS]  # type: ignore[valid-type]
     title: str
-    runs: list[str] = Field(min_length=1)
+    runs: list[str | _RunTable] = Field(min_length=1)
     notes: str | None = None
     synthetic: _Synthetic | None = None
     sample: _SampleTable | None = None  # type: ignore[valid-type]
@@ -171,7 +190,7 @@ class _ExperimentFile(BaseModel):
 class _TemplateFile(_ExperimentFile):
     """An experiment file used as a simulation template: ``runs`` may be empty or absent."""
 
-    runs: list[str] = Field(default_factory=list)
+    runs: list[str | _RunTable] = Field(default_factory=list)
 
 
 def _model_keys(model: type[BaseModel]) -> list[str]:
@@ -186,6 +205,8 @@ _ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
     ("rig",): _model_keys(_RigTable),
     ("rig", "uncertainty"): _model_keys(_RigUncertainty),
     ("calibration",): _model_keys(_CalibrationTable),
+    ("runs",): _model_keys(_RunTable),
+    ("runs", "join"): _model_keys(_JoinTable),
 }
 
 _EXPECTED = {
@@ -284,6 +305,13 @@ class Experiment:
         ``[sample.uncertainty]``: standard deviations of sample fields [SI], by SI field name.
     calibration : CalibratedJoint or None
         ``[calibration]``: the joint posterior of a calibrated file (``tcamlab calibrate``).
+    run_columns : tuple of dict
+        Each run's ``[columns]``: the table merged with the run's own overrides
+        (``runs = [{ file = "...", columns = { displacement_mm = { scale = 0.35 } } }]``);
+        empty when no run has any.
+    run_joins : tuple of dict or None
+        Each run's second instrument file (``{"file", "columns", "offset_s", "shown"}`` for
+        :func:`tcamlab.io.read_run`'s ``join``) or None; empty when no run has one.
     """
 
     path: Path
@@ -301,6 +329,8 @@ class Experiment:
     raw: dict = field(default_factory=dict)
     sample_uncertainty: dict[str, float] = field(default_factory=dict)
     calibration: CalibratedJoint | None = None
+    run_columns: tuple[dict, ...] = ()
+    run_joins: tuple[dict | None, ...] = ()
 
     @property
     def preset(self) -> str | None:
@@ -323,11 +353,13 @@ class Experiment:
         -------
         list of tcamlab.io.RunData
         """
+        columns = self.run_columns or (self.columns,) * len(self.runs)
+        joins = self.run_joins or (None,) * len(self.runs)
         return [
             tio.read_run(
-                p, self.kind, self.columns, drop_na=drop_na, max_bytes=max_bytes, shown=_display_path(p)
+                p, self.kind, c, drop_na=drop_na, max_bytes=max_bytes, shown=_display_path(p), join=j
             )
-            for p in self.runs
+            for p, c, j in zip(self.runs, columns, joins)
         ]
 
 
@@ -350,11 +382,34 @@ def _short(value: Any) -> str:
 
 
 def _translate(err: ValidationError, shown: str, prefix: tuple = ()) -> ConfigError:
-    """One-line :class:`ConfigError` from the first pydantic error."""
+    """One-line :class:`ConfigError` naming every problem pydantic found, so all are fixed at once."""
     # An unknown key usually explains a "missing" one (a typo): report it first.
-    errors = sorted(err.errors(include_url=False), key=lambda e: e["type"] != "extra_forbidden")
-    more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
-    return _describe(errors[0], shown, prefix, more)
+    errors = sorted(_one_branch(err.errors(include_url=False)), key=lambda e: e["type"] != "extra_forbidden")
+    described = [_describe(e, shown, prefix) for e in errors]
+    if len(described) == 1:
+        return described[0]
+    head = f"{shown}: "
+    parts = [d.message[len(head) :] if d.message.startswith(head) else d.message for d in described]
+    hints = [d.hint for d in described if d.hint]
+    return ConfigError(
+        f"{shown}: {len(parts)} problems: " + "; ".join(f"({i + 1}) {m}" for i, m in enumerate(parts)),
+        " | ".join(dict.fromkeys(hints)) or None,
+    )
+
+
+def _one_branch(errors: list) -> list:
+    """A run is a file name or a table: keep the errors of the form the user wrote (a table's
+    for a table, the string's otherwise), without pydantic's branch names in the location."""
+    out = []
+    for e in errors:
+        loc = tuple(e["loc"])
+        if loc[:1] == ("runs",) and len(loc) > 2 and loc[2] in ("str", "_RunTable"):
+            wrote_table = isinstance(e.get("input"), Mapping) if len(loc) == 3 else True
+            if (loc[2] == "str") == wrote_table:
+                continue
+            e = {**e, "loc": loc[:2] + loc[3:]}
+        out.append(e)
+    return out or errors
 
 
 def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = "") -> ConfigError:
@@ -385,9 +440,12 @@ def _describe(e: Mapping[str, Any], shown: str, prefix: tuple = (), more: str = 
         return ConfigError(f"{shown}: {key}: needs at least one entry{more}", _hint_for(loc))
     if kind in _EXPECTED:
         numeric = kind.startswith(("float", "int"))
+        hint = (
+            "numbers are written without quotes in TOML" if numeric and isinstance(e["input"], str) else None
+        )
         return ConfigError(
             f"{shown}: {key}: expected {_EXPECTED[kind]}, got {_short(e['input'])}{more}",
-            "numbers are written without quotes in TOML" if numeric and isinstance(e["input"], str) else None,
+            hint or (_hint_for(loc) if loc[:1] == ("runs",) else None),
         )
     return ConfigError(f"{shown}: {key}: {e['msg']}{more}")
 
@@ -404,7 +462,8 @@ def _hint_for(loc: tuple) -> str | None:
     hints = {
         "kind": f'kind = "{KINDS[0]}" (or {", ".join(KINDS[1:])})',
         "title": 'title = "what this experiment is"',
-        "runs": 'runs = ["../raw/run1.csv"] (paths relative to the experiment file)',
+        "runs": 'runs = ["../raw/run1.csv"] (paths relative to the experiment file), or a run as a '
+        'table: { file = "../raw/run2.csv", columns = { displacement_mm = { scale = -0.3 } } }',
     }
     return hints.get(loc[0]) if loc else None
 
@@ -464,6 +523,7 @@ def load_experiment(
     """
     p, shown = Path(path), str(path)
     raw = _read_toml(p, shown)
+    _refuse_placeholders(raw, shown)
     try:
         doc = (_ExperimentFile if require_runs else _TemplateFile).model_validate(raw)
     except ValidationError as exc:
@@ -474,8 +534,11 @@ def load_experiment(
             f"{shown}: this is a {kind!r} experiment, not {expected_kind!r}",
             f"run it with the '{kind}' subcommand",
         )
-    runs = _resolve_runs(doc.runs, p, shown, require_runs)
-    columns, thresholds = _columns(doc, kind, shown), _thresholds(doc, shown)
+    entries = _expand_globs(doc.runs, p, shown) if require_runs else list(doc.runs)
+    runs = _resolve_runs([r if isinstance(r, str) else r.file for r in entries], p, shown, require_runs)
+    columns, thresholds = _columns(doc.columns, kind, shown), _thresholds(doc, shown)
+    run_columns = _run_columns(entries, columns, kind, shown)
+    run_joins = _run_joins(entries, p, kind, shown, require_runs)
     sample, sample_prov = _build_sample(doc, shown)
     sample_unc = _sample_uncertainty(doc, shown)
     rig, rig_prov = _build_rig(doc, shown)
@@ -495,7 +558,24 @@ def load_experiment(
         raw=raw,
         sample_uncertainty=sample_unc,
         calibration=_calibration(doc.calibration, sample, rig, shown),
+        run_columns=run_columns,
+        run_joins=run_joins,
     )
+
+
+def _refuse_placeholders(raw: dict, shown: str) -> None:
+    """Refuse a starter file (``tcamlab init``) whose placeholders are not all filled in, naming every one."""
+    from tcamlab.starter import PLACEHOLDER, placeholders
+
+    # only where init writes them: a title such as "Fill in the oven log" is not one
+    left = placeholders({k: raw[k] for k in ("runs", "columns", "sample", "rig") if k in raw})
+    if left:
+        raise ConfigError(
+            f"{shown}: {len(left)} value{'s' if len(left) > 1 else ''} still to fill in "
+            f'(left as "{PLACEHOLDER} ..." by tcamlab init): ' + ", ".join(left),
+            "replace each with the measured number (or the header / column number); "
+            "the comment above each key says what it is and how to measure it",
+        )
 
 
 def _read_bytes(p: Path, shown: str) -> bytes:
@@ -529,6 +609,12 @@ def _read_bytes(p: Path, shown: str) -> bytes:
 def _read_toml(p: Path, shown: str) -> dict:
     """The parsed TOML document, with a one-line error for anything that is not UTF-8 TOML."""
     data = _read_bytes(p, shown)
+    if p.suffix.lower() in (".csv", ".tsv", ".dat", ".txt"):
+        raise ConfigError(
+            f"{shown}: is a CSV log, not an experiment file",
+            "an experiment file (TOML) lists the CSV runs with the sample and rig; write one "
+            "from this log with: tcamlab init KIND --csv " + shown,
+        )
     # Editors on Windows often save UTF-8 with a byte-order mark, which
     # tomllib refuses as an "invalid statement" at line 1: accept it.
     if data.startswith(b"\xef\xbb\xbf"):
@@ -549,6 +635,27 @@ def _read_toml(p: Path, shown: str) -> dict:
             f"{shown}: TOML nested too deeply",
             "arrays and tables nest only a few levels in an experiment file",
         ) from None
+
+
+def _expand_globs(entries: list, p: Path, shown: str) -> list:
+    """Run names with ``*``, ``?`` or ``[`` expanded (relative to the experiment file, sorted)."""
+    base = p.resolve().parent
+    out: list = []
+    for i, run in enumerate(entries):
+        if not isinstance(run, str) or not any(ch in run for ch in "*?[") or Path(run).is_absolute():
+            out.append(run)
+            continue
+        try:
+            found = sorted(q for q in base.glob(run) if q.is_file())
+        except (ValueError, OSError) as exc:
+            raise ConfigError(f"{shown}: runs[{i}]: {_short(run)} is not a usable pattern ({exc})") from None
+        if not found:
+            raise ConfigError(
+                f"{shown}: runs[{i}]: the pattern {_short(run)} matches no file (looked in {_display_path(base)})",
+                'patterns are relative to the experiment file, e.g. runs = ["../raw/pull_*.csv"]',
+            )
+        out += [os.path.relpath(q, base) for q in found]
+    return out
 
 
 def _resolve_runs(run_list, p: Path, shown: str, require_runs: bool) -> list[Path]:
@@ -582,18 +689,75 @@ def _resolve_runs(run_list, p: Path, shown: str, require_runs: bool) -> list[Pat
     return runs
 
 
-def _columns(doc: _ExperimentFile, kind: str, shown: str) -> dict[str, Any]:
-    """The [columns] table, each entry checked against the kind's canonical columns."""
-    columns: dict[str, Any] = {}
-    for canon, spec in doc.columns.items():
-        if isinstance(spec, Mapping):
-            try:
-                _ColumnTable.model_validate(spec)
-            except ValidationError as exc:
-                raise _translate(exc, shown, prefix=("columns", canon)) from None
-        tio.column_spec(kind, canon, spec, where=f"{shown}: columns", error=ConfigError)
+def _columns(table: Mapping[str, Any], kind: str, shown: str, where: str = "columns") -> dict[str, Any]:
+    """A [columns] table: its layout keys (``header_row``, ``units_row``) and each entry checked
+    against the kind's canonical columns."""
+    fmt, entries = tio.file_format(table, where=f"{shown}: {where}", error=ConfigError)
+    columns: dict[str, Any] = {k: table[k] for k in tio.FORMAT_KEYS if k in table}
+    problems: list[ConfigError] = []
+    for canon, spec in entries.items():
+        try:
+            if isinstance(spec, Mapping):
+                try:
+                    _ColumnTable.model_validate(spec)
+                except ValidationError as exc:
+                    raise _translate(exc, shown, prefix=tuple(where.split(".")) + (canon,)) from None
+            tio.column_spec(kind, canon, spec, where=f"{shown}: {where}", error=ConfigError)
+        except ConfigError as exc:
+            problems.append(exc)
         columns[canon] = dict(spec) if isinstance(spec, Mapping) else spec
+    if len(problems) == 1:
+        raise problems[0]
+    if problems:  # every bad entry at once, not one per run of the command
+        head = f"{shown}: "
+        parts = [e.message[len(head) :] if e.message.startswith(head) else e.message for e in problems]
+        raise ConfigError(
+            f"{shown}: {len(parts)} problems in [{where}]: "
+            + "; ".join(f"({i + 1}) {m}" for i, m in enumerate(parts)),
+            " | ".join(dict.fromkeys(e.hint for e in problems if e.hint)) or None,
+        )
     return columns
+
+
+def _run_columns(entries: list, columns: dict[str, Any], kind: str, shown: str) -> tuple[dict, ...]:
+    """Each run's [columns]: the table with the run's own overrides merged in, key by key."""
+    if all(isinstance(r, str) or not r.columns for r in entries):
+        return ()
+    out = []
+    for i, run in enumerate(entries):
+        merged = dict(columns)
+        for canon, spec in ({} if isinstance(run, str) else run.columns).items():
+            base = merged.get(canon)
+            if isinstance(spec, Mapping) and canon not in tio.FORMAT_KEYS:
+                base = {"from": base} if isinstance(base, str) else dict(base or {})
+                merged[canon] = base | dict(spec)
+            else:
+                merged[canon] = spec
+        out.append(_columns(merged, kind, shown, where=f"runs[{i}].columns"))
+    return tuple(out)
+
+
+def _run_joins(entries: list, p: Path, kind: str, shown: str, require_runs: bool) -> tuple:
+    """Each run's join table resolved: the second file (relative to the experiment file), its
+    checked [columns] (``time_s`` required) and ``offset_s``; () when no run has one."""
+    if all(isinstance(r, str) or r.join is None for r in entries):
+        return ()
+    out: list[dict | None] = []
+    for i, run in enumerate(entries):
+        if isinstance(run, str) or run.join is None:
+            out.append(None)
+            continue
+        where = f"runs[{i}].join"
+        (jp,) = _resolve_runs([run.join.file], p, f"{shown}: {where}", require_runs)
+        cols = _columns(run.join.columns, kind, shown, where=f"{where}.columns")
+        if not [c for c in cols if c not in tio.FORMAT_KEYS and c != "time_s"]:
+            raise ConfigError(
+                f"{shown}: {where}.columns: names no column to take from {run.join.file}",
+                'e.g. columns = { time_s = "t", temperature_C = "T (C)" }',
+            )
+        offset = _finite(shown, f"{where}.offset_s", run.join.offset_s)
+        out.append({"file": jp, "columns": cols, "offset_s": offset, "shown": _display_path(jp)})
+    return tuple(out)
 
 
 def _thresholds(doc: _ExperimentFile, shown: str) -> dict[str, float]:

@@ -51,7 +51,7 @@ import pandas as pd
 
 from tcamlab import kinds as _kinds
 from tcamlab.errors import InputError
-from tcamlab.text import did_you_mean
+from tcamlab.text import close_matches, did_you_mean
 from tcamlab.units import QUANTITIES
 
 __all__ = [
@@ -63,15 +63,23 @@ __all__ = [
     "REQUIRED",
     "SI_UNITS",
     "UNITS",
+    "UNIT_ALIASES",
+    "CLOCK_UNITS",
+    "FORMAT_KEYS",
+    "FileFormat",
+    "file_format",
     "VARIABLE_MAP",
     "ColumnSpec",
     "RunData",
     "canonical_to_internal",
     "column_spec",
+    "column_option",
     "convert",
     "internal_to_canonical",
     "read_run",
     "sha256_file",
+    "unit_key",
+    "unit_suggestion",
 ]
 
 # --- units ------------------------------------------------------------------
@@ -93,6 +101,7 @@ UNITS: dict[str, tuple[str, float, float]] = {
     "cm": ("length", 1e-2, 0.0),
     "mm": ("length", 1e-3, 0.0),
     "um": ("length", 1e-6, 0.0),
+    "nm": ("length", 1e-9, 0.0),
     "in": ("length", 0.0254, 0.0),
     # force -> N
     "N": ("force", 1.0, 0.0),
@@ -112,12 +121,117 @@ UNITS: dict[str, tuple[str, float, float]] = {
     # current -> A
     "A": ("current", 1.0, 0.0),
     "mA": ("current", 1e-3, 0.0),
+    "uA": ("current", 1e-6, 0.0),
     # curvature -> 1/m
     "per_m": ("curvature", 1.0, 0.0),
     "per_cm": ("curvature", 1e2, 0.0),
     "per_mm": ("curvature", 1e3, 0.0),
 }
 """Unit name -> (dimension, factor, offset); ``SI = value * factor + offset``."""
+
+
+def _aliases() -> dict[str, str]:
+    table = {
+        "s": "s sec secs second seconds",
+        "ms": "ms msec millisecond milliseconds",
+        "us": "us µs μs usec microsecond microseconds",
+        "min": "min mins minute minutes",
+        "h": "h hr hrs hour hours",
+        "degC": "degC °C ºC ℃ C deg_C deg.C celsius Celsius",
+        "degF": "degF °F ºF ℉ F deg_F deg.F fahrenheit Fahrenheit",
+        "K": "K kelvin Kelvin",
+        "m": "m metre meter metres meters",
+        "cm": "cm",
+        "mm": "mm millimetre millimeter millimetres millimeters",
+        "um": "um µm μm micron microns micrometre micrometer micrometres micrometers",
+        "nm": "nm nanometre nanometer nanometres nanometers",
+        "in": "in inch inches",
+        "N": "N newton newtons Newton",
+        "mN": "mN",
+        "kN": "kN",
+        "gf": "gf",
+        "kgf": "kgf",
+        "lbf": "lbf",
+        "ohm": "ohm ohms Ohm Ohms OHM Ω Ω",
+        "mohm": "mohm mOhm mΩ mΩ",
+        "kohm": "kohm kOhm kΩ kΩ KOhm",
+        "Mohm": "Mohm MOhm MΩ MΩ",
+        "V": "V volt volts Volt",
+        "mV": "mV",
+        "A": "A amp amps ampere amperes",
+        "mA": "mA",
+        "uA": "uA µA μA",
+        "per_m": "per_m 1/m m^-1 m-1",
+        "per_cm": "per_cm 1/cm cm^-1 cm-1",
+        "per_mm": "per_mm 1/mm mm^-1 mm-1",
+    }
+    out = {}
+    for unit, words in table.items():
+        for word in words.split():
+            out[word] = unit
+    return out
+
+
+UNIT_ALIASES: dict[str, str] = _aliases()
+"""Spelling of a unit in a header or ``[columns]`` -> its key in :data:`UNITS`
+(``"µm"`` and ``"um"`` -> ``"um"``, ``"Ω"`` and ``"Ohm"`` -> ``"ohm"``, ``"°C"`` -> ``"degC"``,
+``"F"`` -> ``"degF"``). Case matters where a prefix does (``"mohm"`` milli, ``"Mohm"`` mega)."""
+
+
+def unit_key(text: str) -> str | None:
+    """The :data:`UNITS` key of a unit as written (an alias of :data:`UNIT_ALIASES`), or None.
+
+    Spaces and a leading ``"deg "`` / ``"°"`` spelled apart are tolerated
+    (``"deg C"``, ``"° C"``); a different letter case is accepted only where
+    it cannot change the prefix (``"OHMS"`` but never ``"MM"`` for ``"mm"``).
+    """
+    if not isinstance(text, str):
+        return None
+    word = text.strip()
+    if word in UNIT_ALIASES:
+        return UNIT_ALIASES[word]
+    squeezed = "".join(word.split())
+    if squeezed.lower().startswith("deg") and len(squeezed) == 4:
+        squeezed = "deg" + squeezed[3:].upper()
+    if squeezed in UNIT_ALIASES:
+        return UNIT_ALIASES[squeezed]
+    lowered = {}
+    for alias, key in UNIT_ALIASES.items():
+        if len(alias) > 2:
+            lowered.setdefault(alias.lower(), set()).add(key)
+    keys = lowered.get(squeezed.lower(), set())
+    return next(iter(keys)) if len(keys) == 1 else None
+
+
+def unit_suggestion(text: str, dimension: str | None = None) -> str:
+    """``"; did you mean 'x'?"`` among real units (of ``dimension`` when given), or ``""``.
+
+    A unit that differs from ``text`` only by a prefix or by letter case is
+    never proposed: ``"xm"`` is not answered ``"m"`` (a factor of 10^3..10^6).
+    """
+    choices = [a for a, k in UNIT_ALIASES.items() if dimension is None or UNITS[k][0] == dimension]
+    word = str(text).strip()
+    ok = [
+        c
+        for c in close_matches(word, choices, n=3)
+        if not (c.endswith(word) or word.endswith(c) or c.lower() == word.lower())
+    ]
+    return "; did you mean " + repr(ok[0]) + "?" if ok else ""
+
+
+CLOCK_UNITS: tuple[str, ...] = ("datetime", "clock")
+"""``unit`` values of a ``time_s`` column holding wall-clock time stamps
+(``2019-06-11 14:03:52.123456`` or ``14:03:52.1``), read as seconds from the first row."""
+
+FORMAT_KEYS: dict[str, str] = {
+    "header_row": "line of the header, 1 = first line; lines above it are skipped (a title); "
+    "0 = the file has no header, columns are named by number (from = 1)",
+    "units_row": "line holding the units under the header (skipped; gives the unit of a column "
+    "whose [columns] entry states none)",
+    "skip_rows": "lines at the top to skip before the header or, with header_row = 0, before the data "
+    "(a title above a file without a header)",
+}
+"""Keys of ``[columns]`` that describe the file's layout, not a column -> what they mean."""
 
 SI_UNITS: dict[str, str] = {
     "time": "s",
@@ -164,7 +278,8 @@ _NONNEGATIVE = ("resistance", "r1", "r2")
 _MAX_PREAMBLE_LINES = 10_000
 _COLUMNS_HINT = (
     "map the file's header to the canonical name in the experiment file's "
-    '[columns] table, e.g. time_s = { from = "reltime", unit = "ms" }'
+    '[columns] table, e.g. time_s = { from = "reltime", unit = "ms" } (tcamlab init KIND --csv FILE '
+    "writes one; fit-spring also takes --column CANON=HEADER[:UNIT])"
 )
 
 
@@ -191,6 +306,7 @@ def convert(values: Any, from_unit: str, to_unit: str) -> Any:
     ValueError
         If a unit is unknown or the dimensions differ.
     """
+    from_unit, to_unit = unit_key(from_unit) or from_unit, unit_key(to_unit) or to_unit
     for u in (from_unit, to_unit):
         if u not in UNITS:
             raise ValueError(f"unknown unit {u!r}")
@@ -266,8 +382,8 @@ class ColumnSpec:
     ----------
     canonical : str
         Canonical column name (a key of :data:`VARIABLE_MAP`).
-    header : str
-        Header of the column in the file.
+    header : str or int
+        Header of the column in the file, or its number (1 = first column).
     unit : str
         Unit of ``raw * scale + offset`` (a key of :data:`UNITS`).
     scale : float
@@ -276,14 +392,26 @@ class ColumnSpec:
         Added after scaling, in ``unit``.
     explicit : bool
         True when the experiment file named this column in ``[columns]``.
+    clock : bool
+        True for wall-clock time stamps (``unit = "datetime"``), read as
+        seconds from the first row.
+    unit_given : bool
+        True when ``[columns]`` states the unit (else a units row may give it).
     """
 
     canonical: str
-    header: str
+    header: str | int
     unit: str
     scale: float = 1.0
     offset: float = 0.0
     explicit: bool = False
+    clock: bool = False
+    unit_given: bool = False
+
+    @property
+    def label(self) -> str:
+        """The column as error messages name it: its header, or ``column N``."""
+        return f"column {self.header}" if isinstance(self.header, int) else repr(self.header)
 
     def to_si(self, raw: np.ndarray) -> np.ndarray:
         """``to_SI(raw * scale + offset, unit)`` as float64 [SI]."""
@@ -357,12 +485,27 @@ def column_spec(
                 "allowed keys: from, unit, scale, offset",
             )
     header = spec.get("from", canonical)
-    if not isinstance(header, str) or not header.strip():
-        raise error(f"{where}.{canonical}.from: expected a header name, got {header!r}")
-    unit = spec.get("unit", canon_unit)
-    if not isinstance(unit, str) or unit not in UNITS:
+    if isinstance(header, int) and not isinstance(header, bool):
+        if header < 1:
+            raise error(f"{where}.{canonical}.from: column numbers start at 1, got {header!r}")
+    elif not isinstance(header, str) or not header.strip():
         raise error(
-            f"{where}.{canonical}.unit: unknown unit {unit!r}{did_you_mean(str(unit), list(UNITS))}",
+            f"{where}.{canonical}.from: expected a header name or a column number, got {header!r}",
+            'e.g. from = "Load [mN]" or from = 3 (the third column)',
+        )
+    else:
+        header = header.strip()
+    written = spec.get("unit", canon_unit)
+    if written in CLOCK_UNITS:
+        if canonical != "time_s":
+            raise error(f"{where}.{canonical}.unit: {written!r} (wall-clock time stamps) is for time_s only")
+        numbers = _numbers(spec, where, canonical, error)
+        return ColumnSpec(canonical, header, "s", *numbers, explicit=True, clock=True, unit_given=True)
+    unit = unit_key(written) if isinstance(written, str) else None
+    if unit is None:
+        raise error(
+            f"{where}.{canonical}.unit: unknown unit {written!r}"
+            + unit_suggestion(str(written), _dimension(canon_unit)),
             f"{_dimension(canon_unit)} units: "
             + ", ".join(u for u, v in UNITS.items() if v[0] == _dimension(canon_unit)),
         )
@@ -373,6 +516,12 @@ def column_spec(
             f"{_dimension(canon_unit)} units: "
             + ", ".join(u for u, v in UNITS.items() if v[0] == _dimension(canon_unit)),
         )
+    scale, offset = _numbers(spec, where, canonical, error)
+    return ColumnSpec(canonical, header, unit, scale, offset, explicit=True, unit_given="unit" in spec)
+
+
+def _numbers(spec: Mapping, where: str, canonical: str, error: type[Exception]) -> tuple[float, float]:
+    """``(scale, offset)`` of a ``[columns]`` entry, checked finite, scale not zero."""
     numbers = {}
     for key, default in (("scale", 1.0), ("offset", 0.0)):
         value = spec.get(key, default)
@@ -381,7 +530,7 @@ def column_spec(
         numbers[key] = float(value)
     if numbers["scale"] == 0.0:
         raise error(f"{where}.{canonical}.scale: must not be zero")
-    return ColumnSpec(canonical, header.strip(), unit, numbers["scale"], numbers["offset"], explicit=True)
+    return numbers["scale"], numbers["offset"]
 
 
 # --- reading ----------------------------------------------------------------
@@ -416,6 +565,13 @@ class RunData:
         already starts at zero or has no displacement column.
     units : dict of str to str
         Internal column name -> its SI unit (``"s"``, ``"m"``, ``"degC"`` ...).
+    source_units : dict of str to str
+        Internal column name -> how the file's numbers were read (``"um"``,
+        ``"mN, scale -1"``, ``"datetime"``).
+    join : dict or None
+        For a run joined with a second instrument's file: the file, ``offset_s`` [s],
+        the overlap [s], rows of the run outside it (dropped), the joined rows and
+        columns, and the resampling.
     """
 
     path: Path
@@ -428,6 +584,8 @@ class RunData:
     header_line: int = 1
     displacement_zero: float = 0.0
     units: dict[str, str] = field(default_factory=dict)
+    source_units: dict[str, str] = field(default_factory=dict)
+    join: dict | None = None
 
 
 def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:
@@ -452,62 +610,173 @@ def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:
     return h.hexdigest()
 
 
+@dataclass(frozen=True)
+class FileFormat:
+    """The layout of a log as ``[columns]`` declares it (:data:`FORMAT_KEYS`).
+
+    Attributes
+    ----------
+    header_row : int or None
+        1-based line of the header; 0 for a file without one; None to find it
+        (the first line that is not blank or a ``#`` comment).
+    units_row : int
+        1-based line of a units row under the header, 0 when there is none.
+    skip_rows : int
+        Lines at the top never read as the header or data (a title).
+    """
+
+    header_row: int | None = None
+    units_row: int = 0
+    skip_rows: int = 0
+
+
+def file_format(
+    columns: Mapping[str, Any] | None, *, where: str = "[columns]", error: type[Exception] = InputError
+) -> tuple[FileFormat, dict[str, Any]]:
+    """Split ``[columns]`` into the file's layout and the column entries.
+
+    Parameters
+    ----------
+    columns : mapping or None
+        The ``[columns]`` table: :data:`FORMAT_KEYS` and canonical column entries.
+    where : str
+        Prefix for error messages.
+    error : exception class
+        :class:`InputError` or :class:`tcamlab.errors.ConfigError`.
+
+    Returns
+    -------
+    (FileFormat, dict)
+        The layout and the column entries (every other key).
+    """
+    columns = dict(columns or {})
+    rows = {}
+    for key in FORMAT_KEYS:
+        if key not in columns:
+            continue
+        value = columns.pop(key)
+        low = 1 if key == "units_row" else 0
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise error(
+                f"{where}.{key}: expected a line number >= {low}, got {value!r}", f"{key}: {FORMAT_KEYS[key]}"
+            )
+        rows[key] = value
+    fmt = FileFormat(rows.get("header_row"), rows.get("units_row", 0), rows.get("skip_rows", 0))
+    if fmt.skip_rows and fmt.header_row and fmt.skip_rows >= fmt.header_row:
+        raise error(
+            f"{where}.skip_rows = {fmt.skip_rows} skips the header (header_row = {fmt.header_row})",
+            "with header_row, the lines above it are skipped anyway: leave skip_rows out",
+        )
+    if fmt.units_row and fmt.header_row == 0:
+        raise error(f"{where}.units_row: a file without a header (header_row = 0) has no units row")
+    if fmt.units_row and fmt.header_row is not None and fmt.units_row <= fmt.header_row:
+        raise error(
+            f"{where}.units_row = {fmt.units_row} must come after header_row = {fmt.header_row}",
+            "the units row is the line under the header",
+        )
+    return fmt, columns
+
+
 @dataclass
 class _Layout:
     """What the file's preamble and header look like."""
 
-    header_line: int  # 1-based
+    header_line: int  # 1-based; 0 when the file has no header
     headers: list[str]
     sep: str
     decimal: str
     encoding: str
+    data_start: int = 0  # lines before the first data line
+    units: list[str] = field(default_factory=list)
 
 
-def _sniff(path: Path, shown: str) -> _Layout:
-    """Find the header line, encoding, delimiter and decimal mark."""
+def _check_text(first: bytes, shown: str) -> None:
+    if first.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(
+            f"{shown}: file is UTF-16 encoded",
+            "save it as CSV in UTF-8 (or Latin-1); in Excel: 'CSV UTF-8 (comma delimited)'",
+        )
+    nul = first.find(b"\x00")
+    if nul >= 0:
+        raise InputError(
+            f"{shown}: not a text CSV file (NUL byte at byte {nul + 1})",
+            "a run is a text CSV file; check that the right file is named",
+        )
+
+
+def _scan(path: Path, shown: str, fmt: FileFormat) -> tuple[list[bytes], int | None, list[bytes]]:
+    """The lines up to the header (or first data line), its index, and up to 50 data lines after it."""
     with open(path, "rb") as fh:
-        first = fh.read(8192)
-        if first.startswith((b"\xff\xfe", b"\xfe\xff")):
-            raise InputError(
-                f"{shown}: file is UTF-16 encoded",
-                "save it as CSV in UTF-8 (or Latin-1); in Excel: 'CSV UTF-8 (comma delimited)'",
-            )
-        nul = first.find(b"\x00")
-        if nul >= 0:
-            raise InputError(
-                f"{shown}: not a text CSV file (NUL byte at byte {nul + 1})",
-                "a run is a text CSV file; check that the right file is named",
-            )
+        _check_text(fh.read(8192), shown)
         fh.seek(0)
         raw_lines: list[bytes] = []
-        header_idx = None
+        found = None
         for i, line in enumerate(fh):
             if i == 0 and line.startswith(b"\xef\xbb\xbf"):
                 line = line[3:]
             raw_lines.append(line)
             stripped = line.strip()
-            if stripped and not stripped.startswith(b"#"):
-                header_idx = i
+            if i < fmt.skip_rows:
+                continue
+            if fmt.header_row:
+                if i + 1 == fmt.header_row:
+                    found = i
+                    break
+            elif stripped and not stripped.startswith(b"#"):
+                found = i
                 break
-            if i >= _MAX_PREAMBLE_LINES:
+            if i >= max(_MAX_PREAMBLE_LINES, fmt.header_row or 0, fmt.skip_rows):
                 break
         data_sample: list[bytes] = []
-        if header_idx is not None:
+        if found is not None:
+            skip = max(fmt.units_row - found - 1, 0) if fmt.units_row else 0
             for line in fh:
+                if skip:
+                    skip -= 1
+                    continue
                 if line.strip():
                     data_sample.append(line)
                 if len(data_sample) >= 50:
                     break
-    if header_idx is None:
-        if all(not line.strip() for line in raw_lines):
-            raise InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
-        raise InputError(
-            f"{shown}: no header line found (only '#' comments and blank lines"
-            + (
-                f" in the first {_MAX_PREAMBLE_LINES} lines)" if len(raw_lines) > _MAX_PREAMBLE_LINES else ")"
-            ),
-            "a run needs a header line and data rows after any '#' comment lines",
+    return raw_lines, found, data_sample
+
+
+def _no_header_found(shown: str, raw_lines: list[bytes], fmt: FileFormat) -> InputError:
+    if fmt.header_row:
+        return InputError(
+            f"{shown}: header_row = {fmt.header_row} but the file has only {len(raw_lines)} lines",
+            "header_row in [columns] is the 1-based line of the header",
         )
+    if all(not line.strip() for line in raw_lines):
+        return InputError(f"{shown}: file is empty", "a run needs a header line and data rows")
+    return InputError(
+        f"{shown}: no header line found (only '#' comments and blank lines"
+        + (f" in the first {_MAX_PREAMBLE_LINES} lines)" if len(raw_lines) > _MAX_PREAMBLE_LINES else ")"),
+        "a run needs a header line and data rows after any '#' comment lines",
+    )
+
+
+def _split_line(text: str, sep: str, shown: str, line: int) -> list[str]:
+    try:
+        cells = next(csv.reader([text], delimiter=sep, quotechar='"', skipinitialspace=True))
+    except (csv.Error, StopIteration) as exc:
+        raise InputError(f"{shown}: line {line}: cannot parse the line ({exc})") from None
+    return [h.strip() for h in cells]
+
+
+def _is_number(cell: str, decimal: str) -> bool:
+    try:
+        float(cell.replace(",", ".") if decimal == "," else cell)
+        return True
+    except ValueError:
+        return False
+
+
+def _sniff(path: Path, shown: str, fmt: FileFormat = FileFormat()) -> _Layout:
+    """Find the header line (or the first data line), encoding, delimiter and decimal mark."""
+    raw_lines, found, data_sample = _scan(path, shown, fmt)
+    if found is None:
+        raise _no_header_found(shown, raw_lines, fmt)
     head = b"".join(raw_lines)
     if b"\x00" in head:
         raise InputError(f"{shown}: not a text CSV file (binary content before the header)")
@@ -516,8 +785,8 @@ def _sniff(path: Path, shown: str) -> _Layout:
         encoding = "utf-8-sig"
     except UnicodeDecodeError:
         encoding = "latin-1"
-    header_text = raw_lines[header_idx].decode("utf-8" if encoding == "utf-8-sig" else "latin-1")
-    header_text = header_text.rstrip("\r\n")
+    text_of = lambda b: b.decode("utf-8" if encoding == "utf-8-sig" else "latin-1", "replace")  # noqa: E731
+    header_text = text_of(raw_lines[found]).rstrip("\r\n")
     if ";" in header_text and "," not in header_text:
         sep = ";"
         sample = b"".join(data_sample)
@@ -526,12 +795,26 @@ def _sniff(path: Path, shown: str) -> _Layout:
         sep, decimal = "\t", "."
     else:
         sep, decimal = ",", "."
-    try:
-        headers = next(csv.reader([header_text], delimiter=sep, quotechar='"', skipinitialspace=True))
-    except (csv.Error, StopIteration) as exc:
-        raise InputError(f"{shown}: line {header_idx + 1}: cannot parse the header ({exc})") from None
-    headers = [h.strip() for h in headers]
-    return _Layout(header_idx + 1, headers, sep, decimal, encoding)
+    cells = _split_line(header_text, sep, shown, found + 1)
+    if fmt.header_row == 0:
+        headers = [str(i + 1) for i in range(len(cells))]
+        return _Layout(0, headers, sep, decimal, encoding, data_start=found)
+    if fmt.header_row is None and cells and all(_is_number(c, decimal) for c in cells if c):
+        raise InputError(
+            f"{shown}: line {found + 1} holds only numbers, so it looks like data, not a header; "
+            "it is not read as one (that would lose the first data row)",
+            "if the file has no header, write header_row = 0 in [columns] and name the columns "
+            "by number, e.g. time_s = { from = 1 }; tcamlab init KIND --csv FILE writes this for you",
+        )
+    units: list[str] = []
+    if fmt.units_row:
+        with open(path, "rb") as fh:
+            line = b""
+            for _ in range(fmt.units_row):
+                line = fh.readline()
+        units = _split_line(text_of(line).rstrip("\r\n"), sep, shown, fmt.units_row)
+    data_start = max(found + 1, fmt.units_row)
+    return _Layout(found + 1, cells, sep, decimal, encoding, data_start=data_start, units=units)
 
 
 def _count_trailing_blank_lines(path: Path, size: int) -> int:
@@ -564,7 +847,7 @@ def _read_frame(path: Path, shown: str, layout: _Layout, usecols: list[int], dty
                 decimal=layout.decimal,
                 header=None,
                 names=list(range(len(layout.headers))),
-                skiprows=layout.header_line,
+                skiprows=layout.data_start,
                 usecols=usecols,
                 dtype=dtype,
                 engine="c",
@@ -614,7 +897,7 @@ def _locate_bad_cell(path: Path, shown: str, layout: _Layout, usecols: list[int]
         pos, col, value = first_bad
         value = value if len(value) <= 40 else value[:37] + "..."
         raise InputError(
-            f"{shown}: line {layout.header_line + 1 + pos}, column {layout.headers[col]!r}: "
+            f"{shown}: line {layout.data_start + 1 + pos}, column {_column_label(layout, col)}: "
             f"non-numeric value {value!r}",
             "data rows must hold numbers only; '#' comments may appear only before the header",
         )
@@ -629,6 +912,8 @@ def read_run(
     drop_na: bool = False,
     max_bytes: int = DEFAULT_MAX_BYTES,
     shown: str | None = None,
+    join: Mapping[str, Any] | None = None,
+    only: tuple[str, ...] | None = None,
 ) -> RunData:
     """Read one rig CSV log into validated SI data.
 
@@ -654,6 +939,15 @@ def read_run(
         checked before anything is read.
     shown : str, optional
         How error messages name the file (default: ``str(path)``).
+    join : mapping, optional
+        A second instrument's file logged on its own clock: ``{"file": path,
+        "columns": {time_s: ..., temperature_C: ...}, "offset_s": s, "shown": name}``.
+        Its columns (all but ``time_s``) are linearly interpolated onto this
+        file's time at (its time + ``offset_s``); rows outside its span are
+        dropped and reported in :attr:`RunData.join`.
+    only : tuple of str, optional
+        Read just these canonical columns, all required (fit-spring reads a bare
+        pull test's ``displacement_mm`` and ``force_N``; F = S delta needs no more).
 
     Returns
     -------
@@ -674,7 +968,7 @@ def read_run(
     if "\x00" in str(path):
         raise InputError(f"{shown!r}: not a file name (it holds a NUL character)")
     try:
-        return _read_run(Path(path), shown, kind, columns, drop_na, max_bytes)
+        return _read_run(Path(path), shown, kind, columns, drop_na, max_bytes, join, only)
     except OSError as exc:  # unreadable, a FIFO that vanished, name too long ...
         raise InputError(
             f"{shown}: cannot read the file ({exc.strerror or exc})",
@@ -711,49 +1005,158 @@ def _check_file(p: Path, shown: str, kind: str, max_bytes: int) -> int:
     return size
 
 
-def _select_columns(shown: str, kind: str, layout: _Layout, specs: dict) -> dict[str, tuple[ColumnSpec, int]]:
-    """Internal name -> (column spec, position in the file) of every column the kind reads."""
+def _column_label(layout: _Layout, col: int) -> str:
+    """A column as messages name it: its header, or ``column N`` in a file without one."""
+    return repr(layout.headers[col]) if layout.header_line else f"column {col + 1}"
+
+
+def _missing_column(shown: str, kind: str, layout: _Layout, spec: ColumnSpec, canon: str) -> InputError:
+    """The error for a column the file lacks, proposing the ``[columns]`` line that maps a near header."""
+    headers = layout.headers
+    required = canon in REQUIRED[kind]
+    what = "required" if required else "mapped"
+    if isinstance(spec.header, int):
+        return InputError(
+            f"{shown}: {canon} is mapped to column {spec.header} but the file has {len(headers)} columns",
+            "column numbers start at 1 at the left",
+        )
+    if not layout.header_line:
+        return InputError(
+            f"{shown}: the file has no header (header_row = 0), so {canon} needs a column number",
+            f"e.g. {canon} = {{ from = 1 }} in [columns]",
+        )
+    near = close_matches(spec.header, headers)
+    if near:
+        entry = {"from": near[0]}
+        if spec.unit_given or spec.unit != VARIABLE_MAP[canon][1]:
+            entry["unit"] = spec.unit
+        if spec.scale != 1.0:
+            entry["scale"] = spec.scale
+        if spec.offset != 0.0:
+            entry["offset"] = spec.offset
+        hint = f"the file has {near[0]!r}; map it in the experiment file's [columns] as {_toml_entry(canon, entry)}"
+    else:
+        hint = _COLUMNS_HINT
+    return InputError(
+        f"{shown}: line {layout.header_line}: {what} column {spec.header!r}"
+        + (f" (for {canon})" if spec.header != canon else "")
+        + f" not found in the header of a {kind} run (headers: "
+        + ", ".join(repr(h) for h in headers[:12])
+        + (", ..." if len(headers) > 12 else "")
+        + ")",
+        hint,
+    )
+
+
+def _toml_entry(canon: str, entry: Mapping[str, Any]) -> str:
+    """``canon = { from = "...", unit = "..." }`` as valid TOML."""
+    parts = []
+    for k, v in entry.items():
+        text = (
+            '"' + str(v).replace("\\", "\\\\").replace('"', '\\"') + '"' if isinstance(v, str) else f"{v:g}"
+        )
+        parts.append(f"{k} = {text}")
+    return f"{canon} = {{ " + ", ".join(parts) + " }"
+
+
+def _unit_from_row(shown: str, layout: _Layout, spec: ColumnSpec, idx: int) -> ColumnSpec:
+    """The spec with the units row's unit when ``[columns]`` states none."""
+    if spec.unit_given or not layout.units or idx >= len(layout.units):
+        return spec
+    written = layout.units[idx].strip().strip("()[]{} ")
+    if not written:
+        return spec
+    unit = unit_key(written)
+    dim = _dimension(VARIABLE_MAP[spec.canonical][1])
+    if unit is None or _dimension(unit) != dim:
+        what = f"which is not a {dim} unit tcamlab knows" if unit is None else f"a {_dimension(unit)} unit"
+        raise InputError(
+            f"{shown}: line {layout.header_line + 1}, column {_column_label(layout, idx)}: the units row "
+            f"says {written!r}, {what}, but {spec.canonical} holds a {dim}" + unit_suggestion(written, dim),
+            f'state the unit in [columns], e.g. {spec.canonical} = {{ from = ..., unit = "{VARIABLE_MAP[spec.canonical][1]}" }}',
+        )
+    return ColumnSpec(
+        spec.canonical, spec.header, unit, spec.scale, spec.offset, spec.explicit, spec.clock, True
+    )
+
+
+def _select_columns(
+    shown: str, kind: str, layout: _Layout, specs: dict, wanted=None, required=None
+) -> dict[str, tuple[ColumnSpec, int]]:
+    """Internal name -> (column spec, position in the file) of every column the kind reads
+    (``wanted``, default all of the kind's; ``required``, default the kind's required ones)."""
     headers = layout.headers
     positions: dict[str, list[int]] = {}
     for i, h in enumerate(headers):
         positions.setdefault(h, []).append(i)
     selected: dict[str, tuple[ColumnSpec, int]] = {}
-    for canon in REQUIRED[kind] + OPTIONAL[kind]:
+    wanted = REQUIRED[kind] + OPTIONAL[kind] if wanted is None else wanted
+    required = REQUIRED[kind] if required is None else required
+    for canon in wanted:
         spec = specs.get(canon) or column_spec(kind, canon)
-        where = positions.get(spec.header)
+        if isinstance(spec.header, int):
+            where = [spec.header - 1] if spec.header <= len(headers) else None
+        else:
+            where = positions.get(spec.header) if layout.header_line else None
         if where is None:
-            required = canon in REQUIRED[kind]
-            if not required and not spec.explicit:
+            if canon not in required and not spec.explicit:
                 continue
-            what = "required" if required else "mapped"
-            raise InputError(
-                f"{shown}: line {layout.header_line}: {what} column {spec.header!r}"
-                + (f" (for {canon})" if spec.header != canon else "")
-                + f" not found in the header of a {kind} run"
-                + did_you_mean(spec.header, headers)
-                + " (headers: "
-                + ", ".join(repr(h) for h in headers[:12])
-                + (", ..." if len(headers) > 12 else "")
-                + ")",
-                _COLUMNS_HINT,
-            )
+            raise _missing_column(shown, kind, layout, spec, canon)
         if len(where) > 1:
             raise InputError(
                 f"{shown}: line {layout.header_line}: header {spec.header!r} appears in "
                 f"columns {', '.join(str(i + 1) for i in where)}",
-                "rename the duplicates so each header is unique",
+                f"name the column by its number in [columns], e.g. {canon} = {{ from = {where[0] + 1} }}",
             )
-        selected[VARIABLE_MAP[canon][0]] = (spec, where[0])
+        selected[VARIABLE_MAP[canon][0]] = (_unit_from_row(shown, layout, spec, where[0]), where[0])
     return selected
+
+
+def _clock_seconds(text: pd.Series, shown: str, layout: _Layout, col: int) -> np.ndarray:
+    """Wall-clock time stamps as seconds from the first one; blank cells give NaN."""
+    s = text.astype("string").str.strip()
+    blank = s.isna() | (s == "")
+    best = None
+    for parse in (
+        lambda x: pd.to_datetime(x, format="ISO8601", errors="coerce"),
+        lambda x: pd.to_timedelta(x, errors="coerce"),
+    ):
+        try:
+            t = parse(s.where(~blank).astype(object))
+        except (ValueError, TypeError):
+            continue
+        bad = t.isna().to_numpy() & ~blank.to_numpy()
+        if best is None or bad.sum() < best[1].sum():
+            best = (t, bad)
+    if best is None or best[1].any():
+        pos = 0 if best is None else int(np.flatnonzero(best[1])[0])
+        raise InputError(
+            f"{shown}: line {layout.data_start + 1 + pos}, column {_column_label(layout, col)}: "
+            f"{str(text.iloc[pos])!r} is not a time stamp",
+            'unit = "datetime" reads time stamps like 2019-06-11 14:03:52.123456 or 14:03:52.1',
+        )
+    t = best[0]
+    valid = np.flatnonzero(~blank.to_numpy())
+    if valid.size == 0:
+        return np.full(len(t), np.nan)
+    delta = t - t.iloc[int(valid[0])]
+    return (delta.dt.total_seconds() if hasattr(delta, "dt") else delta).to_numpy(
+        dtype=np.float64, na_value=np.nan
+    )
 
 
 def _read_values(p: Path, shown: str, layout: _Layout, selected: dict, size: int) -> pd.DataFrame:
     """The selected columns' raw numbers, trailing blank lines dropped; refuses a header without data."""
-    usecols = sorted({idx for _, idx in selected.values()})
+    clocks = sorted({idx for spec, idx in selected.values() if spec.clock})
+    usecols = sorted({idx for _, idx in selected.values()} - set(clocks))
     try:
         raw = _read_frame(p, shown, layout, usecols, dtype=np.float64)
     except ValueError:  # a cell that is not a number: find and name it
         raw = _locate_bad_cell(p, shown, layout, usecols)
+    if clocks:
+        text = _read_frame(p, shown, layout, clocks, dtype=str)
+        for idx in clocks:
+            raw[idx] = _clock_seconds(text[idx], shown, layout, idx)
     n_trailing = _count_trailing_blank_lines(p, size)
     if n_trailing:
         n_keep = len(raw) - n_trailing
@@ -762,7 +1165,7 @@ def _read_values(p: Path, shown: str, layout: _Layout, selected: dict, size: int
             raw = raw.iloc[:n_keep]
     if len(raw) == 0:
         raise InputError(
-            f"{shown}: line {layout.header_line}: header only, no data rows",
+            f"{shown}: line {layout.data_start}: header only, no data rows",
             "a run needs data rows after the header",
         )
     return raw
@@ -779,11 +1182,11 @@ class _Where:
 
     def line(self, j: int) -> int:
         """Editor line of the j-th kept data row."""
-        return self.layout.header_line + 1 + int(self.kept_pos[j])
+        return self.layout.data_start + 1 + int(self.kept_pos[j])
 
     def column(self, name: str) -> str:
         spec = self.selected[name][0]
-        return repr(spec.header) + (f" ({spec.canonical})" if spec.header != spec.canonical else "")
+        return spec.label + (f" ({spec.canonical})" if spec.header != spec.canonical else "")
 
     def cell(self, j: int, name: str) -> str:
         return f"{self.shown}: line {self.line(j)}, column {self.column(name)}"
@@ -855,22 +1258,112 @@ def _check_values(data: dict, kind: str, where: _Where, n_dropped: int) -> None:
             "absolute zero (-273.15 degC)",
             "check the temperature unit (degC, degF or K) in [columns]",
         )
+    _check_kelvin(data, where)
 
 
-def _read_run(
-    p: Path, shown: str, kind: str, columns: Mapping[str, Any] | None, drop_na: bool, max_bytes: int
-) -> RunData:
-    """:func:`read_run` without the translation of OSError."""
+def _check_kelvin(data: dict, where: _Where) -> None:
+    """Refuse a temperature column read as degC whose every row is above 200 degC: nylon
+    melts near 260 degC, so such a log is almost surely in kelvin (293 K is 20 degC)."""
+    if "temperature" not in data or not data["temperature"].size:
+        return
+    spec = where.selected["temperature"][0]
+    t = data["temperature"]
+    if spec.unit == "degC" and float(np.min(t)) > 200.0:
+        entry = {"from": spec.header, "unit": "K"} | ({"scale": spec.scale} if spec.scale != 1.0 else {})
+        raise InputError(
+            f"{where.shown}: column {where.column('temperature')}: every temperature is above 200 degC "
+            f"({float(np.min(t)):.5g} to {float(np.max(t)):.5g}); a twisted-and-coiled nylon fiber melts "
+            "near 260 degC, so is this column in kelvin?",
+            f"if it is, map it in [columns] as {_toml_entry('temperature_C', entry)}",
+        )
+
+
+def _read_columns(
+    p: Path, shown: str, kind: str, columns, drop_na: bool, max_bytes: int, wanted=None, required=None
+):
+    """One file's selected columns in SI: (data, where, layout, selected, raw row count, rows dropped)."""
     size = _check_file(p, shown, kind, max_bytes)
-    specs = {
-        c: column_spec(kind, c, spec, where=f"{shown}: [columns]") for c, spec in (columns or {}).items()
-    }
-    layout = _sniff(p, shown)
-    selected = _select_columns(shown, kind, layout, specs)
+    fmt, entries = file_format(columns, where=f"{shown}: [columns]")
+    specs = {c: column_spec(kind, c, spec, where=f"{shown}: [columns]") for c, spec in entries.items()}
+    layout = _sniff(p, shown, fmt)
+    selected = _select_columns(shown, kind, layout, specs, wanted, required)
     raw = _read_values(p, shown, layout, selected, size)
     data = {name: spec.to_si(raw[idx].to_numpy(dtype=np.float64)) for name, (spec, idx) in selected.items()}
     where = _Where(shown, layout, selected, np.arange(len(raw)))
     data, n_dropped = _drop_blank(data, where, drop_na)
+    return data, where, layout, selected, len(raw), n_dropped
+
+
+def _join(data: dict, where: _Where, kind: str, join: Mapping[str, Any], drop_na: bool, max_bytes: int):
+    """Interpolate a second instrument's columns onto the run's time; (data, join record, its columns).
+
+    The second file's time plus ``offset_s`` is the run's time; rows of the run outside
+    the second file's span are dropped (counted in the record), never extrapolated.
+    """
+    jp = Path(join["file"])
+    jshown = str(join.get("shown", jp))
+    _, entries = file_format(join.get("columns"), where=f"{jshown}: join columns")
+    joined = tuple(c for c in entries if c != "time_s")
+    if "time" not in data:
+        raise InputError(
+            f"{where.shown}: a run joined with {jshown} needs its own time_s column to join on",
+            "map the run's time in [columns]; the two files are joined on time",
+        )
+    offset = float(join.get("offset_s", 0.0))
+    jdata, jwhere, _, jsel, _, _ = _read_columns(
+        jp, jshown, kind, join.get("columns"), drop_na, max_bytes, ("time_s", *joined), ("time_s", *joined)
+    )
+    _check_values(jdata, kind, jwhere, 0)
+    t, tj = data["time"], jdata["time"] + offset
+    inside = (t >= tj[0]) & (t <= tj[-1])
+    if not inside.any():
+        raise InputError(
+            f"{where.shown}: its time ({t[0]:.6g} to {t[-1]:.6g} s) and {jshown}'s time plus offset_s = "
+            f"{offset:g} ({tj[0]:.6g} to {tj[-1]:.6g} s) do not overlap",
+            "check offset_s in the run's join table: it is added to the joined file's time",
+        )
+    data = {k: v[inside] for k, v in data.items()}
+    where.kept_pos = where.kept_pos[inside]
+    names = [VARIABLE_MAP[c][0] for c in joined]
+    for name in names:
+        data[name] = np.interp(data["time"], tj, jdata[name])
+        where.selected[name] = jsel[name]
+    record = {
+        "file": jshown,
+        "sha256": sha256_file(jp),
+        "offset_s": offset,
+        "overlap_s": [float(data["time"][0]), float(data["time"][-1])],
+        "rows_outside_overlap": int((~inside).sum()),
+        "joined_rows": int(tj.size),
+        "columns": [VARIABLE_MAP[c][0] for c in joined],
+        "resampling": "linear interpolation onto the run's time",
+    }
+    return data, record, {n: jsel[n] for n in names}
+
+
+def _read_run(
+    p: Path,
+    shown: str,
+    kind: str,
+    columns: Mapping[str, Any] | None,
+    drop_na: bool,
+    max_bytes: int,
+    join=None,
+    only=None,
+) -> RunData:
+    """:func:`read_run` without the translation of OSError."""
+    wanted = only
+    if join:
+        _, jentries = file_format(
+            join.get("columns"), where=f"{join.get('shown', join['file'])}: join columns"
+        )
+        wanted = tuple(c for c in REQUIRED[kind] + OPTIONAL[kind] if c not in jentries or c == "time_s")
+    data, where, layout, selected, n_raw, n_dropped = _read_columns(
+        p, shown, kind, columns, drop_na, max_bytes, wanted, only
+    )
+    record, jsel = None, {}
+    if join:
+        data, record, jsel = _join(data, where, kind, join, drop_na, max_bytes)
     _check_values(data, kind, where, n_dropped)
     displacement_zero = 0.0
     if "displacement" in data:
@@ -886,13 +1379,64 @@ def _read_run(
         kind=kind,
         data=frame,
         sha256=sha256_file(p),
-        n_rows_raw=len(raw),
+        n_rows_raw=n_raw,
         n_dropped=n_dropped,
-        source_columns={name: spec.header for name, (spec, _) in selected.items()},
+        source_columns={
+            name: layout.headers[idx] if layout.header_line else f"column {idx + 1}"
+            for name, (_, idx) in selected.items()
+        }
+        | {name: f"{record['file']}: {spec.header}" for name, (spec, _) in jsel.items()},
         header_line=layout.header_line,
         displacement_zero=displacement_zero,
-        units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in selected.items()},
+        units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in (selected | jsel).items()},
+        source_units={name: _how_read(spec) for name, (spec, _) in (selected | jsel).items()},
+        join=record,
     )
+
+
+def column_option(text: str) -> tuple[str, Any]:
+    """A command-line column mapping ``CANON=HEADER``, ``CANON=HEADER:UNIT`` or
+    ``CANON=HEADER:UNIT:SCALE`` as a ``[columns]`` entry (``force_N=Load [mN]:mN`` -> ``("force_N", {"from": "Load [mN]", "unit": "mN"})``);
+    a layout key takes a line number (``header_row=2``).
+
+    Raises
+    ------
+    InputError
+        Without ``=``.
+    """
+    canon, sep, header = text.partition("=")
+    if not sep or not canon.strip() or not header.strip():
+        raise InputError(
+            f"--column {text!r}: expected CANON=HEADER or CANON=HEADER:UNIT",
+            'e.g. --column "force_N=Load [mN]:mN" --column "displacement_mm=Extension (µm):um"',
+        )
+    if canon.strip() in FORMAT_KEYS:
+        try:
+            return canon.strip(), int(header)
+        except ValueError:
+            raise InputError(f"--column {text!r}: {canon.strip()} takes a line number") from None
+    parts = header.rsplit(":", 2)
+    if (
+        len(parts) == 3
+        and parts[0].strip()
+        and unit_key(parts[1].strip())
+        and _is_number(parts[2].strip(), ".")
+    ):
+        return canon.strip(), {"from": parts[0].strip(), "unit": parts[1].strip(), "scale": float(parts[2])}
+    name, colon, unit = header.rpartition(":")
+    if colon and name.strip() and unit_key(unit.strip()):
+        return canon.strip(), {"from": name.strip(), "unit": unit.strip()}
+    return canon.strip(), {"from": header.strip()}
+
+
+def _how_read(spec: ColumnSpec) -> str:
+    """``"um"``, ``"mN, scale -1"``, ``"datetime"``: how a column's numbers were read."""
+    text = "datetime" if spec.clock else spec.unit
+    if spec.scale != 1.0:
+        text += f", scale {spec.scale:g}"
+    if spec.offset != 0.0:
+        text += f", offset {spec.offset:g}"
+    return text
 
 
 def _check_pull_force(shown: str, data: dict[str, np.ndarray], selected: dict) -> None:
@@ -912,10 +1456,15 @@ def _check_pull_force(shown: str, data: dict[str, np.ndarray], selected: dict) -
     if int(negative.sum()) * 2 > n_loaded:
         spec = selected["force"][0]
         median = float(np.median(force[loaded]))
+        entry: dict[str, Any] = {"from": spec.header}
+        if spec.unit != VARIABLE_MAP["force_N"][1] or spec.unit_given:
+            entry["unit"] = spec.unit
+        entry["scale"] = -spec.scale
+        if spec.offset:
+            entry["offset"] = -spec.offset
         raise InputError(
-            f"{shown}: column {spec.header!r} (force_N): {int(negative.sum())} of {n_loaded} rows "
+            f"{shown}: column {spec.label} (force_N): {int(negative.sum())} of {n_loaded} rows "
             f"with displacement > 0 read a negative force (median {median:.4g} N); a pull test "
             "stretches the sensor, so the force should be positive",
-            f'if the load cell reads tension as negative, map it as force_N = {{ from = "{spec.header}", '
-            "scale = -1 }} in [columns]",
+            f"if the load cell reads tension as negative, map it in [columns] as {_toml_entry('force_N', entry)}",
         )

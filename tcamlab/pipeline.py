@@ -9,6 +9,7 @@ identical inputs (no timestamps, no absolute paths).
 from __future__ import annotations
 
 import io as _stdio
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,7 @@ __all__ = [
     "validate_experiment",
     "ValidateOutcome",
     "build_reports",
+    "report_names",
     "ReportOutcome",
     "fit_spring_files",
     "simulate_experiment",
@@ -101,9 +103,10 @@ def validate_experiment(
     drop_na: bool = False,
     max_bytes: int | None = None,
     command: str | None = None,
+    out_name: str | None = None,
 ) -> ValidateOutcome:
     """Validate one experiment and write ``out_dir/NAME/{report.html, report.pdf,
-    metrics.json, predictions.csv}``.
+    metrics.json, predictions.csv}`` (NAME: ``out_name``, default the file stem).
 
     Parameters
     ----------
@@ -135,7 +138,7 @@ def validate_experiment(
     exp = load_experiment(path, expected_kind=expected_kind)
     kw = {} if mc_draws is None else {"mc_draws": mc_draws}
     result = validation.validate(exp, drop_na=drop_na, max_bytes=max_bytes, **kw)
-    target = Path(out_dir) / exp.name
+    target = Path(out_dir) / (out_name or exp.name)
     files = _write_validation(result, target, formats, command)
     return ValidateOutcome(result, target, files)
 
@@ -216,18 +219,18 @@ def build_reports(
             )
     out = Path(out_dir)
     entries, docs = [], []
+    names = report_names(paths)
+    kw = {"mc_draws": mc_draws, "drop_na": drop_na, "max_bytes": max_bytes, "command": None}
     for i, p in enumerate(paths):
         p = Path(p)
         if progress:
             progress(p.name, i, len(paths))
         try:
-            outcome = validate_experiment(
-                p, out, mc_draws=mc_draws, drop_na=drop_na, max_bytes=max_bytes, command=None
-            )
+            outcome = validate_experiment(p, out, out_name=names[i], **kw)
         except TcamlabError as exc:
             entries.append(
                 IndexEntry(
-                    name=p.stem,
+                    name=names[i],
                     title=p.stem,
                     kind="?",
                     status="error",
@@ -240,12 +243,12 @@ def build_reports(
         res = outcome.result
         entries.append(
             IndexEntry(
-                name=res.experiment.name,
+                name=names[i],
                 title=res.experiment.title,
                 kind=res.kind,
                 status="pass" if res.passed else "fail",
                 metrics=_headline(res),
-                link=f"{quote(res.experiment.name)}/report.html",
+                link=f"{quote(names[i])}/report.html",
                 error=None,
             )
         )
@@ -266,6 +269,28 @@ PLOT_FORMATS = (".png", ".svg", ".pdf")
 """Extensions ``fit-spring --plot`` writes; the extension names the format."""
 
 
+def report_names(paths: Sequence) -> list[str]:
+    """The report folder of each experiment file: its stem, or where two files share a stem
+    (``lab1/case.toml``, ``lab2/case.toml``), its path below their common folder joined
+    with ``-`` (``lab1-case``, ``lab2-case``), so no report overwrites another."""
+    resolved = [Path(p).resolve() for p in paths]
+    stems = [p.stem for p in resolved]
+    names = []
+    for p, stem in zip(resolved, stems):
+        same = [q for q in resolved if q.stem.lower() == stem.lower()]
+        if len(set(same)) <= 1:
+            names.append(stem)
+            continue
+        common = Path(os.path.commonpath([q.parent for q in same]))
+        names.append("-".join(p.relative_to(common).with_suffix("").parts))
+    seen: dict[str, int] = {}
+    for i, n in enumerate(names):  # the same file given twice: one folder each
+        seen[n] = seen.get(n, 0) + 1
+        if seen[n] > 1:
+            names[i] = f"{n}-{seen[n]}"
+    return names
+
+
 def fit_spring_files(
     paths: Sequence,
     *,
@@ -276,6 +301,7 @@ def fit_spring_files(
     drop_na: bool = False,
     max_bytes: int | None = None,
     force: bool = False,
+    columns=None,
 ):
     """Identify S of F = S delta + F0 from pull-test CSVs or sensing experiment files.
 
@@ -283,7 +309,9 @@ def fit_spring_files(
     zero, is one nuisance per run unless ``intercept=False`` forces the fit
     through the origin). Writes the fit and residual plot to ``plot_path`` if
     given, in the format its extension names (:data:`PLOT_FORMATS`), never
-    over an existing file unless ``force``. ``drop_na`` and ``max_bytes`` are
+    over an existing file unless ``force``.
+    A bare CSV needs only ``displacement_mm`` and ``force_N``, mapped by ``columns``
+    (a ``[columns]`` table, or ``CANON=HEADER[:UNIT]`` strings, the CLI's ``--column``). ``drop_na`` and ``max_bytes`` are
     passed to :func:`tcamlab.io.read_run`.
 
     Raises
@@ -295,7 +323,7 @@ def fit_spring_files(
 
     if plot_path is not None:
         _check_plot_path(Path(plot_path), force)
-    runs = _pull_runs(paths, drop_na, max_bytes)
+    runs = _pull_runs(paths, drop_na, max_bytes, columns)
     report = fit_spring_runs(runs, intercept=intercept, robust=robust, by_branch=by_branch)
     if plot_path is not None:
         import matplotlib
@@ -319,20 +347,23 @@ def _check_plot_path(path: Path, force: bool) -> None:
         raise InputError(f"--plot {path}: file exists", hint="pass --force to overwrite it")
 
 
-def _pull_runs(paths: Sequence, drop_na: bool, max_bytes: int | None) -> list:
-    """(name, displacement [m], force [N]) of every pull test in CSVs or sensing experiment files."""
+def _pull_runs(paths: Sequence, drop_na: bool, max_bytes: int | None, columns=None) -> list:
+    """(name, displacement [m], force [N]) of every pull test in CSVs or sensing experiment files;
+    a bare CSV needs only displacement and force, mapped by ``columns`` (see fit_spring_files)."""
     from tcamlab import io as tio
 
     read_kw: dict = {"drop_na": drop_na}
     if max_bytes is not None:
         read_kw["max_bytes"] = max_bytes
+    if columns is not None and not isinstance(columns, dict):
+        columns = dict(tio.column_option(c) for c in columns)
     frames = []
     for p in paths:
         p = Path(p)
         if p.suffix.lower() == ".toml":
             frames.extend(load_experiment(p, expected_kind="sensing").read_runs(**read_kw))
         else:
-            frames.append(tio.read_run(p, "sensing", **read_kw))
+            frames.append(tio.read_run(p, "sensing", columns, only=("displacement_mm", "force_N"), **read_kw))
     runs = [
         (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float)) for r in frames
     ]
@@ -407,8 +438,11 @@ def simulate_experiment(
     oven: str = "heating",
     parameter_error: float = 0.0,
     noisy_zero: bool = False,
+    force: bool = False,
 ):
     """Virtual rig: write ``out_dir/{experiments,raw,truth}/`` for one simulated experiment.
+
+    Existing files are never replaced unless ``force`` (checked before anything is written).
 
     ``experiment`` is a template experiment file, or a bare kind ('static')
     naming the template shipped in :mod:`tcamlab.templates`. ``effects`` and
@@ -438,9 +472,11 @@ def simulate_experiment(
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
     )
+    template = resolve_template(experiment)
+    _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force)
     return rig.simulate(
         kind,
-        resolve_template(experiment),
+        template,
         seed=seed,
         out_dir=out_dir,
         effects=effects or {},
@@ -453,6 +489,18 @@ def simulate_experiment(
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
     )
+
+
+def _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force) -> None:
+    """The files simulate would write must not exist yet (unless ``force``)."""
+    from tcamlab.rig import DEFAULT_RUNS
+    from tcamlab.rig.writers import output_paths, refuse_overwrite
+
+    if force:
+        return
+    stem = Path(template).stem if name is None else str(name)
+    n = DEFAULT_RUNS[kind] if runs is None else max(int(runs), 1)
+    refuse_overwrite(output_paths(out_dir, stem, n), force=force)
 
 
 # -- diagnose ---------------------------------------------------------------------------

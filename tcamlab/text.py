@@ -14,6 +14,7 @@ from pathlib import Path
 
 __all__ = [
     "did_you_mean",
+    "close_matches",
     "shown_path",
     "command_line",
     "validate_command",
@@ -23,7 +24,7 @@ __all__ = [
 ]
 
 
-def _close_matches(word: str, choices: Iterable[str], n: int = 1) -> list[str]:
+def close_matches(word: str, choices: Iterable[str], n: int = 1) -> list[str]:
     """Choices close to word; a case-insensitive second try catches 'Force' for 'force'."""
     choices = list(choices)
     matches = difflib.get_close_matches(word, choices, n=n, cutoff=0.6)
@@ -37,7 +38,7 @@ def _close_matches(word: str, choices: Iterable[str], n: int = 1) -> list[str]:
 
 def did_you_mean(word: str, choices: Iterable[str], n: int = 1) -> str:
     """``"; did you mean 'x'?"`` for an error message, or ``""`` when nothing is close."""
-    matches = _close_matches(word, choices, n)
+    matches = close_matches(word, choices, n)
     return "; did you mean " + " or ".join(repr(m) for m in matches) + "?" if matches else ""
 
 

@@ -102,7 +102,13 @@ CSV_CASES = {
     "missing_column": (
         "static",
         "time_s,temperature_c,displacement_mm\n0,25,0\n1,26,-0.1\n2,27,-0.2\n",
-        ["bad.csv", "line 1", "required column 'temperature_C'", "did you mean 'temperature_c'", "[columns]"],
+        [
+            "bad.csv",
+            "line 1",
+            "required column 'temperature_C'",
+            'temperature_C = { from = "temperature_c" }',
+            "[columns]",
+        ],
     ),
     "non_numeric": (
         "static",
@@ -248,6 +254,40 @@ def test_pull_force_of_the_wrong_sign(lab):
     assert_no_report(out)
     result = runner.invoke(app, ["fit-spring", str(lab / "raw" / name)])
     assert_bad_input(result, "bad.csv", "negative force")
+
+
+def test_wrong_sign_hint_is_valid_toml_that_keeps_the_unit(lab):
+    """A load cell logging tension negative in mN: the hint is a TOML line that, pasted, reads it right."""
+    import tomllib
+
+    df = pd.read_csv(lab / "raw/sensing_run1.csv")
+    df = df.rename(columns={"force_N": "Load (mN)"})
+    df["Load (mN)"] = -1e3 * df["Load (mN)"]
+    name = write_run(lab, df.to_csv(index=False))
+    columns = '\n[columns]\nforce_N = { from = "Load (mN)", unit = "mN" }\n'
+    exp = experiment(lab, "sensing", runs=[name], append=columns)
+    result = validate("sensing", exp, lab / "out")
+    line = 'force_N = { from = "Load (mN)", unit = "mN", scale = -1 }'
+    assert_bad_input(result, "negative force", line)
+    assert tomllib.loads(line)["force_N"] == {"from": "Load (mN)", "unit": "mN", "scale": -1}
+    fixed = experiment(lab, "sensing", name="fixed", runs=[name], append="\n[columns]\n" + line + "\n")
+    from tcamlab.config import load_experiment
+
+    (run,) = load_experiment(fixed).read_runs()
+    ref = pd.read_csv(lab / "raw/sensing_run1.csv")["force_N"].to_numpy()
+    assert run.data["force"].to_numpy() == pytest.approx(ref, abs=1e-12)  # not 1000x too large
+
+
+def test_a_csv_given_as_the_experiment_file_says_so(lab):
+    for args in (["validate", "sensing"], ["diagnose"], ["calibrate"]):
+        result = runner.invoke(app, [*args, str(lab / "raw" / "sensing_run1.csv")])
+        assert_bad_input(result, "sensing_run1.csv", "is a CSV log, not an experiment file", "tcamlab init")
+
+
+def test_effects_list_unknown_kind_exits_2():
+    assert_bad_input(runner.invoke(app, ["effects", "list", "--kind", "bogus"]), "unknown kind 'bogus'")
+    result = runner.invoke(app, ["effects", "list", "--help"])
+    assert "static|dynamic|sensing|curvature" in result.output
 
 
 def test_small_negative_force_at_zero_load_is_data(lab):
@@ -439,3 +479,133 @@ def test_report_lists_a_bad_csv_and_builds_the_rest(lab, monkeypatch):
     index = (lab / "reports/index.html").read_text()
     assert "non-numeric value" in index and 'href="broken/report.html"' not in index
     assert not (lab / "reports/broken").exists()
+
+
+# --- nothing overwritten --------------------------------------------------------------------
+
+
+def test_simulate_refuses_to_overwrite_unless_force(tmp_path):
+    args = [
+        "simulate",
+        "static",
+        "--experiment",
+        "static",
+        "--seed",
+        "1",
+        "--out",
+        str(tmp_path),
+        "--runs",
+        "1",
+    ]
+    assert runner.invoke(app, args).exit_code == 0
+    run = tmp_path / "raw" / "static_run1.csv"
+    exp = tmp_path / "experiments" / "static.toml"
+    run.write_text("my own lab data\n")
+    before = exp.read_bytes()
+    result = runner.invoke(app, [*args[:5], "2", *args[6:]])  # another seed: other bytes
+    assert_bad_input(result, "would be overwritten", "static_run1.csv", "static.toml", "--force")
+    assert run.read_text() == "my own lab data\n" and exp.read_bytes() == before  # nothing written
+    result = runner.invoke(app, [*args[:5], "2", *args[6:], "--force"])
+    assert result.exit_code == 0, result.output
+    assert run.read_text() != "my own lab data\n" and exp.read_bytes() != before
+
+
+def test_two_experiments_with_one_stem_get_two_reports(lab, monkeypatch):
+    """lab1/case.toml and lab2/case.toml: two folders, two index rows, two links."""
+    monkeypatch.chdir(lab)
+    paths = []
+    for folder, runs in (
+        ("lab1", '["../../raw/static_run1.csv"]'),
+        ("lab2", '["../../raw/static_run2.csv"]'),
+    ):
+        text = (lab / "experiments" / "static.toml").read_text()
+        text = re.sub(r"runs = \[[^\]]*\]", f"runs = {runs}", text, flags=re.S)
+        text = text.replace('title = "', f'title = "{folder}: ', 1)
+        p = lab / "experiments" / folder / "case.toml"
+        p.parent.mkdir()
+        p.write_text(text)
+        paths.append(str(p))
+    result = runner.invoke(app, ["report", *paths, "--out", "out"])
+    assert result.exit_code == 0, result.output
+    index = (lab / "out" / "index.html").read_text()
+    assert 'href="lab1-case/report.html"' in index and 'href="lab2-case/report.html"' in index
+    one = json.loads((lab / "out" / "lab1-case" / "metrics.json").read_text())
+    two = json.loads((lab / "out" / "lab2-case" / "metrics.json").read_text())
+    assert one["title"].startswith("lab1") and two["title"].startswith("lab2")
+    assert one["inputs"][0]["sha256"] != two["inputs"][0]["sha256"]
+    assert not (lab / "out" / "case").exists()
+
+
+def test_every_bad_columns_entry_is_listed_at_once(lab):
+    columns = '\n[columns]\ntme_s = "t"\ndisplacement_mm = { from = "x", unit = "furlong" }\n'
+    exp = experiment(lab, "static", append=columns)
+    result = validate("static", exp, lab / "out")
+    assert_bad_input(result, "2 problems in [columns]", "'tme_s'", "did you mean 'time_s'", "'furlong'")
+    assert "more problem" not in result.output
+
+
+@pytest.mark.parametrize(
+    "runs, parts",
+    [
+        (
+            '[{ file = "../raw/static_run1.csv", join = { file = "../raw/static_run2.csv", ofset_s = 1 } }]',
+            [
+                "unknown key 'runs[0].join.ofset_s'",
+                "did you mean 'offset_s'",
+                "allowed keys: file, columns, offset_s",
+            ],
+        ),
+        ('["../raw/static_run1.csv", 3]', ["runs[1]: expected a string, got 3"]),
+        (
+            '[{ file = "../raw/static_run1.csv", join = { file = "../raw/static_run2.csv" } }]',
+            ["runs[0].join.columns: names no column to take from"],
+        ),
+        ('[{ file = "../raw/nope.csv" }]', ["runs[0]: run file", "not found"]),
+    ],
+)
+def test_run_tables_errors_name_the_key(lab, runs, parts):
+    text = (lab / "experiments" / "static.toml").read_text()
+    text = re.sub(r"runs = \[[^\]]*\]", lambda m: f"runs = {runs}", text, flags=re.S)
+    p = lab / "experiments" / "bad.toml"
+    p.write_text(text)
+    result = runner.invoke(app, ["validate", "static", str(p), "--out", str(lab / "out")])
+    assert_bad_input(result, *parts)
+    assert "_RunTable" not in result.output and ".str" not in result.output
+
+
+def test_validate_takes_the_kind_from_the_file(lab):
+    out = lab / "out"
+    result = runner.invoke(
+        app, ["validate", str(lab / "experiments" / "static.toml"), "--out", str(out), "--format", "html"]
+    )
+    assert result.exit_code == 0, result.output
+    assert (out / "static" / "report.html").exists()
+    # the subcommands stay, and a wrong one still says so
+    result = runner.invoke(app, ["validate", "sensing", str(lab / "experiments" / "static.toml")])
+    assert_bad_input(result, "this is a 'static' experiment, not 'sensing'")
+    assert "No such command" in runner.invoke(app, ["validate", "statc", "x.toml"]).output
+
+
+def test_fit_spring_on_a_bare_csv_needs_only_displacement_and_force(tmp_path):
+    """A pull test with no resistance column, in µm and mN: S = 0.47 mN / 100 µm = 4.7 N/m."""
+    rows = ["Time [s],Extension (µm),Load [mN]"] + [
+        f"{0.1 * i:.1f},{100.0 * i:.1f},{0.47 * i:.4f}" for i in range(30)
+    ]
+    p = tmp_path / "pull.csv"
+    p.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    args = [
+        "fit-spring",
+        str(p),
+        "--column",
+        "displacement_mm=Extension (µm):um",
+        "--column",
+        "force_N=Load [mN]:mN",
+    ]
+    result = runner.invoke(app, [*args, "--json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    assert doc["spring_constant_N_per_m"] == pytest.approx(4.7, rel=1e-9)
+    assert_bad_input(runner.invoke(app, ["fit-spring", str(p)]), "required column 'displacement_mm'")
+    assert_bad_input(
+        runner.invoke(app, ["fit-spring", str(p), "--column", "force_N"]), "expected CANON=HEADER"
+    )

@@ -411,10 +411,10 @@ def test_not_utf8(lab):
     raises_config([str(p), "UTF-8"], load_experiment, p)
 
 
-def test_only_first_problem_reported_on_one_line(lab):
+def test_every_problem_reported_at_once_on_one_line(lab):
     p = write_toml(lab, 'kind = "x"\ntitle = 1\nruns = 2\nbogus = 3\n')
-    err = raises_config([str(p), "more problems"], load_experiment, p)
-    assert "\n" not in err.one_line()
+    err = raises_config([str(p), "4 problems", "'bogus'", "kind", "title", "runs"], load_experiment, p)
+    assert "more problem" not in err.one_line() and "\n" not in err.one_line()
 
 
 # --- [calibration]: the joint posterior of a calibrated file -------------------------

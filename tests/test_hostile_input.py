@@ -484,3 +484,72 @@ def test_huge_experiment_file_is_refused(lab):
     text = result.output.strip()
     assert len(text.splitlines()) == 1 and "Traceback" not in text
     assert "huge.toml: experiment file is 52428800 bytes, larger than the limit" in text
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    rows=st.lists(
+        st.tuples(st.floats(-300, 300, allow_nan=False), st.floats(-50, 50, allow_nan=False)),
+        min_size=10,
+        max_size=40,
+    ),
+    sep=st.sampled_from([",", ";", "\t"]),
+    title=st.booleans(),
+)
+def test_fuzz_headerless_logs_never_lose_their_first_row(rows, sep, title):
+    """A log of numbers only is refused as it is, and read whole with header_row = 0: its first
+    row is data, never a header (a vibrometer log once lost its first of 150,800 rows that way)."""
+    text = ("Vibrometer log\n" if title else "") + "".join(
+        f"{20 + i}{sep}{a!r}{sep}{b!r}\n" for i, (a, b) in enumerate(rows)
+    )
+    cols = {"header_row": 0, "temperature_C": {"from": 1}, "displacement_mm": {"from": 3}}
+    if title:
+        cols["skip_rows"] = 1
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "run.csv"
+        p.write_text(text)
+        if not title:
+            with pytest.raises(TcamlabError, match="looks like data"):
+                tio.read_run(p, "static")
+        run = tio.read_run(p, "static", cols)
+    assert len(run.data) == len(rows)
+    assert run.data["temperature"].iloc[0] == 20.0
+    assert run.data["displacement"].iloc[-1] == pytest.approx((rows[-1][1] - rows[0][1]) * 1e-3, abs=1e-12)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    header=st.lists(
+        st.lists(
+            st.sampled_from(list('aT( )[]"\\#=\x01\x7f\x1fµΩ°%,;') + ["mm", "Load", "Ohm"]), max_size=6
+        ).map("".join)
+        | st.text(max_size=8),
+        min_size=1,
+        max_size=5,
+    ),
+    units=st.booleans(),
+    kind=st.sampled_from(tio.KINDS),
+    sep=st.sampled_from([",", ";", "\t"]),
+)
+def test_fuzz_init_writes_valid_toml_or_a_tcamlab_error(header, units, kind, sep):
+    """Whatever the header holds (quotes, backslashes, control characters, any script), the
+    starter file is valid TOML, or init says in one line why it cannot write one."""
+    import tomllib
+
+    from tcamlab.starter import write_starter
+
+    lines = [sep.join(h.replace(sep, " ") for h in header)]
+    if units:
+        lines.append(sep.join("mm" for _ in header))
+    lines += [sep.join(str(i + j) for j in range(len(header))) for i in range(5)]
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "log.csv"
+        p.write_text("\n".join(lines) + "\n", encoding="utf-8", errors="surrogatepass")
+        try:
+            res = write_starter(kind, p, Path(d) / "out" / "x.toml")
+        except TcamlabError as exc:
+            assert "\n" not in exc.one_line()
+            return
+        except UnicodeEncodeError:
+            return
+        tomllib.loads(res.path.read_text(encoding="utf-8"))

@@ -6,6 +6,7 @@ import hashlib
 import math
 import shutil
 import tempfile
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -335,10 +336,12 @@ def test_header_only(tmp_path):
 
 def test_missing_required_column_did_you_mean(tmp_path):
     p = write(tmp_path, dynamic_text(header="time_s,voltage_V,displacment_mm"))
-    err = raises_input(
-        [str(p), "line 1", "'displacement_mm'", "did you mean 'displacment_mm'"], read_run, p, "dynamic"
-    )
-    assert "[columns]" in err.hint
+    err = raises_input([str(p), "line 1", "'displacement_mm'"], read_run, p, "dynamic")
+    # The hint proposes the mapping (valid TOML), not the typo as the column's name.
+    assert "did you mean" not in str(err)
+    line = 'displacement_mm = { from = "displacment_mm" }'
+    assert line in err.hint and "[columns]" in err.hint
+    assert tomllib.loads(line) == {"displacement_mm": {"from": "displacment_mm"}}
 
 
 def test_missing_mapped_column(tmp_path):
@@ -360,7 +363,11 @@ def test_unknown_columns_key_and_bad_unit(tmp_path):
         {"temperature_C": {"from": "T", "unit": "ms"}},
     )
     raises_input(
-        ["unknown unit 'msec'"], read_run, p, "dynamic", {"time_s": {"from": "time_s", "unit": "msec"}}
+        ["unknown unit 'fortnight'"],
+        read_run,
+        p,
+        "dynamic",
+        {"time_s": {"from": "time_s", "unit": "fortnight"}},
     )
     raises_input(
         ["unknown key 'units'", "did you mean 'unit'"],
@@ -612,3 +619,304 @@ def test_random_csv_parses_or_raises_input_error(case):
             if "displacement" in df:
                 assert df["displacement"].iloc[0] == 0.0
             assert not math.isnan(float(df.iloc[0, 0]))
+
+
+# --- unit aliases -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "written, value, canonical, expected",
+    [
+        ("µm", 250.0, "displacement_mm", 250e-6),  # micro sign U+00B5
+        ("μm", 250.0, "displacement_mm", 250e-6),  # Greek mu U+03BC
+        ("um", 250.0, "displacement_mm", 250e-6),
+        ("micron", 250.0, "displacement_mm", 250e-6),
+        ("Ω", 31.5, "resistance_ohm", 31.5),
+        ("Ω", 31.5, "resistance_ohm", 31.5),  # ohm sign U+2126
+        ("Ohm", 31.5, "resistance_ohm", 31.5),
+        ("ohms", 31.5, "resistance_ohm", 31.5),
+        ("kΩ", 0.0315, "resistance_ohm", 31.5),
+        ("kOhm", 0.0315, "resistance_ohm", 31.5),
+        ("°C", 25.0, "temperature_C", 25.0),
+        ("deg C", 25.0, "temperature_C", 25.0),
+        ("K", 298.15, "temperature_C", 25.0),
+        ("degF", 77.0, "temperature_C", 25.0),
+        ("F", 77.0, "temperature_C", 25.0),
+        ("°F", 212.0, "temperature_C", 100.0),
+        ("mN", 1500.0, "force_N", 1.5),
+        ("kN", 0.0015, "force_N", 1.5),
+        ("msec", 1500.0, "time_s", 1.5),
+    ],
+)
+def test_unit_aliases_are_real_conversions(tmp_path, written, value, canonical, expected):
+    kind = "static" if canonical in ("displacement_mm", "temperature_C") else "sensing"
+    others = {
+        "temperature_C": lambda i: 25 + i,
+        "displacement_mm": lambda i: 0.1 * i,
+        "force_N": lambda i: 0.01 * i,
+        "resistance_ohm": lambda i: 30 + i,
+        "time_s": lambda i: i,
+    }
+    cols = [c for c in REQUIRED[kind] + ("time_s",) if c != canonical]
+    text = "x," + ",".join(cols) + "\n"
+    text += "".join(
+        f"{value * (1 + 0.1 * i)!r}," + ",".join(repr(others[c](i)) for c in cols) + "\n" for i in range(12)
+    )
+    run = read_run(write(tmp_path, text), kind, {canonical: {"from": "x", "unit": written}})
+    got = run.data[VARIABLE_MAP[canonical][0]].to_numpy()
+    if canonical == "displacement_mm":  # re-zeroed on the first row
+        assert got[1] == pytest.approx(0.1 * expected, rel=1e-9)
+    elif canonical == "temperature_C":  # an offset unit: check two points
+        assert got[0] == pytest.approx(expected, rel=1e-9)
+        assert got[1] == pytest.approx(tio.convert(value * 1.1, written, "degC"), rel=1e-9)
+    else:
+        assert got[0] == pytest.approx(expected, rel=1e-9) and got[1] == pytest.approx(
+            1.1 * expected, rel=1e-9
+        )
+
+
+def test_temperature_units_convert_with_their_offsets():
+    assert tio.convert(300.0, "K", "degC") == pytest.approx(26.85)
+    assert tio.convert(212.0, "°F", "°C") == pytest.approx(100.0)
+    assert tio.convert(0.0, "degC", "F") == pytest.approx(32.0)
+
+
+def test_unknown_unit_never_suggests_a_prefix_off(tmp_path):
+    p = write(tmp_path, dynamic_text())
+    for unit in ("xm", "µmm", "Mm"):
+        err = raises_input(
+            [f"unknown unit {unit!r}"],
+            read_run,
+            p,
+            "dynamic",
+            {"displacement_mm": {"from": "displacement_mm", "unit": unit}},
+        )
+        assert "did you mean 'm'" not in str(err) and "did you mean 'mm'" not in str(err)
+    err = raises_input(
+        ["unknown unit 'kohmm'", "did you mean"],
+        read_run,
+        p,
+        "dynamic",
+        {"resistance_ohm": {"from": "displacement_mm", "unit": "kohmm"}},
+    )
+    assert "did you mean 'kohm'" in str(err)
+    assert tio.unit_key("MM") is None and tio.unit_key("mohm") == "mohm" and tio.unit_key("Mohm") == "Mohm"
+
+
+# --- real formats declared in [columns] -------------------------------------------------------
+
+
+def test_title_row_and_units_row(tmp_path):
+    """A rheometer export: a title line, the header, a units row in brackets; units come from it."""
+    text = "Rheometer export 2019-06-11,,\nTime,Gap,Axial force,R\n[s],[µm],[mN],[kΩ]\n"
+    text += "".join(f"{0.5 * i},{1000 + 10 * i},{5.0 * i},{0.03 + 1e-5 * i}\n" for i in range(12))
+    p = write(tmp_path, text)
+    cols = {"header_row": 2, "units_row": 3, "time_s": "Time", "displacement_mm": "Gap"}
+    cols |= {"force_N": "Axial force", "resistance_ohm": "R"}
+    run = read_run(p, "sensing", cols)
+    assert len(run.data) == 12 and run.header_line == 2
+    assert run.data["displacement"].iloc[1] == pytest.approx(10e-6)
+    assert run.data["force"].iloc[1] == pytest.approx(5e-3)
+    assert run.data["resistance"].iloc[0] == pytest.approx(30.0)
+    # a unit stated in [columns] wins over the units row
+    cols["displacement_mm"] = {"from": "Gap", "unit": "mm"}
+    assert read_run(p, "sensing", cols).data["displacement"].iloc[1] == pytest.approx(10e-3)
+    # without header_row the title is taken for the header and the columns are not found
+    raises_input(["not found in the header"], read_run, p, "sensing", {"time_s": "Time"})
+
+
+def test_units_row_with_an_unknown_unit_names_the_line(tmp_path):
+    text = "Temp,Gap\n°C,furlongs\n" + "".join(f"{i},{i * 0.1}\n" for i in range(12))
+    p = write(tmp_path, text)
+    raises_input(
+        ["line 2", "'Gap'", "'furlongs'", "not a length unit", "displacement_mm holds a length"],
+        read_run,
+        p,
+        "static",
+        {"header_row": 1, "units_row": 2, "temperature_C": "Temp", "displacement_mm": "Gap"},
+    )
+
+
+def test_headerless_file_is_refused_unless_declared_and_keeps_its_first_row(tmp_path):
+    rows = [f"{25 + i},{-0.01 * i:.3f}" for i in range(20)]
+    p = write(tmp_path, "\n".join(rows) + "\n")
+    raises_input(["line 1 holds only numbers", "looks like data", "header_row = 0"], read_run, p, "static")
+    run = read_run(
+        p, "static", {"header_row": 0, "temperature_C": {"from": 1}, "displacement_mm": {"from": 2}}
+    )
+    assert len(run.data) == 20 and run.data["temperature"].iloc[0] == 25.0  # the first row is data
+    assert run.source_columns == {"temperature": "column 1", "displacement": "column 2"}
+    raises_input(["needs a column number"], read_run, p, "static", {"header_row": 0, "temperature_C": "T"})
+    raises_input(
+        ["column 5", "has 2 columns"], read_run, p, "static", {"header_row": 0, "temperature_C": {"from": 5}}
+    )
+
+
+def test_repeated_headers_mapped_by_position(tmp_path):
+    text = "Temp (degC),Contraction (%),Temp (degC),Contraction (%)\n"
+    text += "".join(f"{25 + i},{0.5 * i},{26 + i},{0.4 * i}\n" for i in range(12))
+    p = write(tmp_path, text)
+    err = raises_input(["appears in columns 1, 3"], read_run, p, "static", {"temperature_C": "Temp (degC)"})
+    assert "temperature_C = { from = 1 }" in err.hint
+    cols = {"temperature_C": {"from": 3}, "displacement_mm": {"from": 4, "scale": -0.2}}
+    run = read_run(p, "static", cols)
+    assert run.data["temperature"].iloc[0] == 26.0
+    assert run.data["displacement"].iloc[1] == pytest.approx(-0.4 * 0.2e-3)
+
+
+def test_wall_clock_time_stamps(tmp_path):
+    rows = ["stamp,voltage_V,displacement_mm"]
+    rows += [f"2019-06-11 14:03:{52.123456 + 0.1 * i:09.6f},10,{-0.01 * i:.3f}" for i in range(8)]
+    rows += [f"2019-06-11 14:04:{0.923456 + 0.1 * i:09.6f},10,-0.1" for i in range(4)]  # across a minute
+    p = write(tmp_path, "\n".join(rows) + "\n")
+    run = read_run(p, "dynamic", {"time_s": {"from": "stamp", "unit": "datetime"}})
+    t = run.data["time"].to_numpy()
+    assert t[0] == 0.0 and t[1] == pytest.approx(0.1, abs=1e-9) and t[8] == pytest.approx(8.8, abs=1e-9)
+    clock = "\n".join(["t,voltage_V,displacement_mm"] + [f"14:03:5{i}.5,10,0.0" for i in range(10)]) + "\n"
+    run = read_run(write(tmp_path, clock, "c.csv"), "dynamic", {"time_s": {"from": "t", "unit": "clock"}})
+    assert run.data["time"].iloc[9] == pytest.approx(9.0)
+    bad = clock.replace("14:03:55.5", "soon", 1)
+    raises_input(
+        ["line 7", "'t'", "'soon' is not a time stamp"],
+        read_run,
+        write(tmp_path, bad, "b.csv"),
+        "dynamic",
+        {"time_s": {"from": "t", "unit": "datetime"}},
+    )
+    raises_input(
+        ["for time_s only"],
+        read_run,
+        p,
+        "dynamic",
+        {"displacement_mm": {"from": "stamp", "unit": "datetime"}},
+    )
+
+
+def test_per_run_scale_overrides_in_the_experiment_file(tmp_path):
+    """Strain logs of two samples of different lengths: each run's own scale turns % into mm."""
+    from tcamlab.config import load_experiment
+
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    for name in ("a", "b"):
+        (raw / f"{name}.csv").write_text(
+            "T,strain\n" + "".join(f"{25 + 5 * i},{0.5 * i}\n" for i in range(12))
+        )
+    exp = tmp_path / "e.toml"
+    exp.write_text(
+        'kind = "static"\ntitle = "two lengths"\n'
+        'runs = ["raw/a.csv", { file = "raw/b.csv", columns = { displacement_mm = { scale = -0.3 } } }]\n'
+        '[sample]\npreset = "thesis-tca"\n'
+        '[columns]\ntemperature_C = "T"\ndisplacement_mm = { from = "strain", scale = -0.2 }\n'
+    )
+    a, b = load_experiment(exp).read_runs()
+    assert a.data["displacement"].iloc[2] == pytest.approx(-0.2e-3)  # 1 % of 20 mm
+    assert b.data["displacement"].iloc[2] == pytest.approx(-0.3e-3)  # 1 % of 30 mm
+
+
+def test_skip_rows_and_bad_layout_keys(tmp_path):
+    p = write(tmp_path, "Vibrometer 7\n" + "".join(f"{25 + i},{0.1 * i}\n" for i in range(12)))
+    cols = {"header_row": 0, "skip_rows": 1, "temperature_C": {"from": 1}, "displacement_mm": {"from": 2}}
+    assert len(read_run(p, "static", cols).data) == 12
+    raises_input(["header_row: expected a line number >= 0"], read_run, p, "static", {"header_row": -1})
+    raises_input(["units_row", "no units row"], read_run, p, "static", {"header_row": 0, "units_row": 2})
+    raises_input(
+        ["units_row = 1 must come after header_row = 2"],
+        read_run,
+        p,
+        "static",
+        {"header_row": 2, "units_row": 1},
+    )
+    raises_input(["skip_rows = 3 skips the header"], read_run, p, "static", {"header_row": 2, "skip_rows": 3})
+    raises_input(["header_row = 40", "only"], read_run, p, "static", {"header_row": 40})
+
+
+def test_temperatures_in_kelvin_read_as_degc_are_questioned(tmp_path):
+    rows = ["T,displacement_mm"] + [f"{293.15 + 5 * i:.2f},{-0.01 * i:.3f}" for i in range(12)]
+    p = write(tmp_path, "\n".join(rows) + "\n")
+    err = raises_input(
+        ["every temperature is above 200 degC", "is this column in kelvin?"],
+        read_run,
+        p,
+        "static",
+        {"temperature_C": "T"},
+    )
+    line = 'temperature_C = { from = "T", unit = "K" }'
+    assert line in err.hint and tomllib.loads(line)
+    run = read_run(p, "static", tomllib.loads(line))
+    assert run.data["temperature"].iloc[0] == pytest.approx(20.0)
+
+
+# --- two instruments, two clocks ---------------------------------------------------------
+
+
+def two_clock_lab(tmp_path: Path, offset: float) -> Path:
+    """A laser logging displacement at 10 Hz and a thermocouple logger at 1 Hz on its own clock."""
+    raw = tmp_path / "raw"
+    raw.mkdir(exist_ok=True)
+    (raw / "laser.csv").write_text(
+        "Time [s],Position (mm)\n" + "".join(f"{0.1 * i:.1f},{-0.01 * i:.3f}\n" for i in range(101))
+    )
+    (raw / "tc.csv").write_text("t,T (C)\n" + "".join(f"{i},{25 + 5 * i}\n" for i in range(13)))
+    exp = tmp_path / "oven.toml"
+    exp.write_text(
+        'kind = "static"\ntitle = "two clocks"\n'
+        'runs = [{ file = "raw/laser.csv", join = { file = "raw/tc.csv", offset_s = '
+        + repr(offset)
+        + ', columns = { time_s = "t", temperature_C = "T (C)" } } }]\n'
+        '[sample]\npreset = "thesis-tca"\n'
+        '[columns]\ntime_s = "Time [s]"\ndisplacement_mm = "Position (mm)"\n'
+    )
+    return exp
+
+
+def test_two_files_two_clocks_joined_on_time_with_an_offset(tmp_path):
+    from tcamlab.config import load_experiment
+
+    (run,) = load_experiment(two_clock_lab(tmp_path, -0.5)).read_runs()
+    t = run.data["time"].to_numpy()
+    # the logger's clock runs 0.5 s ahead: its reading at t + 0.5 s belongs to the laser's t
+    np.testing.assert_allclose(run.data["temperature"].to_numpy(), 25 + 5 * (t + 0.5), rtol=1e-12)
+    assert len(run.data) == 101 and run.join["rows_outside_overlap"] == 0
+    assert run.join["offset_s"] == -0.5 and run.join["overlap_s"] == [0.0, 10.0]
+    assert run.join["sha256"] == sha256_file(tmp_path / "raw" / "tc.csv")
+    assert run.source_columns["temperature"] == "raw/tc.csv: T (C)" or run.source_columns[
+        "temperature"
+    ].endswith("tc.csv: T (C)")
+    # a later start: the laser's rows before the logger's first reading are dropped, not extrapolated
+    (late,) = load_experiment(two_clock_lab(tmp_path, 2.0)).read_runs()
+    assert late.join["rows_outside_overlap"] == 20 and late.data["time"].iloc[0] == pytest.approx(2.0)
+    assert late.data["temperature"].iloc[0] == pytest.approx(25.0)
+    with pytest.raises(InputError, match="do not overlap"):
+        load_experiment(two_clock_lab(tmp_path, 50.0)).read_runs()
+
+
+def test_two_clock_check_reports_the_join(tmp_path):
+    from tcamlab.starter import check_experiment
+
+    text = "\n".join(check_experiment(two_clock_lab(tmp_path, -0.5)).lines())
+    assert "joined" in text and "tc.csv (13 rows) on time + offset_s -0.5 s" in text
+    assert "overlap 0 to 10 s, 0 rows outside it dropped, linear interpolation" in text
+
+
+def test_globs_in_runs_expand_sorted_relative_to_the_experiment_file(tmp_path):
+    from tcamlab.config import load_experiment
+    from tcamlab.errors import ConfigError
+
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    for name in ("pull_2", "pull_10", "pull_1", "other"):
+        (raw / f"{name}.csv").write_text(
+            "temperature_C,displacement_mm\n" + "".join(f"{25 + i},{-0.01 * i}\n" for i in range(12))
+        )
+    (tmp_path / "e").mkdir()
+    exp = tmp_path / "e" / "oven.toml"
+    exp.write_text(
+        'kind = "static"\ntitle = "globbed"\nruns = ["../raw/pull_*.csv"]\n[sample]\npreset = "thesis-tca"\n'
+    )
+    loaded = load_experiment(exp)
+    assert [r.name for r in loaded.runs] == ["pull_1.csv", "pull_10.csv", "pull_2.csv"]
+    assert len(loaded.read_runs()) == 3
+    exp.write_text(exp.read_text().replace("pull_*", "nothing_*"))
+    with pytest.raises(ConfigError, match="matches no file"):
+        load_experiment(exp)

@@ -7,6 +7,8 @@ the data were made from.
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,10 +17,20 @@ import pandas as pd
 from tcamlab import __version__
 from tcamlab import io as tio
 from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import ConfigError
 from tcamlab.kinds import get_kind
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 
-__all__ = ["SYNTHETIC_NOTE", "GENERATOR", "lab_value", "format_csv", "experiment_doc", "mods_truth"]
+__all__ = [
+    "SYNTHETIC_NOTE",
+    "GENERATOR",
+    "lab_value",
+    "format_csv",
+    "experiment_doc",
+    "mods_truth",
+    "output_paths",
+    "refuse_overwrite",
+]
 
 # The note names the module file it was written from; it is kept byte for byte
 # so that regenerated data (and the shipped sample data) stay identical.
@@ -129,3 +141,35 @@ def experiment_doc(kind: str, exp, run_names: list[str], seed: int, command: str
 def mods_truth(mods: Mods) -> dict[str, float]:
     """The Mods fields that differ from the thesis model, {field: SI value}."""
     return {f: getattr(mods, f) for f in Mods.__dataclass_fields__ if getattr(mods, f) != getattr(NO_MODS, f)}
+
+
+def output_paths(out_dir: str | os.PathLike, name: str, n_runs: int) -> list[Path]:
+    """Every file a simulation named ``name`` with ``n_runs`` runs writes under ``out_dir``.
+
+    ``raw/<name>_runN.csv``, ``experiments/<name>.toml`` and ``truth/<name>.truth.json``,
+    as :func:`tcamlab.rig.simulate` names them.
+    """
+    out = Path(out_dir)
+    runs = [out / "raw" / f"{name}_run{k + 1}.csv" for k in range(n_runs)]
+    return runs + [out / "experiments" / f"{name}.toml", out / "truth" / f"{name}.truth.json"]
+
+
+def refuse_overwrite(paths, *, force: bool = False) -> None:
+    """Refuse, before anything is written, to replace files that exist (unless ``force``).
+
+    Raises
+    ------
+    ConfigError
+        Naming every existing file, with the way out (``--force``, another ``--out`` or ``--name``).
+    """
+    if force:
+        return
+    existing = [Path(p) for p in paths if Path(p).exists()]
+    if existing:
+        shown = ", ".join(str(p) for p in existing[:6]) + (
+            f" and {len(existing) - 6} more" if len(existing) > 6 else ""
+        )
+        raise ConfigError(
+            f"{len(existing)} file{'s' if len(existing) > 1 else ''} would be overwritten: {shown}",
+            "nothing was written; pick another --out or --name, or pass --force to replace them",
+        )

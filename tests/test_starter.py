@@ -1,0 +1,362 @@
+"""Tests of ``tcamlab init`` (tcamlab.starter) on files written like real instruments' exports.
+
+The CSV texts below are hand-written in the layouts found in published logs of
+twisted-and-coiled nylon actuators (a rheometer export with a title row, a
+units row and tension negative; an oven log in Fahrenheit and micrometres;
+a header-less vibrometer log; side-by-side blocks with repeated headers;
+wall-clock time stamps). Their numbers are made up for the tests.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from tcamlab.cli import app
+from tcamlab.config import load_experiment
+from tcamlab.errors import ConfigError
+from tcamlab.starter import PLACEHOLDER, inspect_csv, placeholders, split_header, starter_text, write_starter
+
+runner = CliRunner()
+
+SAMPLE = {
+    "fiber_diameter_mm": 0.4,
+    "fiber_length_mm": 328.0,
+    "coil_length_mm": 90.0,
+    "coil_diameter_mm": 0.8,
+    "twists": 750.0,
+    "load_g": 50.0,
+    "ambient_C": 21.0,
+    "voltage_V": 10.0,
+    "pulse_s": 1.0,
+    "resistance_ohm": 40.0,
+    "sensor_offset_mm": 9.0,
+    "spring_constant_N_per_m": 14.1,
+}
+
+
+def write(path: Path, text: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(text.encode("utf-8"))
+    return path
+
+
+def fill(text: str, values: dict) -> str:
+    """Replace every placeholder: ``key = "FILL IN..."`` by ``values[key]`` (a TOML literal or number)."""
+
+    def sub(m: re.Match) -> str:
+        key = m.group(1)
+        return f"{key} = {values[key]}"
+
+    text = re.sub(r'^(\w+) = "' + PLACEHOLDER + r'[^"]*"', sub, text, flags=re.M)
+    # inline tables of [columns]: `from = "FILL IN..."` / `scale = "FILL IN..."` keyed by the column
+    for key, value in values.items():
+        if "." in key:
+            canon, sub_key = key.split(".")
+            text = re.sub(
+                rf'^({canon} = {{.*?){sub_key} = "{PLACEHOLDER}[^"]*"',
+                rf"\g<1>{sub_key} = {value}",
+                text,
+                flags=re.M,
+            )
+    assert PLACEHOLDER not in text.replace(f'"{PLACEHOLDER}', "").replace(PLACEHOLDER + '"', ""), text
+    return text
+
+
+def rheometer_csv(lab: Path) -> Path:
+    """A rheometer export: title row, header, units row in brackets, tension negative, µm."""
+    rows = ["Rheometer export 2019-06-11 14:03,,,", "Time,Gap,Axial force,R", "[s],[µm],[N],[Ohm]"]
+    for i in range(12):
+        rows.append(f"{0.5 * i:.1f},{1000 + 20 * i:.1f},{-0.005 * i:.4f},{30 + 0.02 * i:.3f}")
+    return write(lab / "raw" / "pull1.csv", "\n".join(rows) + "\n")
+
+
+@pytest.mark.parametrize(
+    "header, name, unit",
+    [
+        ("Extension (µm)", "Extension", "µm"),
+        ("Load [mN]", "Load", "mN"),
+        ("Temp (F)", "Temp", "F"),
+        ("R (Ohm)", "R", "Ohm"),
+        ("Time [s]", "Time", "s"),
+        ("Axial force [N]", "Axial force", "N"),
+        ("Force/N", "Force", "N"),
+        ("temperature_C", "temperature_C", "degC"),
+        ("laser", "laser", None),
+    ],
+)
+def test_split_header(header, name, unit):
+    assert split_header(header) == (name, unit)
+
+
+def test_rheometer_export_title_units_row_and_negative_tension(tmp_path):
+    csv = rheometer_csv(tmp_path)
+    layout = inspect_csv(csv)
+    assert (layout.header_row, layout.units_row) == (2, 3)
+    assert layout.title_rows == ["Rheometer export 2019-06-11 14:03"]
+    text = starter_text("sensing", csv, tmp_path / "experiments" / "pull.toml")
+    doc = tomllib.loads(text)
+    assert doc["runs"] == ["../raw/pull1.csv"]
+    cols = doc["columns"]
+    assert cols["header_row"] == 2 and cols["units_row"] == 3
+    assert cols["displacement_mm"] == {"from": "Gap", "unit": "um"}
+    assert cols["force_N"] == {"from": "Axial force", "unit": "N", "scale": -1}
+    assert cols["resistance_ohm"] == {"from": "R", "unit": "ohm"}
+    assert cols["time_s"] == {"from": "Time", "unit": "s"}
+
+
+def test_round_trip_the_starter_loads_once_filled_and_reads_si(tmp_path):
+    csv = rheometer_csv(tmp_path)
+    res = write_starter("sensing", csv, tmp_path / "experiments" / "pull.toml")
+    text = res.path.read_text(encoding="utf-8")
+    # every sample key and the kind's rig keys are there, with definition, measure and typical
+    for key in ("fiber_diameter_mm", "fiber_length_mm", "coil_length_mm", "coil_diameter_mm", "twists"):
+        assert f"# {key}: " in text and f'{key} = "{PLACEHOLDER}' in text
+    assert "#   measure: " in text and "#   typical: " in text
+    assert "OUTSIDE diameter" in text and "total number of turns" in text
+    assert "# initial_resistance_ohm = " in text and "# spring_constant_N_per_m = " in text
+    with pytest.raises(ConfigError) as info:
+        load_experiment(res.path)
+    msg = str(info.value)
+    for key in ("sample.fiber_diameter_mm", "sample.twists", "rig.ambient_C"):
+        assert key in msg
+    assert "6 values still to fill in" in msg and "more problem" not in msg
+    res.path.write_text(fill(text, SAMPLE), encoding="utf-8")
+    exp = load_experiment(res.path)
+    assert exp.sample.coil_length == pytest.approx(0.090) and exp.sample.twists == 750.0
+    assert exp.rig.ambient == 21.0 and exp.rig.spring_constant is None
+    (run,) = exp.read_runs()
+    d = run.data
+    # µm -> m, re-zeroed; tension made positive; ohm as is
+    np.testing.assert_allclose(d["displacement"].to_numpy()[:3], [0.0, 20e-6, 40e-6], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(d["force"].to_numpy()[:3], [0.0, 0.005, 0.010], rtol=1e-12)
+    assert d["resistance"].iloc[1] == pytest.approx(30.02)
+    assert len(d) == 12  # no data row lost to the title or units rows
+
+
+def test_oven_log_fahrenheit_micrometres_static(tmp_path):
+    rows = ["Temp (F),Extension (µm),Time [s]"]
+    rows += [f"{77 + 9 * i},{-25.0 * i:.1f},{10 * i}" for i in range(12)]
+    csv = write(tmp_path / "oven.csv", "\n".join(rows) + "\n")
+    out = tmp_path / "experiments" / "oven.toml"
+    res = write_starter("static", csv, out)
+    doc = tomllib.loads(res.path.read_text(encoding="utf-8"))
+    assert doc["columns"]["temperature_C"] == {"from": "Temp (F)", "unit": "degF"}
+    assert doc["columns"]["displacement_mm"] == {"from": "Extension (µm)", "unit": "um"}
+    assert set(placeholders(doc)) == {
+        "sample.fiber_diameter_mm",
+        "sample.fiber_length_mm",
+        "sample.coil_length_mm",
+        "sample.coil_diameter_mm",
+        "sample.twists",
+        "rig.load_g",
+        "rig.ambient_C",
+    }
+    sample = dict(
+        SAMPLE, fiber_diameter_mm=0.17, fiber_length_mm=95.0, coil_length_mm=20.0, coil_diameter_mm=0.36
+    )
+    res.path.write_text(fill(res.path.read_text(encoding="utf-8"), sample), encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    assert run.data["temperature"].iloc[0] == pytest.approx(25.0)  # 77 degF
+    assert run.data["temperature"].iloc[1] == pytest.approx(30.0)
+    assert run.data["displacement"].iloc[2] == pytest.approx(-50e-6)
+
+
+def test_headerless_vibrometer_log_keeps_its_first_row(tmp_path):
+    rows = [f"{0.001 * i:.3f},{25 + i},{0.5 * i:.2f}" for i in range(15)]
+    csv = write(tmp_path / "vib.csv", "\n".join(rows) + "\n")
+    res = write_starter("static", csv, tmp_path / "exp" / "vib.toml")
+    text = res.path.read_text(encoding="utf-8")
+    assert "header_row = 0" in text and 'first data row: column 1 = "0.000"' in text
+    assert "columns.temperature_C.from" in res.placeholders
+    filled = fill(
+        text,
+        dict(
+            SAMPLE,
+            fiber_diameter_mm=0.17,
+            fiber_length_mm=95.0,
+            coil_length_mm=20.0,
+            coil_diameter_mm=0.36,
+            **{"temperature_C.from": 2, "displacement_mm.from": 3},
+        ),
+    )
+    res.path.write_text(filled, encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    assert len(run.data) == 15 and run.data["temperature"].iloc[0] == 25.0
+
+
+def test_repeated_header_blocks_mapped_by_position_with_a_strain_scale(tmp_path):
+    rows = ["Temp (degC),Contraction (%),Temp (degC),Contraction (%)"]
+    rows += [f"{25 + 5 * i},{0.5 * i},{26 + 5 * i},{0.4 * i}" for i in range(12)]
+    csv = write(tmp_path / "blocks.csv", "\n".join(rows) + "\n")
+    res = write_starter("static", csv, tmp_path / "e" / "blocks.toml")
+    doc = tomllib.loads(res.path.read_text(encoding="utf-8"))
+    assert doc["columns"]["temperature_C"] == {"from": 1, "unit": "degC"}
+    assert doc["columns"]["displacement_mm"]["from"] == 2
+    assert "columns.displacement_mm.scale" in res.placeholders
+    sample = dict(
+        SAMPLE, fiber_diameter_mm=0.17, fiber_length_mm=95.0, coil_length_mm=20.0, coil_diameter_mm=0.36
+    )
+    sample["displacement_mm.scale"] = -0.2  # 20 mm coil: 1 % contraction = -0.2 mm
+    res.path.write_text(fill(res.path.read_text(encoding="utf-8"), sample), encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    assert run.data["displacement"].iloc[2] == pytest.approx(-0.2e-3)  # 1 % of 20 mm, shorter
+    assert run.source_columns["temperature"] == "Temp (degC)"
+
+
+def test_wall_clock_time_stamps_become_seconds(tmp_path):
+    rows = ["Timestamp,Voltage (V),Position (mm)"]
+    rows += [f"2019-06-11 14:03:{52 + i * 0.25:09.6f},{10 if i else 0},{-0.01 * i:.3f}" for i in range(12)]
+    csv = write(tmp_path / "step.csv", "\n".join(rows) + "\n")
+    res = write_starter("dynamic", csv, tmp_path / "e" / "step.toml")
+    doc = tomllib.loads(res.path.read_text(encoding="utf-8"))
+    assert doc["columns"]["time_s"] == {"from": "Timestamp", "unit": "datetime"}
+    assert doc["rig"]["thermal_mass_J_per_K"] == 0.0266  # a typical value, not a placeholder
+    res.path.write_text(fill(res.path.read_text(encoding="utf-8"), SAMPLE), encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    np.testing.assert_allclose(run.data["time"].to_numpy()[:3], [0.0, 0.25, 0.5], atol=1e-9)
+
+
+def test_curvature_starter_lists_the_robot_keys(tmp_path):
+    rows = ["Cable (mm),R1 (Ohm),R2 (kΩ),kappa1 (1/mm),kappa2 (1/mm)"]
+    rows += [f"{i},{10 + i * 0.01},{0.01 + i * 1e-5},{0.001 * i},{0.002 * i}" for i in range(12)]
+    csv = write(tmp_path / "robot.csv", "\n".join(rows) + "\n")
+    doc = tomllib.loads(starter_text("curvature", csv, tmp_path / "robot.toml"))
+    cols = doc["columns"]
+    assert cols["cable_mm"]["from"] == "Cable (mm)" and cols["r1_ohm"]["from"] == "R1 (Ohm)"
+    assert cols["r2_ohm"] == {"from": "R2 (kΩ)", "unit": "kohm"}
+    assert cols["kappa2_per_mm"] == {"from": "kappa2 (1/mm)", "unit": "per_mm"}
+    assert {"rig.sensor_offset_mm", "rig.segment_lengths_mm"} <= set(placeholders(doc))
+
+
+def test_init_never_overwrites_and_cli_exit_codes(tmp_path):
+    csv = rheometer_csv(tmp_path)
+    out = tmp_path / "experiments" / "pull.toml"
+    r = runner.invoke(app, ["init", "sensing", "--csv", str(csv), "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "displacement_mm  <- 'Gap' [um]" in r.output and "values to fill in" in r.output
+    assert "force_N          <- 'Axial force' [N, scale -1]" in r.output
+    before = out.read_bytes()
+    r = runner.invoke(app, ["init", "sensing", "--csv", str(csv), "--out", str(out)])
+    assert r.exit_code == 2 and "already exists" in r.output and "Traceback" not in r.output
+    assert out.read_bytes() == before
+    r = runner.invoke(app, ["init", "sensin", "--csv", str(csv), "--out", str(tmp_path / "x.toml")])
+    assert r.exit_code == 2 and "did you mean 'sensing'" in r.output
+    r = runner.invoke(
+        app, ["init", "static", "--csv", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "y.toml")]
+    )
+    assert r.exit_code == 2 and "not found" in r.output
+    r = runner.invoke(app, ["init", "--help"])
+    assert "static|dynamic|sensing|curvature" in r.output
+
+
+def test_semicolon_decimal_comma_latin1_export(tmp_path):
+    """A German-locale logger: ';' separators, decimal commas, Latin-1 '°C' and 'µm'."""
+    rows = ["Zeit [s];Temp (°C);Weg [µm]"] + [
+        f"{i},0;{25 + i},5;{-1.5 * i:.1f}".replace(".", ",") for i in range(12)
+    ]
+    csv = tmp_path / "ofen.csv"
+    csv.write_bytes(("\n".join(rows) + "\n").encode("latin-1"))
+    res = write_starter("static", csv, tmp_path / "e" / "ofen.toml")
+    doc = tomllib.loads(res.path.read_text(encoding="utf-8"))
+    assert doc["columns"] == {
+        "time_s": {"from": "Zeit [s]", "unit": "s"},
+        "temperature_C": {"from": "Temp (°C)", "unit": "degC"},
+        "displacement_mm": {"from": "Weg [µm]", "unit": "um"},
+    }
+    sample = dict(
+        SAMPLE, fiber_diameter_mm=0.17, fiber_length_mm=95.0, coil_length_mm=20.0, coil_diameter_mm=0.36
+    )
+    res.path.write_text(fill(res.path.read_text(encoding="utf-8"), sample), encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    assert run.data["temperature"].iloc[1] == pytest.approx(26.5)
+    assert run.data["displacement"].iloc[2] == pytest.approx(-3e-6)
+
+
+def test_metadata_block_above_the_header_and_a_headerless_log_with_a_title(tmp_path):
+    """Full-width metadata lines above the header, and a title above a header-less log."""
+    rows = ["Operator,Jane,2019-06-11", "Sample,TCA 3,50 g", "Time,Voltage,Displacement", "s,V,mm"]
+    rows += [f"{0.1 * i:.1f},{10 if i else 0},{-0.01 * i:.3f}" for i in range(12)]
+    csv = write(tmp_path / "meta.csv", "\n".join(rows) + "\n")
+    layout = inspect_csv(csv)
+    assert (layout.header_row, layout.units_row) == (3, 4) and len(layout.title_rows) == 2
+    doc = tomllib.loads(starter_text("dynamic", csv, tmp_path / "m.toml"))
+    assert doc["columns"]["header_row"] == 3 and doc["columns"]["voltage_V"] == {
+        "from": "Voltage",
+        "unit": "V",
+    }
+
+    rows = ["Vibrometer log 2019-06-11"] + [f"{0.001 * i:.3f},{25 + i},{0.5 * i:.2f}" for i in range(15)]
+    csv = write(tmp_path / "vib.csv", "\n".join(rows) + "\n")
+    res = write_starter("static", csv, tmp_path / "exp" / "vib.toml")
+    text = res.path.read_text(encoding="utf-8")
+    assert "header_row = 0" in text and "skip_rows = 1" in text
+    sample = dict(
+        SAMPLE, fiber_diameter_mm=0.17, fiber_length_mm=95.0, coil_length_mm=20.0, coil_diameter_mm=0.36
+    )
+    sample |= {"temperature_C.from": 2, "displacement_mm.from": 3}
+    res.path.write_text(fill(text, sample), encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    assert len(run.data) == 15 and run.data["temperature"].iloc[0] == 25.0  # first data row kept
+
+
+def test_a_title_that_says_fill_in_is_not_a_placeholder(tmp_path):
+    csv = rheometer_csv(tmp_path)
+    res = write_starter("sensing", csv, tmp_path / "experiments" / "pull.toml")
+    text = fill(res.path.read_text(encoding="utf-8"), SAMPLE).replace(
+        'title = "', 'title = "Fill in later: ', 1
+    )
+    res.path.write_text(text, encoding="utf-8")
+    assert load_experiment(res.path).title.startswith("Fill in later")
+
+
+def test_check_is_a_dry_run_listing_every_problem(tmp_path):
+    csv = rheometer_csv(tmp_path)
+    res = write_starter("sensing", csv, tmp_path / "experiments" / "pull.toml")
+    r = runner.invoke(app, ["check", str(res.path)])
+    assert r.exit_code == 2 and "6 values still to fill in" in r.output and "Traceback" not in r.output
+    res.path.write_text(fill(res.path.read_text(encoding="utf-8"), SAMPLE), encoding="utf-8")
+    r = runner.invoke(app, ["check", str(res.path), "--rows", "2"])
+    assert r.exit_code == 0, r.output
+    out = r.output
+    assert "displacement_mm  <- 'Gap' [um] -> displacement [m]" in out
+    assert "force_N          <- 'Axial force' [N, scale -1] -> force [N]" in out
+    assert "first rows in SI: displacement [m], force [N], resistance [ohm], time [s]" in out
+    assert "    2e-05, 0.005, 30.02, 0.5\n" in out  # row 2 in SI: 20 µm, a 5 mN pull, at 0.5 s
+    assert "sample.coil_length = 90 mm  (experiment file)" in out and "no problems found" in out
+    assert not list((tmp_path / "experiments").glob("*.html"))  # writes nothing
+    # two broken runs: both problems listed, not only the first
+    bad = csv.with_name("bad.csv")
+    bad.write_text(csv.read_text().replace("0.5,1020.0", "0.5,abc"))
+    text = res.path.read_text(encoding="utf-8").replace(
+        'runs = ["../raw/pull1.csv"]', 'runs = ["../raw/bad.csv", "../raw/pull1.csv", "../raw/bad.csv"]'
+    )
+    res.path.write_text(text, encoding="utf-8")
+    r = runner.invoke(app, ["check", str(res.path)])
+    assert r.exit_code == 2 and r.output.count("problem: ") == 2 and "non-numeric value 'abc'" in r.output
+    assert "pull1.csv: 12 rows" in r.output
+
+
+def test_the_own_data_guide_defines_every_parameter():
+    """docs/own_data.md lists every key the starter explains, so the two cannot drift apart."""
+    from tcamlab.starter import GUIDE
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "own_data.md").read_text(encoding="utf-8")
+    for key, g in GUIDE.items():
+        assert f"| `{key}`" in text and g.definition in text, key
+
+
+def test_unknown_channels_are_listed_not_guessed(tmp_path):
+    rows = ["Time [s],Torque [µNm],T,Extension (µm),Normal stress [Pa]"]
+    rows += [f"{0.1 * i:.1f},{0.5 * i},{25 + i},{10.0 * i},{100 * i}" for i in range(12)]
+    csv = write(tmp_path / "rheo.csv", "\n".join(rows) + "\n")
+    r = runner.invoke(app, ["init", "static", "--csv", str(csv), "--out", str(tmp_path / "o.toml")])
+    assert r.exit_code == 0, r.output
+    assert "not used: 'Torque [µNm]' (column 2), 'Normal stress [Pa]' (column 5)" in r.output
+    cols = tomllib.loads((tmp_path / "o.toml").read_text(encoding="utf-8"))["columns"]
+    assert cols["temperature_C"] == {"from": "T", "unit": "degC"} and cols["time_s"]["from"] == "Time [s]"
