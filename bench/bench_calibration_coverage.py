@@ -58,7 +58,7 @@ import statistics
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
 KINDS = ("static", "dynamic", "sensing", "curvature")
@@ -125,7 +125,9 @@ def _params_of(cases: list[dict]) -> list[str]:
 
 
 def summarise_kind(cases: list[dict]) -> dict:
-    """Coverage, pinned-closer, failures and time of one kind's case records."""
+    """Coverage, pinned-closer, failures and time of one kind's case records (skipped ones apart)."""
+    skipped = [c for c in cases if c.get("skipped")]
+    cases = [c for c in cases if not c.get("skipped")]
     ok = [c for c in cases if not c["failed"]]
     rows = [p for c in ok for p in c["parameters"]]
     per = {}
@@ -148,6 +150,8 @@ def summarise_kind(cases: list[dict]) -> dict:
     secs = [c["seconds"] for c in ok]
     return {
         "cases": len(cases),
+        "skipped": len(skipped),
+        "skipped_reasons": sorted({c["error"][:120] for c in skipped}),
         "failed": fraction(sum(c["failed"] for c in cases), len(cases)),
         "profile": fraction(sum(p["in_profile"] for p in rows), len(rows)),
         "laplace": fraction(sum(p["in_laplace"] for p in rows), len(rows)),
@@ -232,28 +236,43 @@ def _finite(result) -> bool:
     return all(math.isfinite(v) for v in vals)
 
 
-def run_case(kind: str, seed: int, priors: str = "stated") -> dict:
-    """Simulate one lying experiment, calibrate it, score it against the truth file."""
-    from tcamlab.calibration import calibrate
+def _simulate(kind: str, seed: int, tmp: str, priors: str):
+    """The lying experiment of one case (and its stated priors written in), or raise TcamlabError."""
     from tcamlab.kinds import get_kind
     from tcamlab.rig import simulate
     from tcamlab.templates import template_path
 
-    rec = {"kind": kind, "seed": int(seed), "failed": False, "error": "", "parameters": []}
+    sim = simulate(
+        kind,
+        template_path(kind),
+        seed=int(seed),
+        out_dir=tmp,
+        parameter_error=PARAMETER_ERROR,
+        noisy_zero=True,
+        uncertainty=dict(get_kind(kind).benchmark_uncertainty),
+    )
+    if priors == "stated":
+        _state_priors(Path(sim.experiment_path), sim.truth.get("stated_sd", {}))
+    return sim
+
+
+def run_case(kind: str, seed: int, priors: str = "stated") -> dict:
+    """Simulate one lying experiment, calibrate it, score it against the truth file.
+
+    A truth the rig cannot run (the drawn parameters leave the model's domain, e.g. a small
+    lambda overheating the dynamic actuator past G_t' = 0) is ``skipped``, not a failed fit.
+    """
+    from tcamlab.calibration import calibrate
+    from tcamlab.errors import TcamlabError
+
+    rec = {"kind": kind, "seed": int(seed), "skipped": False, "failed": False, "error": "", "parameters": []}
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        sim = simulate(
-            kind,
-            template_path(kind),
-            seed=int(seed),
-            out_dir=tmp,
-            parameter_error=PARAMETER_ERROR,
-            noisy_zero=True,
-            uncertainty=dict(get_kind(kind).benchmark_uncertainty),
-        )
-        truth = sim.truth
-        if priors == "stated":
-            _state_priors(Path(sim.experiment_path), truth.get("stated_sd", {}))
+        try:
+            sim = _simulate(kind, seed, tmp, priors)
+        except TcamlabError as exc:
+            rec.update(skipped=True, error=f"rig: {type(exc).__name__}: {exc}"[:300])
+            return rec
         rec["simulate_seconds"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         try:
@@ -265,7 +284,7 @@ def run_case(kind: str, seed: int, priors: str = "stated") -> dict:
         rec["seconds"] = time.perf_counter() - t0
     if not _finite(result):
         rec.update(failed=True, error="non-finite value or interval")
-    rec["parameters"] = [_score_parameter(p, truth) for p in result.parameters]
+    rec["parameters"] = [_score_parameter(p, sim.truth) for p in result.parameters]
     rec["rmse_over_sigma"] = {f.quantity: f.rmse_over_sigma_calibrated for f in result.fit}
     rec["identifiability"] = result.identifiability
     return rec
@@ -274,33 +293,71 @@ def run_case(kind: str, seed: int, priors: str = "stated") -> dict:
 # --- the run ----------------------------------------------------------------------------------
 
 
-def _tasks(kinds, n: int, base: int) -> list[tuple[str, int]]:
-    return [(k, base + KIND_SEED_OFFSET[k] + i) for k in kinds for i in range(n)]
+class Schedule:
+    """Cases to run: ``n`` scored (not skipped) cases per kind, round-robin over the kinds.
+
+    Case i of a kind has seed ``base + KIND_SEED_OFFSET[kind] + i``; a skipped case (truth
+    outside the model's domain) is replaced by the kind's next seed. ``done`` are records of an
+    earlier run with the same settings (``--resume``), counted and not run again.
+    """
+
+    def __init__(self, kinds, n: int, base: int, done: list[dict]):
+        self.kinds, self.n, self.base = list(kinds), int(n), int(base)
+        self.seen = {(c["kind"], c["seed"]) for c in done}
+        self.scored = {k: sum(c["kind"] == k and not c.get("skipped") for c in done) for k in self.kinds}
+        self.running = {k: 0 for k in self.kinds}
+        self.next_i = {k: 0 for k in self.kinds}
+
+    def next(self) -> tuple[str, int] | None:
+        need = [k for k in self.kinds if self.scored[k] + self.running[k] < self.n]
+        if not need:
+            return None
+        kind = min(need, key=lambda k: self.scored[k] + self.running[k])
+        while (kind, seed := self.base + KIND_SEED_OFFSET[kind] + self.next_i[kind]) in self.seen:
+            self.next_i[kind] += 1
+        self.next_i[kind] += 1
+        self.running[kind] += 1
+        return kind, seed
+
+    def finished(self, rec: dict) -> None:
+        self.running[rec["kind"]] -= 1
+        self.scored[rec["kind"]] += not rec["skipped"]
 
 
-def _report(rec: dict, i: int, n: int, log) -> None:
-    mark = "FAILED " + rec["error"] if rec["failed"] else f"{rec['seconds']:.1f} s"
-    print(f"[{i}/{n}] {rec['kind']} seed {rec['seed']}: {mark}", file=sys.stderr, flush=True)
-    if log:
-        log.write(json.dumps(rec) + "\n")
-        log.flush()
+def _report(rec: dict, sched: Schedule, log) -> None:
+    if rec["skipped"] or rec["failed"]:
+        mark = ("SKIPPED " if rec["skipped"] else "FAILED ") + rec["error"]
+    else:
+        mark = f"{rec['seconds']:.1f} s"
+    done = sum(sched.scored.values())
+    total = sched.n * len(sched.kinds)
+    print(f"[{done}/{total}] {rec['kind']} seed {rec['seed']}: {mark}", file=sys.stderr, flush=True)
+    log.write(json.dumps(rec) + "\n")
+    log.flush()
 
 
-def run_all(tasks, jobs: int, priors: str, log_path: Path | None) -> list[dict]:
-    """Every case, in ``jobs`` processes; each finished case is appended to ``log_path`` (JSON lines)."""
+def run_all(sched: Schedule, jobs: int, priors: str, log_path: Path | None) -> list[dict]:
+    """Run the schedule in ``jobs`` processes; each finished case is appended to ``log_path`` (JSON lines)."""
     out: list[dict] = []
     with open(log_path or os.devnull, "a") as log:
         if jobs <= 1:
-            for k, s in tasks:
-                out.append(run_case(k, s, priors))
-                _report(out[-1], len(out), len(tasks), log)
+            while (task := sched.next()) is not None:
+                out.append(run_case(*task, priors))
+                sched.finished(out[-1])
+                _report(out[-1], sched, log)
             return out
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = [pool.submit(run_case, k, s, priors) for k, s in tasks]
-            for f in as_completed(futures):
-                out.append(f.result())
-                _report(out[-1], len(out), len(tasks), log)
-    return out
+            pending = set()
+            while True:
+                while len(pending) < jobs and (task := sched.next()) is not None:
+                    pending.add(pool.submit(run_case, *task, priors))
+                if not pending:
+                    return out
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    out.append(f.result())
+                    sched.finished(out[-1])
+                    _report(out[-1], sched, log)
 
 
 def _pct(f: dict) -> str:
@@ -318,8 +375,9 @@ def markdown(summaries: dict, meta: dict) -> str:
         "|---|---|---|---|---|---|---|---|",
     ]
     for kind, s in summaries.items():
+        n = f"{s['cases']} (+{s['skipped']} skipped)" if s["skipped"] else str(s["cases"])
         lines.append(
-            f"| {kind} | {s['cases']} | {_pct(s['profile'])} | {_pct(s['laplace'])} | {_pct(s['pinned_closer'])}"
+            f"| {kind} | {n} | {_pct(s['profile'])} | {_pct(s['laplace'])} | {_pct(s['pinned_closer'])}"
             f" | {s['failed']['k']}/{s['cases']} | {s['seconds_median']:.1f} | {verdict(s)} |"
         )
     lines += [
@@ -353,7 +411,14 @@ def _parse(argv=None):
     ap.add_argument("--priors", choices=("stated", "default"), default="stated", help="see the docstring")
     ap.add_argument("--out", help="folder for coverage.json, coverage.md and cases.jsonl")
     ap.add_argument("--force", action="store_true", help="overwrite an existing --out folder's files")
+    ap.add_argument("--resume", action="store_true", help="keep --out's cases.jsonl and run only the rest")
     ap.add_argument("--quick", action="store_true", help="CI smoke run: 2 cases per kind")
+    ap.add_argument(
+        "--from-cases",
+        nargs="+",
+        metavar="JSONL",
+        help="summarise finished cases (cases.jsonl of earlier runs) instead of running any",
+    )
     args = ap.parse_args(argv)
     args.kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     bad = [k for k in args.kinds if k not in KINDS]
@@ -364,23 +429,40 @@ def _parse(argv=None):
     return args
 
 
+def _prepare_out(args) -> tuple[Path | None, list[dict]]:
+    """The --out folder, created, and the cases an earlier run left there (--resume)."""
+    if not args.out:
+        return None, []
+    out = Path(args.out)
+    files = [out / f for f in ("coverage.json", "coverage.md", "cases.jsonl")]
+    done: list[dict] = []
+    if args.resume and files[2].exists():
+        done = [json.loads(line) for line in files[2].read_text().splitlines() if line.strip()]
+        done = [c for c in done if c["kind"] in args.kinds]
+    elif any(f.exists() for f in files):
+        if not args.force:
+            raise SystemExit(f"error: {out} already holds results; pass --force to overwrite or --resume")
+        for f in files:
+            f.unlink(missing_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
+    return out, done
+
+
 def main(argv=None) -> int:
     args = _parse(argv)
-    out = Path(args.out) if args.out else None
-    if out and any((out / f).exists() for f in ("coverage.json", "coverage.md", "cases.jsonl")):
-        if not args.force:
-            print(f"error: {out} already holds results; pass --force to overwrite", file=sys.stderr)
-            return 2
-        for f in ("coverage.json", "coverage.md", "cases.jsonl"):
-            (out / f).unlink(missing_ok=True)
-    if out:
-        out.mkdir(parents=True, exist_ok=True)
-    if args.jobs > 1:
-        os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # the processes share the cores, not numba's threads
     t0 = time.perf_counter()
-    cases = run_all(
-        _tasks(args.kinds, args.cases, args.seed), args.jobs, args.priors, out and out / "cases.jsonl"
-    )
+    if args.from_cases:
+        out = None
+        cases = [
+            json.loads(ln) for f in args.from_cases for ln in Path(f).read_text().splitlines() if ln.strip()
+        ]
+        args.kinds = [k for k in KINDS if any(c["kind"] == k for c in cases)]
+    else:
+        out, done = _prepare_out(args)
+        if args.jobs > 1:
+            os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # the processes share the cores
+        sched = Schedule(args.kinds, args.cases, args.seed, done)
+        cases = done + run_all(sched, args.jobs, args.priors, out and out / "cases.jsonl")
     cases.sort(key=lambda c: (KINDS.index(c["kind"]), c["seed"]))
     summaries = {k: summarise_kind([c for c in cases if c["kind"] == k]) for k in args.kinds}
     meta = {
