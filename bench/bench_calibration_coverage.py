@@ -285,6 +285,8 @@ def run_case(kind: str, seed: int, priors: str = "stated") -> dict:
     if not _finite(result):
         rec.update(failed=True, error="non-finite value or interval")
     rec["parameters"] = [_score_parameter(p, sim.truth) for p in result.parameters]
+    # every drawn parameter, calibrated or not (an uncalibrated one is a model error the fit absorbs)
+    rec["drawn_offsets_sd"] = {f: v["offset_sd"] for f, v in sim.truth.get("true_parameters", {}).items()}
     rec["rmse_over_sigma"] = {f.quantity: f.rmse_over_sigma_calibrated for f in result.fit}
     rec["identifiability"] = result.identifiability
     return rec
