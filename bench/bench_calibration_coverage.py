@@ -399,7 +399,12 @@ def markdown(summaries: dict, meta: dict) -> str:
         "",
         f"Synthetic data: generator {meta['generator']}, parameter_error {meta['parameter_error']:g},"
         f" noisy zeros, priors {meta['priors']}, case seeds base {meta['seed']} + kind offset"
-        f" {meta['kind_seed_offset']} + i; {meta['jobs']} worker(s).",
+        f" {meta['kind_seed_offset']} + i; "
+        + (
+            f"summarised from {', '.join(meta['from_cases'])}."
+            if meta.get("from_cases")
+            else f"{meta['jobs']} worker(s)."
+        ),
     ]
     return "\n".join(lines) + "\n"
 
@@ -476,6 +481,7 @@ def main(argv=None) -> int:
         "kind_seed_offset": KIND_SEED_OFFSET,
         "cases_per_kind": args.cases,
         "jobs": args.jobs,
+        "from_cases": args.from_cases or [],
         "wall_seconds": time.perf_counter() - t0,
     }
     table = markdown(summaries, meta)
