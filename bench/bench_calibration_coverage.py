@@ -260,7 +260,7 @@ def run_case(kind: str, seed: int, priors: str = "stated") -> dict:
     """Simulate one lying experiment, calibrate it, score it against the truth file.
 
     A truth the rig cannot run (the drawn parameters leave the model's domain, e.g. a small
-    lambda overheating the dynamic actuator past G_t' = 0) is ``skipped``, not a failed fit.
+    C_th heating the dynamic actuator past G_t' = 0) is ``skipped``, not a failed fit.
     """
     from tcamlab.calibration import calibrate
     from tcamlab.errors import TcamlabError
