@@ -1,11 +1,12 @@
 """Coverage of `tcamlab calibrate`'s 95 % intervals on a virtual rig that lies like a lab.
 
 Run: python bench/bench_calibration_coverage.py [--kinds static,dynamic] [--cases 100]
-     [--seed 0] [--jobs 2] [--priors stated|default] [--out DIR [--force]] [--quick]
+     [--seed 0] [--jobs 2] [--priors stated|default] [--out DIR [--force | --resume]] [--quick]
+     python bench/bench_calibration_coverage.py --from-cases DIR/cases.jsonl  # re-summarise
 
 ``--quick`` (the CI smoke run) calibrates 2 cases per kind; the table is
-printed, nothing is asserted on coverage or time (a case that cannot run
-still prints, as a failed fit).
+printed, nothing is asserted on coverage or time (a fit that raises is
+counted as failed; a truth the rig cannot simulate is skipped).
 
 Each case is synthetic: the virtual rig (:func:`tcamlab.rig.simulate`,
 generator ``tcamlab.rig``) makes one experiment of the kind from its template
