@@ -449,7 +449,11 @@ def _prepare_out(args) -> tuple[Path | None, list[dict]]:
         done = [c for c in done if c["kind"] in args.kinds]
     elif any(f.exists() for f in files):
         if not args.force:
-            raise SystemExit(f"error: {out} already holds results; pass --force to overwrite or --resume")
+            print(
+                f"error: {out} already holds results (hint: --force to overwrite, --resume to finish)",
+                file=sys.stderr,
+            )
+            raise SystemExit(2)
         for f in files:
             f.unlink(missing_ok=True)
     out.mkdir(parents=True, exist_ok=True)
