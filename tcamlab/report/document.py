@@ -15,8 +15,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from tcamlab.numbers import fmt
+
 CELL_STATUSES = (None, "pass", "fail", "warn")
-INDEX_STATUSES = ("pass", "fail", "error")
+INDEX_STATUSES = ("pass", "fail", "no-limits", "error")
+INDEX_STATUS_LABELS = {"pass": "passed", "fail": "FAILED", "no-limits": "no limits set", "error": "error"}
+"""How each index status is shown: "no-limits" (no threshold checked) is neutral, never a pass."""
 MISSING = "\u2013"  # en dash, shown for None cells
 
 _SAFE_SCHEMES = ("http://", "https://", "mailto:")
@@ -71,12 +75,13 @@ def _is_bool(value: Any) -> bool:
     return t.__module__ == "numpy" and t.__name__ in ("bool_", "bool")
 
 
-def format_cell(value: object, number_format: str = "{:.4g}") -> Cell:
+def format_cell(value: object, number_format: str | None = None) -> Cell:
     """Turn one raw table value into a :class:`Cell`.
 
     ``None`` -> "–"; ``bool`` -> "pass"/"FAIL" with that status; integers
-    verbatim; other real numbers through *number_format*; ``Cell`` unchanged;
-    anything else through ``str``.
+    verbatim; other real numbers through *number_format*, by default the
+    policy of :func:`tcamlab.numbers.fmt`; ``Cell`` unchanged; anything else
+    through ``str``.
     """
     if isinstance(value, Cell):
         return value
@@ -90,7 +95,7 @@ def format_cell(value: object, number_format: str = "{:.4g}") -> Cell:
         number = float(value)
         if math.isnan(number):
             return Cell("NaN")
-        return Cell(number_format.format(number))
+        return Cell(fmt(number) if number_format is None else number_format.format(number))
     return Cell(str(value))
 
 
@@ -106,7 +111,7 @@ class Table:
     columns: list[str]
     rows: list[list[object]]
     caption: str = ""
-    number_format: str = "{:.4g}"
+    number_format: str | None = None
 
     def __post_init__(self) -> None:
         self.columns = [str(c) for c in self.columns]
@@ -176,6 +181,12 @@ class IndexEntry:
     metrics: Mapping[str, str] = field(default_factory=dict)
     link: str | None = None
     error: str | None = None
+    warnings: Sequence[str] = ()
+
+    @property
+    def status_label(self) -> str:
+        """The status as shown (:data:`INDEX_STATUS_LABELS`)."""
+        return INDEX_STATUS_LABELS[self.status]
 
     def __post_init__(self) -> None:
         if self.status not in INDEX_STATUSES:
@@ -186,11 +197,17 @@ class IndexEntry:
 
 @dataclass
 class IndexDocument:
-    """An index of many reports."""
+    """An index of many reports.
+
+    ``synthetic_banner``, when set, is shown at the top (set it whenever any
+    report's data is synthetic).  Metric values are short strings; a value
+    with several lines (one per quantity) is shown line by line in its cell.
+    """
 
     title: str
     entries: Sequence[IndexEntry] = field(default_factory=list)
     metadata: Mapping[str, str] = field(default_factory=dict)
+    synthetic_banner: str | None = None
 
     def metric_names(self) -> list[str]:
         """Union of the entries' metric keys, in first-seen order."""
@@ -201,7 +218,15 @@ class IndexDocument:
         return list(seen)
 
     def status_counts(self) -> dict[str, int]:
+        """Entries per status, and ``"warnings"``: entries with at least one warning."""
         counts = {s: 0 for s in INDEX_STATUSES}
         for entry in self.entries:
             counts[entry.status] += 1
+        counts["warnings"] = sum(1 for e in self.entries if e.warnings)
         return counts
+
+    def summary(self) -> str:
+        """One line such as "2 passed, 0 failed, 2 no limits set, 0 error; 1 with warnings"."""
+        counts = self.status_counts()
+        parts = [f"{counts[s]} {INDEX_STATUS_LABELS[s].lower()}" for s in INDEX_STATUSES]
+        return ", ".join(parts) + f"; {counts['warnings']} with warnings"

@@ -125,7 +125,7 @@ def render_html(doc: Document) -> str:
 
 def render_index_html(index: IndexDocument) -> str:
     """Render an index page linking many reports."""
-    metric_names = index.metric_names()
+    metric_names = index.metric_names() or (["Error"] if any(e.error for e in index.entries) else [])
     entries = []
     for e in index.entries:
         entries.append(
@@ -134,6 +134,8 @@ def render_index_html(index: IndexDocument) -> str:
                 "title": e.title,
                 "kind": e.kind,
                 "status": e.status,
+                "status_label": e.status_label,
+                "warnings": list(e.warnings),
                 "link": safe_href(e.link),
                 "error": e.error,
                 "metrics": [str(e.metrics[m]) if m in e.metrics else None for m in metric_names],
@@ -147,6 +149,7 @@ def render_index_html(index: IndexDocument) -> str:
             metric_names=metric_names,
             entries=entries,
             counts=index.status_counts(),
+            banner=index.synthetic_banner,
             metadata=_metadata_view(index.metadata),
         )
     )
