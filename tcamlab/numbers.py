@@ -1,8 +1,8 @@
 """The one number-format policy of tcamlab's text output, HTML and PDF reports.
 
-- :func:`fmt`: 4 significant digits; positional between 1e-3 and 1e6
-  (``0.00609``, ``133.5``, ``12350``), scientific outside (``8.614e-05``);
-  never ``-0``.
+- :func:`fmt`: 4 significant digits, trailing zeros dropped; positional between
+  1e-3 and 1e6 (``0.00609``, ``133.5``, ``12350``), scientific outside
+  (``8.614e-05``, ``8.1e-05``); never ``-0``.
 - :func:`fmt_r2`: R² with 4 decimals (``0.9989``, ``-81.2065``); a value that
   4 decimals would round onto 1 (or 0) gets the decimals it needs to differ
   from it (``0.99998``), so a model short of perfect never prints as perfect.
@@ -74,7 +74,9 @@ def fmt(x, sig: int = SIG_DIGITS) -> str:
         return str(int(x))
     v = float(x)
     if v != 0.0 and not (1e-3 <= abs(v) < 1e6):
-        return _no_negative_zero(f"{v:.{sig - 1}e}")
+        mantissa, exponent = f"{v:.{sig - 1}e}".split("e")
+        mantissa = mantissa.rstrip("0").rstrip(".") if "." in mantissa else mantissa
+        return _no_negative_zero(f"{mantissa}e{exponent}")
     text = np.format_float_positional(v, precision=sig, unique=False, fractional=False, trim="-")
     return _no_negative_zero(text)
 

@@ -282,7 +282,8 @@ def _index_document(entries, results, paths):
     metadata = {"tool": f"tcamlab {__version__}", "experiments": str(len(entries))}
     for p in paths:
         p = Path(p)
-        metadata[f"experiment {p.stem}"] = f"{relative_to(p, Path.cwd())} (SHA-256 {_sha256_or(p)})"
+        metadata[f"experiment {p.stem}"] = relative_to(p, Path.cwd())
+        metadata[f"sha256 {p.name}"] = _sha256_or(p)
     synthetic = [r.experiment.name for r in results if r.experiment.synthetic]
     banner = None
     if synthetic:

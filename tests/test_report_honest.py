@@ -243,3 +243,31 @@ def test_pdf_tables_never_cut_a_word_mid_token():
     joined = text.replace("-\n", "-")
     assert joined.count("youngs-modulus-temperature") == 1
     assert joined.count("YOUNGS-MODULUS-TEMPERATURE") == 1
+
+
+def _page_images(page) -> int:
+    xobjects = (page.get("/Resources") or {}).get("/XObject")
+    return 0 if not xobjects else len(xobjects.get_object())
+
+
+def test_pdf_heading_never_left_alone_at_a_page_bottom():
+    """Filler pushes a heading followed by a figure to every position near the page bottom:
+    the heading's page must always hold the figure too."""
+    from tcamlab.report import Figure
+    from tcamlab.report.figures import new_figure
+
+    fig, ax = new_figure(6.4, 3.2)
+    ax.plot([0, 1], [0, 1])
+    for n in range(30, 62, 3):
+        filler = Section("Filler", paragraphs=[f"line {i}" for i in range(n)])
+        target = Section("Target heading", figures=[Figure(fig, "the figure")])
+        reader = pypdf.PdfReader(io.BytesIO(render_pdf(Document("t", sections=[filler, target]))))
+        page = next(p for p in reader.pages if "Target heading" in p.extract_text())
+        assert _page_images(page) == 1, n
+
+
+def test_pdf_a_long_token_gets_a_column_wide_enough():
+    """A SHA-256 (64 characters, one token) is never cut nor drawn past its column."""
+    sha = "8a7b587918ddba2cf3a7763c916fda97de6fdb5507cb5e5a440e1bd3f44e2dd7"
+    doc = Document("t", sections=[], metadata={"tool": "tcamlab", "sha256 curvature.toml": sha})
+    assert sha in _pdf_text(render_pdf(doc)).replace("\n", " ").split(" ")

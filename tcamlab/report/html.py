@@ -51,6 +51,16 @@ def _env():
     return _ENV
 
 
+_NUMBER = re.compile(r"[-+−]?(\d+\.?\d*|\.\d+)(e[-+]\d+)?( [^\s\d]{1,4})?")
+"""A number, optionally with a short unit: kept on one line (never broken at "e-")."""
+
+
+def _cell_class(cell) -> str:
+    """The td's classes: its status, and ``num`` for a number (kept on one line)."""
+    classes = [f"status-{cell.status}"] if cell.status else []
+    return " ".join(classes + (["num"] if _NUMBER.fullmatch(cell.text) else []))
+
+
 class _Counter:
     def __init__(self) -> None:
         self.tables = 0
@@ -60,7 +70,7 @@ class _Counter:
 def _table_view(table: Table, counter: _Counter) -> dict[str, Any]:
     counter.tables += 1
     rows = [
-        [{"text": c.text, "status": c.status, "href": safe_href(c.href)} for c in row]
+        [{"text": c.text, "href": safe_href(c.href), "cls": _cell_class(c)} for c in row]
         for row in table.formatted_rows()
     ]
     return {

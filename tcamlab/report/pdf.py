@@ -264,15 +264,16 @@ def _boxed(paragraph: Any, ctx: _Ctx, background: str, border: str, left_bar_onl
     return box
 
 
-_BREAK_AFTER_HYPHEN = re.compile(r"(?<=-)(?=[^\s-])")
+_BREAK_AFTER_HYPHEN = re.compile(r"(?<=[^\W\d_]-)(?=[^\W\d_])")
 
 MIN_CELL_FONT = 5.0
 """Smallest table font [pt]: a table whose words do not fit shrinks to this before anything else."""
 
 
 def _pieces(text: str) -> list[str]:
-    """The unbreakable pieces of a cell: words split at spaces, and after hyphens only
-    (reportlab's ``embeddedHyphenation``); never inside a token such as a file name."""
+    """The unbreakable pieces of a cell: words split at spaces, and after a hyphen between
+    letters (reportlab's ``embeddedHyphenation``); never inside a token such as a file name
+    or a number (``-7.769e-04`` stays whole: its column is made wide enough)."""
     return [p for w in text.split() for p in _BREAK_AFTER_HYPHEN.split(w)] or [""]
 
 
@@ -300,7 +301,7 @@ def _col_widths(
             text = row[j].text
             widest = max(widest, max(stringWidth(line[:80], font, size) for line in text.split("\n")))
             word_min = max(word_min, max(stringWidth(w, font, size) for w in _pieces(text)))
-        natural.append(min(widest, 260.0) + pad)
+        natural.append(max(min(widest, 260.0), word_min) + pad)
         minimal.append(word_min + pad)
     if sum(natural) <= width:
         return natural
@@ -401,7 +402,7 @@ def _table_flowables(table: Table, ctx: _Ctx) -> list[Any]:
 
 
 def _figure_flowables(fig: Figure, ctx: _Ctx) -> list[Any]:
-    from reportlab.platypus import Image, KeepTogether, Paragraph
+    from reportlab.platypus import Image, Paragraph
 
     ctx.figures += 1
     data = ctx.png(fig.figure)
@@ -416,7 +417,10 @@ def _figure_flowables(fig: Figure, ctx: _Ctx) -> list[Any]:
     caption = f"<b>Figure {ctx.figures}.</b>"
     if fig.caption:
         caption += " " + esc(fig.caption)
-    return [KeepTogether([image, Paragraph(caption, ctx.styles.caption)])]
+    # keepWithNext instead of a KeepTogether: reportlab groups a heading only with a plain
+    # flowable after it (a KeepTogether is a container it skips), which left headings orphaned.
+    image.keepWithNext = 1
+    return [image, Paragraph(caption, ctx.styles.caption)]
 
 
 def _section_flowables(section: Section, path: tuple[int, ...], level: int, ctx: _Ctx) -> list[Any]:

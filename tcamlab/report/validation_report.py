@@ -173,11 +173,11 @@ def _zeros_table(result) -> Table | None:
     for run, zeros in result.zeros_dict()["runs"].items():
         for q, z in zeros.items():
             lo, hi = z["ci95"]
-            ci = "–" if lo is None else f"{lo:.3g} to {hi:.3g}"
+            ci = "–" if lo is None else f"{fmt(lo, 3)} to {fmt(hi, 3)}"
             where = (
                 f"{z['rows']} rows at rest" if z["source"] == "rest rows" else f"whole run ({z['rows']} rows)"
             )
-            rows.append([run, q, z["value"], z["stderr"], ci, where])
+            rows.append([run, _quantity_label(q), z["value"], z["stderr"], ci, where])
     if not rows:
         return None
     return Table(
