@@ -189,7 +189,7 @@ class ValidationResult:
 
         exp = self.experiment
         return {
-            "schema_version": 1,
+            "schema_version": 2,
             "tool": f"tcamlab {__version__}",
             "experiment": exp.name,
             "title": exp.title,

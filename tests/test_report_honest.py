@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 import re
+import shutil
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -194,6 +195,7 @@ def test_preset_r0_far_from_the_rest_value_warns_and_is_credited_to_the_preset(s
     html = (tmp_path / "s45" / "report.html").read_text()
     first = html.split('id="sec-2"')[0]
     assert "R0 = 30 ohm" in first and "R² below 0" in first
+    assert first.count('class="warning"') == len(doc["warnings"]) and "Status: no limits set; " in first
     # the parameter table names the preset, not the file
     p = _parse(html)
     i = p.cells.index("initial_resistance")
@@ -271,3 +273,22 @@ def test_pdf_a_long_token_gets_a_column_wide_enough():
     sha = "8a7b587918ddba2cf3a7763c916fda97de6fdb5507cb5e5a440e1bd3f44e2dd7"
     doc = Document("t", sections=[], metadata={"tool": "tcamlab", "sha256 curvature.toml": sha})
     assert sha in _pdf_text(render_pdf(doc)).replace("\n", " ").split(" ")
+
+
+def test_metrics_json_and_report_record_relative_paths_version_and_hashes(tmp_path):
+    lab = tmp_path / "lab"
+    shutil.copytree(ROOT / "experiments", lab / "experiments", ignore=shutil.ignore_patterns("templates"))
+    shutil.copytree(ROOT / "raw", lab / "raw")
+    out = runner.invoke(
+        app, ["validate", "static", str(lab / "experiments/static.toml"), "--out", str(tmp_path / "r")]
+    )
+    assert out.exit_code == 0, out.output
+    folder = tmp_path / "r" / "static"
+    text = (folder / "metrics.json").read_text()
+    doc = json.loads(text)
+    assert str(tmp_path) not in text and doc["tool"].startswith("tcamlab ")
+    assert doc["inputs"][0]["path"] == "../raw/static_run1.csv" and len(doc["inputs"][0]["sha256"]) == 64
+    assert len(doc["experiment_file"]["sha256"]) == 64
+    for name in ("report.html", "metrics.json", "predictions.csv"):
+        assert str(tmp_path) not in (folder / name).read_text()
+    assert str(tmp_path) not in _pdf_text((folder / "report.pdf").read_bytes())

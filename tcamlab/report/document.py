@@ -141,8 +141,9 @@ class Figure:
 class Section:
     """A headed section.
 
-    Rendered in this order: heading, notes (highlighted warnings),
-    paragraphs, tables, figures, subsections.
+    Rendered in this order: heading, warnings (failed sanity checks, shown
+    as such), notes (highlighted facts), paragraphs, tables, figures,
+    subsections.
     """
 
     heading: str
@@ -151,6 +152,7 @@ class Section:
     figures: Sequence[Figure] = field(default_factory=list)
     subsections: Sequence[Section] = field(default_factory=list)
     notes: Sequence[str] = field(default_factory=list)
+    warnings: Sequence[str] = field(default_factory=list)
 
 
 @dataclass

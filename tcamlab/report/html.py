@@ -103,6 +103,7 @@ def _section_view(section: Section, path: tuple[int, ...], counter: _Counter) ->
         "level": min(len(path) + 1, 6),
         "heading": section.heading,
         "notes": [str(n) for n in section.notes],
+        "warnings": [str(w) for w in section.warnings],
         "paragraphs": [str(p) for p in section.paragraphs],
         "tables": tables,
         "figures": figures,

@@ -431,6 +431,12 @@ def _section_flowables(section: Section, path: tuple[int, ...], level: int, ctx:
     style = st.headings[min(len(path), len(st.headings)) - 1]
     heading = Paragraph(f"{number}&nbsp;&nbsp;{esc(section.heading)}", style)
     out: list[Any] = [_outlined(heading, f"{number} {section.heading}", level, ctx)]
+    for w in section.warnings:
+        out.append(
+            _boxed(
+                Paragraph(f"<b>Warning:</b> {esc(w)}", st.note), ctx, "#fdebe3", "#c2410c", left_bar_only=True
+            )
+        )
     for note in section.notes:
         out.append(
             _boxed(

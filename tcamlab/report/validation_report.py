@@ -158,11 +158,14 @@ def status_section(result) -> Section:
         caption="Sanity checks run on every validation (primary model); a warning never changes the "
         "status, --strict turns it into exit status 1",
     )
-    verdict = f"{len(result.warnings)} sanity warning(s)." if result.warnings else "No sanity warning."
+    n = len(result.warnings)
+    heading = f"Status: {result.status}; " + (
+        f"{n} sanity warning{'s' if n > 1 else ''}" if n else "no sanity warning"
+    )
     return Section(
-        "Status and sanity checks",
-        paragraphs=[f"Status: {STATUS_TEXT[result.status]}. {verdict}"],
-        notes=[f"WARNING: {w.message}" for w in result.warnings],
+        heading,
+        paragraphs=[f"{STATUS_TEXT[result.status]}."],
+        warnings=[w.message for w in result.warnings],
         tables=[table] + ([t] if (t := _threshold_table(result)) else []),
     )
 
