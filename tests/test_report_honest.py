@@ -292,3 +292,34 @@ def test_metrics_json_and_report_record_relative_paths_version_and_hashes(tmp_pa
     for name in ("report.html", "metrics.json", "predictions.csv"):
         assert str(tmp_path) not in (folder / name).read_text()
     assert str(tmp_path) not in _pdf_text((folder / "report.pdf").read_bytes())
+
+
+def test_residuals_one_panel_per_quantity_against_the_physical_input():
+    from tcamlab.report.validation_report import validation_document
+
+    res = validate(load_experiment(ROOT / "experiments" / "sensing.toml"), mc_draws=0)
+    figs = [f for s in validation_document(res).sections for f in s.figures]
+    axes = figs[-1].figure.axes
+    assert [a.get_ylabel() for a in axes] == ["displacement residual [mm]", "force residual [N]"]
+    assert axes[-1].get_xlabel() == "time [s]"
+
+
+def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, tmp_path):
+    """Two kinds with different quantities still give 7 columns (no per-quantity columns full
+    of dashes); the synthetic banner is on the index and the combined PDF's first page."""
+    exps = [str(ROOT / "experiments" / "static.toml"), str(sensor45)]
+    out = runner.invoke(app, ["report", *exps, "--out", str(tmp_path / "r"), "--mc-draws", "0"])
+    assert out.exit_code == 0, out.output
+    assert "no limits set static" in out.output and "  WARNING: sensing_run1: R0 = 30 ohm" in out.output
+    html = (tmp_path / "r" / "index.html").read_text()
+    p = _parse(html)
+    header = p.cells[:7]
+    assert header == ["Experiment", "Kind", "Status", "Warnings", "Quantity", "RMSE", "R²"]
+    assert len(re.findall(r"<th[ >]", html)) == 7 + 2  # the index table, then the provenance table
+    assert "SYNTHETIC DATA: 2 of 2 experiments" in "".join(p.text)
+    assert "0.005777 mm" in p.cells and "no limits set" in p.cells
+    assert "SYNTHETIC DATA" in _pdf_text((tmp_path / "r" / "reports.pdf").read_bytes(), [0])
+    strict = runner.invoke(
+        app, ["report", *exps, "--out", str(tmp_path / "s"), "--mc-draws", "0", "--strict"]
+    )
+    assert strict.exit_code == 1

@@ -220,21 +220,55 @@ def _figures(result) -> list[Figure]:
         return _draw_figures(result)
 
 
+def _residual_x(result) -> str:
+    """The physical input residuals are drawn against: the kind's ``x_column`` where every run
+    logs it, else the first other input (e.g. resistance for a pull test without time)."""
+    kind = get_kind(result.kind)
+    if all(kind.x_column in p.data for p in result.predictions):
+        return kind.x_column
+    return next(c for c in kind.inputs if all(c in p.data for p in result.predictions))
+
+
 def _draw_figures(result) -> list[Figure]:
     figs = get_kind(result.kind).figures(result)
-    # residuals of the primary model
-    fig, ax = new_figure(6.4, 2.8)
-    for q in result.quantities:
+    figs.append(_residual_figure(result))
+    return figs
+
+
+def _residual_figure(result) -> Figure:
+    """Residuals of the primary model against the physical input, one panel per quantity with
+    its unit (a force in N and a displacement in mm never share an axis)."""
+    from tcamlab.report.figures import report_style
+
+    x = _residual_x(result)
+    xq = quantity(x)
+    n = len(result.quantities)
+    fig, _ = new_figure(6.4, 1.2 + 1.7 * n)
+    fig.clear()
+    with report_style():
+        axes = np.atleast_1d(fig.subplots(n, 1, sharex=True))
+    for ax, q in zip(axes, result.quantities):
         name, factor = quantity(q).column, quantity(q).factor
         for p in result.predictions:
             res = (p.predicted[result.primary][q] - p.data[q].to_numpy()) * factor
-            ax.plot(np.arange(res.size), res, ".", ms=2, label=f"{legend_label(p.name)} {name}")
-    ax.axhline(0.0, color="0.3", lw=0.8)
-    ax.set_xlabel("row")
-    ax.set_ylabel("predicted − measured")
-    ax.legend(fontsize=6, ncol=2)
-    figs.append(Figure(fig, f"Residuals of the {result.primary} model by row.", alt="residual plot"))
-    return figs
+            ax.plot(p.data[x].to_numpy() * xq.factor, res, ".", ms=3, label=legend_label(p.name))
+        ax.axhline(0.0, color="0.3", lw=0.8)
+        unit = unit_label(name)
+        ax.set_ylabel(f"{bare_name(name)} residual" + (f" [{unit}]" if unit else ""))
+    axes[-1].set_xlabel(f"{xq.name} [{unit_label(xq.column) or xq.column_unit}]")
+    if len(result.predictions) <= 6:
+        axes[0].legend(
+            fontsize=7,
+            ncol=min(3, len(result.predictions)),
+            loc="lower center",
+            bbox_to_anchor=(0.5, 1.0),
+            frameon=False,
+        )
+    caption = (
+        f"Residuals (predicted − measured, after each run's zero) of the {result.primary} model "
+        f"against {xq.name}, one panel per quantity."
+    )
+    return Figure(fig, caption, alt="residual plot")
 
 
 def validation_document(result, *, command: str | None = None) -> Document:
