@@ -517,7 +517,8 @@ than this fraction of it (and by more than 3 standard errors of the rest mean)."
 
 SANITY_CHECKS = {
     "r2-below-zero": "R² ≥ 0 (the model beats the measured mean)",
-    "flat-prediction": f"the prediction varies (range ≥ {FLAT_FRACTION:.0%} of the measured range)",
+    "flat-prediction": f"prediction and measurement both vary (predicted range ≥ {FLAT_FRACTION:.0%} "
+    "of the measured range; a constant measurement is a dead channel)",
     "reference-far-from-rest": f"R0 within {REFERENCE_TOLERANCE:.0%} of the logged rest value",
     "zero-offset": f"each zero within {ZERO_SE_LIMIT:g} standard errors or {ZERO_NOISE_LIMIT:g} noise sds",
     "outside-domain": "every row inside the model's domain (a finite prediction)",
@@ -578,7 +579,8 @@ def r2_warnings(quantity: str, block: Mapping) -> list[SanityWarning]:
 
 
 def flat_prediction_warning(quantity: str, unit: str, measured, predicted) -> SanityWarning | None:
-    """A prediction whose range is below :data:`FLAT_FRACTION` of a varying measurement's."""
+    """A prediction whose range is below :data:`FLAT_FRACTION` of a varying measurement's, or
+    a constant measurement against a varying prediction (a dead channel)."""
     from tcamlab.numbers import with_unit
 
     m, p = _as_pair(measured, predicted)
@@ -586,15 +588,20 @@ def flat_prediction_warning(quantity: str, unit: str, measured, predicted) -> Sa
     if not ok.any():
         return None
     span_m, span_p = float(np.ptp(m[ok])), float(np.ptp(p[ok]))
+    values = {"predicted_range": span_p, "measured_range": span_m}
+    if span_m <= 0.0 and span_p > 0.0:
+        msg = (
+            f"{quantity}: the measurement is constant ({with_unit(float(m[ok][0]), unit)} on every row) "
+            f"while the prediction spans {with_unit(span_p, unit)}: a dead or unplugged channel?"
+        )
+        return SanityWarning("flat-prediction", msg, quantity, None, values)
     if span_m <= 0.0 or span_p >= FLAT_FRACTION * span_m:
         return None
     msg = (
         f"{quantity}: the prediction is flat: its range {with_unit(span_p, unit)} is "
         f"{span_p / span_m:.2g} of the measured range {with_unit(span_m, unit)} (below {FLAT_FRACTION:.0%})"
     )
-    return SanityWarning(
-        "flat-prediction", msg, quantity, None, {"predicted_range": span_p, "measured_range": span_m}
-    )
+    return SanityWarning("flat-prediction", msg, quantity, None, values)
 
 
 def zero_offset_warning(run: str, quantity: str, unit: str, zero: ZeroEstimate) -> SanityWarning | None:

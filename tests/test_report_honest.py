@@ -143,6 +143,8 @@ def test_flat_prediction_against_a_varying_measurement():
     assert w.values["measured_range"] == pytest.approx(np.ptp(measured))
     assert "mm" in w.message
     assert flat_prediction_warning("displacement_mm", "mm", measured, 0.5 * measured) is None
+    dead = flat_prediction_warning("force_N", "N", np.zeros_like(t), measured)
+    assert dead is not None and "constant" in dead.message
 
 
 def test_zero_offset_needs_both_standard_errors_and_noise_sds():
