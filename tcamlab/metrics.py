@@ -48,6 +48,7 @@ __all__ = [
     "zero_offset_warning",
     "reference_warning",
     "domain_warning",
+    "unused_threshold_warnings",
 ]
 
 METRIC_NAMES = ("rmse", "mae", "max_abs", "bias", "nrmse", "r2")
@@ -522,6 +523,7 @@ SANITY_CHECKS = {
     "reference-far-from-rest": f"R0 within {REFERENCE_TOLERANCE:.0%} of the logged rest value",
     "zero-offset": f"each zero within {ZERO_SE_LIMIT:g} standard errors or {ZERO_NOISE_LIMIT:g} noise sds",
     "outside-domain": "every row inside the model's domain (a finite prediction)",
+    "threshold-unused": "every [thresholds] key applies to a quantity of the kind",
 }
 """The sanity checks every validation runs, and what each requires."""
 
@@ -641,6 +643,23 @@ def reference_warning(run: str, name: str, used: float, source: str, rest) -> Sa
     )
     values = {"used_ohm": used, "rest_ohm": mean, "rest_rows": int(rest.size), "relative": diff / mean}
     return SanityWarning("reference-far-from-rest", msg, name, run, values)
+
+
+def unused_threshold_warnings(thresholds: Mapping[str, float], checks, quantities) -> list[SanityWarning]:
+    """A ``[thresholds]`` key that matched no quantity checked nothing (``rmse_N`` on a static test)."""
+    used = {c.key for c in checks}
+    return [
+        SanityWarning(
+            "threshold-unused",
+            f"threshold {key} = {limit} applies to no quantity of this experiment "
+            f"({', '.join(quantities)}): nothing was checked against it",
+            None,
+            None,
+            {"key": key},
+        )
+        for key, limit in thresholds.items()
+        if key not in used
+    ]
 
 
 def domain_warning(run: str, quantity: str, outside: int, rows: int) -> SanityWarning | None:

@@ -35,6 +35,7 @@ from tcamlab.metrics import (
     r2_warnings,
     reference_warning,
     threshold_status,
+    unused_threshold_warnings,
     zero_offset_warning,
 )
 from tcamlab.numbers import unit_label
@@ -478,6 +479,7 @@ def validate(
     if dropped:
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
     warnings = sanity_warnings(kind, preds, metrics)
+    warnings += unused_threshold_warnings(experiment.thresholds, checks, list(metrics[primary]))
     return ValidationResult(
         experiment, runs, preds, variants, primary, metrics, checks, notes, extras, warnings
     )

@@ -157,6 +157,15 @@ def test_zero_offset_needs_both_standard_errors_and_noise_sds():
     assert "-3.5 N" in w.message
 
 
+def test_a_threshold_that_applies_to_nothing_warns():
+    from tcamlab.metrics import unused_threshold_warnings
+
+    metrics = {"displacement_mm": {"rmse": 0.2, "r2": 0.9}}
+    checks = check_thresholds(metrics, {"rmse_N": 0.1, "r2_min": 0.5})
+    ws = unused_threshold_warnings({"rmse_N": 0.1, "r2_min": 0.5}, checks, list(metrics))
+    assert [w.values["key"] for w in ws] == ["rmse_N"]
+
+
 def test_reference_and_domain_warnings():
     rest = 45.0 + 0.003 * np.random.default_rng(1).standard_normal(50)
     w = reference_warning("run1", "R0", 30.0, "preset: assumed", rest)
