@@ -3,6 +3,8 @@
 - :func:`fmt`: 4 significant digits, trailing zeros dropped; positional between
   1e-3 and 1e6 (``0.00609``, ``133.5``, ``12350``), scientific outside
   (``8.614e-05``, ``8.1e-05``); never ``-0``.
+- :func:`fmt_column`: a table column in one notation (never ``8.614e-05`` next
+  to ``0.00609``).
 - :func:`fmt_r2`: R² with 4 decimals (``0.9989``, ``-81.2065``); a value that
   4 decimals would round onto 1 (or 0) gets the decimals it needs to differ
   from it (``0.99998``), so a model short of perfect never prints as perfect.
@@ -79,6 +81,35 @@ def fmt(x, sig: int = SIG_DIGITS) -> str:
         return _no_negative_zero(f"{mantissa}e{exponent}")
     text = np.format_float_positional(v, precision=sig, unique=False, fractional=False, trim="-")
     return _no_negative_zero(text)
+
+
+def _is_float(x) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, numbers.Integral)) and math.isfinite(x)
+
+
+def fmt_column(values, sig: int = SIG_DIGITS) -> list[str]:
+    """:func:`fmt` of a table column, in one notation for the whole column: positional when
+    the column mixes small and ordinary values that positional notation shows in full
+    (``0.0001``, ``0.00094``, ``0.00108``, not ``1e-04`` next to ``0.00108``), else scientific
+    for every value when any needs it. Non-float entries are formatted alone."""
+    sizes = [abs(float(v)) for v in values if _is_float(v) and v != 0]
+    if not sizes or all(1e-3 <= x < 1e6 for x in sizes):
+        return [fmt(v, sig) for v in values]
+    positional = min(sizes) >= 1e-5 and max(sizes) < 1e6
+    out = []
+    for v in values:
+        if not _is_float(v) or v == 0:
+            out.append(fmt(v, sig))
+        elif positional:
+            text = np.format_float_positional(
+                float(v), precision=sig, unique=False, fractional=False, trim="-"
+            )
+            out.append(_no_negative_zero(text))
+        else:
+            mantissa, exponent = f"{float(v):.{sig - 1}e}".split("e")
+            mantissa = mantissa.rstrip("0").rstrip(".") if "." in mantissa else mantissa
+            out.append(_no_negative_zero(f"{mantissa}e{exponent}"))
+    return out
 
 
 def fmt_r2(r2, decimals: int = R2_DECIMALS) -> str:

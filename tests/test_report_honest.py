@@ -232,6 +232,13 @@ def test_number_policy():
     assert with_unit(0.01234, "mm") == "0.01234 mm"
 
 
+def test_a_table_column_uses_one_notation():
+    table = Table(["run", "zero"], [["a", 1e-4], ["b", 9.4e-4], ["c", 0.00108], ["d", None]])
+    assert [r[1].text for r in table.formatted_rows()] == ["0.0001", "0.00094", "0.00108", "\u2013"]
+    wide = Table(["x"], [[2.5e-7], [0.5]])
+    assert [r[0].text for r in wide.formatted_rows()] == ["2.5e-07", "5e-01"]
+
+
 def test_validate_text_output_has_units_on_every_rmse(tmp_path):
     exp = ROOT / "experiments" / "static.toml"
     out = runner.invoke(app, ["validate", "static", str(exp), "--out", str(tmp_path), "--format", "html"])

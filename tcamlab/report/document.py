@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from tcamlab.numbers import fmt
+from tcamlab.numbers import fmt, fmt_column
 
 CELL_STATUSES = (None, "pass", "fail", "warn")
 INDEX_STATUSES = ("pass", "fail", "no-limits", "error")
@@ -75,6 +75,14 @@ def _is_bool(value: Any) -> bool:
     return t.__module__ == "numpy" and t.__name__ in ("bool_", "bool")
 
 
+def _is_plain_float(value: Any) -> bool:
+    if isinstance(value, (Cell, bool)) or value is None or _is_bool(value):
+        return False
+    return (
+        isinstance(value, numbers.Real) and not isinstance(value, numbers.Integral) and math.isfinite(value)
+    )
+
+
 def format_cell(value: object, number_format: str | None = None) -> Cell:
     """Turn one raw table value into a :class:`Cell`.
 
@@ -124,8 +132,15 @@ class Table:
                 )
 
     def formatted_rows(self) -> list[list[Cell]]:
-        """Rows with every value converted to a :class:`Cell`."""
-        return [[format_cell(v, self.number_format) for v in row] for row in self.rows]
+        """Rows with every value converted to a :class:`Cell`; by default the float values of
+        a column share one notation (:func:`tcamlab.numbers.fmt_column`)."""
+        if self.number_format is not None or not self.rows:
+            return [[format_cell(v, self.number_format) for v in row] for row in self.rows]
+        columns = [fmt_column([row[j] for row in self.rows]) for j in range(len(self.columns))]
+        return [
+            [Cell(columns[j][i]) if _is_plain_float(v) else format_cell(v) for j, v in enumerate(row)]
+            for i, row in enumerate(self.rows)
+        ]
 
 
 @dataclass
