@@ -190,8 +190,8 @@ def _all_outputs(folder: Path) -> dict[str, bytes]:
 def _run_everything(lab: Path, out: str) -> dict[str, bytes]:
     for args in (
         ["report", "--out", out, "--mc-draws", "30"],
-        ["fit-spring", "raw/sensing_run1.csv", "raw/sensing_run2.csv", "--plot", f"{out}/fit.svg"],
-        ["fit-spring", "raw/sensing_run1.csv", "--plot", f"{out}/fit.png"],
+        ["fit-spring", "raw/sensing_run1.csv", "raw/sensing_run2.csv", "--plot", f"{out}/fit.svg", "--force"],
+        ["fit-spring", "raw/sensing_run1.csv", "--plot", f"{out}/fit.png", "--force"],
         ["validate", "dynamic", "experiments/dynamic.toml", "--out", f"{out}/v", "--mc-draws", "30"],
     ):
         result = runner.invoke(app, args)
