@@ -517,15 +517,16 @@ REFERENCE_TOLERANCE = 0.01
 than this fraction of it (and by more than 3 standard errors of the rest mean)."""
 
 SANITY_CHECKS = {
+    "reference-far-from-rest": f"R0 within {REFERENCE_TOLERANCE:.0%} of the logged rest value",
     "r2-below-zero": "R² ≥ 0 (the model beats the measured mean)",
     "flat-prediction": f"prediction and measurement both vary (predicted range ≥ {FLAT_FRACTION:.0%} "
     "of the measured range; a constant measurement is a dead channel)",
-    "reference-far-from-rest": f"R0 within {REFERENCE_TOLERANCE:.0%} of the logged rest value",
     "zero-offset": f"each zero within {ZERO_SE_LIMIT:g} standard errors or {ZERO_NOISE_LIMIT:g} noise sds",
     "outside-domain": "every row inside the model's domain (a finite prediction)",
     "threshold-unused": "every [thresholds] key applies to a quantity of the kind",
 }
-"""The sanity checks every validation runs, and what each requires."""
+"""The sanity checks every validation runs, and what each requires (in the order warnings are
+listed: a wrong reference first, as it explains the others)."""
 
 
 @dataclass(frozen=True)
