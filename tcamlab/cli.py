@@ -117,6 +117,12 @@ MaxBytes = Annotated[
         help="Refuse CSV logs larger than this many bytes (default 2 GiB); K, M or G suffixes allowed, e.g. 500M.",
     ),
 ]
+Strict = Annotated[
+    bool,
+    typer.Option(
+        "--strict", help="Exit 1 when a sanity check warns (R² < 0, flat prediction, R0 far from rest, ...)."
+    ),
+]
 McDraws = Annotated[
     int | None,
     typer.Option("--mc-draws", min=0, help="Monte Carlo draws for the dynamic band (default 1000)."),
@@ -168,6 +174,8 @@ def _main(
 
 
 def _print_validation(outcome, as_json: bool) -> None:
+    from tcamlab.numbers import fmt_r2, unit_label, with_unit
+
     res = outcome.result
     if as_json:
         _print_json(res.to_dict())
@@ -175,8 +183,8 @@ def _print_validation(outcome, as_json: bool) -> None:
     for q, block in res.metrics[res.primary].items():
         m = block["pooled"]
         typer.echo(
-            f"{res.experiment.name}: {res.primary} {q}: RMSE {m['rmse']:.4g}, "
-            f"R² {m['r2']:.4g} over {m['n']} samples"
+            f"{res.experiment.name}: {res.primary} {q}: RMSE {with_unit(m['rmse'], unit_label(q))}, "
+            f"R² {fmt_r2(m['r2'])} over {m['n']} samples"
         )
     for run, zeros in res.zeros_dict()["runs"].items():
         for q, z in zeros.items():
@@ -185,20 +193,23 @@ def _print_validation(outcome, as_json: bool) -> None:
         typer.echo(f"note: {note}")
     for c in res.checks:
         typer.echo(("pass " if c.passed else "FAIL ") + c.describe())
+    for w in res.warnings:
+        typer.echo(f"WARNING: {w.message}")
+    typer.echo(f"status: {res.status}" + (f", {len(res.warnings)} warning(s)" if res.warnings else ""))
     typer.echo(f"wrote {outcome.out_dir}")
 
 
 def _zero_line(run: str, q: str, z: dict) -> str:
     """One estimated zero in lab units: value, standard error and 95% interval."""
-    from tcamlab.metrics import quantity_unit
+    from tcamlab.numbers import bare_name, fmt, unit_label
 
-    unit = quantity_unit(q) or ""
+    unit = unit_label(q)
     if z["value"] is None:
         return f"zero {run} {q}: not estimated"
-    text = f"zero {run} {q.rsplit('_' + unit, 1)[0]}: {z['value']:+.3g} {unit}"
+    text = f"zero {run} {bare_name(q)}: {fmt(z['value'], 3)} {unit}"
     if z["stderr"] is not None:
         lo, hi = z["ci95"]
-        text += f" (standard error {z['stderr']:.2g}, 95% CI {lo:+.3g} to {hi:+.3g})"
+        text += f" (standard error {fmt(z['stderr'], 2)} {unit}, 95% CI {fmt(lo, 3)} to {fmt(hi, 3)} {unit})"
     where = f"{z['rows']} rows at rest" if z["source"] == "rest rows" else f"all {z['rows']} rows of the run"
     return text + f", mean residual of {where}; subtracted"
 
@@ -212,6 +223,7 @@ def _make_validate(kind: str, example: str):
         drop_na: DropNa = False,
         mc_draws: McDraws = None,
         max_bytes: MaxBytes = None,
+        strict: Strict = False,
     ):
         from tcamlab.pipeline import validate_experiment
         from tcamlab.text import validate_command
@@ -228,13 +240,14 @@ def _make_validate(kind: str, example: str):
             command=validate_command(kind, experiment, drop_na, mc_draws),
         )
         _print_validation(outcome, as_json)
-        if not outcome.passed:
+        if outcome.failed or (strict and outcome.result.warnings):
             raise typer.Exit(code=1)
 
     command.__doc__ = (
         f"Validate the {kind} model against an experiment's runs.\n\n"
         f"Writes OUT/NAME/report.html, report.pdf, metrics.json and "
-        f"predictions.csv; exits 1 if a [thresholds] limit is exceeded.\n\n"
+        f"predictions.csv; exits 1 if a [thresholds] limit is exceeded (or, with --strict, "
+        f"a sanity check warns); without [thresholds] the status is 'no limits set' (exit 0).\n\n"
         f"Example: {example}"
     )
     return command
@@ -272,11 +285,13 @@ def report(
     mc_draws: McDraws = None,
     drop_na: DropNa = False,
     max_bytes: MaxBytes = None,
+    strict: Strict = False,
 ):
     """Validate every experiment; write each report, index.html and one combined PDF.
 
     An experiment that cannot be validated is listed in the index with its error
-    (exit status 2); the others still build.
+    (exit status 2); the others still build. Exit 1 when a threshold failed, or with
+    --strict when a sanity check warns.
 
     Example: tcamlab report --out reports
     """
@@ -296,11 +311,13 @@ def report(
     if interactive:
         typer.echo("", err=True)
     for e in outcome.entries:
-        typer.echo(f"{e.status:5s} {e.name}" + (f": {e.error}" if e.error else ""))
+        typer.echo(f"{e.status_label} {e.name}" + (f": {e.error}" if e.error else ""))
+        for w in e.warnings:
+            typer.echo(f"  WARNING: {w}")
     typer.echo(f"wrote {outcome.index_path} and {outcome.pdf_path}")
     if any(e.status == "error" for e in outcome.entries):
         raise typer.Exit(code=2)
-    if outcome.failed:
+    if outcome.failed or (strict and any(e.warnings for e in outcome.entries)):
         raise typer.Exit(code=1)
 
 

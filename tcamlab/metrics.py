@@ -10,7 +10,7 @@ experiment file (see :data:`METRIC_UNITS_NOTE` for units and
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from scipy import stats
@@ -29,9 +29,26 @@ __all__ = [
     "UNIT_SUFFIXES",
     "ThresholdCheck",
     "check_thresholds",
+    "STATUS_PASSED",
+    "STATUS_FAILED",
+    "STATUS_NO_LIMITS",
+    "STATUSES",
+    "threshold_status",
     "error_metrics",
     "pooled_metrics",
     "quantity_unit",
+    "SANITY_CHECKS",
+    "SanityWarning",
+    "FLAT_FRACTION",
+    "ZERO_SE_LIMIT",
+    "ZERO_NOISE_LIMIT",
+    "REFERENCE_TOLERANCE",
+    "r2_warnings",
+    "flat_prediction_warning",
+    "zero_offset_warning",
+    "reference_warning",
+    "domain_warning",
+    "unused_threshold_warnings",
 ]
 
 METRIC_NAMES = ("rmse", "mae", "max_abs", "bias", "nrmse", "r2")
@@ -339,10 +356,16 @@ class ThresholdCheck:
 
     def describe(self) -> str:
         """One line such as ``displacement_mm rmse 0.42 <= 0.5: pass``."""
+        from tcamlab.numbers import fmt, fmt_r2, unit_label
+
         metric = self.metric
-        shown = f"|{self.value:.4g}|" if metric == "bias" else f"{self.value:.4g}"
+        value = fmt_r2(self.value) if metric == "r2" else fmt(self.value)
+        shown = f"|{value}|" if metric == "bias" else value
+        unit = "" if metric in ("r2", "nrmse") else unit_label(self.quantity)
+        limit = fmt(self.limit) + (f" {unit}" if unit else "")
+        shown += f" {unit}" if unit else ""
         verdict = "pass" if self.passed else "FAIL"
-        return f"{self.quantity} {metric} {shown} {self.comparison} {self.limit:.4g}: {verdict}"
+        return f"{self.quantity} {metric} {shown} {self.comparison} {limit}: {verdict}"
 
     def to_dict(self) -> dict:
         """JSON-safe dict (NaN value becomes None)."""
@@ -382,6 +405,25 @@ def _parse_threshold_key(key: str) -> tuple[str, str | None, bool]:
 
 def _metric_of(threshold_metric: str) -> str:
     return "r2" if threshold_metric == "r2_min" else threshold_metric
+
+
+STATUS_PASSED = "passed"
+STATUS_FAILED = "failed"
+STATUS_NO_LIMITS = "no limits set"
+STATUSES = (STATUS_PASSED, STATUS_FAILED, STATUS_NO_LIMITS)
+"""The three outcomes of a validation: every threshold met, one or more failed, or none
+checked (no ``[thresholds]``, or none matching a quantity): neutral, never a pass."""
+
+
+def threshold_status(checks: Iterable[ThresholdCheck]) -> str:
+    """:data:`STATUS_NO_LIMITS` without checks, else passed or failed.
+
+    A validation that checked nothing has not passed: it says so instead.
+    """
+    checks = list(checks)
+    if not checks:
+        return STATUS_NO_LIMITS
+    return STATUS_PASSED if all(c.passed for c in checks) else STATUS_FAILED
 
 
 def check_thresholds(
@@ -454,3 +496,179 @@ def check_thresholds(
                 passed = compared <= limit_f
             checks.append(ThresholdCheck(key, quantity, value, limit_f, bool(passed)))
     return checks
+
+
+# --------------------------------------------------------------------------
+# sanity checks
+# --------------------------------------------------------------------------
+
+FLAT_FRACTION = 0.01
+"""A prediction is flat when its range is below this fraction of the measured range."""
+
+ZERO_SE_LIMIT = 3.0
+ZERO_NOISE_LIMIT = 3.0
+"""A zero is a warning when it is beyond ZERO_SE_LIMIT standard errors (it is real) AND beyond
+ZERO_NOISE_LIMIT noise sds (the sd of the residuals it was estimated from): a log re-zeroed on
+one noisy row carries a zero of about one noise sd, so only a larger one points at a tare, a
+reference (R0) or a model error."""
+
+REFERENCE_TOLERANCE = 0.01
+"""A resistance reference (R0) is a warning when it differs from the logged rest value by more
+than this fraction of it (and by more than 3 standard errors of the rest mean)."""
+
+SANITY_CHECKS = {
+    "reference-far-from-rest": f"R0 within {REFERENCE_TOLERANCE:.0%} of the logged rest value",
+    "r2-below-zero": "R² ≥ 0 (the model beats the measured mean)",
+    "flat-prediction": f"prediction and measurement both vary (predicted range ≥ {FLAT_FRACTION:.0%} "
+    "of the measured range; a constant measurement is a dead channel)",
+    "zero-offset": f"each zero within {ZERO_SE_LIMIT:g} standard errors or {ZERO_NOISE_LIMIT:g} noise sds",
+    "outside-domain": "every row inside the model's domain (a finite prediction)",
+    "threshold-unused": "every [thresholds] key applies to a quantity of the kind",
+}
+"""The sanity checks every validation runs, and what each requires (in the order warnings are
+listed: a wrong reference first, as it explains the others)."""
+
+
+@dataclass(frozen=True)
+class SanityWarning:
+    """One failed sanity check, with the numbers behind it.
+
+    Attributes
+    ----------
+    check : str
+        A key of :data:`SANITY_CHECKS`.
+    message : str
+        One line with the numbers (lab units).
+    quantity, run : str or None
+        What it concerns (None: pooled, or not tied to a quantity).
+    values : dict
+        The numbers, JSON-safe.
+    """
+
+    check: str
+    message: str
+    quantity: str | None = None
+    run: str | None = None
+    values: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """JSON-safe dict (NaN values become None)."""
+
+        def num(x):
+            if isinstance(x, (float, np.floating)):
+                return float(x) if np.isfinite(x) else None
+            return x
+
+        d = asdict(self)
+        d["values"] = {k: num(v) for k, v in self.values.items()}
+        return d
+
+
+def r2_warnings(quantity: str, block: Mapping) -> list[SanityWarning]:
+    """R² below 0 pooled or in any run (``block``: {"runs": {run: metrics}, "pooled": metrics})."""
+    from tcamlab.numbers import fmt_r2
+
+    runs = {r: m["r2"] for r, m in block["runs"].items() if m["r2"] is not None and m["r2"] < 0}
+    pooled = block["pooled"]["r2"]
+    if not runs and not (pooled is not None and pooled < 0):
+        return []
+    listed = ", ".join(f"{r} {fmt_r2(v)}" for r, v in runs.items())
+    msg = (
+        f"{quantity}: R² below 0 (pooled {fmt_r2(pooled)}"
+        + (f"; runs {listed}" if listed else "")
+        + "): the model predicts worse than the measured mean"
+    )
+    return [SanityWarning("r2-below-zero", msg, quantity, None, {"r2_pooled": pooled, **runs})]
+
+
+def flat_prediction_warning(quantity: str, unit: str, measured, predicted) -> SanityWarning | None:
+    """A prediction whose range is below :data:`FLAT_FRACTION` of a varying measurement's, or
+    a constant measurement against a varying prediction (a dead channel)."""
+    from tcamlab.numbers import with_unit
+
+    m, p = _as_pair(measured, predicted)
+    ok = np.isfinite(m) & np.isfinite(p)
+    if not ok.any():
+        return None
+    span_m, span_p = float(np.ptp(m[ok])), float(np.ptp(p[ok]))
+    values = {"predicted_range": span_p, "measured_range": span_m}
+    if span_m <= 0.0 and span_p > 0.0:
+        msg = (
+            f"{quantity}: the measurement is constant ({with_unit(float(m[ok][0]), unit)} on every row) "
+            f"while the prediction spans {with_unit(span_p, unit)}: a dead or unplugged channel?"
+        )
+        return SanityWarning("flat-prediction", msg, quantity, None, values)
+    if span_m <= 0.0 or span_p >= FLAT_FRACTION * span_m:
+        return None
+    msg = (
+        f"{quantity}: the prediction is flat: its range {with_unit(span_p, unit)} is "
+        f"{span_p / span_m:.2g} of the measured range {with_unit(span_m, unit)} (below {FLAT_FRACTION:.0%})"
+    )
+    return SanityWarning("flat-prediction", msg, quantity, None, values)
+
+
+def zero_offset_warning(run: str, quantity: str, unit: str, zero: ZeroEstimate) -> SanityWarning | None:
+    """A zero beyond :data:`ZERO_SE_LIMIT` standard errors and :data:`ZERO_NOISE_LIMIT` noise sds."""
+    from tcamlab.numbers import fmt, with_unit
+
+    if not (np.isfinite(zero.value) and np.isfinite(zero.stderr)) or zero.stderr <= 0:
+        return None
+    noise = zero.stderr * np.sqrt(zero.rows)
+    if abs(zero.value) <= ZERO_SE_LIMIT * zero.stderr or abs(zero.value) <= ZERO_NOISE_LIMIT * noise:
+        return None
+    msg = (
+        f"{run} {quantity}: zero offset {with_unit(zero.value, unit)} ({fmt(abs(zero.value) / zero.stderr, 3)} "
+        f"standard errors, {fmt(abs(zero.value) / noise, 3)} noise sds of {with_unit(noise, unit)}; "
+        f"{zero.source}): a tare, a reference (R0) or the model is off"
+    )
+    values = {"zero": zero.value, "stderr": zero.stderr, "noise_sd": noise, "rows": zero.rows}
+    return SanityWarning("zero-offset", msg, quantity, run, values)
+
+
+def reference_warning(run: str, name: str, used: float, source: str, rest) -> SanityWarning | None:
+    """A resistance reference ``used`` [ohm] far from the mean of the logged ``rest`` values [ohm]."""
+    from tcamlab.numbers import fmt
+
+    rest = np.asarray(rest, dtype=float)
+    rest = rest[np.isfinite(rest)]
+    if rest.size == 0 or not np.isfinite(used):
+        return None
+    mean = float(rest.mean())
+    se = float(rest.std(ddof=1) / np.sqrt(rest.size)) if rest.size > 1 else 0.0
+    diff = used - mean
+    if abs(diff) <= REFERENCE_TOLERANCE * abs(mean) or abs(diff) <= 3.0 * se:
+        return None
+    msg = (
+        f"{run}: {name} = {fmt(used)} ohm ({source}) is {diff / mean:+.1%} from the logged rest value "
+        f"{fmt(mean)} ohm (mean of {rest.size} rows at rest)"
+    )
+    values = {"used_ohm": used, "rest_ohm": mean, "rest_rows": int(rest.size), "relative": diff / mean}
+    return SanityWarning("reference-far-from-rest", msg, name, run, values)
+
+
+def unused_threshold_warnings(thresholds: Mapping[str, float], checks, quantities) -> list[SanityWarning]:
+    """A ``[thresholds]`` key that matched no quantity checked nothing (``rmse_N`` on a static test)."""
+    used = {c.key for c in checks}
+    return [
+        SanityWarning(
+            "threshold-unused",
+            f"threshold {key} = {limit} applies to no quantity of this experiment "
+            f"({', '.join(quantities)}): nothing was checked against it",
+            None,
+            None,
+            {"key": key},
+        )
+        for key, limit in thresholds.items()
+        if key not in used
+    ]
+
+
+def domain_warning(run: str, quantity: str, outside: int, rows: int) -> SanityWarning | None:
+    """Rows of a run where the model gives no finite prediction (outside its domain)."""
+    if outside <= 0:
+        return None
+    msg = (
+        f"{run} {quantity}: {outside} of {rows} rows outside the model's domain (no finite "
+        "prediction); left out of the metrics"
+    )
+    return SanityWarning("outside-domain", msg, quantity, run, {"rows_outside": outside, "rows": rows})

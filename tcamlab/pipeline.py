@@ -80,8 +80,14 @@ class ValidateOutcome:
     files: list = field(default_factory=list)
 
     @property
-    def passed(self) -> bool:
+    def passed(self) -> bool | None:
+        """True / False when thresholds were checked, None when none was set."""
         return self.result.passed
+
+    @property
+    def failed(self) -> bool:
+        """A threshold failed."""
+        return self.result.failed
 
 
 def _parse_formats(formats: Sequence[str] | str) -> tuple[str, ...]:
@@ -176,16 +182,22 @@ class ReportOutcome:
 
     @property
     def failed(self) -> list:
-        return [e for e in self.entries if e.status != "pass"]
+        """Entries with a failed threshold (not those without limits, nor errors)."""
+        return [e for e in self.entries if e.status == "fail"]
 
 
 def _headline(result) -> dict[str, str]:
-    out = {}
+    """The index's headline metrics: the primary model's pooled RMSE (with unit) and R²,
+    one line per quantity (the rest is in each report)."""
+    from tcamlab.numbers import bare_name, fmt_r2, unit_label, with_unit
+
+    lines: dict[str, list[str]] = {"Quantity": [], "RMSE": [], "R²": []}
     for q, block in result.metrics[result.primary].items():
         m = block["pooled"]
-        out[f"RMSE {q}"] = f"{m['rmse']:.4g}"
-        out[f"R² {q}"] = f"{m['r2']:.4g}"
-    return out
+        lines["Quantity"].append(bare_name(q))
+        lines["RMSE"].append(with_unit(m["rmse"], unit_label(q)))
+        lines["R²"].append(fmt_r2(m["r2"]))
+    return {k: "\n".join(v) for k, v in lines.items()}
 
 
 def build_reports(
@@ -205,7 +217,7 @@ def build_reports(
     ``drop_na`` and ``max_bytes`` are passed to every experiment's
     :func:`validate_experiment`.
     """
-    from tcamlab.report.document import IndexDocument, IndexEntry
+    from tcamlab.report.document import IndexEntry
     from tcamlab.report.html import render_index_html
     from tcamlab.report.pdf import render_combined_pdf
 
@@ -218,7 +230,7 @@ def build_reports(
                 hint="pass experiment files or use --experiments DIR",
             )
     out = Path(out_dir)
-    entries, docs = [], []
+    entries, results = [], []
     names = report_names(paths)
     kw = {"mc_draws": mc_draws, "drop_na": drop_na, "max_bytes": max_bytes, "command": None}
     for i, p in enumerate(paths):
@@ -228,41 +240,69 @@ def build_reports(
         try:
             outcome = validate_experiment(p, out, out_name=names[i], **kw)
         except TcamlabError as exc:
-            entries.append(
-                IndexEntry(
-                    name=names[i],
-                    title=p.stem,
-                    kind="?",
-                    status="error",
-                    metrics={},
-                    link=None,
-                    error=exc.one_line(),
-                )
-            )
+            entries.append(IndexEntry(names[i], p.stem, "?", "error", {}, link=None, error=exc.one_line()))
             continue
-        res = outcome.result
-        entries.append(
-            IndexEntry(
-                name=names[i],
-                title=res.experiment.title,
-                kind=res.kind,
-                status="pass" if res.passed else "fail",
-                metrics=_headline(res),
-                link=f"{quote(names[i])}/report.html",
-                error=None,
-            )
-        )
-        docs.append(res.document)
-    from tcamlab import __version__
-
-    index = IndexDocument(
-        title="tcamlab validation reports",
-        entries=entries,
-        metadata={"tool": f"tcamlab {__version__}", "experiments": str(len(entries))},
-    )
+        entries.append(_index_entry(outcome.result, names[i]))
+        results.append(outcome.result)
+    index = _index_document(entries, results, paths)
     index_path = atomic_write_text(out / "index.html", render_index_html(index))
+    docs = [r.document for r in results]
     pdf_path = atomic_write_bytes(out / "reports.pdf", render_combined_pdf(docs, index))
     return ReportOutcome(out, entries, index_path, pdf_path)
+
+
+def _sha256_or(path) -> str:
+    from tcamlab.io import sha256_file
+
+    try:
+        return sha256_file(path)
+    except OSError:
+        return "unreadable"
+
+
+def _index_entry(res, name: str):
+    """The index row of one validation; ``name`` is its report folder (see :func:`report_names`)."""
+    from tcamlab.report.document import IndexEntry
+
+    return IndexEntry(
+        name=name,
+        title=res.experiment.title,
+        kind=res.kind,
+        status=INDEX_STATUS[res.status],
+        metrics=_headline(res),
+        link=f"{quote(name)}/report.html",
+        error=None,
+        warnings=[w.message for w in res.warnings],
+    )
+
+
+def _index_document(entries, results, paths):
+    """The index: entries, the synthetic banner when any input is synthetic, and provenance
+    (tool version, each experiment file's path relative to the working folder and SHA-256)."""
+    from tcamlab import __version__
+    from tcamlab.report.document import IndexDocument
+    from tcamlab.validation import relative_to
+
+    metadata = {"tool": f"tcamlab {__version__}", "experiments": str(len(entries))}
+    for name, p in zip(report_names(paths), paths):
+        p = Path(p)
+        metadata[f"experiment {name}"] = relative_to(p, Path.cwd())
+        metadata[f"sha256 {name}"] = _sha256_or(p)
+    synthetic = [r.experiment.name for r in results if r.experiment.synthetic]
+    banner = None
+    if synthetic:
+        banner = (
+            f"SYNTHETIC DATA: {len(synthetic)} of {len(entries)} experiments ({', '.join(synthetic)}) "
+            "were made by the virtual rig (tcamlab simulate), not measured; each report names its "
+            "generator, seed and command."
+        )
+    return IndexDocument(
+        title="tcamlab validation reports", entries=entries, metadata=metadata, synthetic_banner=banner
+    )
+
+
+INDEX_STATUS = {"passed": "pass", "failed": "fail", "no limits set": "no-limits"}
+"""Validation status -> index status (:data:`tcamlab.report.document.INDEX_STATUSES`)."""
 
 
 PLOT_FORMATS = (".png", ".svg", ".pdf")

@@ -19,9 +19,26 @@ import pandas as pd
 
 from tcamlab.config import Experiment
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
-from tcamlab.io import RunData
+from tcamlab.io import RunData, sha256_file
 from tcamlab.kinds import Kind, get_kind, rest_rows
-from tcamlab.metrics import MIN_REST_ROWS, check_thresholds, error_metrics, estimate_zero, pooled_metrics
+from tcamlab.metrics import (
+    MIN_REST_ROWS,
+    SANITY_CHECKS,
+    STATUS_FAILED,
+    STATUS_PASSED,
+    check_thresholds,
+    domain_warning,
+    error_metrics,
+    estimate_zero,
+    flat_prediction_warning,
+    pooled_metrics,
+    r2_warnings,
+    reference_warning,
+    threshold_status,
+    unused_threshold_warnings,
+    zero_offset_warning,
+)
+from tcamlab.numbers import unit_label
 from tcamlab.units import quantity
 
 __all__ = ["ValidationResult", "RunPrediction", "validate", "MC_DRAWS"]
@@ -76,9 +93,12 @@ class ValidationResult:
         variant -> display quantity -> {"runs": {run: metrics}, "pooled": metrics}.
     checks : list of ThresholdCheck
     notes : list of str
-        Warnings and facts the reader must see (conditioning, draws out of range).
+        Facts the reader must see (conditioning, draws out of range).
     extras : dict
         Kind-specific results (spring fits, conditioning, Monte Carlo summary).
+    warnings : list of SanityWarning
+        The sanity checks that failed (:data:`tcamlab.metrics.SANITY_CHECKS`); they
+        never change the status, ``--strict`` turns them into exit status 1.
     """
 
     experiment: Experiment
@@ -90,14 +110,26 @@ class ValidationResult:
     checks: list
     notes: list = field(default_factory=list)
     extras: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     @property
     def kind(self) -> str:
         return self.experiment.kind
 
     @property
-    def passed(self) -> bool:
-        return all(c.passed for c in self.checks)
+    def status(self) -> str:
+        """``"passed"``, ``"failed"`` or ``"no limits set"`` (:func:`tcamlab.metrics.threshold_status`)."""
+        return threshold_status(self.checks)
+
+    @property
+    def passed(self) -> bool | None:
+        """True when every threshold passed, False when one failed, None when none was checked."""
+        return {STATUS_PASSED: True, STATUS_FAILED: False}.get(self.status)
+
+    @property
+    def failed(self) -> bool:
+        """A threshold failed (exit status 1)."""
+        return self.status == STATUS_FAILED
 
     @property
     def quantities(self) -> tuple[str, ...]:
@@ -158,15 +190,17 @@ class ValidationResult:
 
         exp = self.experiment
         return {
-            "schema_version": 1,
+            "schema_version": 2,
             "tool": f"tcamlab {__version__}",
             "experiment": exp.name,
             "title": exp.title,
             "kind": exp.kind,
             "synthetic": exp.synthetic,
+            "experiment_file": {"file": exp.path.name, "sha256": sha256_file(exp.path)},
             "inputs": [
                 {
                     "file": r.path.name,
+                    "path": relative_to(r.path, exp.path.parent),
                     "sha256": r.sha256,
                     "rows": int(len(r.data)),
                     "dropped_rows": int(r.n_dropped),
@@ -183,7 +217,10 @@ class ValidationResult:
             },
             "zeros": self.zeros_dict(),
             "thresholds": [c.to_dict() for c in self.checks],
+            "status": self.status,
             "passed": self.passed,
+            "sanity_checks": dict(SANITY_CHECKS),
+            "warnings": [w.to_dict() for w in self.warnings],
             "notes": list(self.notes),
             "extras": _json(self.extras),
         }
@@ -201,6 +238,18 @@ class ValidationResult:
         ax.set_xlabel(f"measured {name}")
         ax.set_ylabel(f"predicted {name}")
         return ax
+
+
+def relative_to(path, start) -> str:
+    """``path`` relative to the folder ``start`` in POSIX form (``../raw/run1.csv``), as an
+    experiment file names its runs; the bare name on another drive. Never absolute."""
+    import os
+    from pathlib import Path
+
+    try:
+        return Path(os.path.relpath(Path(path).resolve(), Path(start).resolve())).as_posix()
+    except ValueError:
+        return Path(path).name
 
 
 def _slug(variant: str) -> str:
@@ -266,6 +315,49 @@ def _subtract_zeros(kind: Kind, preds: list[RunPrediction]) -> list[str]:
             )
         )
     return notes
+
+
+_REFERENCES = {
+    "initial_resistance_ohm": ("R0", ("resistance",)),
+    "initial_resistances_ohm": ("R0", ("r1", "r2")),
+}
+"""Per-run info key of a resistance reference -> (name, logged channels it refers to)."""
+
+
+def _reference_warnings(kind: Kind, preds: list[RunPrediction]) -> list:
+    """Each run's resistance reference (R0) against the mean of its logged rows at rest."""
+    out = []
+    for p in preds:
+        rest = rest_rows(kind, p.data)
+        for key, (name, channels) in _REFERENCES.items():
+            if key not in p.info:
+                continue
+            used = np.atleast_1d(np.asarray(p.info[key], float))
+            source = str(p.info.get(key.replace("_ohm", "_source"), "?"))
+            for j, ch in enumerate(channels):
+                label = name if len(channels) == 1 else f"{name} of {ch}"
+                value = float(used[min(j, used.size - 1)])
+                out.append(reference_warning(p.name, label, value, source, p.data[ch].to_numpy(float)[rest]))
+    return out
+
+
+def sanity_warnings(kind: Kind, preds: list[RunPrediction], metrics: dict) -> list:
+    """Every sanity check of :data:`tcamlab.metrics.SANITY_CHECKS` on the primary model;
+    a wrong reference (R0) first, as it explains the others."""
+    out = _reference_warnings(kind, preds)
+    for q in kind.outputs:
+        col, factor = quantity(q).column, quantity(q).factor
+        unit = unit_label(col)
+        out += r2_warnings(col, metrics[kind.primary][col])
+        measured = np.concatenate([p.data[q].to_numpy(float) for p in preds]) * factor
+        predicted = np.concatenate([np.asarray(p.predicted[kind.primary][q], float) for p in preds]) * factor
+        out.append(flat_prediction_warning(col, unit, measured, predicted))
+        for p in preds:
+            m, pr = p.data[q].to_numpy(float), np.asarray(p.predicted[kind.primary][q], float)
+            out.append(domain_warning(p.name, col, int(np.sum(np.isfinite(m) & ~np.isfinite(pr))), m.size))
+            if q in p.zeros:
+                out.append(zero_offset_warning(p.name, col, unit, p.zeros[q].scaled(factor)))
+    return [w for w in out if w is not None]
 
 
 def _run_names(runs: list[RunData]) -> list[str]:
@@ -386,4 +478,8 @@ def validate(
     dropped = sum(r.n_dropped for r in runs)
     if dropped:
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
-    return ValidationResult(experiment, runs, preds, variants, primary, metrics, checks, notes, extras)
+    warnings = sanity_warnings(kind, preds, metrics)
+    warnings += unused_threshold_warnings(experiment.thresholds, checks, list(metrics[primary]))
+    return ValidationResult(
+        experiment, runs, preds, variants, primary, metrics, checks, notes, extras, warnings
+    )

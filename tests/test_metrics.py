@@ -198,7 +198,7 @@ def test_non_numeric_limit_raises():
 
 def test_threshold_check_helpers():
     c = ThresholdCheck("rmse_mm", "displacement_mm", 0.42, 0.5, True)
-    assert c.describe() == "displacement_mm rmse 0.42 <= 0.5: pass"
+    assert c.describe() == "displacement_mm rmse 0.42 mm <= 0.5 mm: pass"
     assert ThresholdCheck("x", "q", float("nan"), 1.0, False).to_dict()["value"] is None
 
 

@@ -293,7 +293,7 @@ def test_index_html():
     links = [a["href"] for tag, a in p.attrs if tag == "a"]
     assert links == ["run-01/report.html"]
     headers = [a for tag, a in p.attrs if tag == "th"]
-    assert len(headers) == 4 + 2 + 1 + 2  # fixed + metrics + error + provenance
+    assert len(headers) == 4 + 2 + 2  # fixed (experiment, kind, status, warnings) + metrics + provenance
     classes = [a.get("class") for tag, a in p.attrs if tag == "td"]
     assert {"status-pass", "status-fail", "status-error"} <= set(classes)
     assert render_index_html(index) == out

@@ -45,6 +45,7 @@ __all__ = [
     "no_extras",
     "no_section",
     "rest_rows",
+    "stated_source",
 ]
 
 
@@ -285,6 +286,15 @@ def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
         if moved.size:
             first_move = min(first_move, int(moved[0]))
     return np.arange(max(first_move, 1))
+
+
+def stated_source(provenance, name: str) -> str:
+    """Where a stated rig value came from, for reports: "experiment file", or the preset's
+    provenance prefixed "preset" (a value the file does not state is not the file's)."""
+    source = (provenance or {}).get(name, "experiment file")
+    return (
+        source if source == "experiment file" or source.startswith("tcamlab default") else f"preset: {source}"
+    )
 
 
 KINDS: tuple[str, ...] = ("static", "dynamic", "sensing", "curvature")

@@ -30,7 +30,7 @@ import pandas as pd
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
-from tcamlab.kinds import CalibrationParam, Kind, RunOptions, no_extras, no_section, rest_rows
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, no_extras, no_section, rest_rows, stated_source
 from tcamlab.models import curvature as _curv
 from tcamlab.models import sensing as _sens
 from tcamlab.params import THESIS_ROBOT, Rig, Sample
@@ -97,25 +97,27 @@ def predict(
     return {"kappa1": kappa[0], "kappa2": kappa[1]}
 
 
-def initial_resistances(rig: Rig, data: pd.DataFrame) -> tuple[tuple[float, float], str]:
+def initial_resistances(rig: Rig, data: pd.DataFrame, provenance=None) -> tuple[tuple[float, float], str]:
     """R0 of each segment [ohm] and where they came from (the module's rule)."""
     r0 = rig.initial_resistance
     if r0 is not None:
         pair = tuple(float(x) for x in r0) if isinstance(r0, tuple) else (float(r0), float(r0))
-        return pair, "experiment file"
+        return pair, stated_source(provenance, "initial_resistance")
     rows = rest_rows(KIND, data)
     pair = tuple(float(data[c].to_numpy(float)[rows].mean()) for c in ("r1", "r2"))
     return pair, "first row of the run" if rows.size == 1 else f"mean of the {rows.size} rows at rest"
 
 
-def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, where: str = "", **_) -> RunOptions:
+def run_options(
+    sample: Sample, rig: Rig, data: pd.DataFrame, *, where: str = "", provenance=None, **_
+) -> RunOptions:
     """S (stated in the rig) and each segment's R0 by the module's rule."""
     if rig.spring_constant is None:
         raise InputError(
             f"{where}: curvature validation needs the sensor's spring constant",
             hint="set spring_constant_N_per_m in [rig] (one segment)",
         )
-    r0s, source = initial_resistances(rig, data)
+    r0s, source = initial_resistances(rig, data, provenance)
     options = {"spring_constant": float(rig.spring_constant), "initial_resistances": r0s}
     return RunOptions(options, {"initial_resistances_ohm": r0s, "initial_resistances_source": source})
 

@@ -27,7 +27,7 @@ import pandas as pd
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, SLACK_RAMP, Mods
 from tcamlab.errors import ConfigError, InputError
-from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
 from tcamlab.models import sensing as _sens
 from tcamlab.params import SILVER_TCR, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT, Rig, Sample
 from tcamlab.report.document import Cell, Figure, Section, Table
@@ -107,11 +107,14 @@ def identify_spring(training) -> float:
     return float(fit_spring_runs(runs, by_branch=False).pooled.spring_constant)
 
 
-def initial_resistance(rig: Rig, data: pd.DataFrame, column: str = "resistance") -> tuple[float, str]:
-    """R0 [ohm] of one resistance channel and where it came from (the module's rule)."""
+def initial_resistance(
+    rig: Rig, data: pd.DataFrame, column: str = "resistance", provenance=None
+) -> tuple[float, str]:
+    """R0 [ohm] of one resistance channel and where it came from (the module's rule;
+    ``provenance``, the experiment's, tells a preset's R0 from the file's)."""
     if rig.initial_resistance is not None:
         r0 = rig.initial_resistance
-        return float(r0[0] if isinstance(r0, tuple) else r0), "experiment file"
+        return float(r0[0] if isinstance(r0, tuple) else r0), stated_source(provenance, "initial_resistance")
     rows = rest_rows(KIND, data)
     value = float(data[column].to_numpy(float)[rows].mean())
     return value, "first row of the run" if rows.size == 1 else f"mean of the {rows.size} rows at rest"
@@ -143,12 +146,12 @@ def run_options(
         Also check the conditioning of the sensing equation (raises
         ModelDomainError where it has no physical root).
     """
-    r0, r0_source = initial_resistance(rig, data)
+    r0, r0_source = initial_resistance(rig, data, provenance=provenance)
     options = {"initial_resistance": r0}
     info = {"initial_resistance_ohm": r0, "initial_resistance_source": r0_source}
     if rig.spring_constant is not None:
         s_val = float(rig.spring_constant)
-        source = (provenance or {}).get("spring_constant", "experiment file")
+        source = stated_source(provenance, "spring_constant")
     elif training is None:
         return RunOptions(options, info)
     elif not training:

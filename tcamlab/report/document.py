@@ -15,8 +15,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from tcamlab.numbers import fmt, fmt_column
+
 CELL_STATUSES = (None, "pass", "fail", "warn")
-INDEX_STATUSES = ("pass", "fail", "error")
+INDEX_STATUSES = ("pass", "fail", "no-limits", "error")
+INDEX_STATUS_LABELS = {"pass": "passed", "fail": "FAILED", "no-limits": "no limits set", "error": "error"}
+"""How each index status is shown: "no-limits" (no threshold checked) is neutral, never a pass."""
 MISSING = "\u2013"  # en dash, shown for None cells
 
 _SAFE_SCHEMES = ("http://", "https://", "mailto:")
@@ -71,12 +75,21 @@ def _is_bool(value: Any) -> bool:
     return t.__module__ == "numpy" and t.__name__ in ("bool_", "bool")
 
 
-def format_cell(value: object, number_format: str = "{:.4g}") -> Cell:
+def _is_plain_float(value: Any) -> bool:
+    if isinstance(value, (Cell, bool)) or value is None or _is_bool(value):
+        return False
+    return (
+        isinstance(value, numbers.Real) and not isinstance(value, numbers.Integral) and math.isfinite(value)
+    )
+
+
+def format_cell(value: object, number_format: str | None = None) -> Cell:
     """Turn one raw table value into a :class:`Cell`.
 
     ``None`` -> "–"; ``bool`` -> "pass"/"FAIL" with that status; integers
-    verbatim; other real numbers through *number_format*; ``Cell`` unchanged;
-    anything else through ``str``.
+    verbatim; other real numbers through *number_format*, by default the
+    policy of :func:`tcamlab.numbers.fmt`; ``Cell`` unchanged; anything else
+    through ``str``.
     """
     if isinstance(value, Cell):
         return value
@@ -90,7 +103,7 @@ def format_cell(value: object, number_format: str = "{:.4g}") -> Cell:
         number = float(value)
         if math.isnan(number):
             return Cell("NaN")
-        return Cell(number_format.format(number))
+        return Cell(fmt(number) if number_format is None else number_format.format(number))
     return Cell(str(value))
 
 
@@ -106,7 +119,7 @@ class Table:
     columns: list[str]
     rows: list[list[object]]
     caption: str = ""
-    number_format: str = "{:.4g}"
+    number_format: str | None = None
 
     def __post_init__(self) -> None:
         self.columns = [str(c) for c in self.columns]
@@ -119,8 +132,15 @@ class Table:
                 )
 
     def formatted_rows(self) -> list[list[Cell]]:
-        """Rows with every value converted to a :class:`Cell`."""
-        return [[format_cell(v, self.number_format) for v in row] for row in self.rows]
+        """Rows with every value converted to a :class:`Cell`; by default the float values of
+        a column share one notation (:func:`tcamlab.numbers.fmt_column`)."""
+        if self.number_format is not None or not self.rows:
+            return [[format_cell(v, self.number_format) for v in row] for row in self.rows]
+        columns = [fmt_column([row[j] for row in self.rows]) for j in range(len(self.columns))]
+        return [
+            [Cell(columns[j][i]) if _is_plain_float(v) else format_cell(v) for j, v in enumerate(row)]
+            for i, row in enumerate(self.rows)
+        ]
 
 
 @dataclass
@@ -136,8 +156,9 @@ class Figure:
 class Section:
     """A headed section.
 
-    Rendered in this order: heading, notes (highlighted warnings),
-    paragraphs, tables, figures, subsections.
+    Rendered in this order: heading, warnings (failed sanity checks, shown
+    as such), notes (highlighted facts), paragraphs, tables, figures,
+    subsections.
     """
 
     heading: str
@@ -146,6 +167,7 @@ class Section:
     figures: Sequence[Figure] = field(default_factory=list)
     subsections: Sequence[Section] = field(default_factory=list)
     notes: Sequence[str] = field(default_factory=list)
+    warnings: Sequence[str] = field(default_factory=list)
 
 
 @dataclass
@@ -176,6 +198,12 @@ class IndexEntry:
     metrics: Mapping[str, str] = field(default_factory=dict)
     link: str | None = None
     error: str | None = None
+    warnings: Sequence[str] = ()
+
+    @property
+    def status_label(self) -> str:
+        """The status as shown (:data:`INDEX_STATUS_LABELS`)."""
+        return INDEX_STATUS_LABELS[self.status]
 
     def __post_init__(self) -> None:
         if self.status not in INDEX_STATUSES:
@@ -186,11 +214,17 @@ class IndexEntry:
 
 @dataclass
 class IndexDocument:
-    """An index of many reports."""
+    """An index of many reports.
+
+    ``synthetic_banner``, when set, is shown at the top (set it whenever any
+    report's data is synthetic).  Metric values are short strings; a value
+    with several lines (one per quantity) is shown line by line in its cell.
+    """
 
     title: str
     entries: Sequence[IndexEntry] = field(default_factory=list)
     metadata: Mapping[str, str] = field(default_factory=dict)
+    synthetic_banner: str | None = None
 
     def metric_names(self) -> list[str]:
         """Union of the entries' metric keys, in first-seen order."""
@@ -201,7 +235,15 @@ class IndexDocument:
         return list(seen)
 
     def status_counts(self) -> dict[str, int]:
+        """Entries per status, and ``"warnings"``: entries with at least one warning."""
         counts = {s: 0 for s in INDEX_STATUSES}
         for entry in self.entries:
             counts[entry.status] += 1
+        counts["warnings"] = sum(1 for e in self.entries if e.warnings)
         return counts
+
+    def summary(self) -> str:
+        """One line such as "2 passed, 0 failed, 2 no limits set, 0 error; 1 with warnings"."""
+        counts = self.status_counts()
+        parts = [f"{counts[s]} {INDEX_STATUS_LABELS[s].lower()}" for s in INDEX_STATUSES]
+        return ", ".join(parts) + f"; {counts['warnings']} with warnings"

@@ -51,6 +51,16 @@ def _env():
     return _ENV
 
 
+_NUMBER = re.compile(r"[-+−]?(\d+\.?\d*|\.\d+)(e[-+]\d+)?( [^\s\d]{1,4})?")
+"""A number, optionally with a short unit: kept on one line (never broken at "e-")."""
+
+
+def _cell_class(cell) -> str:
+    """The td's classes: its status, and ``num`` for a number (kept on one line)."""
+    classes = [f"status-{cell.status}"] if cell.status else []
+    return " ".join(classes + (["num"] if _NUMBER.fullmatch(cell.text) else []))
+
+
 class _Counter:
     def __init__(self) -> None:
         self.tables = 0
@@ -60,7 +70,7 @@ class _Counter:
 def _table_view(table: Table, counter: _Counter) -> dict[str, Any]:
     counter.tables += 1
     rows = [
-        [{"text": c.text, "status": c.status, "href": safe_href(c.href)} for c in row]
+        [{"text": c.text, "href": safe_href(c.href), "cls": _cell_class(c)} for c in row]
         for row in table.formatted_rows()
     ]
     return {
@@ -93,6 +103,7 @@ def _section_view(section: Section, path: tuple[int, ...], counter: _Counter) ->
         "level": min(len(path) + 1, 6),
         "heading": section.heading,
         "notes": [str(n) for n in section.notes],
+        "warnings": [str(w) for w in section.warnings],
         "paragraphs": [str(p) for p in section.paragraphs],
         "tables": tables,
         "figures": figures,
@@ -125,7 +136,7 @@ def render_html(doc: Document) -> str:
 
 def render_index_html(index: IndexDocument) -> str:
     """Render an index page linking many reports."""
-    metric_names = index.metric_names()
+    metric_names = index.metric_names() or (["Error"] if any(e.error for e in index.entries) else [])
     entries = []
     for e in index.entries:
         entries.append(
@@ -134,6 +145,8 @@ def render_index_html(index: IndexDocument) -> str:
                 "title": e.title,
                 "kind": e.kind,
                 "status": e.status,
+                "status_label": e.status_label,
+                "warnings": list(e.warnings),
                 "link": safe_href(e.link),
                 "error": e.error,
                 "metrics": [str(e.metrics[m]) if m in e.metrics else None for m in metric_names],
@@ -147,6 +160,7 @@ def render_index_html(index: IndexDocument) -> str:
             metric_names=metric_names,
             entries=entries,
             counts=index.status_counts(),
+            banner=index.synthetic_banner,
             metadata=_metadata_view(index.metadata),
         )
     )

@@ -182,6 +182,8 @@ class _Styles:
                 textColor=colour,
                 spaceAfter=0,
                 spaceBefore=0,
+                embeddedHyphenation=1,
+                splitLongWords=0,
             )
             self._cell_cache[key] = style
         return style
@@ -262,35 +264,82 @@ def _boxed(paragraph: Any, ctx: _Ctx, background: str, border: str, left_bar_onl
     return box
 
 
+_BREAK_AFTER_HYPHEN = re.compile(r"(?<=[^\W\d_]-)(?=[^\W\d_])")
+
+MIN_CELL_FONT = 5.0
+"""Smallest table font [pt]: a table whose words do not fit shrinks to this before anything else."""
+
+
+def _pieces(text: str) -> list[str]:
+    """The unbreakable pieces of a cell: words split at spaces, and after a hyphen between
+    letters (reportlab's ``embeddedHyphenation``); never inside a token such as a file name
+    or a number (``-7.769e-04`` stays whole: its column is made wide enough)."""
+    return [p for w in text.split() for p in _BREAK_AFTER_HYPHEN.split(w)] or [""]
+
+
 def _col_widths(
-    header: Sequence[str], texts: Sequence[Sequence[str]], width: float, size: float, bold: str, regular: str
-) -> list[float]:
-    """Column widths from measured text, scaled down to fit *width*."""
+    header: Sequence[str], rows: Sequence[Sequence[Cell]], width: float, size: float, fonts: Sequence[str]
+) -> list[float] | None:
+    """Column widths at font ``size`` from measured text, each at least its widest unbreakable
+    piece; None when those pieces alone do not fit ``width``.
+
+    ``fonts`` is (header font, font per column, status-cell font per column): cells are
+    measured in the font they are drawn in (bold for headers and status cells), so no word is
+    cut mid-token.
+    """
     from reportlab.pdfbase.pdfmetrics import stringWidth
 
-    pad = 8.0 + 1.0  # left + right padding, plus slack
+    bold, col_fonts, status_fonts = fonts
+    pad = 8.0 + 1.5  # left + right padding, plus slack
     natural: list[float] = []
     minimal: list[float] = []
     for j, head in enumerate(header):
-        words = head.split() or [""]
-        head_min = max(stringWidth(w, bold, size) for w in words)
-        widest = stringWidth(head, bold, size)
-        word_min = head_min
-        for row in texts:
-            t = row[j][:80]
-            widest = max(widest, stringWidth(t, regular, size))
-            word_min = max(word_min, max((stringWidth(w, regular, size) for w in t.split()), default=0.0))
-        natural.append(min(widest, 260.0) + pad)
-        minimal.append(min(word_min, 120.0) + pad)
+        word_min = max(stringWidth(w, bold, size) for w in _pieces(head))
+        widest = max(stringWidth(line, bold, size) for line in head.split("\n"))
+        for row in rows:
+            font = status_fonts[j] if row[j].status else col_fonts[j]
+            text = row[j].text
+            widest = max(widest, max(stringWidth(line[:80], font, size) for line in text.split("\n")))
+            word_min = max(word_min, max(stringWidth(w, font, size) for w in _pieces(text)))
+        natural.append(max(min(widest, 260.0), word_min) + pad)
+        minimal.append(word_min + pad)
     if sum(natural) <= width:
         return natural
-    if sum(minimal) >= width:
-        scale = width / sum(minimal)
-        return [m * scale for m in minimal]
+    if sum(minimal) > width:
+        return None
     spare = width - sum(minimal)
     extra = [n - m for n, m in zip(natural, minimal)]
     total = sum(extra) or 1.0
     return [m + spare * e / total for m, e in zip(minimal, extra)]
+
+
+def _fit_table(header, rows, ctx: _Ctx, mono: set[int], size: float) -> tuple[float, list[float]]:
+    """The largest font size from ``size`` down to :data:`MIN_CELL_FONT` at which every
+    unbreakable piece fits its column, and the widths; at the smallest size, the minimal widths
+    scaled to the page (only a single piece wider than the page is then cut)."""
+    f = ctx.styles.fonts
+    col_fonts = [f.mono if j in mono else f.regular for j in range(len(header))]
+    fonts = (f.bold, col_fonts, [f.mono if j in mono else f.bold for j in range(len(header))])
+    while True:
+        widths = _col_widths(header, rows, ctx.width, size, fonts)
+        if widths is not None:
+            return size, widths
+        if size - 0.5 < MIN_CELL_FONT:
+            break
+        size -= 0.5
+    from reportlab.pdfbase.pdfmetrics import stringWidth
+
+    minimal = [
+        max(
+            stringWidth(w, col_fonts[j], size)
+            for r in [[Cell(h) for h in header], *rows]
+            for w in _pieces(r[j].text)
+        )
+        + 9.5
+        for j in range(len(header))
+    ]
+    scale = ctx.width / sum(minimal)
+    return size, [m * scale for m in minimal]
 
 
 def _cell_markup(cell: Cell) -> str:
@@ -310,8 +359,8 @@ def _grid_table(
 
     st = ctx.styles
     ncols = len(header)
-    size = 8.5 if ncols <= 6 else 7.5 if ncols <= 10 else 6.5
     mono = set(mono_cols)
+    size, widths = _fit_table(header, rows, ctx, mono, 8.5 if ncols <= 6 else 7.5 if ncols <= 10 else 6.5)
     data = [[Paragraph(esc(h), st.cell(size, header=True)) for h in header]]
     cmds: list[tuple] = [
         ("GRID", (0, 0), (-1, -1), 0.5, colors.HexColor("#9aa5b1")),
@@ -329,8 +378,6 @@ def _grid_table(
             if cell.status:
                 cmds.append(("BACKGROUND", (j, i), (j, i), colors.HexColor(_STATUS_COLOURS[cell.status][0])))
         data.append(line)
-    texts = [[c.text for c in row] for row in rows]
-    widths = _col_widths(header, texts, ctx.width, size, st.fonts.bold, st.fonts.regular)
     table = RLTable(data, colWidths=widths, repeatRows=1, hAlign="LEFT")
     table.setStyle(TableStyle(cmds))
     table.spaceBefore = 2
@@ -355,7 +402,7 @@ def _table_flowables(table: Table, ctx: _Ctx) -> list[Any]:
 
 
 def _figure_flowables(fig: Figure, ctx: _Ctx) -> list[Any]:
-    from reportlab.platypus import Image, KeepTogether, Paragraph
+    from reportlab.platypus import Image, Paragraph
 
     ctx.figures += 1
     data = ctx.png(fig.figure)
@@ -370,7 +417,10 @@ def _figure_flowables(fig: Figure, ctx: _Ctx) -> list[Any]:
     caption = f"<b>Figure {ctx.figures}.</b>"
     if fig.caption:
         caption += " " + esc(fig.caption)
-    return [KeepTogether([image, Paragraph(caption, ctx.styles.caption)])]
+    # keepWithNext instead of a KeepTogether: reportlab groups a heading only with a plain
+    # flowable after it (a KeepTogether is a container it skips), which left headings orphaned.
+    image.keepWithNext = 1
+    return [image, Paragraph(caption, ctx.styles.caption)]
 
 
 def _section_flowables(section: Section, path: tuple[int, ...], level: int, ctx: _Ctx) -> list[Any]:
@@ -381,6 +431,12 @@ def _section_flowables(section: Section, path: tuple[int, ...], level: int, ctx:
     style = st.headings[min(len(path), len(st.headings)) - 1]
     heading = Paragraph(f"{number}&nbsp;&nbsp;{esc(section.heading)}", style)
     out: list[Any] = [_outlined(heading, f"{number} {section.heading}", level, ctx)]
+    for w in section.warnings:
+        out.append(
+            _boxed(
+                Paragraph(f"<b>Warning:</b> {esc(w)}", st.note), ctx, "#fdebe3", "#c2410c", left_bar_only=True
+            )
+        )
     for note in section.notes:
         out.append(
             _boxed(
@@ -421,15 +477,7 @@ def _document_flowables(doc: Document, ctx: _Ctx) -> list[Any]:
     if doc.subtitle:
         out.append(Paragraph(esc(doc.subtitle), st.subtitle))
     if doc.synthetic_banner:
-        out.append(
-            _boxed(
-                Paragraph(esc(doc.synthetic_banner), st.banner),
-                ctx,
-                "#fff1e6",
-                "#c2410c",
-                left_bar_only=False,
-            )
-        )
+        out.append(_banner(doc.synthetic_banner, ctx))
     for i, section in enumerate(doc.sections, start=1):
         out.extend(_section_flowables(section, (i,), 1, ctx))
     out.extend(_metadata_flowables(doc.metadata, 1, ctx))
@@ -442,34 +490,40 @@ def _index_flowables(index: IndexDocument, ctx: _Ctx) -> list[Any]:
     st = ctx.styles
     out: list[Any] = [_label(index.title)]
     out.append(_outlined(Paragraph(esc(index.title), st.title), index.title, 0, ctx))
-    counts = index.status_counts()
-    out.append(
-        Paragraph(f"{counts['pass']} pass, {counts['fail']} fail, {counts['error']} error", st.subtitle)
-    )
-    metric_names = index.metric_names()
-    header = ["Name", "Title", "Kind", "Status", *metric_names, "Error"]
+    if index.synthetic_banner:
+        out.append(_banner(index.synthetic_banner, ctx))
+    out.append(Paragraph(esc(index.summary()), st.subtitle))
+    metric_names = index.metric_names() or (["Error"] if any(e.error for e in index.entries) else [])
+    header = ["Experiment", "Kind", "Status", "Warnings", *metric_names]
     rows = []
     for e in index.entries:
-        metrics = [Cell(str(e.metrics[m])) if m in e.metrics else Cell(MISSING) for m in metric_names]
+        if e.error:  # the one-line error in place of the metrics
+            metrics = [Cell(e.error, "fail")] + [Cell("") for _ in metric_names[1:]]
+        else:
+            metrics = [Cell(str(e.metrics[m])) if m in e.metrics else Cell(MISSING) for m in metric_names]
         rows.append(
             [
-                Cell(e.name),
-                Cell(e.title),
+                Cell(f"{e.name}\n{e.title}"),
                 Cell(e.kind),
-                _index_status(e.status),
+                _index_status(e.status, e.status_label),
+                Cell(str(len(e.warnings)), "warn" if e.warnings else None),
                 *metrics,
-                Cell(e.error or ""),
             ]
         )
-    if rows or header:
-        out.append(_grid_table(header, rows, ctx))
+    out.append(_grid_table(header, rows, ctx))
     out.extend(_metadata_flowables(index.metadata, 1, ctx))
     return out
 
 
-def _index_status(status: str) -> Cell:
-    # Cell statuses are pass/fail/warn; an "error" entry is shown like a failure.
-    return Cell(status, "fail" if status == "error" else status)
+def _index_status(status: str, label: str) -> Cell:
+    # Cell statuses are pass/fail/warn; an "error" entry is shown like a failure, "no limits" neutral.
+    return Cell(label, {"pass": "pass", "fail": "fail", "error": "fail"}.get(status))
+
+
+def _banner(text: str, ctx: _Ctx) -> Any:
+    from reportlab.platypus import Paragraph
+
+    return _boxed(Paragraph(esc(text), ctx.styles.banner), ctx, "#fff1e6", "#c2410c", left_bar_only=False)
 
 
 # --------------------------------------------------------------------------

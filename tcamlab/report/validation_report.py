@@ -7,11 +7,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from tcamlab.config import EXPERIMENT_FILE
+from tcamlab.io import sha256_file
 from tcamlab.kinds import get_kind
-from tcamlab.metrics import METRIC_LABELS, METRIC_NAMES
+from tcamlab.metrics import METRIC_LABELS, METRIC_NAMES, SANITY_CHECKS
+from tcamlab.numbers import bare_name, fmt, fmt_r2, unit_label
 from tcamlab.report.document import Cell, Document, Figure, Section, Table
 from tcamlab.report.figures import legend_label, new_figure
 from tcamlab.units import parameter_unit, quantity
+from tcamlab.validation import relative_to
 
 __all__ = ["validation_document", "parameter_table", "synthetic_banner", "input_table"]
 
@@ -20,24 +24,55 @@ def _fmt_value(value, factor):
     if value is None:
         return "–"
     if isinstance(value, (tuple, list)):
-        return ", ".join(f"{v * factor:.4g}" for v in value)
-    return f"{value * factor:.6g}"
+        return ", ".join(fmt(v * factor) for v in value)
+    return fmt(value * factor, 6)
 
 
-def parameter_table(experiment) -> Table:
-    """Sample and rig parameters in lab units with their provenance."""
+def parameter_source(experiment, name: str, run_sources: dict | None = None) -> str:
+    """Where a parameter's value comes from, by its real source: the experiment file (named),
+    the preset (named, with its reference), a tcamlab default, or the runs (``run_sources``:
+    field -> text, e.g. R0 from the rows at rest, S identified) when no value is stated."""
+    prov = experiment.provenance.get(name)
+    if run_sources and name in run_sources and getattr(experiment.rig, name, 0) is None:
+        return run_sources[name]
+    if prov is None:
+        return "–"
+    if prov == EXPERIMENT_FILE:
+        return f"experiment file {experiment.path.name}"
+    if prov.startswith("tcamlab default") or experiment.preset is None:
+        return prov
+    return f"preset {experiment.preset}: {prov}"
+
+
+def _run_sources(result) -> dict:
+    """Field -> where each run took its value from, for rig fields not stated (R0, S)."""
+    keys = {
+        "initial_resistance": ("initial_resistance_source", "initial_resistances_source"),
+        "spring_constant": ("spring_constant_source",),
+    }
+    out = {}
+    for name, info_keys in keys.items():
+        seen = {p.info[k] for p in result.predictions for k in info_keys if k in p.info}
+        if seen:
+            out[name] = "per run, " + "; ".join(sorted(str(x) for x in seen))
+    return out
+
+
+def parameter_table(experiment, result=None) -> Table:
+    """Sample and rig parameters in lab units with the real source of each value."""
+    run_sources = _run_sources(result) if result is not None else {}
     rows = []
     for name, value in experiment.sample.model_kwargs().items():
         unit, factor = parameter_unit(name)
-        rows.append(["sample", name, _fmt_value(value, factor), unit, experiment.provenance.get(name, "–")])
+        rows.append(["sample", name, _fmt_value(value, factor), unit, parameter_source(experiment, name)])
     for name in get_kind(experiment.kind).report_rig_fields:
         unit, factor = parameter_unit(name)
         value = getattr(experiment.rig, name)
         sd = experiment.rig.uncertainty.get(name)
         text = _fmt_value(value, factor)
         if sd is not None:
-            text += f" ± {sd * factor:.3g}"
-        rows.append(["rig", name, text, unit, experiment.provenance.get(name, "–")])
+            text += f" ± {fmt(sd * factor, 3)}"
+        rows.append(["rig", name, text, unit, parameter_source(experiment, name, run_sources)])
     return Table(
         ["group", "parameter", "value", "unit", "provenance"],
         rows,
@@ -45,11 +80,16 @@ def parameter_table(experiment) -> Table:
     )
 
 
-def input_table(runs) -> Table:
+def input_table(runs, start=None) -> Table:
+    """The run files (relative to ``start``, the experiment file's folder), rows and SHA-256."""
+
+    def shown(path):
+        return path.name if start is None else relative_to(path, start)
+
     return Table(
         ["file", "rows", "dropped rows", "SHA-256"],
-        [[r.path.name, len(r.data), r.n_dropped, r.sha256] for r in runs],
-        caption="Input files (raw data is never modified)",
+        [[shown(r.path), len(r.data), r.n_dropped, r.sha256] for r in runs],
+        caption="Input files, relative to the experiment file (raw data is never modified)",
     )
 
 
@@ -74,9 +114,9 @@ def _metrics_table(result) -> Table:
                 rows.append(
                     [
                         variant + (" (primary)" if variant == result.primary else ""),
-                        q,
+                        _quantity_label(q),
                         run,
-                        *(m[k] for k in METRIC_NAMES),
+                        *(fmt_r2(m[k]) if k == "r2" else m[k] for k in METRIC_NAMES),
                         m["n"],
                     ]
                 )
@@ -87,17 +127,60 @@ def _metrics_table(result) -> Table:
     )
 
 
+def _quantity_label(q: str) -> str:
+    """``displacement_mm`` -> ``displacement [mm]``: the unit of RMSE, MAE, max |err| and bias."""
+    unit = unit_label(q)
+    return f"{bare_name(q)} [{unit}]" if unit else q
+
+
+STATUS_TEXT = {
+    "passed": "PASSED: every acceptance threshold of the experiment file is met",
+    "failed": "FAILED: at least one acceptance threshold is exceeded (table below)",
+    "no limits set": "NO LIMITS SET: the experiment file has no [thresholds] that apply, so nothing "
+    "was checked against a limit (neutral; not a pass)",
+}
+"""The status line of a report's first section."""
+
+
+def status_section(result) -> Section:
+    """The report's first screen: the status, every sanity warning with its numbers, and
+    which sanity checks ran."""
+    warned = {w.check for w in result.warnings}
+    rows = [
+        [key, text, Cell(f"WARNING ({sum(w.check == key for w in result.warnings)})", "warn")]
+        if key in warned
+        else [key, text, Cell("ok", "pass")]
+        for key, text in SANITY_CHECKS.items()
+    ]
+    table = Table(
+        ["check", "requires", "result"],
+        rows,
+        caption="Sanity checks run on every validation (primary model); a warning never changes the "
+        "status, --strict turns it into exit status 1",
+    )
+    n = len(result.warnings)
+    heading = f"Status: {result.status}; " + (
+        f"{n} sanity warning{'s' if n > 1 else ''}" if n else "no sanity warning"
+    )
+    return Section(
+        heading,
+        paragraphs=[f"{STATUS_TEXT[result.status]}."],
+        warnings=[w.message for w in result.warnings],
+        tables=[table] + ([t] if (t := _threshold_table(result)) else []),
+    )
+
+
 def _zeros_table(result) -> Table | None:
     """Each run's estimated nuisance zero, with its standard error and 95% interval."""
     rows = []
     for run, zeros in result.zeros_dict()["runs"].items():
         for q, z in zeros.items():
             lo, hi = z["ci95"]
-            ci = "–" if lo is None else f"{lo:.3g} to {hi:.3g}"
+            ci = "–" if lo is None else f"{fmt(lo, 3)} to {fmt(hi, 3)}"
             where = (
                 f"{z['rows']} rows at rest" if z["source"] == "rest rows" else f"whole run ({z['rows']} rows)"
             )
-            rows.append([run, q, z["value"], z["stderr"], ci, where])
+            rows.append([run, _quantity_label(q), z["value"], z["stderr"], ci, where])
     if not rows:
         return None
     return Table(
@@ -115,8 +198,8 @@ def _threshold_table(result) -> Table | None:
         [
             c.key,
             c.quantity,
-            c.value,
-            f"{c.comparison} {c.limit:g}",
+            fmt_r2(c.value) if c.metric == "r2" else c.value,
+            f"{c.comparison} {fmt(c.limit)}",
             Cell("pass", "pass") if c.passed else Cell("FAIL", "fail"),
         ]
         for c in result.checks
@@ -137,21 +220,55 @@ def _figures(result) -> list[Figure]:
         return _draw_figures(result)
 
 
+def _residual_x(result) -> str:
+    """The physical input residuals are drawn against: the kind's ``x_column`` where every run
+    logs it, else the first other input (e.g. resistance for a pull test without time)."""
+    kind = get_kind(result.kind)
+    if all(kind.x_column in p.data for p in result.predictions):
+        return kind.x_column
+    return next(c for c in kind.inputs if all(c in p.data for p in result.predictions))
+
+
 def _draw_figures(result) -> list[Figure]:
     figs = get_kind(result.kind).figures(result)
-    # residuals of the primary model
-    fig, ax = new_figure(6.4, 2.8)
-    for q in result.quantities:
+    figs.append(_residual_figure(result))
+    return figs
+
+
+def _residual_figure(result) -> Figure:
+    """Residuals of the primary model against the physical input, one panel per quantity with
+    its unit (a force in N and a displacement in mm never share an axis)."""
+    from tcamlab.report.figures import report_style
+
+    x = _residual_x(result)
+    xq = quantity(x)
+    n = len(result.quantities)
+    fig, _ = new_figure(6.4, 1.2 + 1.7 * n)
+    fig.clear()
+    with report_style():
+        axes = np.atleast_1d(fig.subplots(n, 1, sharex=True))
+    for ax, q in zip(axes, result.quantities):
         name, factor = quantity(q).column, quantity(q).factor
         for p in result.predictions:
             res = (p.predicted[result.primary][q] - p.data[q].to_numpy()) * factor
-            ax.plot(np.arange(res.size), res, ".", ms=2, label=f"{legend_label(p.name)} {name}")
-    ax.axhline(0.0, color="0.3", lw=0.8)
-    ax.set_xlabel("row")
-    ax.set_ylabel("predicted − measured")
-    ax.legend(fontsize=6, ncol=2)
-    figs.append(Figure(fig, f"Residuals of the {result.primary} model by row.", alt="residual plot"))
-    return figs
+            ax.plot(p.data[x].to_numpy() * xq.factor, res, ".", ms=3, label=legend_label(p.name))
+        ax.axhline(0.0, color="0.3", lw=0.8)
+        unit = unit_label(name)
+        ax.set_ylabel(f"{bare_name(name)} residual" + (f" [{unit}]" if unit else ""))
+    axes[-1].set_xlabel(f"{xq.name} [{unit_label(xq.column) or xq.column_unit}]")
+    if len(result.predictions) <= 6:
+        axes[0].legend(
+            fontsize=7,
+            ncol=min(3, len(result.predictions)),
+            loc="lower center",
+            bbox_to_anchor=(0.5, 1.0),
+            frameon=False,
+        )
+    caption = (
+        f"Residuals (predicted − measured, after each run's zero) of the {result.primary} model "
+        f"against {xq.name}, one panel per quantity."
+    )
+    return Figure(fig, caption, alt="residual plot")
 
 
 def validation_document(result, *, command: str | None = None) -> Document:
@@ -159,32 +276,30 @@ def validation_document(result, *, command: str | None = None) -> Document:
     from tcamlab import __version__
 
     exp = result.experiment
-    summary_tables = [
-        t for t in (_threshold_table(result), _metrics_table(result), _zeros_table(result)) if t
-    ]
-    verdict = (
-        ("all thresholds pass" if result.passed else "some thresholds FAIL")
-        if result.checks
-        else "no thresholds set"
-    )
+    summary_tables = [t for t in (_metrics_table(result), _zeros_table(result)) if t]
     summary = Section(
         "Summary",
-        paragraphs=[f"Kind: {get_kind(exp.kind).description}.", f"{len(result.runs)} run(s); {verdict}."]
+        paragraphs=[f"Kind: {get_kind(exp.kind).description}.", f"{len(result.runs)} run(s)."]
         + ([f"Notes: {exp.notes}"] if exp.notes else []),
         tables=summary_tables,
         notes=list(result.notes),
     )
-    sections = [summary, Section("Model against measurement", figures=_figures(result))]
+    sections = [
+        status_section(result),
+        summary,
+        Section("Model against measurement", figures=_figures(result)),
+    ]
     extra = get_kind(result.kind).extras_section(result)
     if extra:
         sections.append(extra)
-    sections.append(Section("Parameters", tables=[parameter_table(exp)]))
-    sections.append(Section("Inputs", tables=[input_table(result.runs)]))
+    sections.append(Section("Parameters", tables=[parameter_table(exp, result)]))
+    sections.append(Section("Inputs", tables=[input_table(result.runs, exp.path.parent)]))
     metadata = {"tool": f"tcamlab {__version__}", "experiment file": exp.path.name, "kind": exp.kind}
+    metadata["sha256 " + exp.path.name] = sha256_file(exp.path)
     if command:
         metadata["command"] = command
     for r in result.runs:
-        metadata[f"sha256 {r.path.name}"] = r.sha256
+        metadata[f"sha256 {relative_to(r.path, exp.path.parent)}"] = r.sha256
     return Document(
         title=exp.title,
         subtitle=f"Validation report: {exp.name}",

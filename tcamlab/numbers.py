@@ -1,0 +1,156 @@
+"""The one number-format policy of tcamlab's text output, HTML and PDF reports.
+
+- :func:`fmt`: 4 significant digits, trailing zeros dropped; positional between
+  1e-3 and 1e6 (``0.00609``, ``133.5``, ``12350``), scientific outside
+  (``8.614e-05``, ``8.1e-05``); never ``-0``.
+- :func:`fmt_column`: a table column in one notation (never ``8.614e-05`` next
+  to ``0.00609``).
+- :func:`fmt_r2`: R² with 4 decimals (``0.9989``, ``-81.2065``); a value that
+  4 decimals would round onto 1 (or 0) gets the decimals it needs to differ
+  from it (``0.99998``), so a model short of perfect never prints as perfect.
+- :func:`fmt_percent`: whole percent by default, never ``-0%``.
+- :func:`with_unit`: a value and its unit (``0.0123 mm``); every printed RMSE,
+  MAE, max |err| and bias carries one (:func:`unit_label` of the quantity).
+
+Missing values print as an en dash, NaN as ``NaN``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+__all__ = [
+    "MISSING",
+    "SIG_DIGITS",
+    "R2_DECIMALS",
+    "fmt",
+    "fmt_r2",
+    "fmt_percent",
+    "with_unit",
+    "unit_label",
+    "bare_name",
+]
+
+MISSING = "\u2013"
+SIG_DIGITS = 4
+R2_DECIMALS = 4
+_MAX_DECIMALS = 8
+_UNIT_LABELS = {"mm": "mm", "N": "N", "per_mm": "1/mm", "ohm": "ohm"}
+
+
+def _special(x) -> str | None:
+    if x is None:
+        return MISSING
+    if isinstance(x, bool) or not isinstance(x, numbers.Real):
+        return str(x)
+    if math.isnan(float(x)):
+        return "NaN"
+    if math.isinf(float(x)):
+        return "inf" if x > 0 else "-inf"
+    return None
+
+
+def _no_negative_zero(text: str) -> str:
+    """``-0``, ``-0.000`` and ``-0%`` lose their sign (the value rounded to zero)."""
+    if text.startswith("-") and not any(c in "123456789" for c in text.split("e")[0]):
+        return text[1:]
+    return text
+
+
+def fmt(x, sig: int = SIG_DIGITS) -> str:
+    """A number with ``sig`` significant digits (see the module docstring).
+
+    Parameters
+    ----------
+    x : float, int or None
+    sig : int
+        Significant digits.
+    """
+    special = _special(x)
+    if special is not None:
+        return special
+    if isinstance(x, numbers.Integral):
+        return str(int(x))
+    v = float(x)
+    if v != 0.0 and not (1e-3 <= abs(v) < 1e6):
+        mantissa, exponent = f"{v:.{sig - 1}e}".split("e")
+        mantissa = mantissa.rstrip("0").rstrip(".") if "." in mantissa else mantissa
+        return _no_negative_zero(f"{mantissa}e{exponent}")
+    text = np.format_float_positional(v, precision=sig, unique=False, fractional=False, trim="-")
+    return _no_negative_zero(text)
+
+
+def _is_float(x) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, numbers.Integral)) and math.isfinite(x)
+
+
+def fmt_column(values, sig: int = SIG_DIGITS) -> list[str]:
+    """:func:`fmt` of a table column, in one notation for the whole column: positional when
+    the column mixes small and ordinary values that positional notation shows in full
+    (``0.0001``, ``0.00094``, ``0.00108``, not ``1e-04`` next to ``0.00108``), else scientific
+    for every value when any needs it. Non-float entries are formatted alone."""
+    sizes = [abs(float(v)) for v in values if _is_float(v) and v != 0]
+    if not sizes or all(1e-3 <= x < 1e6 for x in sizes):
+        return [fmt(v, sig) for v in values]
+    positional = min(sizes) >= 1e-5 and max(sizes) < 1e6
+    out = []
+    for v in values:
+        if not _is_float(v) or v == 0:
+            out.append(fmt(v, sig))
+        elif positional:
+            text = np.format_float_positional(
+                float(v), precision=sig, unique=False, fractional=False, trim="-"
+            )
+            out.append(_no_negative_zero(text))
+        else:
+            mantissa, exponent = f"{float(v):.{sig - 1}e}".split("e")
+            mantissa = mantissa.rstrip("0").rstrip(".") if "." in mantissa else mantissa
+            out.append(_no_negative_zero(f"{mantissa}e{exponent}"))
+    return out
+
+
+def fmt_r2(r2, decimals: int = R2_DECIMALS) -> str:
+    """R² with ``decimals`` decimals, more where that would round a value onto 1 or 0."""
+    special = _special(r2)
+    if special is not None:
+        return special
+    v = float(r2)
+    for d in range(decimals, _MAX_DECIMALS + 1):
+        text = f"{v:.{d}f}"
+        if (float(text) != 1.0 or v == 1.0) and (float(text) != 0.0 or v == 0.0):
+            return text
+    return f">{1.0 - 10.0**-_MAX_DECIMALS:.{_MAX_DECIMALS}f}" if v > 0.5 else f"{v:.{_MAX_DECIMALS}e}"
+
+
+def fmt_percent(fraction, decimals: int = 0) -> str:
+    """A fraction as percent (``0.123`` -> ``12%``), never ``-0%``."""
+    special = _special(fraction)
+    if special is not None:
+        return special
+    return _no_negative_zero(f"{100.0 * float(fraction):.{decimals}f}%")
+
+
+def unit_label(quantity: str) -> str:
+    """The unit of a quantity column as printed (``displacement_mm`` -> ``mm``,
+    ``kappa1_per_mm`` -> ``1/mm``); empty when the name carries none."""
+    for suffix in sorted(_UNIT_LABELS, key=len, reverse=True):
+        if quantity.endswith("_" + suffix):
+            return _UNIT_LABELS[suffix]
+    return ""
+
+
+def bare_name(quantity: str) -> str:
+    """A quantity column without its unit suffix (``kappa1_per_mm`` -> ``kappa1``)."""
+    for suffix in sorted(_UNIT_LABELS, key=len, reverse=True):
+        if quantity.endswith("_" + suffix):
+            return quantity[: -len(suffix) - 1]
+    return quantity
+
+
+def with_unit(x, unit: str, sig: int = SIG_DIGITS) -> str:
+    """``fmt(x)`` followed by its unit (nothing appended to a missing value)."""
+    text = fmt(x, sig)
+    return f"{text} {unit}" if unit and text not in (MISSING, "NaN") else text

@@ -1,0 +1,343 @@
+"""Reports a reviewer can trust: a three-way status, sanity warnings, honest provenance,
+one number format, PDF tables without words cut mid-token, the index and its banner."""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import shutil
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from tcamlab.cli import app
+from tcamlab.config import load_experiment
+from tcamlab.metrics import (
+    STATUS_FAILED,
+    STATUS_NO_LIMITS,
+    STATUS_PASSED,
+    ZeroEstimate,
+    check_thresholds,
+    domain_warning,
+    flat_prediction_warning,
+    reference_warning,
+    threshold_status,
+    zero_offset_warning,
+)
+from tcamlab.numbers import fmt, fmt_percent, fmt_r2, with_unit
+from tcamlab.report import Cell, Document, IndexDocument, IndexEntry, Section, Table
+from tcamlab.report.html import render_index_html
+from tcamlab.report.pdf import render_combined_pdf, render_pdf
+from tcamlab.validation import validate
+
+pypdf = pytest.importorskip("pypdf")
+
+ROOT = Path(__file__).resolve().parent.parent
+runner = CliRunner()
+
+
+def _pdf_text(data: bytes, pages=None) -> str:
+    reader = pypdf.PdfReader(io.BytesIO(data))
+    chosen = reader.pages if pages is None else [reader.pages[i] for i in pages]
+    return "\n".join(p.extract_text() for p in chosen)
+
+
+class _Cells(HTMLParser):
+    """Text of every td/th, the class of each td, and all text in order."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.cells, self.classes, self.text, self._in = [], [], [], False
+
+    def handle_starttag(self, tag, attrs):
+        if tag in ("td", "th"):
+            self._in = True
+            self.cells.append("")
+            if tag == "td":
+                self.classes.append(dict(attrs).get("class"))
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th"):
+            self._in = False
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._in:
+            self.cells[-1] += data
+
+
+def _parse(html: str) -> _Cells:
+    p = _Cells()
+    p.feed(html)
+    return p
+
+
+# -- status ------------------------------------------------------------------------------
+
+
+def test_three_statuses_and_nothing_checked_is_not_a_pass():
+    metrics = {"displacement_mm": {"rmse": 0.2, "r2": 0.9}}
+    assert threshold_status([]) == STATUS_NO_LIMITS
+    assert threshold_status(check_thresholds(metrics, {"rmse_mm": 0.5})) == STATUS_PASSED
+    assert threshold_status(check_thresholds(metrics, {"rmse_mm": 0.1})) == STATUS_FAILED
+    # a threshold that matches no quantity checks nothing
+    assert threshold_status(check_thresholds(metrics, {"rmse_N": 0.1})) == STATUS_NO_LIMITS
+
+
+@pytest.fixture(scope="module")
+def static_result():
+    return validate(load_experiment(ROOT / "experiments" / "static.toml"))
+
+
+def test_metrics_json_says_no_limits_and_passed_null(static_result):
+    doc = static_result.to_dict()
+    assert static_result.checks == []
+    assert doc["status"] == "no limits set" and doc["passed"] is None
+    assert static_result.failed is False
+
+
+def test_validate_without_thresholds_exits_0_and_says_no_limits(tmp_path):
+    exp = ROOT / "experiments" / "static.toml"
+    out = runner.invoke(app, ["validate", "static", str(exp), "--out", str(tmp_path), "--format", "html"])
+    assert out.exit_code == 0, out.output
+    assert "status: no limits set" in out.output
+    doc = json.loads((tmp_path / "static" / "metrics.json").read_text())
+    assert doc["passed"] is None and doc["status"] == "no limits set"
+    html = (tmp_path / "static" / "report.html").read_text()
+    first = html.split('id="sec-2"')[0]  # the first section: status and sanity checks
+    assert "NO LIMITS SET" in first and "Sanity checks" in first
+
+
+def test_index_shows_no_limits_neutral_and_the_synthetic_banner():
+    index = IndexDocument(
+        "reports",
+        [
+            IndexEntry("a", "A", "static", "no-limits", {"RMSE": "0.1 mm"}, link="a/report.html"),
+            IndexEntry("b", "B", "static", "pass", {"RMSE": "0.2 mm"}, warnings=["x"]),
+        ],
+        synthetic_banner="SYNTHETIC DATA: 2 of 2 experiments",
+    )
+    p = _parse(render_index_html(index))
+    assert "no limits set" in p.cells and "passed" in p.cells
+    assert "status-no-limits" in p.classes and p.classes.count("status-pass") == 1
+    assert "status-warn" in p.classes  # b has a warning
+    text = "".join(p.text)
+    assert "SYNTHETIC DATA: 2 of 2" in text and "1 no limits set" in text
+    pdf = render_combined_pdf([], index)
+    assert "SYNTHETIC DATA" in _pdf_text(pdf, [0])
+
+
+# -- sanity checks -------------------------------------------------------------------------
+
+
+def test_flat_prediction_against_a_varying_measurement():
+    t = np.linspace(0, 1, 200)
+    measured = 0.04 * np.sin(6 * t)  # [mm]
+    w = flat_prediction_warning("displacement_mm", "mm", measured, np.full_like(t, 1e-8) + 1e-10 * t)
+    assert w is not None and w.check == "flat-prediction"
+    assert w.values["measured_range"] == pytest.approx(np.ptp(measured))
+    assert "mm" in w.message
+    assert flat_prediction_warning("displacement_mm", "mm", measured, 0.5 * measured) is None
+    dead = flat_prediction_warning("force_N", "N", np.zeros_like(t), measured)
+    assert dead is not None and "constant" in dead.message
+
+
+def test_zero_offset_needs_both_standard_errors_and_noise_sds():
+    # noise sd 1 over 100 rows: SE 0.1. A zero of 0.5 is 5 SE but half a noise sd: no warning
+    assert (
+        zero_offset_warning("r", "force_N", "N", ZeroEstimate(0.5, 0.1, (0.3, 0.7), 100, "rest rows")) is None
+    )
+    w = zero_offset_warning("r", "force_N", "N", ZeroEstimate(-3.5, 0.1, (-3.7, -3.3), 100, "rest rows"))
+    assert w is not None and w.values["noise_sd"] == pytest.approx(1.0)
+    assert "-3.5 N" in w.message
+
+
+def test_a_threshold_that_applies_to_nothing_warns():
+    from tcamlab.metrics import unused_threshold_warnings
+
+    metrics = {"displacement_mm": {"rmse": 0.2, "r2": 0.9}}
+    checks = check_thresholds(metrics, {"rmse_N": 0.1, "r2_min": 0.5})
+    ws = unused_threshold_warnings({"rmse_N": 0.1, "r2_min": 0.5}, checks, list(metrics))
+    assert [w.values["key"] for w in ws] == ["rmse_N"]
+
+
+def test_reference_and_domain_warnings():
+    rest = 45.0 + 0.003 * np.random.default_rng(1).standard_normal(50)
+    w = reference_warning("run1", "R0", 30.0, "preset: assumed", rest)
+    assert w is not None and w.values["relative"] == pytest.approx(-1 / 3, rel=1e-3)
+    assert reference_warning("run1", "R0", 45.001, "experiment file", rest) is None
+    assert domain_warning("run1", "displacement_mm", 0, 10) is None
+    assert "3 of 10 rows" in domain_warning("run1", "displacement_mm", 3, 10).message
+
+
+@pytest.fixture(scope="module")
+def sensor45(tmp_path_factory):
+    """The case of issue 12: the bundled sensing data with every resistance x1.5 (a 45 ohm
+    sensor) and no initial_resistance_ohm, so the thesis-tcs preset's 30 ohm is taken."""
+    root = tmp_path_factory.mktemp("sensor45")
+    (root / "experiments").mkdir()
+    (root / "raw").mkdir()
+    for i in (1, 2, 3):
+        df = pd.read_csv(ROOT / "raw" / f"sensing_run{i}.csv", comment="#")
+        df["resistance_ohm"] *= 1.5
+        df.to_csv(root / "raw" / f"sensing_run{i}.csv", index=False)
+    text = (ROOT / "experiments" / "sensing.toml").read_text()
+    assert "initial_resistance_ohm = 30.0" in text
+    (root / "experiments" / "s45.toml").write_text(text.replace("initial_resistance_ohm = 30.0\n", ""))
+    return root / "experiments" / "s45.toml"
+
+
+def test_preset_r0_far_from_the_rest_value_warns_and_is_credited_to_the_preset(sensor45, tmp_path):
+    out = runner.invoke(app, ["validate", "sensing", str(sensor45), "--out", str(tmp_path)])
+    assert out.exit_code == 0, out.output
+    assert "WARNING: sensing_run1: R0 = 30 ohm (preset" in out.output
+    doc = json.loads((tmp_path / "s45" / "metrics.json").read_text())
+    checks = {w["check"] for w in doc["warnings"]}
+    assert {"reference-far-from-rest", "r2-below-zero", "zero-offset"} <= checks
+    r0 = next(w for w in doc["warnings"] if w["check"] == "reference-far-from-rest")
+    assert r0["values"]["used_ohm"] == 30.0 and r0["values"]["rest_ohm"] == pytest.approx(45.0, rel=1e-3)
+    src = doc["extras"]["spring_constant"]["sensing_run1"]["initial_resistance_source"]
+    assert src.startswith("preset") and "experiment file" not in src
+    html = (tmp_path / "s45" / "report.html").read_text()
+    first = html.split('id="sec-2"')[0]
+    assert "R0 = 30 ohm" in first and "R² below 0" in first
+    assert first.count('class="warning"') == len(doc["warnings"]) and "Status: no limits set; " in first
+    # the parameter table names the preset, not the file
+    p = _parse(html)
+    i = p.cells.index("initial_resistance")
+    assert any(c.startswith("preset thesis-tcs") for c in p.cells[i : i + 4])
+    strict = runner.invoke(
+        app, ["validate", "sensing", str(sensor45), "--out", str(tmp_path / "s"), "--strict"]
+    )
+    assert strict.exit_code == 1
+
+
+def test_bundled_experiments_raise_no_warning(static_result):
+    assert static_result.warnings == []
+
+
+# -- numbers -------------------------------------------------------------------------------
+
+
+def test_number_policy():
+    assert fmt_r2(0.99998) == "0.99998" and fmt_r2(0.99891) == "0.9989"
+    assert fmt_r2(-81.20651) == "-81.2065"
+    assert fmt_percent(-0.001) == "0%" and fmt_percent(0.125) == "12%"
+    assert fmt(-0.0) == "0" and fmt(0.00609) == "0.00609" and fmt(8.614e-05) == "8.614e-05"
+    assert with_unit(0.01234, "mm") == "0.01234 mm"
+
+
+def test_a_table_column_uses_one_notation():
+    table = Table(["run", "zero"], [["a", 1e-4], ["b", 9.4e-4], ["c", 0.00108], ["d", None]])
+    assert [r[1].text for r in table.formatted_rows()] == ["0.0001", "0.00094", "0.00108", "\u2013"]
+    wide = Table(["x"], [[2.5e-7], [0.5]])
+    assert [r[0].text for r in wide.formatted_rows()] == ["2.5e-07", "5e-01"]
+
+
+def test_validate_text_output_has_units_on_every_rmse(tmp_path):
+    exp = ROOT / "experiments" / "static.toml"
+    out = runner.invoke(app, ["validate", "static", str(exp), "--out", str(tmp_path), "--format", "html"])
+    rmse = re.findall(r"RMSE (\S+) (\S+),", out.output)
+    assert rmse and all(unit == "mm" for _, unit in rmse)
+
+
+# -- PDF layout ------------------------------------------------------------------------------
+
+
+def test_pdf_tables_never_cut_a_word_mid_token():
+    words = ["youngs-modulus-temperature", "shear_modulus_slope", "passed", "Name", "no limits set"]
+    rows = [
+        [w, "x" * 3, 1.5, w.upper(), Cell("passed", "pass"), "a", "b", "c", "d", "e", "f", "g"] for w in words
+    ]
+    table = Table([f"column {i}" for i in range(12)], rows, caption="many columns")
+    pdf = render_pdf(Document("t", sections=[Section("s", tables=[table])]))
+    text = _pdf_text(pdf)
+    for w in ("shear_modulus_slope", "passed", "Name", "SHEAR_MODULUS_SLOPE"):
+        assert w in text, w
+    # a hyphenated name may break only after a hyphen: joined there, every one is whole
+    joined = text.replace("-\n", "-")
+    assert joined.count("youngs-modulus-temperature") == 1
+    assert joined.count("YOUNGS-MODULUS-TEMPERATURE") == 1
+
+
+def _page_images(page) -> int:
+    xobjects = (page.get("/Resources") or {}).get("/XObject")
+    return 0 if not xobjects else len(xobjects.get_object())
+
+
+def test_pdf_heading_never_left_alone_at_a_page_bottom():
+    """Filler pushes a heading followed by a figure to every position near the page bottom:
+    the heading's page must always hold the figure too."""
+    from tcamlab.report import Figure
+    from tcamlab.report.figures import new_figure
+
+    fig, ax = new_figure(6.4, 3.2)
+    ax.plot([0, 1], [0, 1])
+    for n in range(30, 62, 3):
+        filler = Section("Filler", paragraphs=[f"line {i}" for i in range(n)])
+        target = Section("Target heading", figures=[Figure(fig, "the figure")])
+        reader = pypdf.PdfReader(io.BytesIO(render_pdf(Document("t", sections=[filler, target]))))
+        page = next(p for p in reader.pages if "Target heading" in p.extract_text())
+        assert _page_images(page) == 1, n
+
+
+def test_pdf_a_long_token_gets_a_column_wide_enough():
+    """A SHA-256 (64 characters, one token) is never cut nor drawn past its column."""
+    sha = "8a7b587918ddba2cf3a7763c916fda97de6fdb5507cb5e5a440e1bd3f44e2dd7"
+    doc = Document("t", sections=[], metadata={"tool": "tcamlab", "sha256 curvature.toml": sha})
+    assert sha in _pdf_text(render_pdf(doc)).replace("\n", " ").split(" ")
+
+
+def test_metrics_json_and_report_record_relative_paths_version_and_hashes(tmp_path):
+    lab = tmp_path / "lab"
+    shutil.copytree(ROOT / "experiments", lab / "experiments", ignore=shutil.ignore_patterns("templates"))
+    shutil.copytree(ROOT / "raw", lab / "raw")
+    out = runner.invoke(
+        app, ["validate", "static", str(lab / "experiments/static.toml"), "--out", str(tmp_path / "r")]
+    )
+    assert out.exit_code == 0, out.output
+    folder = tmp_path / "r" / "static"
+    text = (folder / "metrics.json").read_text()
+    doc = json.loads(text)
+    assert str(tmp_path) not in text and doc["tool"].startswith("tcamlab ")
+    assert doc["inputs"][0]["path"] == "../raw/static_run1.csv" and len(doc["inputs"][0]["sha256"]) == 64
+    assert len(doc["experiment_file"]["sha256"]) == 64
+    for name in ("report.html", "metrics.json", "predictions.csv"):
+        assert str(tmp_path) not in (folder / name).read_text()
+    assert str(tmp_path) not in _pdf_text((folder / "report.pdf").read_bytes())
+
+
+def test_residuals_one_panel_per_quantity_against_the_physical_input():
+    from tcamlab.report.validation_report import validation_document
+
+    res = validate(load_experiment(ROOT / "experiments" / "sensing.toml"), mc_draws=0)
+    figs = [f for s in validation_document(res).sections for f in s.figures]
+    axes = figs[-1].figure.axes
+    assert [a.get_ylabel() for a in axes] == ["displacement residual [mm]", "force residual [N]"]
+    assert axes[-1].get_xlabel() == "time [s]"
+
+
+def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, tmp_path):
+    """Two kinds with different quantities still give 7 columns (no per-quantity columns full
+    of dashes); the synthetic banner is on the index and the combined PDF's first page."""
+    exps = [str(ROOT / "experiments" / "static.toml"), str(sensor45)]
+    out = runner.invoke(app, ["report", *exps, "--out", str(tmp_path / "r"), "--mc-draws", "0"])
+    assert out.exit_code == 0, out.output
+    assert "no limits set static" in out.output and "  WARNING: sensing_run1: R0 = 30 ohm" in out.output
+    html = (tmp_path / "r" / "index.html").read_text()
+    p = _parse(html)
+    header = p.cells[:7]
+    assert header == ["Experiment", "Kind", "Status", "Warnings", "Quantity", "RMSE", "R²"]
+    assert len(re.findall(r"<th[ >]", html)) == 7 + 2  # the index table, then the provenance table
+    assert "SYNTHETIC DATA: 2 of 2 experiments" in "".join(p.text)
+    assert "0.005777 mm" in p.cells and "no limits set" in p.cells
+    assert "SYNTHETIC DATA" in _pdf_text((tmp_path / "r" / "reports.pdf").read_bytes(), [0])
+    strict = runner.invoke(
+        app, ["report", *exps, "--out", str(tmp_path / "s"), "--mc-draws", "0", "--strict"]
+    )
+    assert strict.exit_code == 1
