@@ -107,10 +107,40 @@ def _solve(
     return u, float(2 * sol.cost), int(sol.nfev)
 
 
+RESTART_SDS = (-2.0, 2.0)
+"""Extra starts of the MAP fit, in prior sds along the least determined direction."""
+
+
+def _restarts(problem: CalibrationProblem, lead: np.ndarray):
+    """Starts along ``lead`` and along each parameter's axis, :data:`RESTART_SDS` prior sds out."""
+    for t in RESTART_SDS:
+        yield problem.u0 + t * lead
+    for k, sd in enumerate(problem.sd_u):
+        for t in RESTART_SDS:
+            start = problem.u0.copy()
+            start[k] += t * sd
+            yield start
+
+
 def map_fit(problem: CalibrationProblem) -> MapFit:
-    """The maximum a posteriori point from the stated values."""
+    """The maximum a posteriori point: the best of fits from the stated values and from
+    :data:`RESTART_SDS` prior sds along the leading eigenvector of the prior-whitened
+    posterior covariance there (the direction the data pin least). A fit from the stated
+    values alone can stop at the edge of the model's domain (the static G_t' = 0 limit),
+    where the optimiser's steps leave the domain, although the chi-square falls along it."""
     free = list(range(len(problem.specs)))
     u, chi2, nfev = _solve(problem, problem.u0, free)
+    if not free:
+        return MapFit(u, chi2, nfev, "ok")
+    cov, _ = laplace_covariance(problem, u)
+    white = cov / np.outer(problem.sd_u, problem.sd_u)
+    lead = np.linalg.eigh(white)[1][:, -1] * problem.sd_u
+    lo, hi = problem.bounds()
+    for start in _restarts(problem, lead):
+        u_t, chi2_t, nfev_t = _solve(problem, np.clip(start, lo, hi), free)
+        nfev += nfev_t
+        if chi2_t < chi2 - PROFILE_CHI2_TOL and not problem.failed(chi2_t):
+            u, chi2 = u_t, chi2_t
     return MapFit(u, chi2, nfev, "ok")
 
 

@@ -332,17 +332,34 @@ class CalibrationProblem:
         """
         fn = fn or self.residuals
         cols = range(len(u)) if cols is None else cols
-        f0 = None if central else fn(u)
-        out = []
-        for k in cols:
-            up, dn = np.array(u, float), np.array(u, float)
-            up[k] += FD_STEP
-            if central:
-                dn[k] -= FD_STEP
-                out.append((fn(up) - fn(dn)) / (2 * FD_STEP))
-            else:
-                out.append((fn(up) - f0) / FD_STEP)
-        return np.column_stack(out) if out else np.zeros((len(fn(u)), 0))
+        f0 = fn(u)
+        out = [self._difference(fn, u, f0, k, central) for k in cols]
+        return np.column_stack(out) if out else np.zeros((len(f0), 0))
+
+    def _outside(self, f: np.ndarray) -> bool:
+        """Whether ``f`` comes from outside the model's domain (no solution, or non-finite)."""
+        return not np.all(np.isfinite(f)) or bool(np.all(f[: self.size] == FAIL_RESIDUAL))
+
+    def _difference(self, fn, u: np.ndarray, f0: np.ndarray, k: int, central: bool) -> np.ndarray:
+        """One Jacobian column. Next to the edge of the model's domain (e.g. G_t' = 0) a step
+        that leaves it would put FAIL_RESIDUAL / FD_STEP into the column, and the optimiser
+        stalls there, so a failed side falls back to the one-sided difference of the other."""
+        up, dn = np.array(u, float), np.array(u, float)
+        up[k] += FD_STEP
+        dn[k] -= FD_STEP
+        f_up = fn(up)
+        up_ok = not self._outside(f_up)
+        if up_ok and not central:
+            return (f_up - f0) / FD_STEP
+        f_dn = fn(dn)
+        dn_ok = not self._outside(f_dn)
+        if up_ok and dn_ok:
+            return (f_up - f_dn) / (2 * FD_STEP)
+        if up_ok:
+            return (f_up - f0) / FD_STEP
+        if dn_ok:
+            return (f0 - f_dn) / FD_STEP
+        return np.zeros_like(f0)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Box of the fitted coordinates: six prior sds, at most a factor 1000 for positives."""
