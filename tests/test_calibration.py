@@ -234,7 +234,12 @@ def test_curvature_calibration_recovers_d1_and_s_stated_off(tmp_path):
     truth = _truth(res)
     assert truth["sensor_offset"] == pytest.approx(9.9e-3) and truth["spring_constant"] == pytest.approx(12.1)
     cal = calibrate(res.experiment_path)
-    assert [p.name for p in cal.parameters] == ["sensor_offset", "spring_constant", "initial_resistance"]
+    assert [p.name for p in cal.parameters] == [
+        "sensor_offset",
+        "spring_constant",
+        "initial_resistance",
+        "youngs_modulus",
+    ]
     for p in cal.parameters:
         assert p.profile_95[0] <= truth[p.field] <= p.profile_95[1], p
     d1 = cal.parameter("sensor_offset")
@@ -279,3 +284,68 @@ def test_static_and_dynamic_of_one_sample_are_calibrated_jointly(tmp_path):
     text = " ".join(res.identifiability)
     assert "logs of static" in text and "and dynamic" in text
     assert "Not fixed separately: C_th, lambda" not in text
+
+
+def test_jacobian_takes_the_inner_side_at_the_edge_of_the_model_domain():
+    """A residual that has no solution above u = 1 (like the static model past G_t' = 0): a
+    forward or central step across the edge would put FAIL_RESIDUAL / FD_STEP into the column;
+    the column must be the one-sided slope from inside, 3 u^2 of r = u^3 - 1."""
+    from tcamlab.calibration.problem import FAIL_RESIDUAL, CalibrationProblem
+
+    prob = object.__new__(CalibrationProblem)
+    prob.size = 2
+
+    def fn(u):
+        if u[0] > 1.0:
+            return np.full(3, FAIL_RESIDUAL)
+        return np.array([u[0] ** 3 - 1.0, 2.0 * u[0], u[0]])
+
+    u = np.array([1.0 - 1e-7])
+    for central in (True, False):
+        col = prob.jacobian(u, fn=fn, central=central)[:, 0]
+        np.testing.assert_allclose(col, [3.0, 2.0, 1.0], rtol=1e-4)
+
+
+def test_row_noise_follows_the_slope_of_a_noisy_input():
+    """Synthetic residuals (generator numpy, seed 7): own noise 1 plus a noisy input (sd 0.5)
+    times a slope falling from 4 to 0.5 along each run, as the sensing displacement near rest.
+    The per-row sd must follow sqrt(1 + 0.25 g^2) (about 2.2 at the start, 1.03 at the end),
+    not one constant."""
+    from tcamlab.calibration.problem import CalibrationProblem
+
+    rng = np.random.default_rng(7)
+    g = np.linspace(4.0, 0.5, 4000)
+    resid = [rng.normal(0, 1.0, g.size) + g * rng.normal(0, 0.5, g.size) for _ in range(3)]
+    rows = CalibrationProblem.row_noise(resid, [{"x": g}] * 3)
+    truth = np.sqrt(1.0 + 0.25 * g**2)
+    for r in rows:
+        np.testing.assert_allclose(r, truth, rtol=0.08)
+    assert rows[0][0] / rows[0][-1] > 1.8
+
+
+def test_static_map_fit_is_not_stopped_at_the_domain_edge(tmp_path):
+    """Virtual oven test whose true rho is 2.5 stated sds below the stated value: the fit from
+    the stated values runs into the G_t' = 0 edge; the MAP must reach the chi-square minimum
+    that a fit started at the truth finds, and its interval must hold the true rho."""
+    from tcamlab.calibration.core import load_experiments
+    from tcamlab.calibration.fit import map_fit, solve
+    from tcamlab.calibration.problem import CalibrationProblem
+
+    res = simulate(
+        "static",
+        TEMPLATES / "static.toml",
+        seed=3,
+        out_dir=tmp_path,
+        uncertainty={"radial_cte": 8.1e-6},
+        parameter_offsets={"radial_cte": -2.5},
+        noisy_zero=True,
+    )
+    exps = load_experiments([res.experiment_path])
+    prob = CalibrationProblem(exps, [exps[0].read_runs()])
+    truth = _truth(res)
+    fit = map_fit(prob)
+    u_true = np.array([s.to_u(truth[s.param.field]) for s in prob.specs])
+    _, chi2_from_truth, _ = solve(prob, u_true, list(range(len(u_true))))
+    assert fit.chi2 <= chi2_from_truth + 1e-2
+    rho = calibrate(res.experiment_path).parameter("radial_cte")
+    assert rho.profile_95[0] <= truth["radial_cte"] <= rho.profile_95[1]

@@ -15,7 +15,7 @@ from scipy import optimize
 
 from tcamlab.calibration.problem import CalibrationProblem
 
-__all__ = ["CHI2_95", "MapFit", "Profile", "map_fit", "laplace_covariance", "profile_interval"]
+__all__ = ["CHI2_95", "MapFit", "Profile", "map_fit", "solve", "laplace_covariance", "profile_interval"]
 
 CHI2_95 = 3.841458820694124
 """95 % quantile of chi-square with one degree of freedom."""
@@ -63,7 +63,7 @@ class Profile:
     open: bool
 
 
-def _solve(
+def solve(
     problem: CalibrationProblem,
     u_start: np.ndarray,
     free: list[int],
@@ -108,7 +108,12 @@ def _solve(
 
 
 RESTART_SDS = (-2.0, 2.0)
-"""Extra starts of the MAP fit, in prior sds along the least determined direction."""
+"""Extra starts of the MAP fit, in prior sds along the least determined direction and along
+each parameter's axis."""
+
+RESTART_Z = 3.0
+"""The MAP fit restarts when its chi-square exceeds its expectation (the number of residuals)
+by more than this many sds of chi-square (sqrt(2 n)): a fit stopped short of the minimum."""
 
 
 def _restarts(problem: CalibrationProblem, lead: np.ndarray):
@@ -125,19 +130,22 @@ def _restarts(problem: CalibrationProblem, lead: np.ndarray):
 def map_fit(problem: CalibrationProblem) -> MapFit:
     """The maximum a posteriori point: the best of fits from the stated values and from
     :data:`RESTART_SDS` prior sds along the leading eigenvector of the prior-whitened
-    posterior covariance there (the direction the data pin least). A fit from the stated
+    posterior covariance there (the direction the data pin least) and along each axis,
+    when the first fit's chi-square is implausibly high (:data:`RESTART_Z`). A fit from the stated
     values alone can stop at the edge of the model's domain (the static G_t' = 0 limit),
     where the optimiser's steps leave the domain, although the chi-square falls along it."""
     free = list(range(len(problem.specs)))
-    u, chi2, nfev = _solve(problem, problem.u0, free)
-    if not free:
+    u, chi2, nfev = solve(problem, problem.u0, free)
+    n = len(problem.u0) + problem.size
+    # an acceptable fit (chi-square within RESTART_Z of its expectation) needs no restarts
+    if not free or chi2 <= n + RESTART_Z * np.sqrt(2.0 * n):
         return MapFit(u, chi2, nfev, "ok")
     cov, _ = laplace_covariance(problem, u)
     white = cov / np.outer(problem.sd_u, problem.sd_u)
     lead = np.linalg.eigh(white)[1][:, -1] * problem.sd_u
     lo, hi = problem.bounds()
     for start in _restarts(problem, lead):
-        u_t, chi2_t, nfev_t = _solve(problem, np.clip(start, lo, hi), free)
+        u_t, chi2_t, nfev_t = solve(problem, np.clip(start, lo, hi), free)
         nfev += nfev_t
         if chi2_t < chi2 - PROFILE_CHI2_TOL and not problem.failed(chi2_t):
             u, chi2 = u_t, chi2_t
@@ -192,7 +200,7 @@ class _ProfileSearch:
                     return u1, chi1
                 if chi1 < chi0:
                     start = u1
-        u, chi2, _ = _solve(self.problem, start, self.free, self.ftol, PROFILE_NFEV)
+        u, chi2, _ = solve(self.problem, start, self.free, self.ftol, PROFILE_NFEV)
         return u, chi2
 
     def z(self, c: float) -> float:

@@ -16,11 +16,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import optimize
 
 from tcamlab.errors import InputError, TcamlabError
 from tcamlab.kinds import CalibrationParam, get_kind
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
-from tcamlab.signals import second_difference_sigma
 from tcamlab.text import did_you_mean
 
 __all__ = ["Spec", "CalibrationProblem", "FAIL_RESIDUAL", "FD_STEP"]
@@ -35,6 +35,13 @@ R0 column is curved enough that a 1e-3 step puts 7 % into a forward difference."
 
 CACHE_SIZE = 8
 """Residual sets kept per experiment (the centre of a Jacobian and its last steps)."""
+
+INPUT_STEP = 1e-6
+"""Relative step of a noisy input column for the slopes of :meth:`CalibrationProblem.row_noise`."""
+
+ROW_SIGMA_FLOOR = 0.5
+"""Smallest row sd of :meth:`CalibrationProblem.row_noise`, a fraction of the single-sd
+noise floor: no row weighs more than four times as much as under one sd."""
 
 MAX_LOG_SPAN = math.log(1e3)
 """Largest excursion of a positive parameter from its stated value, in log space."""
@@ -110,6 +117,14 @@ def _unstated_start(kind, exp, runs, fld: str) -> float:
             raise InputError(f"{exp.path}: calibration needs a start value of {fld}", "state it in [rig]")
         values.append(float(ro.options[fld]))
     return float(np.mean(values))
+
+
+def _slope_sum(g: dict[str, np.ndarray], n: int) -> np.ndarray:
+    """sum over the noisy inputs of (d predicted / d input)^2, per row (zeros without inputs)."""
+    out = np.zeros(n)
+    for v in g.values():
+        out = out + np.asarray(v, float) ** 2
+    return out
 
 
 class CalibrationProblem:
@@ -202,20 +217,82 @@ class CalibrationProblem:
         return tuple(kind.outputs) + tuple(extra)
 
     def _noise(self) -> dict[tuple[int, str], float]:
-        """Noise sd per (experiment, quantity) [SI]: second differences of the residuals at
-        the stated values, median over runs."""
+        """Noise sd per (experiment, quantity) [SI], the RMS of :attr:`row_sigma` over the rows;
+        sets ``row_sigma``, the sd of each row (:meth:`row_noise`)."""
         out = {}
+        self.row_sigma: dict[tuple[int, int, str], np.ndarray] = {}
         for i, qs in enumerate(self.quantities):
             preds = [self.predict_run(i, j, self.u0) for j in range(len(self.runs[i]))]
+            slopes = [self._input_slopes(i, j, p) for j, p in enumerate(preds)]
             for q in qs:
-                s = [second_difference_sigma(self.measured(i, j, q) - p[q]) for j, p in enumerate(preds)]
-                sd = float(np.nanmedian(s))
-                if not (sd > 0 and math.isfinite(sd)):
+                resid = [self.measured(i, j, q) - p[q] for j, p in enumerate(preds)]
+                rows = self.row_noise(resid, [{x: g[x][q] for x in g} for g in slopes])
+                if rows is None:
                     raise InputError(
                         f"{self.experiments[i].path}: the noise of {q} cannot be estimated (a constant log?)"
                     )
-                out[(i, q)] = sd
+                for j, sd in enumerate(rows):
+                    self.row_sigma[(i, j, q)] = sd
+                out[(i, q)] = float(np.sqrt(np.mean(np.concatenate(rows) ** 2)))
         return out
+
+    def _input_slopes(self, i: int, j: int, pred: dict) -> dict[str, dict[str, np.ndarray]]:
+        """{noisy input: {quantity: d predicted / d input, per row}} of run ``j`` at the stated
+        values (the whole column moved by one step; the models read an input row by row)."""
+        kind, out = self.kinds[i], {}
+        data = self.runs[i][j].data
+        sample, rig = self.models(i, self.u0)
+        opts = dict(kind.run_options(sample, rig, data, where=str(self.experiments[i].path)).options)
+        opts.update(kind.variants[kind.primary])
+        for x in kind.noisy_inputs:
+            col = data[x].to_numpy(float)
+            h = INPUT_STEP * max(float(np.max(np.abs(col))), 1e-300)
+            moved = data.copy()
+            moved[x] = col + h
+            try:
+                with np.errstate(all="ignore"), warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    up = kind.predict(sample, rig, moved, **opts)
+            except (TcamlabError, ArithmeticError, ValueError):
+                continue
+            out[x] = {q: (up[q] - pred[q]) / h for q in pred}
+        return out
+
+    @staticmethod
+    def row_noise(resid: list[np.ndarray], slopes: list[dict[str, np.ndarray]]) -> list[np.ndarray] | None:
+        """Each row's noise sd [SI] under errors in the inputs (effective variance).
+
+        The model reads noisy inputs x, so a residual carries the output's own noise plus
+        (d predicted / d x) times x's noise: sd^2 = a + b G with G = sum_x g_x^2 (the inputs
+        of one kind share one instrument, e.g. the ohmmeter for R1 and R2). a, b >= 0 are the
+        least-squares fit of the squared second differences of the residuals / 6 (the
+        estimator of :func:`~tcamlab.signals.second_difference_sigma`, row by row) on the
+        local G; without noisy inputs it is that estimator. Where the slope varies along a
+        run (the sensing pull: d delta / d R is largest near rest, where R0 and E are
+        pinned), one sd would be too small exactly where the information is. No row's sd
+        falls below :data:`ROW_SIGMA_FLOOR` of the single-sd estimate (a row where G = 0,
+        e.g. one the model pins to zero, would otherwise get unbounded weight).
+        """
+        d2, big = [], []
+        for r, g in zip(resid, slopes):
+            if r.size < 3:
+                continue
+            d2.append((r[2:] - 2.0 * r[1:-1] + r[:-2]) ** 2 / 6.0)
+            big.append(_slope_sum(g, r.size)[1:-1])
+        if not d2:
+            return None
+        y, gx = np.concatenate(d2), np.concatenate(big)
+        total = float(np.mean(y))
+        a, b = total, 0.0
+        if np.any(gx > 0):
+            scale = float(np.sqrt(np.mean(gx**2)))
+            a, b = optimize.nnls(np.column_stack([np.ones_like(gx), gx / scale]), y)[0]
+            b /= scale
+        floor = (ROW_SIGMA_FLOOR**2) * total
+        rows = [np.sqrt(np.maximum(a + b * _slope_sum(g, r.size), floor)) for r, g in zip(resid, slopes)]
+        if not (total > 0 and all(np.all(np.isfinite(v)) for v in rows)):
+            return None
+        return rows
 
     # evaluation ------------------------------------------------------------------------
     def values(self, u: np.ndarray) -> dict[str, float]:
@@ -292,7 +369,13 @@ class CalibrationProblem:
         raw = self.raw_residuals(u)
         if raw is None:
             return np.full(len(self.zero_labels()), np.nan)
-        return np.array([float(np.mean(r)) for i, _, q, r in raw if self.is_zeroed(i, q)])
+        return np.array([self.zero_of(i, j, q, r) for i, j, q, r in raw if self.is_zeroed(i, q)])
+
+    def zero_of(self, i: int, j: int, q: str, r: np.ndarray) -> float:
+        """The profiled zero of one run's residuals ``r`` [SI]: their mean weighted by
+        1 / row_sigma^2 (the exact minimiser of the chi-square over the zero)."""
+        w = self.row_sigma[(i, j, q)] ** -2.0
+        return float(np.sum(w * r) / np.sum(w))
 
     def zero_labels(self) -> list[tuple[int, int, str]]:
         return [
@@ -309,8 +392,9 @@ class CalibrationProblem:
         if raw is None:
             return np.full(self.size, FAIL_RESIDUAL)
         parts = []
-        for i, _, q, r in raw:
-            parts.append(((r - r.mean()) if self.is_zeroed(i, q) else r) / self.sigma[(i, q)])
+        for i, j, q, r in raw:
+            zero = self.zero_of(i, j, q, r) if self.is_zeroed(i, q) else 0.0
+            parts.append((r - zero) / self.row_sigma[(i, j, q)])
         return np.concatenate(parts)
 
     def failed(self, chi2: float) -> bool:
