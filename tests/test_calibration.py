@@ -324,28 +324,40 @@ def test_row_noise_follows_the_slope_of_a_noisy_input():
 
 
 def test_static_map_fit_is_not_stopped_at_the_domain_edge(tmp_path):
-    """Virtual oven test whose true rho is 2.5 stated sds below the stated value: the fit from
-    the stated values runs into the G_t' = 0 edge; the MAP must reach the chi-square minimum
-    that a fit started at the truth finds, and its interval must hold the true rho."""
+    """Virtual oven test (seed 3) whose true rho is 2.4 stated sds (10 %) below the stated
+    value and E 0.5 sds (5 %) above, the sds stated in [sample.uncertainty]: from the stated
+    values the fit runs into the G_t' = 0 edge and, without the restarts, stopped there
+    (chi-square 950-1650 on 81 residuals for seeds 1-3); the MAP must reach the minimum a fit
+    started at the truth finds, and the profile interval must hold the true rho."""
+    import tomllib
+
     from tcamlab.calibration.core import load_experiments
     from tcamlab.calibration.fit import map_fit, solve
     from tcamlab.calibration.problem import CalibrationProblem
+    from tcamlab.config import write_experiment
+    from tcamlab.params import SAMPLE_KEYS
 
+    sds = {"radial_cte": 8.1e-6, "youngs_modulus": 0.1725e9}
     res = simulate(
         "static",
         TEMPLATES / "static.toml",
         seed=3,
         out_dir=tmp_path,
-        uncertainty={"radial_cte": 8.1e-6},
-        parameter_offsets={"radial_cte": -2.5},
+        uncertainty=sds,
+        parameter_offsets={"radial_cte": -2.4, "youngs_modulus": 0.5},
         noisy_zero=True,
     )
-    exps = load_experiments([res.experiment_path])
+    path = res.experiment_path
+    doc = tomllib.loads(path.read_text())
+    doc["sample"]["uncertainty"] = {k: sds[si] / f for k, (si, f) in SAMPLE_KEYS.items() if si in sds}
+    write_experiment(path, doc)
+    exps = load_experiments([path])
     prob = CalibrationProblem(exps, [exps[0].read_runs()])
+    assert prob.specs[0].prior_sd == pytest.approx(8.1e-6)
     truth = _truth(res)
     fit = map_fit(prob)
     u_true = np.array([s.to_u(truth[s.param.field]) for s in prob.specs])
     _, chi2_from_truth, _ = solve(prob, u_true, list(range(len(u_true))))
-    assert fit.chi2 <= chi2_from_truth + 1e-2
-    rho = calibrate(res.experiment_path).parameter("radial_cte")
+    assert fit.chi2 <= chi2_from_truth + 1e-2 and fit.chi2 < 2 * prob.size
+    rho = calibrate(path).parameter("radial_cte")
     assert rho.profile_95[0] <= truth["radial_cte"] <= rho.profile_95[1]
