@@ -267,12 +267,13 @@ CALIBRATION = (
     CalibrationParam(
         "initial_resistance", "rig", "R0", "ohm", 0.05, "more rows at rest before the cable is pulled"
     ),
-    # The sensing inversion reads E only through S*E (S absorbed E's error when E was
-    # fixed), so E is calibrated with its prior and S's interval carries E's uncertainty.
+    # The camera logs pin S and E only as their ratio (posterior correlation +0.9; S
+    # absorbed E's error when E was fixed), so E is calibrated with its prior and S's
+    # interval carries E's uncertainty.
     CalibrationParam("youngs_modulus", "sample", "E", "Pa", 0.2, "a tensile test of the straight fiber"),
 )
 """Calibratable parameters of the camera curvature test (one S and R0 for both segments;
-E, which only the product S*E of the sensing inversion pins)."""
+E, which the logs pin only together with S, as S/E)."""
 
 
 KIND = Kind(
