@@ -84,7 +84,8 @@ from tcamlab.diagnosis.noise import (
     pool_noise_estimates,
     second_difference_sigma,
 )
-from tcamlab.diagnosis.problem import ZERO_REFERENCED, Problem, complement, folds
+from tcamlab.diagnosis.problem import Problem, complement, folds
+from tcamlab.diagnosis.recalibration import RECALIBRATION, Recalibration
 from tcamlab.diagnosis.regimes import label_rows, plot_series, regime_table, run_statistics
 from tcamlab.diagnosis.result import SCHEMA_VERSION, CandidateResult, DiagnosisResult, Settings
 from tcamlab.diagnosis.verdict import MIN_FRACTION_CLOSED, decide
@@ -98,7 +99,7 @@ __all__ = [
     "SECOND_DIFF_EFFICIENCY",
     "MIN_FRACTION_CLOSED",
     "CI_LEVEL",
-    "ZERO_REFERENCED",
+    "RECALIBRATION",
     "CandidateResult",
     "DiagnosisResult",
     "complement",
@@ -149,9 +150,9 @@ def diagnose(
     base, baseline, gap = check_gap(problem, base, noise)
     labels = label_rows(problem, base)
     scores = score_folds(problem, base, n_boot, seed)
-    ranking, fits = fit_candidates(problem, cands, scores, base, workers)
-    decision = decide(problem, cands, ranking, fits, scores, base, gap, workers)
-    best = decision.best_fit
+    rec = Recalibration(problem, experiment, runs)
+    ranking, fits = fit_candidates(problem, rec, cands, scores, base, workers=workers)
+    decision = decide(problem, rec, cands, ranking, fits, scores, base, gap, workers)
     names = [str(getattr(r, "path", i)).rsplit("/", 1)[-1] for i, r in enumerate(runs)]
     return DiagnosisResult(
         kind=experiment.kind,
@@ -169,8 +170,21 @@ def diagnose(
         reason=decision.reason,
         settings=_settings(scores, cands, n_boot, seed, len(runs)),
         combination=decision.combination,
-        _series=plot_series(problem, base, labels, best and (best.effect, best.values, best.spring)),
+        recalibration=decision.recalibration,
+        _series=plot_series(problem, base, labels, _best_curve(rec, decision.best_fit)),
     )
+
+
+def _best_curve(rec: Recalibration, fit):
+    """Predictions [SI] of run i with the best candidate's all-runs fit, or None."""
+    if fit is None or fit.joint is None:
+        return None
+    mods = fit.effect.mods(fit.values) if fit.effect is not None else None
+
+    def curve(i):
+        return rec.predict(i, fit.joint.u, mods)
+
+    return curve
 
 
 def _experiment_info(experiment, n_runs: int) -> dict:
