@@ -85,8 +85,12 @@ def candidate_job(job):
     box = effect_box(problem, eff, spring)
     full = rec.fit(eff, rows_all, rec.starts(eff, u_start, box), box, MAX_NFEV_FULL)
     after_fold, after_q, fold_vals = np.zeros(K), np.zeros((K, len(Q))), []
+    whole_runs = all(m.all() for held in held_sets for _, m in held)
     for k, held in enumerate(held_sets):
-        fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD)
+        if whole_runs:
+            fit = rec.refit_without(full, eff, {i for i, _ in held})
+        else:
+            fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD)
         fold_vals.append(_fold_values(rec, eff, fit))
         mods = eff.mods(fit.values) if eff is not None else Mods()
         for i, m in held:

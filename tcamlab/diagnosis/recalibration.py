@@ -76,6 +76,10 @@ class JointFit:
     success: bool
     spring: float | None = None
     """Unused (the sensing S is a calibrated parameter here); for the plots' interface."""
+    fun: np.ndarray | None = None
+    """Data and prior residuals at the fit (data: run by run, quantities stacked)."""
+    box: tuple | None = None
+    """Bounds of (u, theta) the fit respected."""
 
     @property
     def x(self) -> np.ndarray:
@@ -195,7 +199,32 @@ class Recalibration:
             int(r.size),
             best.jac,
             bool(best.success),
+            fun=best.fun,
+            box=(lo, hi),
         )
+
+    def refit_without(self, fit: JointFit, effect: Effect | None, held: set[int]) -> JointFit:
+        """The fit on every run but ``held``: one Gauss-Newton step from the all-runs ``fit``.
+
+        The step uses the all-runs fit's residuals and Jacobian restricted to the training
+        runs' rows (and the prior rows): no model evaluation. For a model linear in
+        (u, theta) it is the exact leave-runs-out fit; for these smooth models, near the
+        optimum, it is the one-step approximation of leave-one-out refitting, and it is
+        what makes the fold fits cost nothing beside the all-runs fit. ``fit`` must be a
+        fit on all rows (:meth:`fit` with every row of every run).
+        """
+        if fit.jac is None or fit.fun is None:
+            return fit
+        sizes = [len(d) * len(self.problem.quantities) for d in self.problem.frames]
+        keep = np.concatenate(
+            [np.full(n, i not in held, bool) for i, n in enumerate(sizes)] + [np.ones(self.p, bool)]
+        )
+        J = np.asarray(fit.jac, float)[keep]
+        step = np.linalg.lstsq(J, -fit.fun[keep], rcond=None)[0]
+        x = np.clip(fit.x + step, fit.box[0], fit.box[1])
+        p = self.p
+        scales = np.array([q.scale for q in effect.params], float) if effect is not None else np.zeros(0)
+        return JointFit(x[:p], x[p:], x[p:] * scales, float("nan"), int(keep.sum()) - p, None, fit.success)
 
     def starts(self, effect: Effect | None, u: np.ndarray, box) -> list[np.ndarray]:
         """Starts of a fit on all rows: the recalibration's ``u`` with theta 0, +1 and -1."""

@@ -376,7 +376,9 @@ class DiagnosisResult:
         ax.plot(x, r["measured"][q] * fac, ".", ms=2, color="0.4", label="measured")
         ax.plot(x, r["baseline"][q] * fac, "-", color="#1f77b4", label="thesis model")
         if r.get("best") is not None:
-            ax.plot(x, r["best"][q] * fac, "-", color="#d62728", label=f"+ {self.ranking[0].effect}")
+            name = self.effect or (self.ranking[0].effect if self.verdict != "miscalibrated" else None)
+            label = f"+ {name}" if name else "recalibrated"
+            ax.plot(x, r["best"][q] * fac, "-", color="#d62728", label=label)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"{q} [{unit}]")
         ax.legend()
