@@ -136,3 +136,27 @@ def test_verdict_rules_between_recalibration_and_an_effect():
     # no gap: none, whatever the candidates do
     v = verdict([eff, rec], False, _after({RECALIBRATION: 130, eff.effect: 100}), idx, b_n, 1.0, 1.1)
     assert v[0] == "none"
+
+
+def test_fold_refit_step_matches_a_refit_on_the_training_runs(tmp_path):
+    # The folds' fits are one Gauss-Newton step from the all-runs fit on the training runs'
+    # rows; it must land where a full refit on those runs lands (well inside the posterior
+    # sd), and the withheld run must play no part in it.
+    from tcamlab.diagnosis.noise import all_rows, baseline_fit, estimate_noise
+    from tcamlab.diagnosis.problem import Problem, complement
+    from tcamlab.diagnosis.recalibration import Recalibration
+
+    exp = _simulate(tmp_path, "dynamic", 5, parameter_offsets={"thermal_mass": -1.0}, n_runs=3)
+    runs = exp.read_runs()
+    problem = Problem(exp, runs)
+    estimate_noise(problem, baseline_fit(problem))
+    rec = Recalibration(problem, exp, runs)
+    box = (np.zeros(0), np.zeros(0))
+    full = rec.fit(None, all_rows(problem), [rec.cal.u0], box, 80)
+    train = complement(problem, [(0, np.ones(len(runs[0].data), bool))])
+    refit = rec.fit(None, train, [full.x], box, 80)
+    step = rec.refit_without(full, None, {0})
+    sd = np.sqrt(np.diag(rec.covariance(refit)))
+    assert np.all(np.abs(step.u - refit.u) < 0.1 * sd)
+    # and it moved from the all-runs fit towards the refit: the withheld run is out of it
+    assert np.linalg.norm(step.u - refit.u) < 0.2 * np.linalg.norm(full.u - refit.u)

@@ -40,33 +40,46 @@ Steps
    share of squared error and RMSE/noise per regime; lag-1 autocorrelation
    and Durbin-Watson per run; correlation of residuals with each input.
 
-3. **Which.** Every candidate effect (:mod:`tcamlab.effects`) is fitted with
-   :func:`scipy.optimize.least_squares` on training runs and scored on the
-   withheld run (leave one run out; a single run is cut into contiguous
-   blocks). A bootstrap over folds gives intervals; AIC/BIC and parameter
-   confidence intervals come from the fit on all runs.
+3. **Which.** Recalibration (:mod:`~tcamlab.diagnosis.recalibration`: the
+   kind's calibratable parameters refitted under their priors through
+   :class:`tcamlab.calibration.problem.CalibrationProblem`) and every
+   candidate effect (:mod:`tcamlab.effects`) fitted *together with* the
+   recalibrated parameters are fitted with :func:`scipy.optimize.least_squares`
+   on all runs, then on each fold's training runs by one Gauss-Newton step
+   from that fit, and scored on the withheld run (leave one run out; a single
+   run is cut into contiguous blocks, refitted from the all-runs fit). Each
+   run's zero of a :attr:`~tcamlab.kinds.Kind.nuisance_zeros` quantity is
+   profiled out over the rows scored (a withheld run's from that run). A
+   bootstrap over folds gives intervals; AIC/BIC and parameter intervals come
+   from the fit on all runs.
 
 4. **Verdict** (constants below, reasons in their docstrings):
 
-   * ``none`` -- the baseline's mean squared normalised residual is below
-     the :data:`GAP_LEVEL` quantile of its no-gap distribution, F(N, nu) per
-     quantity (N points, nu the effective degrees of freedom of the noise
-     estimate), pooled over quantities by seeded Monte Carlo
-     (:func:`gap_limit`);
-   * ``attributed`` -- the best candidate (lowest held-out RMSE) closes at
-     least :data:`MIN_FRACTION_CLOSED` of the gap above the noise floor, its
-     bootstrap shrinkage interval excludes 0, and no other candidate is
-     indistinguishable from it;
-   * ``aliased`` -- as attributed, but another candidate also closes at least
-     :data:`MIN_FRACTION_CLOSED` and the paired bootstrap interval of its
-     held-out MSE minus the best's contains 0;
+   * ``none`` -- the baseline's mean squared normalised residual (over N - R
+     points, R profiled zeros) is below the :data:`GAP_LEVEL` quantile of its
+     no-gap distribution, F(N - R, nu) per quantity (nu the effective degrees
+     of freedom of the noise estimate), pooled over quantities by seeded
+     Monte Carlo (:func:`gap_limit`);
+   * ``attributed`` -- an effect (with recalibration) closes at least
+     :data:`MIN_FRACTION_CLOSED` of the gap above the noise floor on withheld
+     runs, its bootstrap shrinkage interval excludes 0, it beats
+     recalibration alone (paired bootstrap of the held-out MSE difference),
+     and no other such effect is indistinguishable from it;
+   * ``miscalibrated`` -- recalibration alone closes at least
+     :data:`MIN_FRACTION_CLOSED` (interval above 0) and no effect beats it;
+     the parameters that moved are named with values, intervals and shifts
+     in stated sds;
+   * ``aliased`` -- as attributed, but another effect is indistinguishable;
+     or recalibration needs a shift beyond its priors
+     (:data:`~tcamlab.diagnosis.recalibration.PLAUSIBLE_LEVEL`) while an
+     effect with plausible parameters fits as well;
    * ``unexplained`` -- the gap is significant and no candidate qualifies.
 
 5. **Two effects.** When no single candidate qualifies, candidates that alone
    close at least :data:`MIN_PARTIAL_FRACTION` of the gap (the best
    :data:`PAIR_POOL`) are fitted in pairs (:func:`tcamlab.effects.combine`)
    and scored the same way; a pair that qualifies and beats each member alone
-   gives ``attributed`` (or ``aliased``, with rival pairs), naming the member
+   and recalibration alone gives ``attributed`` (or ``aliased``, with rival pairs), naming the member
    that ranks higher alone; the pair is ``DiagnosisResult.combination``.
 """
 

@@ -1,9 +1,11 @@
-"""Which effect: every candidate fitted on training rows and scored on the held-out rows.
+"""Which explanation: recalibration and every effect (fitted with it), scored on held-out rows.
 
 Folds hold out one run each (a single run: contiguous blocks). The baseline
-is scored on the same folds, so a candidate's held-out shrinkage and the
-share of the gap it closes compare like with like; a bootstrap over folds
-gives their intervals.
+(stated parameters) is scored on the same folds, so a candidate's held-out
+shrinkage and the share of the gap it closes compare like with like; a
+bootstrap over folds gives their intervals. Each candidate is fitted on all
+rows, then on each fold's training runs by one Gauss-Newton step from that
+fit (:meth:`~tcamlab.diagnosis.recalibration.Recalibration.refit_without`).
 """
 
 from __future__ import annotations

@@ -46,8 +46,9 @@ MODEL_ERRORS = (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionE
 """Exceptions of a model evaluated outside its domain."""
 
 
-DOMAIN_BISECTIONS = 24
-"""Bisection steps that locate the edge of a parameter's physical domain."""
+DOMAIN_BISECTIONS = 12
+"""Bisection steps that locate the edge of a parameter's physical domain (to 1/4096 of
+the library bound: the fit only needs to stay inside)."""
 
 
 class Problem:
