@@ -160,3 +160,41 @@ def test_fold_refit_step_matches_a_refit_on_the_training_runs(tmp_path):
     assert np.all(np.abs(step.u - refit.u) < 0.1 * sd)
     # and it moved from the all-runs fit towards the refit: the withheld run is out of it
     assert np.linalg.norm(step.u - refit.u) < 0.2 * np.linalg.norm(full.u - refit.u)
+
+
+def test_benchmark_scores_miscalibrated_right_on_a_lying_null_and_a_miss_on_an_effect():
+    from tcamlab.benchmark import score
+
+    def case(kind_of_case, effects, verdict, named=()):
+        return {
+            "case": kind_of_case,
+            "kind": "dynamic",
+            "effects": effects,
+            "seed": 1,
+            "verdict": verdict,
+            "effect": None,
+            "aliased_with": [],
+            "recalibrated": list(named),
+            "ranking": [RECALIBRATION, "response-delay"],
+            "shrinkage": {RECALIBRATION: 0.5, "response-delay": 0.5},
+            "fraction_closed": {RECALIBRATION: 0.9, "response-delay": 0.9},
+            "fitted": {},
+            "truth_values": {},
+            "heldout_rmse_before_noise": 3.0,
+            "parameter_offsets_sd": {"thermal_mass": 1.2, "heat_loss": -0.3},
+            "seconds": 1.0,
+        }
+
+    s = score(
+        [
+            case("single", {"response-delay": 3.0}, "miscalibrated", ["thermal_mass"]),
+            case("null-miscalibrated", {}, "miscalibrated", ["thermal_mass"]),
+            case("null-miscalibrated", {}, "none"),
+            case("null-miscalibrated", {}, "miscalibrated", ["damping"]),
+        ]
+    )
+    assert s["accuracy_by_strength"]["3.0"]["top1"] == 0.0
+    lying = s["null_miscalibrated"]
+    assert lying["false_attributions"] == 0
+    assert lying["right"] == 3
+    assert lying["miscalibrated_naming_a_moved_parameter"] == 1
