@@ -87,7 +87,9 @@ def candidate_job(job):
     box = effect_box(problem, eff, spring)
     full = rec.fit(eff, rows_all, rec.starts(eff, u_start, box), box, MAX_NFEV_FULL)
     after_fold, after_q, fold_vals = np.zeros(K), np.zeros((K, len(Q))), []
-    whole_runs = all(m.all() for held in held_sets for _, m in held)
+    # the one-step refit needs the all-runs fit's Jacobian; without it (a failed fit) or
+    # with blocks of one run, each fold is refitted on its training rows
+    whole_runs = full.jac is not None and all(m.all() for held in held_sets for _, m in held)
     for k, held in enumerate(held_sets):
         if whole_runs:
             fit = rec.refit_without(full, eff, {i for i, _ in held})

@@ -211,10 +211,8 @@ class Recalibration:
         (u, theta) it is the exact leave-runs-out fit; for these smooth models, near the
         optimum, it is the one-step approximation of leave-one-out refitting, and it is
         what makes the fold fits cost nothing beside the all-runs fit. ``fit`` must be a
-        fit on all rows (:meth:`fit` with every row of every run).
+        fit on all rows (:meth:`fit` with every row of every run) with its Jacobian.
         """
-        if fit.jac is None or fit.fun is None:
-            return fit
         sizes = [len(d) * len(self.problem.quantities) for d in self.problem.frames]
         keep = np.concatenate(
             [np.full(n, i not in held, bool) for i, n in enumerate(sizes)] + [np.ones(self.p, bool)]
