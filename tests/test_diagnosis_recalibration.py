@@ -84,8 +84,9 @@ def test_null_dynamic_with_noisy_zeros_is_none(tmp_path):
 class _C:
     """A minimal ranking entry for the verdict rules."""
 
-    def __init__(self, effect, fc, lo, plausible=True, params=None):
+    def __init__(self, effect, fc, lo, plausible=True, params=None, after=1.5):
         self.effect = effect
+        self.heldout_rmse_after_noise = after
         self.fraction_closed = fc
         self.shrinkage = fc / 2
         self.shrinkage_ci95 = [lo, 0.9]
@@ -120,8 +121,8 @@ def test_verdict_rules_between_recalibration_and_an_effect():
     }
     idx = np.random.default_rng(0).integers(0, 5, size=(200, 5))
     b_n = np.full(200, 500.0)
-    rec = _C(RECALIBRATION, 0.9, 0.3, True, params)
-    eff = _C("convective-heat-loss", 0.9, 0.3)
+    rec = _C(RECALIBRATION, 0.9, 0.3, True, params, after=1.5)
+    eff = _C("convective-heat-loss", 0.9, 0.3, after=1.05)
     # an effect as good as recalibration is not attributed: recalibration is the simpler story
     v = verdict([rec, eff], True, _after({RECALIBRATION: 110, eff.effect: 110}), idx, b_n, 3.0, 1.1)
     assert v[0] == "miscalibrated" and v[1] is None
@@ -129,6 +130,11 @@ def test_verdict_rules_between_recalibration_and_an_effect():
     # an effect that beats recalibration in every fold is attributed
     v = verdict([eff, rec], True, _after({RECALIBRATION: 130, eff.effect: 100}), idx, b_n, 3.0, 1.1)
     assert v[:2] == ("attributed", "convective-heat-loss")
+    # better in every fold, but closing only a sliver of what recalibration leaves: not named
+    eff.heldout_rmse_after_noise = 1.45
+    v = verdict([eff, rec], True, _after({RECALIBRATION: 130, eff.effect: 100}), idx, b_n, 3.0, 1.1)
+    assert v[0] == "miscalibrated"
+    eff.heldout_rmse_after_noise = 1.5
     # a shift beyond the priors, and an effect with plausible parameters fitting as well: aliased
     rec.recalibration_plausible = False
     v = verdict([rec, eff], True, _after({RECALIBRATION: 110, eff.effect: 110}), idx, b_n, 3.0, 1.1)

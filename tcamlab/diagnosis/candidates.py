@@ -17,7 +17,7 @@ import numpy as np
 from scipy import stats
 
 from tcamlab.diagnosis.noise import BaselineFit, all_rows
-from tcamlab.diagnosis.problem import Problem, complement, fit_effect, folds
+from tcamlab.diagnosis.problem import FAIL_RESIDUAL, Problem, complement, fit_effect, folds
 from tcamlab.diagnosis.recalibration import (
     MAX_NFEV_FOLD,
     MAX_NFEV_FULL,
@@ -91,19 +91,24 @@ def candidate_job(job):
     # with blocks of one run, each fold is refitted on its training rows
     whole_runs = full.jac is not None and all(m.all() for held in held_sets for _, m in held)
     for k, held in enumerate(held_sets):
-        if whole_runs:
-            fit = rec.refit_without(full, eff, {i for i, _ in held})
-        else:
+        fit = rec.refit_without(full, eff, {i for i, _ in held}) if whole_runs else None
+        held_z = _held_resid(rec, eff, fit, held) if fit is not None else None
+        if held_z is None or any(np.any(z == FAIL_RESIDUAL) for z in held_z):
+            # blocks of one run, or a step out of the model's domain: refit on the training rows
             fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD)
+            held_z = _held_resid(rec, eff, fit, held)
         fold_vals.append(_fold_values(rec, eff, fit))
-        mods = eff.mods(fit.values) if eff is not None else Mods()
-        for i, m in held:
-            za = rec.resid(i, fit.u, mods, m)
+        for (_, m), za in zip(held, held_z):
             after_fold[k] += np.sum(za**2)
             nm = int(m.sum())
             for j, q in enumerate(Q):
                 after_q[k, j] += np.sum((za[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
     return after_fold, after_q, fold_vals, full
+
+
+def _held_resid(rec: Recalibration, eff: Effect | None, fit: JointFit, held) -> list:
+    mods = eff.mods(fit.values) if eff is not None else Mods()
+    return [rec.resid(i, fit.u, mods, m) for i, m in held]
 
 
 def _fold_values(rec: Recalibration, eff: Effect | None, fit: JointFit) -> dict:
