@@ -63,8 +63,10 @@ Steps
    * ``attributed`` -- an effect (with recalibration) closes at least
      :data:`MIN_FRACTION_CLOSED` of the gap above the noise floor on withheld
      runs, its bootstrap shrinkage interval excludes 0, it beats
-     recalibration alone (paired bootstrap of the held-out MSE difference),
-     and no other such effect is indistinguishable from it;
+     recalibration alone (paired bootstrap of the held-out MSE difference)
+     while closing at least :data:`MIN_FRACTION_CLOSED` of the gap it leaves
+     (:func:`~tcamlab.diagnosis.verdict.closes_the_rest`), and no other such
+     effect is indistinguishable from it;
    * ``miscalibrated`` -- recalibration alone closes at least
      :data:`MIN_FRACTION_CLOSED` (interval above 0) and no effect beats it;
      the parameters that moved are named with values, intervals and shifts
