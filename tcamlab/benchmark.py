@@ -170,6 +170,7 @@ def run_task(task: dict) -> dict:
             "verdict": d["verdict"],
             "effect": d["effect"],
             "aliased_with": d["aliased_with"],
+            "recalibrated": (d.get("recalibration") or {}).get("named", []),
             "ranking": [c["effect"] for c in d["ranking"]],
             "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
             "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
@@ -294,8 +295,22 @@ def _right_cases(singles: list[dict]):
     return shrink, recov, by_s
 
 
+RIGHT_ON_MISCALIBRATED_NULL = ("none", "miscalibrated")
+"""Verdicts that are right on a null case whose parameters are off (no effect): within noise,
+or the gap closed by recalibration. ``miscalibrated`` on an effect case is a miss."""
+
+
 def _null_summary(nulls: list[dict]) -> dict:
+    """False attributions of null cases; the right verdicts and the miscalibrated ones that
+    name a parameter the rig truly moved (for the lying nulls)."""
     null_false = [r for r in nulls if "error" not in r and r["verdict"] in CONFIDENT]
+    right = [r for r in nulls if "error" not in r and r["verdict"] in RIGHT_ON_MISCALIBRATED_NULL]
+    named_true = [
+        r
+        for r in nulls
+        if r.get("verdict") == "miscalibrated"
+        and set(r.get("recalibrated", [])) & set(r.get("parameter_offsets_sd", {}))
+    ]
     by_kind = {
         k: {
             "n": sum(r["kind"] == k for r in nulls),
@@ -309,6 +324,8 @@ def _null_summary(nulls: list[dict]) -> dict:
         "n": len(nulls),
         "false_attributions": len(null_false),
         "rate": (len(null_false) / len(nulls)) if nulls else None,
+        "right": len(right),
+        "miscalibrated_naming_a_moved_parameter": len(named_true),
         "by_kind": by_kind,
     }
 

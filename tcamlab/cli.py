@@ -635,8 +635,18 @@ def diagnose(
     if as_json:
         _print_json(doc)
         return
-    typer.echo(f"verdict: {doc['verdict']}" + (f" ({doc['effect']})" if doc.get("effect") else ""))
+    rec = doc.get("recalibration") or {}
+    named = doc.get("effect") or ", ".join(rec.get("named", []))
+    typer.echo(f"verdict: {doc['verdict']}" + (f" ({named})" if named else ""))
     typer.echo(f"  {doc['reason']}")
+    for name in rec.get("named", []):
+        p = rec["parameters"][name]
+        shift = p["shift_in_stated_sds"]
+        sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
+        typer.echo(
+            f"  recalibrated {p['symbol']} = {p['value']:.4g} {p['unit']} "
+            f"(95 % {p['ci95'][0]:.4g} to {p['ci95'][1]:.4g}; stated {p['stated']:.4g}, {sds})"
+        )
     rows = ([doc["combination"]] if doc.get("combination") else []) + doc["ranking"][:5]
     for r in rows:
         typer.echo(
@@ -660,7 +670,10 @@ def _print_scores(sc: dict) -> None:
         typer.echo(f"null cases: {null['false_attributions']} false attributions of {null['n']}")
     lying = sc.get("null_miscalibrated")
     if lying:
-        typer.echo(f"null, miscalibrated: {lying['false_attributions']} false attributions of {lying['n']}")
+        typer.echo(
+            f"null, miscalibrated: {lying['false_attributions']} false attributions of {lying['n']}, "
+            f"{lying.get('right', 0)} none or miscalibrated"
+        )
     if sc.get("median_shrinkage_when_right") is not None:
         typer.echo(f"median held-out shrinkage when right: {100 * sc['median_shrinkage_when_right']:.0f}%")
     if sc["errors"]:

@@ -354,7 +354,9 @@ def test_diagnose_command_on_a_simulated_experiment(tmp_path):
     result = runner.invoke(app, ["diagnose", str(exp), "--json", "--out", str(tmp_path / "d")])
     assert result.exit_code == 0, result.output
     doc = json.loads(result.output)
-    assert doc["verdict"] == "attributed" and doc["effect"] == "camera-placement"
+    # fitted with the recalibrated d1 and S, axial compression can mimic the offset on three
+    # runs: attributed, or aliased with camera placement named first
+    assert doc["verdict"] in ("attributed", "aliased") and doc["effect"] == "camera-placement"
     for name in ("diagnosis.json", "diagnosis.html", "diagnosis.pdf"):
         assert (tmp_path / "d/curvature" / name).stat().st_size > 0
     text = runner.invoke(app, ["diagnose", str(exp), "--effects", "camera-placement"])

@@ -152,8 +152,9 @@ def test_diagnose_trains_on_the_complement(tmp_path, monkeypatch, n_runs):
 
     monkeypatch.setattr(candidates, "candidate_job", spy)
     diagnosis.diagnose(exp, effects=["displacement-drift"], n_boot=10, workers=1)
-    assert len(jobs) == 1
-    _problem_, _eff, held_sets, train_rows, *_ = jobs[0]
+    # recalibration alone, then the effect fitted with it
+    assert [j[2] and j[2].name for j in jobs] == [None, "displacement-drift"]
+    _problem_, _rec, _eff, held_sets, train_rows, *_ = jobs[1]
     assert len(held_sets) == len(train_rows) == (n_runs if n_runs > 1 else 3 if lengths[0] < 100 else 5)
     covered = []
     for held, train in zip(held_sets, train_rows):

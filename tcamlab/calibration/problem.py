@@ -307,8 +307,11 @@ class CalibrationProblem:
                 (sample_kw if s.param.where == "sample" else rig_kw)[s.param.field] = s.from_u(float(x))
         return self.samples[i].replace(**sample_kw), self.rigs[i].replace(**rig_kw)
 
-    def predict_run(self, i: int, j: int, u: np.ndarray) -> dict[str, np.ndarray]:
-        """Predictions [SI] of run ``j`` of experiment ``i`` at ``u`` (raises outside the domain)."""
+    def predict_run(self, i: int, j: int, u: np.ndarray, mods=None) -> dict[str, np.ndarray]:
+        """Predictions [SI] of run ``j`` of experiment ``i`` at ``u`` (raises outside the domain).
+
+        ``mods`` (a :class:`tcamlab.effects.Mods`) adds effect terms; the diagnosis fits an
+        effect together with the calibrated parameters through it."""
         kind = self.kinds[i]
         sample, rig = self.models(i, u)
         data = self.runs[i][j].data
@@ -316,7 +319,11 @@ class CalibrationProblem:
         opts.update(kind.variants[kind.primary])
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out = kind.predict(sample, rig, data, **opts)
+            out = (
+                kind.predict(sample, rig, data, **opts)
+                if mods is None
+                else kind.predict(sample, rig, data, mods, **opts)
+            )
         for q, v in out.items():
             if not np.all(np.isfinite(v)):
                 raise ArithmeticError(f"non-finite prediction of {q}")
@@ -404,6 +411,10 @@ class CalibrationProblem:
     def residuals(self, u: np.ndarray) -> np.ndarray:
         """Data residuals followed by the prior residuals (u - u0) / sd_u."""
         return np.concatenate([self.data_residuals(u), (np.asarray(u) - self.u0) / self.sd_u])
+
+    def prior_residuals(self, u: np.ndarray) -> np.ndarray:
+        """The prior residuals ``(u - u0) / sd_u`` (the tail of :meth:`residuals`)."""
+        return (np.asarray(u) - self.u0) / self.sd_u
 
     def jacobian(
         self, u: np.ndarray, cols: Sequence[int] | None = None, fn=None, *, central: bool = True

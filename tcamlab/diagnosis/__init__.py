@@ -40,33 +40,48 @@ Steps
    share of squared error and RMSE/noise per regime; lag-1 autocorrelation
    and Durbin-Watson per run; correlation of residuals with each input.
 
-3. **Which.** Every candidate effect (:mod:`tcamlab.effects`) is fitted with
-   :func:`scipy.optimize.least_squares` on training runs and scored on the
-   withheld run (leave one run out; a single run is cut into contiguous
-   blocks). A bootstrap over folds gives intervals; AIC/BIC and parameter
-   confidence intervals come from the fit on all runs.
+3. **Which.** Recalibration (:mod:`~tcamlab.diagnosis.recalibration`: the
+   kind's calibratable parameters refitted under their priors through
+   :class:`tcamlab.calibration.problem.CalibrationProblem`) and every
+   candidate effect (:mod:`tcamlab.effects`) fitted *together with* the
+   recalibrated parameters are fitted with :func:`scipy.optimize.least_squares`
+   on all runs, then on each fold's training runs by one Gauss-Newton step
+   from that fit, and scored on the withheld run (leave one run out; a single
+   run is cut into contiguous blocks, refitted from the all-runs fit). Each
+   run's zero of a :attr:`~tcamlab.kinds.Kind.nuisance_zeros` quantity is
+   profiled out over the rows scored (a withheld run's from that run). A
+   bootstrap over folds gives intervals; AIC/BIC and parameter intervals come
+   from the fit on all runs.
 
 4. **Verdict** (constants below, reasons in their docstrings):
 
-   * ``none`` -- the baseline's mean squared normalised residual is below
-     the :data:`GAP_LEVEL` quantile of its no-gap distribution, F(N, nu) per
-     quantity (N points, nu the effective degrees of freedom of the noise
-     estimate), pooled over quantities by seeded Monte Carlo
-     (:func:`gap_limit`);
-   * ``attributed`` -- the best candidate (lowest held-out RMSE) closes at
-     least :data:`MIN_FRACTION_CLOSED` of the gap above the noise floor, its
-     bootstrap shrinkage interval excludes 0, and no other candidate is
-     indistinguishable from it;
-   * ``aliased`` -- as attributed, but another candidate also closes at least
-     :data:`MIN_FRACTION_CLOSED` and the paired bootstrap interval of its
-     held-out MSE minus the best's contains 0;
+   * ``none`` -- the baseline's mean squared normalised residual (over N - R
+     points, R profiled zeros) is below the :data:`GAP_LEVEL` quantile of its
+     no-gap distribution, F(N - R, nu) per quantity (nu the effective degrees
+     of freedom of the noise estimate), pooled over quantities by seeded
+     Monte Carlo (:func:`gap_limit`);
+   * ``attributed`` -- an effect (with recalibration) closes at least
+     :data:`MIN_FRACTION_CLOSED` of the gap above the noise floor on withheld
+     runs, its bootstrap shrinkage interval excludes 0, it beats
+     recalibration alone (paired bootstrap of the held-out MSE difference)
+     while closing at least :data:`MIN_FRACTION_CLOSED` of the gap it leaves
+     (:func:`~tcamlab.diagnosis.verdict.closes_the_rest`), and no other such
+     effect is indistinguishable from it;
+   * ``miscalibrated`` -- recalibration alone closes at least
+     :data:`MIN_FRACTION_CLOSED` (interval above 0) and no effect beats it;
+     the parameters that moved are named with values, intervals and shifts
+     in stated sds;
+   * ``aliased`` -- as attributed, but another effect is indistinguishable;
+     or recalibration needs a shift beyond its priors
+     (:data:`~tcamlab.diagnosis.recalibration.PLAUSIBLE_LEVEL`) while an
+     effect with plausible parameters fits as well;
    * ``unexplained`` -- the gap is significant and no candidate qualifies.
 
 5. **Two effects.** When no single candidate qualifies, candidates that alone
    close at least :data:`MIN_PARTIAL_FRACTION` of the gap (the best
    :data:`PAIR_POOL`) are fitted in pairs (:func:`tcamlab.effects.combine`)
    and scored the same way; a pair that qualifies and beats each member alone
-   gives ``attributed`` (or ``aliased``, with rival pairs), naming the member
+   and recalibration alone gives ``attributed`` (or ``aliased``, with rival pairs), naming the member
    that ranks higher alone; the pair is ``DiagnosisResult.combination``.
 """
 
@@ -84,7 +99,8 @@ from tcamlab.diagnosis.noise import (
     pool_noise_estimates,
     second_difference_sigma,
 )
-from tcamlab.diagnosis.problem import ZERO_REFERENCED, Problem, complement, folds
+from tcamlab.diagnosis.problem import Problem, complement, folds
+from tcamlab.diagnosis.recalibration import RECALIBRATION, Recalibration
 from tcamlab.diagnosis.regimes import label_rows, plot_series, regime_table, run_statistics
 from tcamlab.diagnosis.result import SCHEMA_VERSION, CandidateResult, DiagnosisResult, Settings
 from tcamlab.diagnosis.verdict import MIN_FRACTION_CLOSED, decide
@@ -98,7 +114,7 @@ __all__ = [
     "SECOND_DIFF_EFFICIENCY",
     "MIN_FRACTION_CLOSED",
     "CI_LEVEL",
-    "ZERO_REFERENCED",
+    "RECALIBRATION",
     "CandidateResult",
     "DiagnosisResult",
     "complement",
@@ -149,9 +165,9 @@ def diagnose(
     base, baseline, gap = check_gap(problem, base, noise)
     labels = label_rows(problem, base)
     scores = score_folds(problem, base, n_boot, seed)
-    ranking, fits = fit_candidates(problem, cands, scores, base, workers)
-    decision = decide(problem, cands, ranking, fits, scores, base, gap, workers)
-    best = decision.best_fit
+    rec = Recalibration(problem, experiment, runs)
+    ranking, fits = fit_candidates(problem, rec, cands, scores, base, workers=workers)
+    decision = decide(problem, rec, cands, ranking, fits, scores, base, gap, workers)
     names = [str(getattr(r, "path", i)).rsplit("/", 1)[-1] for i, r in enumerate(runs)]
     return DiagnosisResult(
         kind=experiment.kind,
@@ -169,8 +185,21 @@ def diagnose(
         reason=decision.reason,
         settings=_settings(scores, cands, n_boot, seed, len(runs)),
         combination=decision.combination,
-        _series=plot_series(problem, base, labels, best and (best.effect, best.values, best.spring)),
+        recalibration=decision.recalibration,
+        _series=plot_series(problem, base, labels, _best_curve(rec, decision.best_fit)),
     )
+
+
+def _best_curve(rec: Recalibration, fit):
+    """Predictions [SI] of run i with the best candidate's all-runs fit, or None."""
+    if fit is None or fit.joint is None:
+        return None
+    mods = fit.effect.mods(fit.values) if fit.effect is not None else None
+
+    def curve(i):
+        return rec.predict(i, fit.joint.u, mods)
+
+    return curve
 
 
 def _experiment_info(experiment, n_runs: int) -> dict:

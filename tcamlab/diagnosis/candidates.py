@@ -1,9 +1,11 @@
-"""Which effect: every candidate fitted on training rows and scored on the held-out rows.
+"""Which explanation: recalibration and every effect (fitted with it), scored on held-out rows.
 
 Folds hold out one run each (a single run: contiguous blocks). The baseline
-is scored on the same folds, so a candidate's held-out shrinkage and the
-share of the gap it closes compare like with like; a bootstrap over folds
-gives their intervals.
+(stated parameters) is scored on the same folds, so a candidate's held-out
+shrinkage and the share of the gap it closes compare like with like; a
+bootstrap over folds gives their intervals. Each candidate is fitted on all
+rows, then on each fold's training runs by one Gauss-Newton step from that
+fit (:meth:`~tcamlab.diagnosis.recalibration.Recalibration.refit_without`).
 """
 
 from __future__ import annotations
@@ -15,9 +17,17 @@ import numpy as np
 from scipy import stats
 
 from tcamlab.diagnosis.noise import BaselineFit, all_rows
-from tcamlab.diagnosis.problem import Fit, Problem, complement, fit_effect, folds
+from tcamlab.diagnosis.problem import FAIL_RESIDUAL, Problem, complement, fit_effect, folds
+from tcamlab.diagnosis.recalibration import (
+    MAX_NFEV_FOLD,
+    MAX_NFEV_FULL,
+    RECALIBRATION,
+    JointFit,
+    Recalibration,
+    effect_box,
+)
 from tcamlab.diagnosis.result import CandidateResult
-from tcamlab.effects import Effect
+from tcamlab.effects import Effect, Mods
 from tcamlab.units import display
 
 __all__ = [
@@ -30,7 +40,8 @@ __all__ = [
     "n_workers",
     "common_unit",
     "ci",
-    "param_ci",
+    "effect_parameters",
+    "RECALIBRATION_CAUSE",
 ]
 
 
@@ -48,19 +59,12 @@ def ci(samples: np.ndarray) -> list[float]:
     return [float(np.quantile(s, a)), float(np.quantile(s, 1.0 - a))]
 
 
-def param_ci(fit: Fit, effect: Effect) -> dict:
-    """95 % CI of each parameter from (J^T J)^-1 s^2 of the all-runs fit (SI)."""
+def effect_parameters(effect: Effect, fit: JointFit, cov: np.ndarray) -> dict:
+    """95 % interval of each effect parameter from the joint fit's Laplace covariance (SI)."""
     scales = np.array([p.scale for p in effect.params], float)
-    k = scales.size
-    sd = np.full(k, np.nan)
-    if fit.jac is not None and fit.n > fit.jac.shape[1]:
-        J = np.asarray(fit.jac, float)
-        s2 = fit.sse / (fit.n - J.shape[1])
-        try:
-            cov = np.linalg.inv(J.T @ J) * s2
-            sd = np.sqrt(np.clip(np.diag(cov)[:k], 0.0, None)) * scales
-        except np.linalg.LinAlgError:
-            pass
+    p0 = fit.u.size
+    var = np.diag(cov)[p0 : p0 + scales.size] if cov.size else np.full(scales.size, np.nan)
+    sd = np.sqrt(np.clip(var, 0.0, None)) * scales
     z = stats.norm.ppf(0.5 + CI_LEVEL / 2.0)
     out = {}
     for p, v, s in zip(effect.params, fit.values, sd):
@@ -75,25 +79,43 @@ def param_ci(fit: Fit, effect: Effect) -> dict:
 
 
 def candidate_job(job):
-    """Fit one candidate on every fold's training rows and on all rows."""
-    problem, eff, folds, train_rows_f, spring_f, all_rows, spring_all = job
+    """Fit one candidate (an effect with recalibration, or recalibration alone: ``eff`` None)
+    on all rows, then on every fold's training rows from that fit, and score the held-out rows."""
+    problem, rec, eff, held_sets, train, rows_all, u_start, spring = job
     Q = problem.quantities
-    K = len(folds)
-    after_fold = np.zeros(K)
-    after_q = np.zeros((K, len(Q)))
-    fold_vals = []
-    for k, held in enumerate(folds):
-        fit = fit_effect(problem, eff, train_rows_f[k], spring_f[k])
-        fold_vals.append(fit.values)
-        mods = eff.mods(fit.values)
-        for i, m in held:
-            za = problem.norm_resid(i, mods, fit.spring, m)
+    K = len(held_sets)
+    box = effect_box(problem, eff, spring)
+    full = rec.fit(eff, rows_all, rec.starts(eff, u_start, box), box, MAX_NFEV_FULL)
+    after_fold, after_q, fold_vals = np.zeros(K), np.zeros((K, len(Q))), []
+    # the one-step refit needs the all-runs fit's Jacobian; without it (a failed fit) or
+    # with blocks of one run, each fold is refitted on its training rows
+    whole_runs = full.jac is not None and all(m.all() for held in held_sets for _, m in held)
+    for k, held in enumerate(held_sets):
+        fit = rec.refit_without(full, eff, {i for i, _ in held}) if whole_runs else None
+        held_z = _held_resid(rec, eff, fit, held) if fit is not None else None
+        if held_z is None or any(np.any(z == FAIL_RESIDUAL) for z in held_z):
+            # blocks of one run, or a step out of the model's domain: refit on the training rows
+            fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD)
+            held_z = _held_resid(rec, eff, fit, held)
+        fold_vals.append(_fold_values(rec, eff, fit))
+        for (_, m), za in zip(held, held_z):
             after_fold[k] += np.sum(za**2)
             nm = int(m.sum())
             for j, q in enumerate(Q):
                 after_q[k, j] += np.sum((za[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
-    full = fit_effect(problem, eff, all_rows, spring_all)
     return after_fold, after_q, fold_vals, full
+
+
+def _held_resid(rec: Recalibration, eff: Effect | None, fit: JointFit, held) -> list:
+    mods = eff.mods(fit.values) if eff is not None else Mods()
+    return [rec.resid(i, fit.u, mods, m) for i, m in held]
+
+
+def _fold_values(rec: Recalibration, eff: Effect | None, fit: JointFit) -> dict:
+    out = {s.name: s.from_u(float(x)) for s, x in zip(rec.specs, fit.u)}
+    if eff is not None:
+        out.update({p.field: float(v) for p, v in zip(eff.params, fit.values)})
+    return out
 
 
 def n_workers(workers, n_jobs: int) -> int:
@@ -152,13 +174,16 @@ class FoldScores:
 class CandidateFit:
     """What the verdict and the plots need of a candidate beyond its scores."""
 
-    effect: Effect
+    effect: Effect | None
+    """The effect (None: recalibration alone)."""
     after: np.ndarray
     """Per fold: sum of squared normalised residuals with the candidate."""
     values: np.ndarray
     """Parameters fitted on all runs [SI]."""
     spring: float | None
-    """Sensing S fitted with them on all runs [N/m]."""
+    """Sensing S fitted with them on all runs [N/m] (None: S is a recalibrated parameter)."""
+    joint: JointFit | None = None
+    """The all-rows fit with the recalibrated parameters."""
 
 
 def _fold_spring(problem: Problem, train) -> float | None:
@@ -196,9 +221,9 @@ def score_folds(problem: Problem, baseline: BaselineFit, n_boot: int, seed: int)
     return FoldScores(held_sets, train, spring, before, n, before_q, n_q, boot_idx, details)
 
 
-def _run_jobs(problem: Problem, effects, scores: FoldScores, baseline: BaselineFit, workers):
+def _run_jobs(problem: Problem, rec, effects, scores: FoldScores, baseline: BaselineFit, u_start, workers):
     jobs = [
-        (problem, eff, scores.held, scores.train, scores.spring, all_rows(problem), baseline.spring)
+        (problem, rec, eff, scores.held, scores.train, all_rows(problem), u_start, baseline.spring)
         for eff in effects
     ]
     n_work = n_workers(workers, len(jobs))
@@ -224,9 +249,10 @@ def _by_quantity(problem: Problem, scores: FoldScores, after_q: np.ndarray) -> d
 
 
 def _score(
-    problem: Problem, eff: Effect, outcome, scores: FoldScores, baseline: BaselineFit
+    problem: Problem, rec: Recalibration, eff, outcome, scores: FoldScores, baseline: BaselineFit
 ) -> CandidateResult:
-    """A candidate's held-out scores, intervals and parameters from its fits."""
+    """A candidate's held-out scores, intervals and parameters from its fits (``eff`` None:
+    recalibration alone)."""
     after_fold, after_q, fold_vals, full = outcome
     K, b4 = len(scores.held), scores.rmse_before
     fold_rows = [
@@ -234,20 +260,18 @@ def _score(
             "fold": k,
             "rmse_before_noise": math.sqrt(scores.before[k] / scores.n[k]),
             "rmse_after_noise": math.sqrt(after_fold[k] / scores.n[k]),
-            "parameters": {p.field: float(v) for p, v in zip(eff.params, fold_vals[k])},
+            "parameters": fold_vals[k],
         }
         for k in range(K)
     ]
     af = math.sqrt(after_fold.sum() / scores.n.sum())
-    b_n = scores.boot_n
     with np.errstate(all="ignore"):
-        b_after, b_before = (
-            after_fold[scores.boot_idx].sum(axis=1),
-            scores.before[scores.boot_idx].sum(axis=1),
-        )
-        boot_shrink = 1.0 - np.sqrt(b_after / b_n) / np.sqrt(b_before / b_n)
+        b_after = after_fold[scores.boot_idx].sum(axis=1)
+        b_before = scores.before[scores.boot_idx].sum(axis=1)
+        boot_shrink = 1.0 - np.sqrt(b_after / b_before)
     floor2 = baseline.floor2
-    kp = len(eff.params) + baseline.n_params
+    n_eff = len(eff.params) if eff is not None else 0
+    kp = n_eff + rec.p + problem.n_zeros(all_rows(problem))
     unit = common_unit(problem.quantities)
     if unit == "noise":
         rb, ra = b4, af
@@ -255,8 +279,10 @@ def _score(
         fac = display(problem.quantities[0])[1]
         rb = math.sqrt(scores.before_q.sum() / scores.n_q.sum()) * fac
         ra = math.sqrt(after_q.sum() / scores.n_q.sum()) * fac
+    cov = rec.covariance(full)
+    z = stats.norm.ppf(0.5 + CI_LEVEL / 2.0)
     return CandidateResult(
-        effect=eff.name,
+        effect=eff.name if eff is not None else RECALIBRATION,
         heldout_rmse_before=rb,
         heldout_rmse_after=ra,
         unit=unit,
@@ -267,23 +293,55 @@ def _score(
         fraction_closed=(b4**2 - af**2) / (b4**2 - floor2) if b4**2 > floor2 else float("nan"),
         aic=full.sse + 2 * kp,
         bic=full.sse + kp * math.log(max(full.n, 1)),
-        parameters=param_ci(full, eff),
+        parameters=effect_parameters(eff, full, cov) if eff is not None else {},
         by_quantity=_by_quantity(problem, scores, after_q),
         folds=fold_rows,
-        cause=eff.cause,
-        separate_by=eff.separate_by,
+        cause=eff.cause if eff is not None else RECALIBRATION_CAUSE,
+        separate_by=eff.separate_by if eff is not None else _pinned_by(rec),
         fit_success=full.success,
-        members=tuple(p.name for p in eff.parts),
+        members=tuple(p.name for p in eff.parts) if eff is not None else (),
+        recalibrated=rec.parameters(full, cov, z),
+        recalibration_plausible=rec.plausible(full.u),
     )
 
 
+RECALIBRATION_CAUSE = (
+    "the stated parameters are off within (or beyond) their stated uncertainty: the thesis "
+    "model with recalibrated parameters fits"
+)
+
+
+def _pinned_by(rec: Recalibration) -> str:
+    return "; ".join(f"{s.param.symbol}: {s.param.pinned_by}" for s in rec.specs)
+
+
 def fit_candidates(
-    problem: Problem, effects, scores: FoldScores, baseline: BaselineFit, workers=None
+    problem: Problem,
+    rec: Recalibration,
+    effects,
+    scores: FoldScores,
+    baseline: BaselineFit,
+    u_start: np.ndarray | None = None,
+    workers=None,
 ) -> tuple[list[CandidateResult], dict[str, CandidateFit]]:
-    """Fit and score every candidate; the ranking (best held-out RMSE first) and the fits by name."""
+    """Fit and score the candidates; the ranking (best held-out RMSE first) and the fits by name.
+
+    With ``u_start`` None, recalibration alone is fitted first (its all-rows fit starts
+    the effects' fits) and ranked with them.
+    """
+    effects = list(effects)
     ranking, fits = [], {}
-    for eff, outcome in zip(effects, _run_jobs(problem, effects, scores, baseline, workers)):
-        ranking.append(_score(problem, eff, outcome, scores, baseline))
-        fits[eff.name] = CandidateFit(eff, outcome[0], outcome[3].values, outcome[3].spring)
+    todo = []
+    if u_start is None:
+        outcome = candidate_job(
+            (problem, rec, None, scores.held, scores.train, all_rows(problem), rec.cal.u0, baseline.spring)
+        )
+        todo.append((None, outcome))
+        u_start = outcome[3].u
+    todo += list(zip(effects, _run_jobs(problem, rec, effects, scores, baseline, u_start, workers)))
+    for eff, outcome in todo:
+        c = _score(problem, rec, eff, outcome, scores, baseline)
+        ranking.append(c)
+        fits[c.effect] = CandidateFit(eff, outcome[0], outcome[3].values, None, outcome[3])
     ranking.sort(key=lambda c: (c.heldout_rmse_after_noise, c.effect))
     return ranking, fits

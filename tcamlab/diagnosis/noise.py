@@ -76,9 +76,8 @@ def gap_limit(
     sequences) are pooled point-weighted, each with its own sigma_hat; the
     ``level`` quantile is then taken from 40000 seeded Monte Carlo draws.
 
-    ``reference`` lists (share of the points, rest rows k) of runs whose zero
-    was re-estimated from k rest rows (see :data:`ZERO_REFERENCED`): off by
-    noise/sqrt(k), adding share * chi2_1 / k to the statistic.
+    ``reference`` lists (share of the points, k) of terms adding share * chi2_1 / k
+    to the statistic (a zero re-estimated from k rows and then held fixed).
     Returns sqrt of the quantile.
     """
     ns = [max(int(n), 1) for n in np.atleast_1d(n_points)]
@@ -187,7 +186,8 @@ class BaselineFit:
     mods: Mods = Mods()
     """The effect terms of the baseline: none."""
     floor2: float = 1.0
-    """Expected mean squared normalised residual without a gap (1, more with re-estimated zeros)."""
+    """Expected mean squared normalised residual per point without a gap: (N - R) / N with R
+    nuisance zeros profiled out of N residuals."""
     n_params: int = 0
     """Parameters fitted by the baseline (the sensing S nuisance, if identified)."""
 
@@ -256,18 +256,6 @@ def _refit_nuisance(problem: Problem, baseline: BaselineFit) -> BaselineFit:
     return BaselineFit(spring, preds, [problem.resid(i, p) for i, p in enumerate(preds)], n_params=1)
 
 
-def _reference_weights(problem: Problem, n_points: int) -> list[tuple[float, int]]:
-    """(share of points, rest rows) of runs whose zero is re-estimated from k >= 2 rest rows.
-
-    Such a zero is off by about noise/sqrt(k); with k = 1 nothing is re-estimated
-    and the logged zero (a tare) is taken as exact.
-    """
-    if not problem.rereferenced:
-        return []
-    share = len(problem.rereferenced) / n_points
-    return [(len(d) * share, len(r)) for d, r in zip(problem.frames, problem.rest) if len(r) >= 2]
-
-
 def check_gap(
     problem: Problem, baseline: BaselineFit, noise: NoiseFloor
 ) -> tuple[BaselineFit, Baseline, Gap]:
@@ -278,18 +266,22 @@ def check_gap(
         [problem.norm_resid(i, baseline.mods, baseline.spring) for i in range(len(problem.frames))]
     )
     N = z_all.size
-    rms = float(np.sqrt(np.mean(z_all**2)))
+    # each profiled zero takes one degree of freedom: the RMSE is over N - R, so its
+    # no-gap value is about 1 and F(N_q - R_q, nu) per quantity is its distribution
+    n_rows = sum(len(d) for d in problem.frames)
+    per_q = [n_rows - (len(problem.frames) if q in problem.zeroed else 0) for q in Q]
+    dof_points = sum(per_q)
+    rms = float(np.sqrt(np.sum(z_all**2) / dof_points))
     dofs = [noise.by_quantity[q].dof for q in Q]
-    ref = _reference_weights(problem, N)
-    limit = gap_limit([sum(len(d) for d in problem.frames)] * len(Q), dofs, reference=ref)
-    baseline.floor2 = 1.0 + sum(w / k for w, k in ref)
+    limit = gap_limit(per_q, dofs)
+    baseline.floor2 = dof_points / N
     summary = _baseline_summary(problem, baseline, z_all)
     gap = Gap(
         rmse_over_noise=rms,
         limit=limit,
         level=GAP_LEVEL,
-        expected_rmse_over_noise_without_gap=math.sqrt(baseline.floor2),
-        rest_rows=[int(len(r)) for r in problem.rest] if problem.rereferenced else None,
+        expected_rmse_over_noise_without_gap=1.0,
+        nuisance_zeros=list(problem.zeroed),
         n_points=int(N),
         noise_dof=min(dofs),
         significant=bool(rms > limit),

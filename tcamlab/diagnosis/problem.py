@@ -19,11 +19,11 @@ from scipy import optimize
 
 from tcamlab.effects import Effect, Mods
 from tcamlab.errors import ConfigError, TcamlabError
-from tcamlab.kinds import get_kind, predict, rest_rows
+from tcamlab.kinds import get_kind, predict
 
 __all__ = [
-    "ZERO_REFERENCED",
     "FAIL_RESIDUAL",
+    "MODEL_ERRORS",
     "Problem",
     "Fit",
     "fit_effect",
@@ -31,16 +31,6 @@ __all__ = [
     "folds",
     "complement",
 ]
-
-
-ZERO_REFERENCED: tuple[str, ...] = ()
-"""Quantities whose logged zero is re-estimated from the leading rows at rest.
-
-Empty: the thesis rigs tare the displacement on a mean of many readings at
-rest (and the pull-test encoder is exact), so the logged zero is taken as
-exact. Re-estimating it from model predictions at rest was tried and biases
-the sensing displacement (the inverted model is not symmetric about R0).
-Add ``"displacement"`` here for logs whose first row is a single noisy reading."""
 
 
 FAIL_RESIDUAL = 1.0e3
@@ -52,8 +42,13 @@ SPRING_STEP = 0.01
 """Scale of the sensing spring-constant nuisance: S = S0 (1 + SPRING_STEP theta)."""
 
 
-DOMAIN_BISECTIONS = 24
-"""Bisection steps that locate the edge of a parameter's physical domain."""
+MODEL_ERRORS = (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError, ValueError)
+"""Exceptions of a model evaluated outside its domain."""
+
+
+DOMAIN_BISECTIONS = 12
+"""Bisection steps that locate the edge of a parameter's physical domain (to 1/4096 of
+the library bound: the fit only needs to stay inside)."""
 
 
 class Problem:
@@ -76,10 +71,9 @@ class Problem:
             if missing:
                 raise ConfigError(f"diagnosis: run {i} has no column(s) {', '.join(missing)}")
         self._fixed_opts = [self._run_options(i) for i in range(len(self.frames))]
-        # Logged displacement is relative to the (noisy) first row: its zero is
-        # re-estimated from the leading rows at rest under every model evaluated.
-        self.rereferenced = tuple(q for q in self.quantities if q in ZERO_REFERENCED)
-        self.rest = [rest_rows(self.k, d) for d in self.frames]
+        # A run's logged zero (the laser's first reading, the load cell's tare) carries the
+        # instrument's noise: it is a per-run nuisance, profiled out as in calibration.
+        self.zeroed = tuple(q for q in self.quantities if q in self.k.nuisance_zeros)
         self.spring_nuisance = self.k.needs_training and self.rig.spring_constant is None
 
     # options -------------------------------------------------------------
@@ -115,29 +109,47 @@ class Problem:
     def measured(self, i: int, q: str) -> np.ndarray:
         return self.frames[i][q].to_numpy(float)
 
-    def resid(self, i: int, pred: dict) -> dict[str, np.ndarray]:
-        """measured - predicted [SI] per quantity, displacement re-referenced at rest."""
+    def resid(self, i: int, pred: dict, mask=None) -> dict[str, np.ndarray]:
+        """measured - predicted - zero [SI] per quantity (every row of the run).
+
+        The zero of a quantity of :attr:`tcamlab.kinds.Kind.nuisance_zeros` is profiled
+        out as calibration does (:class:`tcamlab.calibration.problem.CalibrationProblem`):
+        the mean of ``measured - predicted`` over the rows scored (``mask``, default the
+        whole run). A withheld run's zero is thus estimated from that run, like any run's.
+        """
         out = {}
         for q in self.quantities:
             r = self.measured(i, q) - pred[q]
-            if q in self.rereferenced:
-                r = r - float(np.mean(r[self.rest[i]]))
+            if q in self.zeroed:
+                r = r - float(np.mean(r if mask is None else r[mask]))
             out[q] = r
         return out
 
-    def norm_resid(self, i: int, mods: Mods, spring, mask=None) -> np.ndarray:
-        """Normalised residuals of run i (quantities stacked), or FAIL_RESIDUAL."""
-        n = len(self.frames[i]) if mask is None else int(np.count_nonzero(mask))
-        try:
-            pred = self.predict(i, mods, spring)
-        except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError):
-            return np.full(n * len(self.quantities), FAIL_RESIDUAL)
-        res = self.resid(i, pred)
+    def n_zeros(self, rows) -> int:
+        """Nuisance zeros profiled out on the given (run, mask) pairs."""
+        return len(self.zeroed) * len(rows)
+
+    def scaled(self, i: int, pred: dict, mask=None) -> np.ndarray:
+        """Normalised residuals of run i's rows in ``mask`` (quantities stacked)."""
+        res = self.resid(i, pred, mask)
         parts = []
         for q in self.quantities:
             r = res[q] / self.sigma[q]
             parts.append(r if mask is None else r[mask])
         return np.concatenate(parts)
+
+    def failed(self, i: int, mask=None) -> np.ndarray:
+        """The residuals of a model evaluation outside its domain (:data:`FAIL_RESIDUAL`)."""
+        n = len(self.frames[i]) if mask is None else int(np.count_nonzero(mask))
+        return np.full(n * len(self.quantities), FAIL_RESIDUAL)
+
+    def norm_resid(self, i: int, mods: Mods, spring, mask=None) -> np.ndarray:
+        """Normalised residuals of run i (quantities stacked), or FAIL_RESIDUAL."""
+        try:
+            pred = self.predict(i, mods, spring)
+        except MODEL_ERRORS:
+            return self.failed(i, mask)
+        return self.scaled(i, pred, mask)
 
 
 @dataclass
@@ -175,7 +187,7 @@ def domain_bounds(problem: Problem, effect: Effect, rows, spring, scales, lo, hi
         for i in range(len(problem.frames)):
             try:
                 problem.predict(i, mods, spring)
-            except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError):
+            except MODEL_ERRORS:
                 return False
         return True
 

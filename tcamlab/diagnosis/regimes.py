@@ -11,9 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from tcamlab.diagnosis.noise import BaselineFit
-from tcamlab.diagnosis.problem import Problem
+from tcamlab.diagnosis.problem import MODEL_ERRORS, Problem
 from tcamlab.diagnosis.result import Regime, RunStatistics
-from tcamlab.errors import TcamlabError
 from tcamlab.units import display
 
 __all__ = [
@@ -132,10 +131,17 @@ def run_statistics(problem: Problem, baseline: BaselineFit, noise, names) -> lis
     return out
 
 
+def _with_zero(problem: Problem, i: int, pred: dict) -> dict:
+    """Predictions plus the run's profiled zero: measured - residual [SI]."""
+    res = problem.resid(i, pred)
+    return {q: problem.measured(i, q) - res[q] for q in problem.quantities}
+
+
 def plot_series(problem: Problem, baseline: BaselineFit, labels: Labels, best) -> dict:
     """Arrays for the result's plots: each run's measured, baseline and best-candidate curves.
 
-    ``best`` is (effect, parameter values [SI], spring) of the best candidate, or None.
+    ``best`` maps a run index to the best candidate's predictions [SI], or is None. Curves
+    carry each run's profiled zero, so they overlay the logged data.
     """
     xcol = problem.k.x_column
     runs = []
@@ -147,10 +153,9 @@ def plot_series(problem: Problem, baseline: BaselineFit, labels: Labels, best) -
             x, xlabel = d[xcol].to_numpy(float) * fac, f"{xcol} [{unit}]"
         best_pred = None
         if best is not None:
-            effect, values, spring = best
             try:
-                best_pred = problem.predict(i, effect.mods(values), spring)
-            except (TcamlabError, ArithmeticError):
+                best_pred = _with_zero(problem, i, best(i))
+            except MODEL_ERRORS:
                 best_pred = None
         measured = {q: problem.measured(i, q) for q in problem.quantities}
         runs.append(
@@ -158,7 +163,7 @@ def plot_series(problem: Problem, baseline: BaselineFit, labels: Labels, best) -
                 "x": x,
                 "xlabel": xlabel,
                 "measured": measured,
-                "baseline": baseline.predictions[i],
+                "baseline": _with_zero(problem, i, baseline.predictions[i]),
                 "best": best_pred,
             }
         )

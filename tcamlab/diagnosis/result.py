@@ -111,15 +111,15 @@ class Gap(Record):
     """Whether the baseline misses the data by more than the noise."""
 
     rmse_over_noise: float
-    """Baseline RMSE [noise-floor multiples]."""
+    """Baseline RMSE [noise-floor multiples], over N - R degrees of freedom (R profiled zeros)."""
     limit: float
     """Largest RMSE consistent with no gap at ``level`` [noise-floor multiples]."""
     level: float
     """Quantile of the no-gap distribution used [-]."""
     expected_rmse_over_noise_without_gap: float
-    """Expected RMSE without a gap [noise-floor multiples] (1, more with re-estimated zeros)."""
-    rest_rows: list | None
-    """Rest rows per run used to re-estimate zeros (None: zeros taken as logged)."""
+    """Expected RMSE without a gap [noise-floor multiples] (1: the RMSE is over N - R)."""
+    nuisance_zeros: list
+    """Quantities whose per-run zero is profiled out (each run's mean residual)."""
     n_points: int
     """Residuals pooled."""
     noise_dof: float
@@ -175,7 +175,7 @@ class Settings(Record):
     fold_details: list
 
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 """Version of the :meth:`DiagnosisResult.to_dict` layout."""
 
 
@@ -210,7 +210,14 @@ class CandidateResult:
     separate_by: str = ""
     fit_success: bool = True
     members: tuple[str, ...] = ()
-    """The single effects this candidate is made of (one, or two for a pair)."""
+    """The single effects this candidate is made of (one, or two for a pair; none for
+    recalibration alone)."""
+    recalibrated: dict = field(default_factory=dict)
+    """The kind's calibrated parameters fitted with it on all runs: name -> {symbol, value,
+    ci95, unit, stated, stated_sd, prior_sd, shift_in_stated_sds, shift_in_prior_sds,
+    pinned_by} [SI]."""
+    recalibration_plausible: bool | None = None
+    """Whether those values are within the priors (:data:`PLAUSIBLE_LEVEL`)."""
 
     def to_dict(self) -> dict:
         return to_jsonable(
@@ -232,6 +239,8 @@ class CandidateResult:
                 "cause": self.cause,
                 "separate_by": self.separate_by,
                 "fit_success": self.fit_success,
+                "recalibrated": self.recalibrated,
+                "recalibration_plausible": self.recalibration_plausible,
             }
         )
 
@@ -255,6 +264,9 @@ class DiagnosisResult:
     reason: str
     settings: Settings
     combination: dict | None = None
+    recalibration: dict | None = None
+    """The recalibration behind a ``miscalibrated`` (or parameter-aliased) verdict:
+    {parameters {name: ...}, named [names], plausible, prior_chi2}; else None."""
     _series: dict = field(default_factory=dict, repr=False)
 
     # -- export --------------------------------------------------------------
@@ -275,6 +287,7 @@ class DiagnosisResult:
                 "baseline": self.baseline,
                 "ranking": [c.to_dict() for c in self.ranking],
                 "combination": self.combination,
+                "recalibration": self.recalibration,
                 "regimes": self.regimes,
                 "runs": self.runs,
                 "settings": self.settings,
@@ -363,7 +376,9 @@ class DiagnosisResult:
         ax.plot(x, r["measured"][q] * fac, ".", ms=2, color="0.4", label="measured")
         ax.plot(x, r["baseline"][q] * fac, "-", color="#1f77b4", label="thesis model")
         if r.get("best") is not None:
-            ax.plot(x, r["best"][q] * fac, "-", color="#d62728", label=f"+ {self.ranking[0].effect}")
+            name = self.effect or (self.ranking[0].effect if self.verdict != "miscalibrated" else None)
+            label = f"+ {name}" if name else "recalibrated"
+            ax.plot(x, r["best"][q] * fac, "-", color="#d62728", label=label)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"{q} [{unit}]")
         ax.legend()

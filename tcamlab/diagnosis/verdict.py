@@ -13,6 +13,7 @@ import numpy as np
 from tcamlab.diagnosis.candidates import CandidateFit, FoldScores, ci, fit_candidates
 from tcamlab.diagnosis.noise import BaselineFit
 from tcamlab.diagnosis.problem import Problem
+from tcamlab.diagnosis.recalibration import RECALIBRATION
 from tcamlab.diagnosis.result import CandidateResult, Gap
 from tcamlab.effects import combine
 
@@ -23,6 +24,11 @@ __all__ = [
     "Decision",
     "decide",
     "verdict",
+    "qualifies",
+    "closes_the_rest",
+    "beats",
+    "named_parameters",
+    "describe_parameter",
     "pair_verdict",
     "pct",
 ]
@@ -44,8 +50,69 @@ PAIR_POOL = 4
 (6 pairs), which bounds its cost."""
 
 
-def verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limit):
-    """(verdict, effect, aliased_with, reason) from the single candidates (see the package docstring)."""
+def qualifies(c: CandidateResult) -> bool:
+    """Closes at least :data:`MIN_FRACTION_CLOSED` of the gap on withheld data, shrinkage
+    interval above 0."""
+    return bool(
+        np.isfinite(c.fraction_closed)
+        and c.fraction_closed >= MIN_FRACTION_CLOSED
+        and c.shrinkage_ci95[0] > 0
+    )
+
+
+def _boot(after_folds, name, boot_idx):
+    return after_folds[name][boot_idx].sum(axis=1)
+
+
+def beats(after_folds, name, ref, boot_idx, b_n) -> bool:
+    """Paired bootstrap over folds: the interval of ref's held-out MSE minus name's is above 0."""
+    diff = (_boot(after_folds, ref, boot_idx) - _boot(after_folds, name, boot_idx)) / b_n
+    return ci(diff)[0] > 0
+
+
+def _effect_verdict(cands, after_folds, boot_idx, b_n, recal):
+    """(verdict, effect, aliased_with, reason) among effects that beat recalibration, best first."""
+    best = cands[0]
+    aliased = [c.effect for c in cands[1:] if not beats(after_folds, c.effect, best.effect, boot_idx, b_n)]
+    alone = f"; recalibration alone closes {pct(recal.fraction_closed)}" if recal is not None else ""
+    closes = (
+        f"{best.effect} closes {pct(best.fraction_closed)} of the gap above the noise floor on "
+        f"withheld data (held-out RMSE shrinks by {best.shrinkage:.0%}{alone})"
+    )
+    if aliased:
+        return (
+            "aliased",
+            best.effect,
+            aliased,
+            closes + f", but {', '.join(aliased)} fit{'s' if len(aliased) == 1 else ''} the withheld "
+            "runs indistinguishably well",
+        )
+    return "attributed", best.effect, [], closes + ", and every other candidate is clearly worse"
+
+
+def closes_the_rest(c: CandidateResult, recal: CandidateResult | None, floor2: float = 1.0) -> bool:
+    """Whether an effect closes at least :data:`MIN_FRACTION_CLOSED` of the gap that
+    recalibration leaves above the noise floor on withheld data.
+
+    Fitted with the recalibrated parameters, an effect with one more parameter nearly
+    always trims the withheld error a little, in every fold, when parameters are off; the
+    paired test alone then names physics for a parameter error (4 of 8 lying null cases of
+    the quick benchmark). The effect must explain most of what recalibration cannot.
+    """
+    if recal is None:
+        return True
+    rest = recal.heldout_rmse_after_noise**2 - floor2
+    if not rest > 0:
+        return False
+    return (recal.heldout_rmse_after_noise**2 - c.heldout_rmse_after_noise**2) / rest >= MIN_FRACTION_CLOSED
+
+
+def verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limit, floor2: float = 1.0):
+    """(verdict, effect, aliased_with, reason) from the single candidates (see the package docstring).
+
+    ``ranking`` holds the recalibration (:data:`RECALIBRATION`) and every effect fitted
+    with it; an effect must beat recalibration alone (paired bootstrap) to be named.
+    """
     if not gap_significant:
         return (
             "none",
@@ -54,49 +121,82 @@ def verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limi
             f"the baseline RMSE is {base_rms:.2f} x the noise floor, within the "
             f"no-gap limit {limit:.2f}: the thesis model explains the data to within noise",
         )
-    if not ranking:
+    recal = next((c for c in ranking if c.effect == RECALIBRATION), None)
+    effects = [c for c in ranking if c.effect != RECALIBRATION]
+    winners = [
+        c
+        for c in effects
+        if qualifies(c)
+        and closes_the_rest(c, recal, floor2)
+        and (recal is None or beats(after_folds, c.effect, RECALIBRATION, boot_idx, b_n))
+    ]
+    if winners:
+        return _effect_verdict(winners, after_folds, boot_idx, b_n, recal)
+    if recal is not None and qualifies(recal):
+        return _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n)
+    best = ranking[0] if ranking else None
+    if best is None:
         return "unexplained", None, [], "the gap is significant and there are no candidates"
-    best = ranking[0]
-    ok = (
-        np.isfinite(best.fraction_closed)
-        and best.fraction_closed >= MIN_FRACTION_CLOSED
-        and best.shrinkage_ci95[0] > 0
-    )
-    if not ok:
-        return (
-            "unexplained",
-            None,
-            [],
-            f"the baseline RMSE is {base_rms:.2f} x the noise floor (limit {limit:.2f}); the best "
-            f"candidate, {best.effect}, closes {pct(best.fraction_closed)} of the gap on withheld "
-            f"data (needs {MIN_FRACTION_CLOSED:.0%} and a shrinkage interval above 0)",
-        )
-    aliased = []
-    a_best = after_folds[best.effect][boot_idx].sum(axis=1)
-    for c in ranking[1:]:
-        if not (np.isfinite(c.fraction_closed) and c.fraction_closed >= MIN_FRACTION_CLOSED):
-            continue
-        diff = (after_folds[c.effect][boot_idx].sum(axis=1) - a_best) / b_n
-        lo, hi = ci(diff)
-        if lo <= 0.0:
-            aliased.append(c.effect)
-    if aliased:
-        return (
-            "aliased",
-            best.effect,
-            aliased,
-            f"{best.effect} closes {pct(best.fraction_closed)} of the gap on withheld data, but "
-            f"{', '.join(aliased)} fit{'s' if len(aliased) == 1 else ''} the withheld runs "
-            "indistinguishably well",
-        )
     return (
-        "attributed",
-        best.effect,
+        "unexplained",
+        None,
         [],
-        f"{best.effect} closes {pct(best.fraction_closed)} of the gap above the noise floor on "
-        f"withheld data (held-out RMSE shrinks by {best.shrinkage:.0%}) and every other candidate "
-        "is clearly worse",
+        f"the baseline RMSE is {base_rms:.2f} x the noise floor (limit {limit:.2f}); the best "
+        f"candidate, {best.effect}, closes {pct(best.fraction_closed)} of the gap on withheld "
+        f"data (needs {MIN_FRACTION_CLOSED:.0%}, a shrinkage interval above 0 and, for an effect, "
+        "to beat recalibration alone)",
     )
+
+
+def named_parameters(recal: CandidateResult) -> list[str]:
+    """The recalibrated parameters that moved: 95 % interval excluding the stated value,
+    else the one that moved furthest in prior sds."""
+    params = recal.recalibrated
+    moved = [n for n, p in params.items() if not (p["ci95"][0] <= p["stated"] <= p["ci95"][1])]
+    if moved or not params:
+        return moved
+    return [max(params, key=lambda n: abs(params[n]["shift_in_prior_sds"]))]
+
+
+def describe_parameter(name: str, p: dict) -> str:
+    """A recalibrated parameter in words: value, interval, stated value and shift."""
+    shift = p["shift_in_stated_sds"]
+    sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
+    lo, hi = p["ci95"]
+    return (
+        f"{p['symbol']} ({name}) {p['value']:.4g} {p['unit']} (95 % {lo:.4g} to {hi:.4g}), "
+        f"stated {p['stated']:.4g}: {sds}"
+    )
+
+
+def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n):
+    """``miscalibrated``, or ``aliased`` when the shift is implausible and an effect with
+    plausible parameters fits the withheld runs as well."""
+    named = named_parameters(recal)
+    words = "; ".join(describe_parameter(n, recal.recalibrated[n]) for n in named)
+    closes = (
+        f"recalibrating {', '.join(named) or 'the parameters'} closes {pct(recal.fraction_closed)} "
+        f"of the gap on withheld data (held-out RMSE shrinks by {recal.shrinkage:.0%}): {words}"
+    )
+    if not recal.recalibration_plausible:
+        rivals = [
+            c.effect
+            for c in effects
+            if qualifies(c)
+            and c.recalibration_plausible
+            and not beats(after_folds, RECALIBRATION, c.effect, boot_idx, b_n)
+        ]
+        if rivals:
+            return (
+                "aliased",
+                rivals[0],
+                [RECALIBRATION],
+                closes + f"; but that shift is beyond the stated uncertainties, and {rivals[0]} "
+                "with plausible parameters fits the withheld runs as well: this data cannot tell "
+                "a parameter error from the effect",
+            )
+        closes += "; the shift is beyond the stated uncertainties (the stated values are in doubt)"
+    return "miscalibrated", None, [], closes + "; no effect fitted with recalibration beats it"
 
 
 def pair_verdict(combos, after_folds, boot_idx, b_n, order):
@@ -104,8 +204,8 @@ def pair_verdict(combos, after_folds, boot_idx, b_n, order):
 
     A pair qualifies when it closes at least :data:`MIN_FRACTION_CLOSED` of the
     gap on withheld data with a shrinkage interval above 0 and is clearly
-    better than each of its members alone (paired bootstrap of the held-out
-    MSE difference above 0): both effects are needed. The best qualifying pair
+    better than each of its members alone and than recalibration alone (paired
+    bootstrap of the held-out MSE difference above 0): both effects are needed. The best qualifying pair
     names the effect (the member that ranks higher alone); other qualifying
     pairs that fit the withheld runs indistinguishably well make it ``aliased``.
     """
@@ -122,7 +222,8 @@ def pair_verdict(combos, after_folds, boot_idx, b_n, order):
         ):
             continue
         a_pair = boot(c.effect)
-        if all(ci((boot(m) - a_pair) / b_n)[0] > 0 for m in c.members):
+        refs = [*c.members] + ([RECALIBRATION] if RECALIBRATION in after_folds else [])
+        if all(ci((boot(m) - a_pair) / b_n)[0] > 0 for m in refs):
             qualified.append(c)
     if not qualified:
         return None
@@ -176,6 +277,8 @@ class Decision:
     best_fit: CandidateFit | None
     separate_by: dict
     """Aliased candidates -> the experiment that tells them apart."""
+    recalibration: dict | None = None
+    """The recalibration behind ``miscalibrated`` (or a parameter-effect ``aliased``)."""
 
 
 def _pair_pool(ranking) -> list[str]:
@@ -189,22 +292,39 @@ def _pair_pool(ranking) -> list[str]:
     ][:PAIR_POOL]
 
 
-def _search_pairs(problem, effects, ranking, fits, scores, baseline, workers):
+def _search_pairs(problem, rec, effects, ranking, fits, scores, baseline, workers):
     """Fit pairs of partial explanations (forward selection, one step); the pair verdict or None."""
     by_name = {e.name: e for e in effects}
-    pairs = [combine(by_name[a], by_name[b]) for a, b in itertools.combinations(_pair_pool(ranking), 2)]
+    pool = [n for n in _pair_pool(ranking) if n in by_name]
+    pairs = [combine(by_name[a], by_name[b]) for a, b in itertools.combinations(pool, 2)]
     pairs = [e for e in pairs if e is not None]
     if not pairs:
         return None, []
-    combos, pair_fits = fit_candidates(problem, pairs, scores, baseline, workers)
+    u_start = fits[RECALIBRATION].joint.u if RECALIBRATION in fits else rec.cal.u0
+    combos, pair_fits = fit_candidates(problem, rec, pairs, scores, baseline, u_start, workers)
     fits.update(pair_fits)
     after = {name: f.after for name, f in fits.items()}
     order = {c.effect: i for i, c in enumerate(ranking)}
     return pair_verdict(combos, after, scores.boot_idx, scores.boot_n, order), combos
 
 
+def _recalibration_summary(ranking, verdict_name: str, aliased) -> dict | None:
+    recal = next((c for c in ranking if c.effect == RECALIBRATION), None)
+    if recal is None or not (verdict_name == "miscalibrated" or RECALIBRATION in aliased):
+        return None
+    return {
+        "parameters": recal.recalibrated,
+        "named": named_parameters(recal),
+        "plausible": recal.recalibration_plausible,
+        "fraction_closed": recal.fraction_closed,
+        "shrinkage": recal.shrinkage,
+        "shrinkage_ci95": recal.shrinkage_ci95,
+    }
+
+
 def decide(
     problem: Problem,
+    rec,
     effects,
     ranking,
     fits,
@@ -216,17 +336,42 @@ def decide(
     """The verdict from the single candidates, then from pairs when no single one explains the gap."""
     after = {name: f.after for name, f in fits.items()}
     v, effect, aliased, reason = verdict(
-        ranking, gap.significant, after, scores.boot_idx, scores.boot_n, gap.rmse_over_noise, gap.limit
+        ranking,
+        gap.significant,
+        after,
+        scores.boot_idx,
+        scores.boot_n,
+        gap.rmse_over_noise,
+        gap.limit,
+        baseline.floor2,
     )
     combination = None
     best = ranking[0] if ranking else None
     if v == "unexplained" and gap.significant:
-        picked, combos = _search_pairs(problem, effects, ranking, fits, scores, baseline, workers)
+        picked, combos = _search_pairs(problem, rec, effects, ranking, fits, scores, baseline, workers)
         if picked is not None:
             v, effect, aliased, reason, combination = picked
             best = next(c for c in combos if c.effect == combination["effect"])
-    separate = (
-        {c.effect: c.separate_by for c in ranking if c.effect in [effect, *aliased]} if v == "aliased" else {}
-    )
+    if effect is not None and v != "unexplained" and combination is None:
+        best = next(c for c in ranking if c.effect == effect)
+    elif v == "miscalibrated":
+        best = next(c for c in ranking if c.effect == RECALIBRATION)
+    separate = _separate_by(ranking, v, effect, aliased)
     best_fit = fits.get(best.effect) if best is not None else None
-    return Decision(v, effect, aliased, reason, combination, best, best_fit, separate)
+    recalibration = _recalibration_summary(ranking, v, aliased)
+    return Decision(v, effect, aliased, reason, combination, best, best_fit, separate, recalibration)
+
+
+def _separate_by(ranking, v: str, effect, aliased) -> dict:
+    """Aliased candidates -> the experiment that tells each apart (recalibration: the
+    experiments that pin the parameters it moves)."""
+    if v != "aliased":
+        return {}
+    out = {c.effect: c.separate_by for c in ranking if c.effect in [effect, *aliased]}
+    recal = next((c for c in ranking if c.effect == RECALIBRATION), None)
+    if RECALIBRATION in out and recal is not None:
+        named = named_parameters(recal)
+        out[RECALIBRATION] = "; ".join(
+            f"{recal.recalibrated[n]['symbol']}: {recal.recalibrated[n]['pinned_by']}" for n in named
+        )
+    return out

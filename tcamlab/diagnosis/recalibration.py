@@ -1,0 +1,269 @@
+"""Recalibration as a candidate explanation, and every effect fitted together with it.
+
+The kind's calibratable parameters (:attr:`tcamlab.kinds.Kind.calibration`) are
+refitted under their priors by the calibration package's
+:class:`~tcamlab.calibration.problem.CalibrationProblem`: its fitted coordinates
+``u`` (log value for a positive parameter, value / prior sd otherwise), its
+model at ``u`` (``predict_run``, with an effect's :class:`~tcamlab.effects.Mods`)
+and its prior residuals ``(u - u0) / sd_u``. The data residuals are the
+diagnosis's own (:meth:`Problem.scaled`): the kind's outputs over the
+diagnosis's noise floor, each run's nuisance zero profiled out over the rows
+scored, so the recalibration, every effect and the baseline are scored alike.
+
+An effect candidate is fitted jointly with the recalibrated parameters (and the
+zeros): it must explain what recalibration cannot. Fits on the folds' training
+rows start from the fit on all rows (warm start), which is why the all-rows fit
+comes first.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, stats
+
+from tcamlab.calibration.problem import CalibrationProblem
+from tcamlab.diagnosis.problem import MODEL_ERRORS, Problem, domain_bounds
+from tcamlab.effects import Effect, Mods
+
+__all__ = [
+    "RECALIBRATION",
+    "PLAUSIBLE_LEVEL",
+    "JointFit",
+    "Recalibration",
+    "effect_box",
+]
+
+
+RECALIBRATION = "recalibration"
+"""Name of the recalibration candidate in the ranking."""
+
+
+PLAUSIBLE_LEVEL = 0.999
+"""A recalibration is plausible when the prior chi-square of its shift,
+sum(((u - u0) / sd_u)^2), is below this quantile of chi-square with one degree
+of freedom per parameter: beyond it the stated values and their stated
+uncertainties are themselves in doubt, and an effect that explains the data
+with plausible parameters is an equal explanation (``aliased``)."""
+
+
+MAX_NFEV_FULL = 80
+"""Most residual evaluations of a fit on all rows (per start)."""
+
+
+MAX_NFEV_FOLD = 30
+"""Most residual evaluations of a fold's fit, started from the fit on all rows."""
+
+
+@dataclass
+class JointFit:
+    """Recalibrated parameters (and an effect's) fitted on some rows."""
+
+    u: np.ndarray
+    """Fitted coordinates of the calibrated parameters."""
+    theta: np.ndarray
+    """The effect's parameters over their scales [-] (empty for recalibration alone)."""
+    values: np.ndarray
+    """The effect's parameters [SI]."""
+    sse: float
+    """Sum of squared normalised data residuals (without the prior)."""
+    n: int
+    """Data residuals."""
+    jac: np.ndarray | None
+    """Jacobian of the data and prior residuals in (u, theta)."""
+    success: bool
+    spring: float | None = None
+    """Unused (the sensing S is a calibrated parameter here); for the plots' interface."""
+    fun: np.ndarray | None = None
+    """Data and prior residuals at the fit (data: run by run, quantities stacked)."""
+    box: tuple | None = None
+    """Bounds of (u, theta) the fit respected."""
+
+    @property
+    def x(self) -> np.ndarray:
+        return np.concatenate([self.u, self.theta])
+
+
+def effect_box(problem: Problem, effect: Effect | None, spring) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of an effect's scaled parameters, shrunk to the model's domain once (stated values)."""
+    if effect is None:
+        return np.zeros(0), np.zeros(0)
+    scales = np.array([p.scale for p in effect.params], float)
+    lo = np.array([p.lower / p.scale for p in effect.params], float)
+    hi = np.array([p.upper / p.scale for p in effect.params], float)
+    rows = [(i, np.ones(len(d), bool)) for i, d in enumerate(problem.frames)]
+    domain_bounds(problem, effect, rows, spring, scales, lo, hi)
+    return lo, hi
+
+
+class Recalibration:
+    """The calibration problem of one experiment, evaluated with the diagnosis's residuals.
+
+    Parameters
+    ----------
+    problem : Problem
+        The diagnosis's view of the runs (noise floor set).
+    experiment : Experiment
+        The experiment file (stated values and uncertainties).
+    runs : list of RunData
+        Its runs, in ``problem``'s order.
+    """
+
+    def __init__(self, problem: Problem, experiment, runs):
+        self.problem = problem
+        self.cal = CalibrationProblem([experiment], [runs])
+        self.specs = self.cal.specs
+        self.p = len(self.specs)
+        self.lo, self.hi = self.cal.bounds()
+
+    def resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
+        """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``."""
+        try:
+            pred = self.cal.predict_run(0, i, u, mods)
+        except MODEL_ERRORS:
+            return self.problem.failed(i, mask)
+        return self.problem.scaled(i, pred, mask)
+
+    def predict(self, i: int, u: np.ndarray, mods: Mods) -> dict:
+        """Predictions [SI] of run i at ``u`` with ``mods`` (raises outside the domain)."""
+        return self.cal.predict_run(0, i, u, mods)
+
+    def prior_chi2(self, u: np.ndarray) -> float:
+        """Prior chi-square of a recalibration's shift from the stated values."""
+        r = self.cal.prior_residuals(u)
+        return float(r @ r)
+
+    def plausible(self, u: np.ndarray) -> bool:
+        """Whether the shift is within :data:`PLAUSIBLE_LEVEL` of the priors."""
+        return self.prior_chi2(u) <= float(stats.chi2.ppf(PLAUSIBLE_LEVEL, max(self.p, 1)))
+
+    def fit(self, effect: Effect | None, rows, starts, box, max_nfev: int) -> JointFit:
+        """Least-squares fit of (u, theta) on ``rows`` from each start; the best.
+
+        ``box`` is the effect's (lower, upper) scaled bounds (:func:`effect_box`).
+        """
+        params = effect.params if effect is not None else ()
+        scales = np.array([p.scale for p in params], float)
+        p, k = self.p, len(params)
+        lo = np.concatenate([self.lo, box[0]])
+        hi = np.concatenate([self.hi, box[1]])
+
+        def fun(x):
+            u = x[:p]
+            mods = effect.mods(x[p:] * scales) if k else Mods()
+            data = [self.resid(i, u, mods, m) for i, m in rows]
+            return np.concatenate(data + [self.cal.prior_residuals(u)])
+
+        width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
+        lo_i, hi_i = lo + 1e-9 * width, hi - 1e-9 * width
+        x_scale = np.concatenate([self.cal.sd_u, np.ones(k)])
+        best = None
+        for x0 in starts:
+            try:
+                res = optimize.least_squares(
+                    fun,
+                    np.clip(x0, lo_i, hi_i),
+                    bounds=(lo, hi),
+                    method="trf",
+                    x_scale=x_scale,
+                    diff_step=1e-4,
+                    max_nfev=max_nfev,
+                    ftol=1e-6,
+                    xtol=1e-6,
+                    gtol=1e-8,
+                )
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+            if best is None or res.cost < best.cost:
+                best = res
+        if best is None:
+            x = np.clip(np.asarray(starts[0], float), lo_i, hi_i)
+            r = fun(x)
+            return JointFit(
+                x[:p],
+                x[p:],
+                x[p:] * scales,
+                float(r[:-p] @ r[:-p]) if p else float(r @ r),
+                r.size - p,
+                None,
+                False,
+            )
+        r = best.fun[: best.fun.size - p] if p else best.fun
+        return JointFit(
+            best.x[:p],
+            best.x[p:],
+            best.x[p:] * scales,
+            float(r @ r),
+            int(r.size),
+            best.jac,
+            bool(best.success),
+            fun=best.fun,
+            box=(lo, hi),
+        )
+
+    def refit_without(self, fit: JointFit, effect: Effect | None, held: set[int]) -> JointFit:
+        """The fit on every run but ``held``: one Gauss-Newton step from the all-runs ``fit``.
+
+        The step uses the all-runs fit's residuals and Jacobian restricted to the training
+        runs' rows (and the prior rows): no model evaluation. For a model linear in
+        (u, theta) it is the exact leave-runs-out fit; for these smooth models, near the
+        optimum, it is the one-step approximation of leave-one-out refitting, and it is
+        what makes the fold fits cost nothing beside the all-runs fit. ``fit`` must be a
+        fit on all rows (:meth:`fit` with every row of every run) with its Jacobian.
+        """
+        sizes = [len(d) * len(self.problem.quantities) for d in self.problem.frames]
+        keep = np.concatenate(
+            [np.full(n, i not in held, bool) for i, n in enumerate(sizes)] + [np.ones(self.p, bool)]
+        )
+        J = np.asarray(fit.jac, float)[keep]
+        step = np.linalg.lstsq(J, -fit.fun[keep], rcond=None)[0]
+        x = np.clip(fit.x + step, fit.box[0], fit.box[1])
+        p = self.p
+        scales = np.array([q.scale for q in effect.params], float) if effect is not None else np.zeros(0)
+        return JointFit(x[:p], x[p:], x[p:] * scales, float("nan"), int(keep.sum()) - p, None, fit.success)
+
+    def starts(self, effect: Effect | None, u: np.ndarray, box) -> list[np.ndarray]:
+        """Starts of a fit on all rows: the recalibration's ``u`` with theta 0, +1 and -1."""
+        k = len(effect.params) if effect is not None else 0
+        out = [np.concatenate([u, np.zeros(k)])]
+        for sgn in (1.0, -1.0) if k else ():
+            t = np.clip(np.full(k, sgn), box[0], box[1])
+            if not np.allclose(t, 0.0):
+                out.append(np.concatenate([u, t]))
+        return out
+
+    def covariance(self, fit: JointFit) -> np.ndarray:
+        """Laplace covariance of (u, theta): inverse Gauss-Newton Hessian, priors included,
+        scaled up by the data's chi-square per degree of freedom when it exceeds 1."""
+        k = fit.x.size
+        if fit.jac is None:
+            return np.full((k, k), np.nan)
+        J = np.asarray(fit.jac, float)
+        s2 = max(1.0, fit.sse / max(fit.n - len(fit.theta), 1))
+        try:
+            return np.linalg.pinv(J.T @ J) * s2
+        except np.linalg.LinAlgError:
+            return np.full((k, k), np.nan)
+
+    def parameters(self, fit: JointFit, cov: np.ndarray, z: float) -> dict:
+        """Each recalibrated parameter: value, interval, stated value and shift in stated sds [SI]."""
+        out = {}
+        for m, s in enumerate(self.specs):
+            sd_u = math.sqrt(max(cov[m, m], 0.0)) if np.isfinite(cov[m, m]) else float("nan")
+            value = s.from_u(float(fit.u[m]))
+            sd = s.prior_sd if s.sd_stated else None
+            out[s.name] = {
+                "symbol": s.param.symbol,
+                "value": value,
+                "ci95": [s.from_u(fit.u[m] - z * sd_u), s.from_u(fit.u[m] + z * sd_u)],
+                "unit": s.param.unit,
+                "stated": s.stated,
+                "stated_sd": sd,
+                "prior_sd": s.prior_sd,
+                "shift_in_stated_sds": (value - s.stated) / sd if sd else None,
+                "shift_in_prior_sds": float((fit.u[m] - s.u0) / s.sd_u),
+                "pinned_by": s.param.pinned_by,
+            }
+        return out
