@@ -23,14 +23,14 @@ def _check_outputs(out, res):
 
 def test_quick_benchmark_tiny_subset(tmp_path):
     res = run_benchmark(
-        tmp_path, quick=True, seeds=1, kinds=("curvature",), effects=["camera-placement"], workers=1
+        tmp_path, quick=True, seeds=1, kinds=("dynamic",), effects=["response-delay"], workers=1
     )
     assert len(res.results) == 2  # one effect case + one null case
     _check_outputs(tmp_path, res)
     single = [r for r in res.results if r["case"] == "single"][0]
-    assert single["effects"] == {"camera-placement": 3.0}
-    assert single["ranking"][0] == "camera-placement"
-    assert single["truth_values"]["camera-placement"]["camera_offset"] != 0
+    assert single["effects"] == {"response-delay": 3.0}
+    assert single["ranking"][0] == "response-delay"
+    assert single["truth_values"]["response-delay"]["delay"] != 0
     assert "| strength |" in (tmp_path / "benchmark.md").read_text()
 
 
