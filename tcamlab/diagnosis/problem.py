@@ -22,6 +22,8 @@ from tcamlab.errors import ConfigError, TcamlabError
 from tcamlab.kinds import get_kind, predict
 
 __all__ = [
+    "best_least_squares",
+    "inner_box",
     "FAIL_RESIDUAL",
     "MODEL_ERRORS",
     "Problem",
@@ -239,18 +241,36 @@ def fit_effect(problem: Problem, effect: Effect | None, rows, spring, *, max_nfe
     if k == 0:
         r0 = fun(np.zeros(0))
         return Fit(np.zeros(0), np.zeros(0), float(np.sum(r0**2)), r0.size, None, True, spring)
-    width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
-    lo_i, hi_i = lo + 1e-9 * width, hi - 1e-9 * width
     starts = [np.zeros(k)]
     if k_eff:
         for sgn in (1.0, -1.0):
             x0 = np.zeros(k)
             x0[:k_eff] = sgn
             starts.append(x0)
-    best = None
-    seen = []
+    res = best_least_squares(fun, starts, lo, hi, 1.0, max_nfev)
+    if res is None:
+        r0 = fun(np.zeros(k))
+        return Fit(np.zeros(k), np.zeros(k_eff), float(np.sum(r0**2)), r0.size, None, False, spring)
+    sse = float(np.sum(res.fun**2))
+    values, sp = unpack(res.x)
+    return Fit(res.x, values, sse, res.fun.size, res.jac, bool(res.success), sp)
+
+
+def inner_box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The box ``[lo, hi]`` shrunk by 1e-9 of its width (2 where unbounded): starts strictly
+    inside, as ``least_squares`` requires."""
+    width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
+    return lo + 1e-9 * width, hi - 1e-9 * width
+
+
+def best_least_squares(fun, starts, lo, hi, x_scale, max_nfev: int):
+    """The best of bounded ``least_squares`` fits of ``fun`` from each distinct start (clipped
+    into the box), or None when every start fails; one set of solver settings for the
+    diagnosis's effect fits and its joint recalibration fits."""
+    lo_i, hi_i = inner_box(lo, hi)
+    best, seen = None, []
     for x0 in starts:
-        x0 = np.clip(x0, lo_i, hi_i)
+        x0 = np.clip(np.asarray(x0, float), lo_i, hi_i)
         if any(np.allclose(x0, s_) for s_ in seen):
             continue
         seen.append(x0)
@@ -260,7 +280,7 @@ def fit_effect(problem: Problem, effect: Effect | None, rows, spring, *, max_nfe
                 x0,
                 bounds=(lo, hi),
                 method="trf",
-                x_scale=1.0,
+                x_scale=x_scale,
                 diff_step=1e-4,
                 max_nfev=max_nfev,
                 ftol=1e-6,
@@ -269,15 +289,9 @@ def fit_effect(problem: Problem, effect: Effect | None, rows, spring, *, max_nfe
             )
         except (ValueError, np.linalg.LinAlgError):
             continue
-        sse = float(np.sum(res.fun**2))
-        if best is None or sse < best[0]:
-            best = (sse, res)
-    if best is None:
-        r0 = fun(np.zeros(k))
-        return Fit(np.zeros(k), np.zeros(k_eff), float(np.sum(r0**2)), r0.size, None, False, spring)
-    sse, res = best
-    values, sp = unpack(res.x)
-    return Fit(res.x, values, sse, res.fun.size, res.jac, bool(res.success), sp)
+        if best is None or res.cost < best.cost:
+            best = res
+    return best
 
 
 def folds(problem: Problem) -> list[list[tuple[int, np.ndarray]]]:

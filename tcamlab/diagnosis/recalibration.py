@@ -22,10 +22,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import stats
 
 from tcamlab.calibration.problem import CalibrationProblem
-from tcamlab.diagnosis.problem import MODEL_ERRORS, Problem, domain_bounds
+from tcamlab.diagnosis.problem import MODEL_ERRORS, Problem, best_least_squares, domain_bounds, inner_box
 from tcamlab.effects import Effect, Mods
 
 __all__ = [
@@ -156,30 +156,10 @@ class Recalibration:
             data = [self.resid(i, u, mods, m) for i, m in rows]
             return np.concatenate(data + [self.cal.prior_residuals(u)])
 
-        width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
-        lo_i, hi_i = lo + 1e-9 * width, hi - 1e-9 * width
         x_scale = np.concatenate([self.cal.sd_u, np.ones(k)])
-        best = None
-        for x0 in starts:
-            try:
-                res = optimize.least_squares(
-                    fun,
-                    np.clip(x0, lo_i, hi_i),
-                    bounds=(lo, hi),
-                    method="trf",
-                    x_scale=x_scale,
-                    diff_step=1e-4,
-                    max_nfev=max_nfev,
-                    ftol=1e-6,
-                    xtol=1e-6,
-                    gtol=1e-8,
-                )
-            except (ValueError, np.linalg.LinAlgError):
-                continue
-            if best is None or res.cost < best.cost:
-                best = res
+        best = best_least_squares(fun, starts, lo, hi, x_scale, max_nfev)
         if best is None:
-            x = np.clip(np.asarray(starts[0], float), lo_i, hi_i)
+            x = np.clip(np.asarray(starts[0], float), *inner_box(lo, hi))
             r = fun(x)
             return JointFit(
                 x[:p],
