@@ -32,6 +32,8 @@ __all__ = [
     "with_unit",
     "unit_label",
     "bare_name",
+    "rmse_unit",
+    "lab_unit",
 ]
 
 MISSING = "\u2013"
@@ -39,6 +41,18 @@ SIG_DIGITS = 4
 R2_DECIMALS = 4
 _MAX_DECIMALS = 8
 _UNIT_LABELS = {"mm": "mm", "N": "N", "per_mm": "1/mm", "ohm": "ohm"}
+_RMSE_UNITS = {"N": ("mN", 1e3), "1/mm": ("1/m", 1e3)}
+"""Display unit -> (unit, factor) an RMSE or residual prints in: a load-cell residual is a few
+mN and a curvature residual a few 1/m, so neither prints as 0.00123."""
+_LAB_UNITS = {
+    "m": ("mm", 1e3),
+    "m/s": ("um/s", 1e6),
+    "Pa": ("MPa", 1e-6),
+    "Pa/K": ("MPa/K", 1e-6),
+    "N": ("mN", 1e3),
+    "-": ("", 1.0),
+}
+"""SI unit of a fitted parameter -> (lab unit, factor): slack in mm, drift in um/s."""
 
 
 def _special(x) -> str | None:
@@ -154,3 +168,15 @@ def with_unit(x, unit: str, sig: int = SIG_DIGITS) -> str:
     """``fmt(x)`` followed by its unit (nothing appended to a missing value)."""
     text = fmt(x, sig)
     return f"{text} {unit}" if unit and text not in (MISSING, "NaN") else text
+
+
+def rmse_unit(unit: str) -> tuple[str, float]:
+    """(unit, factor from ``unit``) an RMSE or residual in display ``unit`` is printed in
+    (``"N"`` -> ``("mN", 1e3)``, ``"1/mm"`` -> ``("1/m", 1e3)``; others unchanged)."""
+    return _RMSE_UNITS.get(unit, (unit, 1.0))
+
+
+def lab_unit(si_unit: str) -> tuple[str, float]:
+    """(lab unit, factor from SI) of a fitted parameter's SI unit (``"m"`` -> ``("mm", 1e3)``,
+    ``"m/s"`` -> ``("um/s", 1e6)``; a dimensionless ``"-"`` -> ``("", 1.0)``: no unit printed)."""
+    return _LAB_UNITS.get(si_unit, (si_unit, 1.0))

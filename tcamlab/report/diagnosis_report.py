@@ -4,14 +4,18 @@ from __future__ import annotations
 
 import math
 
+from tcamlab.numbers import MISSING, fmt, fmt_column, fmt_percent, lab_unit, rmse_unit
+
+from .diagnosis_figures import MIN_REGIME_POINTS, regime_figure, residual_figure
+from .diagnosis_tests import paired_lines, paired_sentence, paired_table, paired_tests
 from .document import Document, Figure, Section, Table
 from .figures import new_figure
 
-__all__ = ["diagnosis_section", "diagnosis_document", "verdict_text"]
+__all__ = ["diagnosis_section", "diagnosis_document", "verdict_text", "diagnosis_lines"]
 
 
 def _pct(x) -> str:
-    return "–" if x is None or not math.isfinite(x) else f"{100 * x:.0f} %"
+    return MISSING if x is None or not math.isfinite(x) else fmt_percent(x)
 
 
 def _num(x, fmt="{:.3g}") -> str:
@@ -76,7 +80,7 @@ def verdict_text(result) -> str:
             + "."
         )
     else:
-        text += " Every other candidate is clearly worse on withheld data."
+        text += " " + paired_sentence(result)
     return lead + text
 
 
@@ -87,9 +91,10 @@ def _miscalibrated_text(rec: dict) -> str:
         p = rec["parameters"][name]
         shift = p["shift_in_stated_sds"]
         sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
+        unit, fac = _parameter_unit(name, p["unit"])
         parts.append(
-            f"{p['symbol']} = {p['value']:.4g} {p['unit']} (95 % interval {p['ci95'][0]:.4g} to "
-            f"{p['ci95'][1]:.4g}; stated {p['stated']:.4g}, {sds})"
+            f"{p['symbol']} = {fmt(p['value'] * fac)} {unit} (95 % interval {fmt(p['ci95'][0] * fac)} "
+            f"to {fmt(p['ci95'][1] * fac)}; stated {fmt(p['stated'] * fac)}, {sds})"
         )
     return (
         " The gap closes by recalibrating the stated parameters, not by adding physics: "
@@ -106,122 +111,134 @@ def _figure(draw, caption, w=6.4, h=3.4, **kw):
     return Figure(fig, caption, alt=caption)
 
 
-def diagnosis_section(result) -> Section:
-    """A report section: verdict, ranking, forest plot, residuals by regime, overlays."""
+def _params_text(parameters: dict) -> str:
+    """Fitted parameters in lab units: ``slack = 0.6884 mm (95 % 0.6822 to 0.6947)``."""
+    out = []
+    for name, p in parameters.items():
+        unit, fac = lab_unit(p.get("unit", ""))
+        lo, hi = p["ci95"]
+        u = f" {unit}" if unit else ""
+        v, a, b = fmt_column([_scaled(x, fac) for x in (p["value"], lo, hi)])
+        out.append(f"{name} = {v}{u} (95 % {a} to {b})")
+    return "; ".join(out)
+
+
+def _scaled(x, fac):
+    return None if x is None else float(x) * fac
+
+
+def _candidate_row(c, baseline) -> list:
+    get = (lambda k: c[k]) if isinstance(c, dict) else (lambda k: getattr(c, k))
+    name = " + ".join(c["effects"]) + " (pair)" if isinstance(c, dict) else c.effect
+    lo, hi = get("shrinkage_ci95")
+    return [
+        name,
+        _num(get("heldout_rmse_before"), "{:.4g}"),
+        _num(get("heldout_rmse_after"), "{:.4g}"),
+        fmt_percent(get("shrinkage")),
+        f"{fmt_percent(lo)} to {fmt_percent(hi)}",
+        fmt_percent(get("fraction_closed")),
+        _num(get("aic") - baseline["aic"], "{:.1f}"),
+        _num(get("bic") - baseline["bic"], "{:.1f}"),
+        _params_text(get("parameters")) or MISSING,
+    ]
+
+
+def _ranking_table(result) -> Table:
     unit = result.ranking[0].unit if result.ranking else ""
-    rows = []
-    for c in result.ranking:
-        params = "; ".join(
-            f"{name} = {_num(p['value'])} [{_num(p['ci95'][0])}, {_num(p['ci95'][1])}] {p['unit']}"
-            for name, p in c.parameters.items()
-        )
-        rows.append(
-            [
-                c.effect,
-                _num(c.heldout_rmse_before, "{:.4g}"),
-                _num(c.heldout_rmse_after, "{:.4g}"),
-                _pct(c.shrinkage),
-                f"{_pct(c.shrinkage_ci95[0])} to {_pct(c.shrinkage_ci95[1])}",
-                _pct(c.fraction_closed),
-                _num(c.aic - result.baseline["aic"], "{:.1f}"),
-                _num(c.bic - result.baseline["bic"], "{:.1f}"),
-                params,
-            ]
-        )
+    shown = "x noise sd" if unit == "noise" else unit
+    rows = [_candidate_row(c, result.baseline) for c in result.ranking]
     combo = getattr(result, "combination", None)
     if combo is not None:
-        params = "; ".join(
-            f"{name} = {_num(p['value'])} [{_num(p['ci95'][0])}, {_num(p['ci95'][1])}] {p['unit']}"
-            for name, p in combo["parameters"].items()
-        )
-        rows.insert(
-            0,
-            [
-                " + ".join(combo["effects"]) + " (pair)",
-                _num(combo["heldout_rmse_before"], "{:.4g}"),
-                _num(combo["heldout_rmse_after"], "{:.4g}"),
-                _pct(combo["shrinkage"]),
-                f"{_pct(combo['shrinkage_ci95'][0])} to {_pct(combo['shrinkage_ci95'][1])}",
-                _pct(combo["fraction_closed"]),
-                _num(combo["aic"] - result.baseline["aic"], "{:.1f}"),
-                _num(combo["bic"] - result.baseline["bic"], "{:.1f}"),
-                params,
-            ],
-        )
-    ranking = Table(
+        rows.insert(0, _candidate_row(combo, result.baseline))
+    return Table(
         [
             "effect",
-            f"held-out RMSE before [{unit}]",
-            f"held-out RMSE after [{unit}]",
+            f"held-out RMSE before [{shown}]",
+            f"held-out RMSE after [{shown}]",
             "shrinkage",
             "95 % interval",
             "gap closed",
             "dAIC",
             "dBIC",
-            "fitted parameters (95 % CI)",
+            "fitted parameters, lab units (95 % CI)",
         ],
         rows,
         caption="Candidate effects, best first (held-out = leave one run out)",
     )
-    reg_rows = [
+
+
+def _regime_table(result) -> Table:
+    rows = [
         [
             r["group"],
             r["regime"],
             r["n"],
             _num(r["rmse_over_noise"], "{:.2f}"),
             _num(r["bias_over_noise"], "{:+.2f}"),
-            _pct(r["share"]),
+            fmt_percent(r["share"]),
         ]
         for r in result.regimes
     ]
-    regimes = Table(
+    return Table(
         ["grouping", "regime", "n", "RMSE / noise", "bias / noise", "share of sq. error"],
-        reg_rows,
-        caption="Where the baseline misses (residuals in noise-floor units)",
+        rows,
+        caption="Where the baseline misses (residuals in noise-floor units; regimes with fewer "
+        f"than {MIN_REGIME_POINTS} points are listed but not drawn)",
     )
-    nf_rows = []
+
+
+def _noise_table(result) -> Table:
+    rows = []
+    between = result.noise_floor["between_runs"]
     for q, v in result.noise_floor["by_quantity"].items():
-        btw = (
-            result.noise_floor["between_runs"].get(q, {})
-            if result.noise_floor["between_runs"].get("available")
-            else {}
-        )
-        nf_rows.append(
+        btw = between.get(q, {}) if between.get("available") else {}
+        unit, fac = rmse_unit(v["unit"])
+        rows.append(
             [
                 q,
-                v["unit"],
-                _num(v["sigma"], "{:.3g}"),
-                _num(btw.get("sd"), "{:.3g}"),
-                _num(result.baseline["by_quantity"][q]["rmse"], "{:.3g}"),
+                unit,
+                _scaled(v["sigma"], fac),
+                _scaled(btw.get("sd"), fac),
+                _scaled(result.baseline["by_quantity"][q]["rmse"], fac),
             ]
         )
-    noise = Table(
+    return Table(
         ["quantity", "unit", "noise floor (2nd difference)", "between-run sd", "baseline RMSE"],
-        nf_rows,
+        rows,
         caption="Noise floor estimated from the data",
     )
+
+
+def _figures(result) -> list:
     figures = []
+    for q in result.noise_floor["quantities"]:
+        fig = residual_figure(result, q)
+        if fig is not None:
+            figures.append(fig)
     for group in result._series.get("regime_groups", []):
-        figures.append(_figure(result.plot_residuals, f"Baseline residuals by {group}", group=group))
+        fig = regime_figure(result, group)
+        if fig is not None:
+            figures.append(fig)
     if result.ranking:
         figures.append(
             _figure(
                 result.plot_forest,
-                "Held-out RMSE shrinkage per candidate",
-                h=0.5 + 0.45 * len(result.ranking),
+                "Held-out RMSE shrinkage per candidate (95 % bootstrap interval over withheld runs)",
+                h=0.7 + 0.4 * len(result.ranking),
             )
         )
-    n_runs = len(result._series.get("runs", []))
-    for i in range(min(n_runs, 2)):
-        for q in result.noise_floor["quantities"]:
-            figures.append(
-                _figure(
-                    result.plot_overlay,
-                    f"Run {i + 1}: {q}, measured, thesis model and best candidate (fitted on all runs)",
-                    run=i,
-                    quantity=q,
-                )
-            )
+    return figures
+
+
+def diagnosis_section(result) -> Section:
+    """A report section: verdict, paired tests, ranking, residuals before and after the best
+    candidate, residuals by regime, forest plot."""
+    tables = [_ranking_table(result)]
+    tests = paired_table(result)
+    if tests is not None:
+        tables.append(tests)
+    tables += [_regime_table(result), _noise_table(result)]
     notes = (
         []
         if result.verdict in ("none", "attributed")
@@ -235,8 +252,8 @@ def diagnosis_section(result) -> Section:
             "of the residuals; each candidate effect fitted on all runs but one and scored on "
             "the withheld run; intervals from a bootstrap over withheld runs.",
         ],
-        tables=[ranking, regimes, noise],
-        figures=figures,
+        tables=tables,
+        figures=_figures(result),
         notes=notes,
     )
 
@@ -260,3 +277,78 @@ def diagnosis_document(result, experiment=None) -> Document:
         metadata=meta,
         synthetic_banner="Synthetic data (virtual rig)." if synthetic else None,
     )
+
+
+def _rmse_by_quantity(c) -> str:
+    """``displacement 0.0123 -> 0.0045 mm, force 1.23 -> 0.45 mN`` (held-out, lab units)."""
+    parts = []
+    for q, v in (c.get("by_quantity") or {}).items():
+        unit, fac = rmse_unit(v.get("unit", ""))
+        parts.append(
+            f"{q} {fmt(_scaled(v['heldout_rmse_before'], fac))} -> "
+            f"{fmt(_scaled(v['heldout_rmse_after'], fac))} {unit}".rstrip()
+        )
+    return ", ".join(parts)
+
+
+def _reason(result) -> str:
+    """The verdict's reason, with a bare "clearly worse" replaced by the paired tests."""
+    reason = result.reason
+    cut = reason.find(", and every other candidate is clearly worse")
+    if cut < 0:
+        return reason
+    tests = paired_tests(result)
+    if tests and all(t["clearly_worse"] for t in tests):
+        return (
+            reason[:cut]
+            + ", and every other candidate is clearly worse by a paired test on the withheld folds:"
+        )
+    return (
+        reason[:cut]
+        + "; paired tests against it on the withheld folds (not every other candidate is clearly worse):"
+    )
+
+
+def diagnosis_lines(result) -> list[str]:
+    """The ``diagnose`` text output: verdict, reason with the paired tests, recalibrated
+    parameters and the five best candidates, every RMSE with its unit, parameters in lab
+    units."""
+    doc = result.to_dict()
+    rec = doc.get("recalibration") or {}
+    named = doc.get("effect") or ", ".join(rec.get("named", []))
+    lines = [f"verdict: {doc['verdict']}" + (f" ({named})" if named else ""), f"  {_reason(result)}"]
+    if "clearly worse" in result.reason:
+        lines += [f"    {t}" for t in paired_lines(result)]
+    for name in rec.get("named", []):
+        p = rec["parameters"][name]
+        unit, fac = _parameter_unit(name, p["unit"])
+        shift = p["shift_in_stated_sds"]
+        sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
+        lo, hi = p["ci95"]
+        lines.append(
+            f"  recalibrated {p['symbol']} = {fmt(p['value'] * fac)} {unit} (95 % {fmt(lo * fac)} to "
+            f"{fmt(hi * fac)}; stated {fmt(p['stated'] * fac)}, {sds})"
+        )
+    rows = ([doc["combination"]] if doc.get("combination") else []) + doc["ranking"][:5]
+    for r in rows:
+        unit = "x noise sd" if r["unit"] == "noise" else rmse_unit(r["unit"])[0]
+        fac = 1.0 if r["unit"] == "noise" else rmse_unit(r["unit"])[1]
+        line = (
+            f"  {r['effect']:<36s} held-out RMSE {fmt(_scaled(r['heldout_rmse_before'], fac))} -> "
+            f"{fmt(_scaled(r['heldout_rmse_after'], fac))} {unit} ({fmt_percent(r['shrinkage'])} shrinkage)"
+        )
+        if r["unit"] == "noise" and r.get("by_quantity"):
+            line += f"; {_rmse_by_quantity(r)}"
+        if r.get("parameters"):
+            line += f"; {_params_text(r['parameters'])}"
+        lines.append(line)
+    return lines
+
+
+def _parameter_unit(name: str, si_unit: str) -> tuple[str, float]:
+    """Lab unit of a recalibrated parameter: the experiment file's (``youngs_modulus`` in GPa),
+    else by its SI unit."""
+    from tcamlab.units import PARAMETER_UNITS
+
+    field = name.rsplit(".", 1)[-1]
+    return PARAMETER_UNITS.get(field) or lab_unit(si_unit)
