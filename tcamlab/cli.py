@@ -620,7 +620,10 @@ def diagnose(
         None, "--effects", help="Comma-separated candidate effects (default: all of the kind)."
     ),
     out: Annotated[
-        Path | None, typer.Option("--out", help="Write OUT/NAME/diagnosis.{html,pdf,json}.")
+        Path | None,
+        typer.Option(
+            "--out", help="Write OUT/NAME/diagnosis.{html,pdf,json} and each figure as PNG and SVG."
+        ),
     ] = None,
     as_json: Json = False,
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
@@ -630,29 +633,16 @@ def diagnose(
     Example: tcamlab diagnose experiments/static.toml --out reports --json
     """
     from tcamlab.pipeline import diagnose_experiment
+    from tcamlab.report.diagnosis_report import diagnosis_lines
 
-    doc = _run(diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out).result.to_dict()
+    outcome = _run(diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out)
     if as_json:
-        _print_json(doc)
+        _print_json(outcome.result.to_dict())
         return
-    rec = doc.get("recalibration") or {}
-    named = doc.get("effect") or ", ".join(rec.get("named", []))
-    typer.echo(f"verdict: {doc['verdict']}" + (f" ({named})" if named else ""))
-    typer.echo(f"  {doc['reason']}")
-    for name in rec.get("named", []):
-        p = rec["parameters"][name]
-        shift = p["shift_in_stated_sds"]
-        sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
-        typer.echo(
-            f"  recalibrated {p['symbol']} = {p['value']:.4g} {p['unit']} "
-            f"(95 % {p['ci95'][0]:.4g} to {p['ci95'][1]:.4g}; stated {p['stated']:.4g}, {sds})"
-        )
-    rows = ([doc["combination"]] if doc.get("combination") else []) + doc["ranking"][:5]
-    for r in rows:
-        typer.echo(
-            f"  {r['effect']:<36s} held-out RMSE {r['heldout_rmse_before']:.4g} -> "
-            f"{r['heldout_rmse_after']:.4g} ({100 * r['shrinkage']:.0f}% shrinkage)"
-        )
+    for line in diagnosis_lines(outcome.result):
+        typer.echo(line)
+    for f in outcome.files:
+        typer.echo(f"wrote {f}")
 
 
 # -- benchmark --------------------------------------------------------------------------

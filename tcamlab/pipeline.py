@@ -573,17 +573,21 @@ def diagnose_experiment(path, *, effects=None, seed: int = 0, out_dir=None) -> D
 
 
 def _write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
-    """Write OUT/NAME/diagnosis.json, diagnosis.html and diagnosis.pdf, all or nothing."""
+    """Write OUT/NAME/diagnosis.json, diagnosis.html, diagnosis.pdf and each figure as
+    standalone diagnosis-figN.png / .svg, all or nothing."""
+    from tcamlab.report.calibration_report import figure_files
     from tcamlab.report.diagnosis_report import diagnosis_document
     from tcamlab.report.html import render_html
     from tcamlab.report.pdf import render_pdf
 
     doc = diagnosis_document(result, experiment)
+    html = render_html(doc)
     payload = {
         "diagnosis.json": dumps_json(result.to_dict()).encode(),
-        "diagnosis.html": render_html(doc).encode(),
+        "diagnosis.html": html.encode(),
         "diagnosis.pdf": render_pdf(doc),
     }
+    payload.update(figure_files(doc, html, stem="diagnosis"))
     return write_all_or_nothing(Path(out_dir) / experiment.name, payload)
 
 

@@ -33,7 +33,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "tcamlab.models.sensing:forward": "81 lines without its docstring; to split with the self-sensing model (R(T, delta))",
     "tcamlab.models.sensing:invert": "88 lines without its docstring: the root bracketing of (3.6); to split with the self-sensing model",
     "tcamlab.models.static:displacement": "104 lines without its docstring: solver set-up of (2.10)-(2.11); to split",
-    "tcamlab.report.diagnosis_report:diagnosis_section": "to be rebuilt under the honest-reports issue",
 }
 """module:qualified name -> why it may stay longer than MAX_FUNCTION_LINES."""
 

@@ -25,6 +25,7 @@ __all__ = [
     "residual_figure",
     "regime_figure",
     "drawable_regimes",
+    "forest_figure",
 ]
 
 MIN_REGIME_POINTS = 10
@@ -79,7 +80,7 @@ def _residuals(result, q: str, which: str) -> list[np.ndarray] | None:
     return out
 
 
-def _panel(ax, result, res, colours, title, sigma):
+def _panel(ax, result, res, colours, title, sigma, unit):
     xs = [_x(result, r)[0] for r in result._series["runs"]]
     n_points = sum(r.size for r in res)
     dense = n_points > DENSE_POINTS
@@ -104,7 +105,7 @@ def _panel(ax, result, res, colours, title, sigma):
     all_r = np.concatenate(res)
     ok = np.isfinite(all_r)
     rms = float(np.sqrt(np.mean(all_r[ok] ** 2))) if ok.any() else float("nan")
-    ax.set_title(f"{title}\nRMSE {fmt(rms)}", fontsize=9)
+    ax.set_title(f"{title}\nRMSE {fmt(rms)} {unit}", fontsize=9)
 
 
 def _panels(ncols: int):
@@ -136,9 +137,9 @@ def residual_figure(result, q: str) -> Figure | None:
     ncols = 2 if after is not None else 1
     fig, axes = _panels(ncols)
     colours = _run_colours(len(before))
-    _panel(axes[0], result, before, colours, "before: thesis model", sigma)
+    _panel(axes[0], result, before, colours, "before: thesis model", sigma, r_unit)
     if after is not None:
-        _panel(axes[1], result, after, colours, f"after: with {name} (all runs)", sigma)
+        _panel(axes[1], result, after, colours, f"after: {name}", sigma, r_unit)
     xlabel = _x(result, result._series["runs"][0])[1]
     for ax in axes:
         ax.set_xlabel(xlabel)
@@ -198,3 +199,38 @@ def regime_figure(result, group: str) -> Figure | None:
             MIN_REGIME_POINTS, ", ".join(f"{n} (n = {c})" for n, c in dropped)
         )
     return Figure(fig, caption + ".", alt=caption)
+
+
+FOREST_FLOOR = -100.0
+"""Shrinkages below this [%] (a failed fit) are drawn at the axis edge with their value
+written, so one failure does not squeeze every other interval into a dot."""
+
+
+def forest_figure(result) -> Figure | None:
+    """Held-out RMSE shrinkage [%] with its 95 % bootstrap interval per candidate, best first
+    (the named candidate in red); None without candidates."""
+    cands = list(result.ranking)
+    if not cands:
+        return None
+    fig, ax = new_figure(6.0, 0.9 + 0.32 * len(cands))
+    y = np.arange(len(cands))[::-1]
+    for yi, c in zip(y, cands):
+        s, (lo, hi) = 100.0 * c.shrinkage, (100.0 * v for v in c.shrinkage_ci95)
+        color = "#d62728" if c.effect == result.effect else "#1f77b4"
+        if not np.isfinite(s) or s < FOREST_FLOOR:
+            ax.plot([FOREST_FLOOR], [yi], "<", color=color, ms=6)
+            ax.annotate(
+                f" {fmt(s, 3)}% (off scale)", (FOREST_FLOOR, yi), va="center", fontsize=8, color=color
+            )
+            continue
+        lo, hi = max(lo, FOREST_FLOOR), max(hi, FOREST_FLOOR)
+        ax.errorbar(
+            [s], [yi], xerr=[[max(0.0, s - lo)], [max(0.0, hi - s)]], fmt="o", color=color, capsize=3, ms=5
+        )
+    ax.axvline(0, color="0.3", lw=0.8)
+    if any(not c.shrinkage * 100.0 >= FOREST_FLOOR for c in cands):
+        ax.set_xlim(left=FOREST_FLOOR - 5.0)
+    ax.set_yticks(y, [c.effect for c in cands])
+    ax.set_xlabel("held-out RMSE shrinkage [%] (95 % bootstrap interval)")
+    caption = "Held-out RMSE shrinkage per candidate (95 % bootstrap interval over withheld folds)"
+    return Figure(fig, caption, alt=caption)

@@ -6,10 +6,9 @@ import math
 
 from tcamlab.numbers import MISSING, fmt, fmt_column, fmt_percent, lab_unit, rmse_unit
 
-from .diagnosis_figures import MIN_REGIME_POINTS, regime_figure, residual_figure
+from .diagnosis_figures import MIN_REGIME_POINTS, forest_figure, regime_figure, residual_figure
 from .diagnosis_tests import paired_lines, paired_sentence, paired_table, paired_tests
-from .document import Document, Figure, Section, Table
-from .figures import new_figure
+from .document import Document, Section, Table
 
 __all__ = ["diagnosis_section", "diagnosis_document", "verdict_text", "diagnosis_lines"]
 
@@ -103,12 +102,6 @@ def _miscalibrated_text(rec: dict) -> str:
         f"{_pct(rec.get('fraction_closed'))} of the gap above the noise floor, and no candidate "
         "effect fitted together with it does clearly better."
     )
-
-
-def _figure(draw, caption, w=6.4, h=3.4, **kw):
-    fig, ax = new_figure(w, h)
-    draw(ax, **kw)
-    return Figure(fig, caption, alt=caption)
 
 
 def _params_text(parameters: dict) -> str:
@@ -220,14 +213,9 @@ def _figures(result) -> list:
         fig = regime_figure(result, group)
         if fig is not None:
             figures.append(fig)
-    if result.ranking:
-        figures.append(
-            _figure(
-                result.plot_forest,
-                "Held-out RMSE shrinkage per candidate (95 % bootstrap interval over withheld runs)",
-                h=0.7 + 0.4 * len(result.ranking),
-            )
-        )
+    forest = forest_figure(result)
+    if forest is not None:
+        figures.append(forest)
     return figures
 
 

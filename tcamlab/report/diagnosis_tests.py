@@ -120,44 +120,48 @@ def _one(t: dict) -> str:
     )
 
 
+def _closest(tests: list[dict]) -> str:
+    t = min(tests, key=lambda t: t["ci95"][0])
+    lo, hi = t["ci95"]
+    return (
+        f"{t['candidate']}, {fmt(t['diff'], 3)} noise sd² (95 % {fmt(lo, 3)} to {fmt(hi, 3)}, "
+        f"{_p(t['p_boot'], t['n_boot'])}; worse on {t['worse_folds']} of {t['folds']} folds)"
+    )
+
+
 def paired_sentence(result) -> str:
-    """The claim about the other candidates, with the test that supports it."""
+    """The claim about the other candidates, with the test that supports it (the table of
+    :func:`paired_table` gives every candidate's)."""
     tests = paired_tests(result)
     if not tests:
         return "No other candidate was scored on the same withheld folds."
-    s = result.settings
     how = (
-        f"paired bootstrap over the {tests[0]['folds']} withheld folds, {tests[0]['n_boot']} "
-        f"resamples, seed {s['seed']}: each candidate's pooled held-out mean squared residual "
-        f"minus the best's, in noise sd²"
+        f"in a paired bootstrap over the {tests[0]['folds']} withheld folds ({tests[0]['n_boot']} "
+        f"resamples, seed {result.settings['seed']}), the held-out mean squared residual minus the best's"
     )
     if all(t["clearly_worse"] for t in tests):
         return (
-            f"Every other candidate is clearly worse on withheld data ({how}): "
-            + "; ".join(map(_one, tests))
-            + "."
+            f"Every other candidate is clearly worse on withheld data: {how} is above 0 for each, "
+            f"the closest being {_closest(tests)}, and no shrinkage interval overlaps the best's."
         )
     tied = [t for t in tests if t["ci95"][0] <= 0.0]
     close = [t for t in tests if t["ci95"][0] > 0.0 and t["intervals_overlap"]]
-    parts = []
+    clear = [t for t in tests if t["clearly_worse"]]
+    parts = [f"Not every other candidate is clearly worse ({how}; table of paired tests)."]
     if tied:
         parts.append(
-            "The withheld data cannot tell "
-            + ", ".join(t["candidate"] for t in tied)
-            + " apart from it (paired interval includes 0): "
-            + "; ".join(map(_one, tied))
-            + "."
+            "The withheld data cannot tell it from " + "; ".join(map(_one, tied)) + " (interval includes 0)."
         )
     if close:
         parts.append(
-            "Worse by the paired test, though their shrinkage intervals overlap the best's: "
-            + "; ".join(map(_one, close))
-            + "."
+            ", ".join(t["candidate"] for t in close)
+            + f" {'is' if len(close) == 1 else 'are'} worse by the paired test (closest: "
+            + _closest(close)
+            + "), but their shrinkage intervals overlap the best's."
         )
-    rest = [t for t in tests if t["clearly_worse"]]
-    if rest:
-        parts.append("Clearly worse: " + "; ".join(map(_one, rest)) + ".")
-    return f"Paired tests against the best ({how}). " + " ".join(parts)
+    if clear:
+        parts.append("Clearly worse: " + ", ".join(t["candidate"] for t in clear) + ".")
+    return " ".join(parts)
 
 
 def paired_lines(result) -> list[str]:
@@ -181,7 +185,7 @@ def paired_table(result) -> Table | None:
     rows = [
         [
             t["candidate"],
-            t["diff"],
+            fmt(t["diff"], 3),
             f"{fmt(t['ci95'][0], 3)} to {fmt(t['ci95'][1], 3)}",
             _p(t["p_boot"], t["n_boot"]),
             f"{t['worse_folds']} of {t['folds']}",
