@@ -1,0 +1,277 @@
+"""The diagnosis report a reviewer can trust: residuals before and after the best candidate
+against the physical input, every run, small regimes not drawn, "clearly worse" only with the
+paired test shown, units on every printed RMSE, parameters in lab units, standalone figures.
+
+Data: virtual-rig experiments (synthetic; ``tcamlab.rig.simulate``, seeds below), and
+hand-made result stand-ins where only the report's arithmetic is tested.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from html.parser import HTMLParser
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from tcamlab import rig
+from tcamlab.cli import app
+from tcamlab.config import load_experiment
+from tcamlab.diagnosis import diagnose
+from tcamlab.numbers import lab_unit, rmse_unit
+from tcamlab.report.diagnosis_figures import (
+    MAX_LEGEND_ENTRIES,
+    MIN_REGIME_POINTS,
+    regime_figure,
+    residual_figure,
+)
+from tcamlab.report.diagnosis_report import diagnosis_document, diagnosis_lines, verdict_text
+from tcamlab.report.diagnosis_tests import paired_sentence, paired_tests
+from tcamlab.report.html import render_html
+from tcamlab.report.pdf import render_pdf
+
+pypdf = pytest.importorskip("pypdf")
+
+ROOT = Path(__file__).resolve().parent.parent
+TEMPLATES = ROOT / "tcamlab" / "templates"
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def glass(tmp_path_factory):
+    """Static heat-cool test with a glass transition at 10x noise (virtual rig, seed 3)."""
+    out = tmp_path_factory.mktemp("glass")
+    sim = rig.simulate(
+        "static",
+        TEMPLATES / "static.toml",
+        seed=3,
+        out_dir=out,
+        effects={"glass-transition": 10.0},
+        n_runs=5,
+        oven="heat-cool",
+    )
+    exp = load_experiment(sim.experiment_path)
+    return diagnose(exp, n_boot=300), exp
+
+
+def _residual_axes(fig):
+    return [ax for ax in fig.figure.axes if "measured - predicted" in ax.get_ylabel() or ax.get_title()]
+
+
+def test_residuals_before_and_after_every_run_against_temperature(glass):
+    result, _ = glass
+    fig = residual_figure(result, "displacement")
+    before, after = fig.figure.axes
+    assert before.get_xlabel() == after.get_xlabel() == "temperature [degC]"
+    assert before.get_ylabel() == "displacement: measured - predicted [mm]"
+    assert "before: thesis model" in before.get_title() and "glass-transition" in after.get_title()
+    runs = result._series["runs"]
+    for ax, which in ((before, "baseline"), (after, "best")):
+        lines = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+        assert len(lines) == len(runs) == 5  # every run, not runs 1 and 2
+        for ln, run in zip(lines, runs):
+            expected = (run["measured"]["displacement"] - run[which]["displacement"]) * 1e3
+            np.testing.assert_allclose(ln.get_ydata(), expected)
+            np.testing.assert_allclose(ln.get_xdata(), run["x"])
+            assert ln.get_markersize() >= 3  # a short log: visible markers
+    # at the scale of the noise: the y range is a few noise sds, not the 0-50 mm stroke
+    sigma_mm = result.noise_floor["by_quantity"]["displacement"]["sigma"]
+    assert np.ptp(before.get_ylim()) < 40 * sigma_mm
+    rms = [float(re.search(r"RMSE ([0-9.e-]+) mm", ax.get_title()).group(1)) for ax in (before, after)]
+    assert rms[1] < 0.3 * rms[0]
+    legend = fig.figure.legends[0]
+    assert len(legend.get_texts()) <= MAX_LEGEND_ENTRIES
+    assert legend.get_texts()[0].get_fontsize() >= 8
+
+
+def _fake(labels: dict, z, runs=None, kind="static"):
+    return SimpleNamespace(
+        kind=kind,
+        _series={
+            "labels": labels,
+            "z": np.asarray(z, float),
+            "regime_groups": list(labels),
+            "runs": runs or [],
+        },
+    )
+
+
+def test_small_regimes_are_not_drawn_and_a_one_box_plot_is_not_made():
+    n = 60
+    phase = np.array(["heating"] * n, dtype=object)
+    band = np.array(["<25 degC"] + ["25-50 degC"] * 29 + ["50-75 degC"] * 30, dtype=object)
+    res = _fake({"phase": phase, "temperature band": band}, np.linspace(-1, 1, n))
+    assert regime_figure(res, "phase") is None  # a heating-only test: one box says nothing
+    fig = regime_figure(res, "temperature band")
+    ax = fig.figure.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["25-50 degC", "50-75 degC"]
+    assert "<25 degC (n = 1)" in fig.caption and str(MIN_REGIME_POINTS) in fig.caption
+
+
+def test_many_runs_share_legend_entries():
+    x = np.linspace(25, 150, 40)
+    runs = [
+        {
+            "x": x,
+            "xlabel": "temperature [degC]",
+            "measured": {"displacement": x * 1e-4},
+            "baseline": {"displacement": x * 1e-4 - 1e-5 * k},
+            "best": None,
+        }
+        for k in range(9)
+    ]
+    res = _fake({}, [], runs)
+    res.ranking, res.verdict, res.effect, res.combination = [], "none", None, None
+    res.noise_floor = {"by_quantity": {"displacement": {"sigma": 1e-5}}}
+    fig = residual_figure(res, "displacement")
+    assert len(fig.figure.axes) == 1  # no best candidate: no "after" panel
+    assert len([ln for ln in fig.figure.axes[0].get_lines() if ln.get_marker() == "o"]) == 9
+    assert len(fig.figure.legends[0].get_texts()) <= MAX_LEGEND_ENTRIES
+
+
+def _cand(effect, folds_mse, ci):
+    return SimpleNamespace(
+        effect=effect,
+        folds=[{"rmse_after_noise": float(np.sqrt(m))} for m in folds_mse],
+        shrinkage_ci95=list(ci),
+    )
+
+
+def _result(best, others, rows=(100, 100, 100, 100, 200), n_boot=500):
+    return SimpleNamespace(
+        effect=best.effect,
+        combination=None,
+        ranking=[best, *others],
+        settings={
+            "seed": 0,
+            "n_boot": n_boot,
+            "fold_details": [{"held_out": [{"run": i, "rows": [0, r - 1]}]} for i, r in enumerate(rows)],
+        },
+    )
+
+
+def test_paired_test_statistic_is_the_row_weighted_mse_difference():
+    best = _cand("a", [1.0, 1.1, 0.9, 1.0, 1.2], (0.5, 0.6))
+    worse = _cand("b", [2.0, 2.1, 1.9, 2.2, 2.0], (0.2, 0.3))
+    tied = _cand("c", [1.2, 0.9, 1.1, 0.8, 1.1], (0.45, 0.58))
+    tests = {t["candidate"]: t for t in paired_tests(_result(best, [worse, tied]))}
+    rows = np.array([100, 100, 100, 100, 200.0])
+    diff_b = float(
+        np.sum((np.array([2.0, 2.1, 1.9, 2.2, 2.0]) - [1.0, 1.1, 0.9, 1.0, 1.2]) * rows) / rows.sum()
+    )
+    assert tests["b"]["diff"] == pytest.approx(diff_b)
+    assert tests["b"]["worse_folds"] == 5 and tests["b"]["p_sign"] == pytest.approx(1 / 32)
+    assert tests["b"]["clearly_worse"] and tests["b"]["ci95"][0] > 0
+    assert tests["c"]["ci95"][0] <= 0 <= tests["c"]["ci95"][1] and not tests["c"]["clearly_worse"]
+    text = paired_sentence(_result(best, [worse, tied]))
+    assert "Not every other candidate is clearly worse" in text and "cannot tell it from c" in text
+    assert "Every other candidate is clearly worse" not in text
+    # only b: clearly worse, with the statistic and p shown
+    text = paired_sentence(_result(best, [worse]))
+    assert text.startswith("Every other candidate is clearly worse")
+    assert "p < 0.002" in text and "worse on 5 of 5 folds" in text
+
+
+def test_overlapping_shrinkage_intervals_never_read_clearly_worse(glass):
+    result, exp = glass
+    tests = paired_tests(result)
+    assert tests, "the glass case has other candidates"
+    text = verdict_text(result)
+    overlapping = [t for t in tests if t["intervals_overlap"]]
+    if overlapping:
+        assert "Every other candidate is clearly worse" not in text
+    # the statistic behind any claim is printed: difference, interval, p
+    assert re.search(r"noise sd² \(95 % [-0-9.e]+ to [-0-9.e]+, p [<=] [0-9.e-]+", text)
+    doc = diagnosis_document(result, exp)
+    html = render_html(doc)
+    assert "bootstrap p" in html and "sign test p" in html
+    pdf = " ".join(
+        " ".join(p.extract_text() for p in pypdf.PdfReader(io.BytesIO(render_pdf(doc))).pages).split()
+    )
+    assert "Paired tests against" in pdf and "bootstrap p" in pdf
+
+
+class _Text(HTMLParser):
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.text = []
+
+    def handle_data(self, data):
+        self.text.append(data)
+
+
+def test_html_has_no_full_scale_overlay_and_no_negative_zero(glass):
+    result, exp = glass
+    html = render_html(diagnosis_document(result, exp))
+    p = _Text()
+    p.feed(html)
+    text = " ".join(p.text)
+    assert "measured, thesis model and best candidate" not in text  # the old full-scale overlays
+    assert "against temperature, every run" in text
+    assert "-0%" not in text and "-0 %" not in text
+    assert not re.search(r"\] -(\s|$)", text)  # no "[...] -" parameter cells
+
+
+def test_lab_units_of_parameters_and_rmse():
+    assert lab_unit("m") == ("mm", 1e3) and lab_unit("m/s") == ("um/s", 1e6) and lab_unit("-") == ("", 1.0)
+    assert (
+        rmse_unit("N") == ("mN", 1e3) and rmse_unit("1/mm") == ("1/m", 1e3) and rmse_unit("mm") == ("mm", 1.0)
+    )
+
+
+def test_diagnose_text_units_and_standalone_figures(tmp_path):
+    sim = rig.simulate(
+        "curvature",
+        TEMPLATES / "curvature.toml",
+        seed=7,
+        out_dir=tmp_path,
+        effects={"camera-placement": 10.0},
+        n_runs=5,
+    )
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["diagnose", str(sim.experiment_path), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    rmse_lines = [ln for ln in res.output.splitlines() if "held-out RMSE " in ln and "->" in ln]
+    assert rmse_lines and all(re.search(r"-> [-0-9.e]+ (1/m|mm|mN|ohm|x noise sd) ", ln) for ln in rmse_lines)
+    assert "-0%" not in res.output and not re.search(r"\] -(\s|$)", res.output)
+    folder = out / sim.experiment_path.stem
+    pngs, svgs = sorted(folder.glob("diagnosis-fig*.png")), sorted(folder.glob("diagnosis-fig*.svg"))
+    html = (folder / "diagnosis.html").read_text()
+    n_figures = len(re.findall(r"<figure\b", html))
+    assert n_figures >= 3 and len(pngs) == len(svgs) == n_figures
+    for png in pngs:
+        assert png.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    for svg in svgs:
+        assert re.match(r"\s*<svg\b[^>]*xmlns=\"http://www.w3.org/2000/svg\"", svg.read_text())
+
+
+def test_text_lines_print_parameters_in_lab_units():
+    cand = {
+        "effect": "initial-slack",
+        "unit": "noise",
+        "heldout_rmse_before": 3.0,
+        "heldout_rmse_after": 1.0,
+        "shrinkage": -0.001,
+        "by_quantity": {
+            "displacement": {"heldout_rmse_before": 0.24, "heldout_rmse_after": 0.068, "unit": "mm"},
+            "force": {"heldout_rmse_before": 0.00318, "heldout_rmse_after": 0.00203, "unit": "N"},
+        },
+        "parameters": {
+            "slack": {"value": 1.91e-4, "ci95": [1.8e-4, 2.0e-4], "unit": "m"},
+            "relaxation": {"value": 0.01, "ci95": [0.0, 0.02], "unit": "-"},
+        },
+    }
+    fake = SimpleNamespace(
+        reason="something",
+        to_dict=lambda: {"verdict": "unexplained", "effect": None, "recalibration": None, "ranking": [cand]},
+    )
+    lines = diagnosis_lines(fake)
+    line = lines[-1]
+    assert "slack = 0.191 mm (95 % 0.18 to 0.2)" in line
+    assert "force 3.18 -> 2.03 mN" in line and "displacement 0.24 -> 0.068 mm" in line
+    assert "(0% shrinkage)" in line  # never -0%
+    assert "relaxation = 0.01 (95 %" in line and "] -" not in line
