@@ -49,6 +49,8 @@ __all__ = [
     "reference_warning",
     "domain_warning",
     "unused_threshold_warnings",
+    "stated_shift_warning",
+    "STATED_SD_LIMIT",
 ]
 
 METRIC_NAMES = ("rmse", "mae", "max_abs", "bias", "nrmse", "r2")
@@ -516,6 +518,11 @@ REFERENCE_TOLERANCE = 0.01
 """A resistance reference (R0) is a warning when it differs from the logged rest value by more
 than this fraction of it (and by more than 3 standard errors of the rest mean)."""
 
+STATED_SD_LIMIT = 3.0
+"""A calibrated or identified parameter further than this many stated sds from its stated
+value is a warning: beyond 3 sds (p < 0.003 for a Gaussian) the stated value, its stated
+uncertainty, or the model is wrong."""
+
 SANITY_CHECKS = {
     "reference-far-from-rest": f"R0 within {REFERENCE_TOLERANCE:.0%} of the logged rest value",
     "r2-below-zero": "R² ≥ 0 (the model beats the measured mean)",
@@ -524,6 +531,8 @@ SANITY_CHECKS = {
     "zero-offset": f"each zero within {ZERO_SE_LIMIT:g} standard errors or {ZERO_NOISE_LIMIT:g} noise sds",
     "outside-domain": "every row inside the model's domain (a finite prediction)",
     "threshold-unused": "every [thresholds] key applies to a quantity of the kind",
+    "parameter-far-from-stated": "every calibrated or identified parameter within 3 stated sds "
+    "of its stated value",
 }
 """The sanity checks every validation runs, and what each requires (in the order warnings are
 listed: a wrong reference first, as it explains the others)."""
@@ -672,3 +681,35 @@ def domain_warning(run: str, quantity: str, outside: int, rows: int) -> SanityWa
         "prediction); left out of the metrics"
     )
     return SanityWarning("outside-domain", msg, quantity, run, {"rows_outside": outside, "rows": rows})
+
+
+def stated_shift_warning(
+    name: str, value: float, stated: float, stated_sd: float | None, unit: str, source: str
+) -> SanityWarning | None:
+    """A calibrated or identified parameter more than :data:`STATED_SD_LIMIT` stated sds from
+    its stated value (all in the lab ``unit``); None without a stated sd.
+
+    Parameters
+    ----------
+    name : str
+        The parameter, e.g. ``"rig.thermal_mass_J_per_K (C_th)"``.
+    value, stated, stated_sd : float
+        Calibrated or identified value, stated value and stated sd [``unit``].
+    source : str
+        Where ``value`` came from (``"calibrated, NAME.calibrated.toml"``).
+    """
+    from tcamlab.numbers import fmt
+
+    if stated_sd is None or not (np.isfinite(stated_sd) and stated_sd > 0) or not np.isfinite(value):
+        return None
+    shift = (value - stated) / stated_sd
+    if abs(shift) <= STATED_SD_LIMIT:
+        return None
+    u = f" {unit}" if unit and unit != "-" else ""
+    msg = (
+        f"{name} = {fmt(value)}{u} ({source}) is {shift:+.1f} stated sds from the stated "
+        f"{fmt(stated)}{u} (sd {fmt(stated_sd)}{u}; limit {STATED_SD_LIMIT:g}): the stated value, "
+        "its uncertainty or the model is off"
+    )
+    values = {"value": value, "stated": stated, "stated_sd": stated_sd, "shift_in_stated_sds": shift}
+    return SanityWarning("parameter-far-from-stated", msg, name, None, values)

@@ -34,6 +34,7 @@ from tcamlab.metrics import (
     pooled_metrics,
     r2_warnings,
     reference_warning,
+    stated_shift_warning,
     threshold_status,
     unused_threshold_warnings,
     zero_offset_warning,
@@ -360,6 +361,78 @@ def sanity_warnings(kind: Kind, preds: list[RunPrediction], metrics: dict) -> li
     return [w for w in out if w is not None]
 
 
+CALIBRATED_SUFFIX = ".calibrated"
+"""Stem suffix of a calibrated experiment file (``NAME.calibrated.toml`` beside ``NAME.toml``)."""
+
+
+def _stated(holder_name: str, experiment: Experiment, field_name: str) -> tuple[float | None, float | None]:
+    """(stated value, stated sd) [SI] of a sample or rig field of ``experiment``."""
+    holder = experiment.sample if holder_name == "sample" else experiment.rig
+    unc = experiment.sample_uncertainty if holder_name == "sample" else experiment.rig.uncertainty
+    value = getattr(holder, field_name, None)
+    sd = unc.get(field_name)
+    return (None if value is None else float(np.atleast_1d(value)[0])), (None if sd is None else float(sd))
+
+
+def calibrated_parameter_warnings(experiment: Experiment) -> list:
+    """Each parameter of a ``NAME.calibrated.toml`` (its ``[calibration]`` table) against the
+    stated value and sd of ``NAME.toml`` beside it (none when that file is not there)."""
+    from tcamlab.config import load_experiment
+    from tcamlab.units import PARAMETER_UNITS
+
+    joint = getattr(experiment, "calibration", None)
+    path = experiment.path
+    if joint is None or not path.stem.endswith(CALIBRATED_SUFFIX):
+        return []
+    original = path.with_name(path.stem[: -len(CALIBRATED_SUFFIX)] + path.suffix)
+    if not original.is_file():
+        return []
+    stated_exp = load_experiment(original, require_runs=False)
+    out = []
+    for key, (where, field_name) in zip(joint.keys, joint.fields):
+        value, _ = _stated(where, experiment, field_name)
+        stated, sd = _stated(where, stated_exp, field_name)
+        if value is None or stated is None:
+            continue
+        unit, fac = PARAMETER_UNITS.get(field_name, ("", 1.0))
+        out.append(
+            stated_shift_warning(
+                key,
+                value * fac,
+                stated * fac,
+                None if sd is None else sd * fac,
+                unit,
+                f"calibrated, {path.name}; stated in {original.name}",
+            )
+        )
+    return out
+
+
+def identified_parameter_warnings(experiment: Experiment, runs: list[RunData]) -> list:
+    """Sensing: a stated spring constant with a stated sd against S identified from the logs
+    (force on displacement through the origin, every run)."""
+    from tcamlab.kinds.sensing import identify_spring
+
+    rig = experiment.rig
+    sd = rig.uncertainty.get("spring_constant")
+    if experiment.kind != "sensing" or rig.spring_constant is None or sd is None or len(runs) == 0:
+        return []
+    try:
+        s_id = identify_spring([(r.data, np.ones(len(r.data), bool)) for r in runs])
+    except (ValueError, ArithmeticError, *_MODEL_ERRORS):
+        return []
+    return [
+        stated_shift_warning(
+            "rig.spring_constant_N_per_m (S)",
+            s_id,
+            float(rig.spring_constant),
+            float(sd),
+            "N/m",
+            "identified from the logs, force on displacement through the origin, every run",
+        )
+    ]
+
+
 def _run_names(runs: list[RunData]) -> list[str]:
     names = [r.path.stem for r in runs]
     if len(set(names)) != len(names):
@@ -480,6 +553,11 @@ def validate(
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
     warnings = sanity_warnings(kind, preds, metrics)
     warnings += unused_threshold_warnings(experiment.thresholds, checks, list(metrics[primary]))
+    warnings += [
+        w
+        for w in calibrated_parameter_warnings(experiment) + identified_parameter_warnings(experiment, runs)
+        if w is not None
+    ]
     return ValidationResult(
         experiment, runs, preds, variants, primary, metrics, checks, notes, extras, warnings
     )

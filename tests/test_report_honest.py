@@ -341,3 +341,82 @@ def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, 
         app, ["report", *exps, "--out", str(tmp_path / "s"), "--mc-draws", "0", "--strict"]
     )
     assert strict.exit_code == 1
+
+
+# -- a calibrated or identified parameter far outside its stated uncertainty ------------------
+
+
+def _beside(tmp_path, name: str, *, c_th: float) -> Path:
+    """``dynamic.toml`` (bundled, synthetic) and ``dynamic.calibrated.toml`` with C_th = c_th."""
+    text = (ROOT / "experiments" / "dynamic.toml").read_text()
+    text = text.replace('"../raw/', f'"{ROOT}/raw/')
+    (tmp_path / "dynamic.toml").write_text(text)
+    assert "thermal_mass_J_per_K = 0.0266\n" in text
+    cal = text.replace("thermal_mass_J_per_K = 0.0266\n", f"thermal_mass_J_per_K = {c_th}\n", 1)
+    cal += (
+        '\n[calibration]\nparameters = ["rig.thermal_mass_J_per_K"]\ncoordinates = ["log"]\n'
+        "sd = [0.01]\ncorrelation = [[1.0]]\n"
+    )
+    path = tmp_path / name
+    path.write_text(cal)
+    return path
+
+
+def test_calibrated_parameter_far_from_stated_warns_and_strict_exits_1(tmp_path):
+    # stated 0.0266 +- 0.00845 J/K in dynamic.toml; calibrated 0.0604 = +4.0 stated sds
+    path = _beside(tmp_path, "dynamic.calibrated.toml", c_th=0.0604)
+    out = runner.invoke(app, ["validate", str(path), "--out", str(tmp_path / "o")])
+    assert out.exit_code == 0, out.output
+    line = next(ln for ln in out.output.splitlines() if "stated sds" in ln)
+    assert line.startswith("WARNING: rig.thermal_mass_J_per_K = 0.0604 J/K")
+    assert "+4.0 stated sds from the stated 0.0266 J/K (sd 0.00845 J/K" in line
+    doc = json.loads((tmp_path / "o" / "dynamic.calibrated" / "metrics.json").read_text())
+    w = next(w for w in doc["warnings"] if w["check"] == "parameter-far-from-stated")
+    assert w["values"]["shift_in_stated_sds"] == pytest.approx(4.0, abs=0.01)
+    html = (tmp_path / "o" / "dynamic.calibrated" / "report.html").read_text()
+    assert "+4.0 stated sds" in html.split('id="sec-2"')[0]  # in the first section
+    strict = runner.invoke(app, ["validate", str(path), "--out", str(tmp_path / "s"), "--strict"])
+    assert strict.exit_code == 1
+
+
+def test_calibrated_parameter_within_three_stated_sds_does_not_warn(tmp_path):
+    path = _beside(tmp_path, "dynamic.calibrated.toml", c_th=0.0266 + 2.9 * 0.00845)
+    result = validate(load_experiment(path), mc_draws=0)
+    assert not [w for w in result.warnings if w.check == "parameter-far-from-stated"]
+
+
+def test_identified_spring_constant_far_from_the_stated_one_warns(tmp_path):
+    # the bundled sensing data were made with S = 4.7 N/m; the file states 3.0 +- 0.1 N/m
+    text = (ROOT / "experiments" / "sensing.toml").read_text().replace('"../raw/', f'"{ROOT}/raw/')
+    text = text.replace("[rig]\n", "[rig]\nspring_constant_N_per_m = 3.0\n", 1)
+    text += "\n[rig.uncertainty]\nspring_constant_N_per_m = 0.1\n"
+    path = tmp_path / "s3.toml"
+    path.write_text(text)
+    result = validate(load_experiment(path), mc_draws=0)
+    w = next(w for w in result.warnings if w.check == "parameter-far-from-stated")
+    assert w.values["value"] == pytest.approx(4.69, abs=0.03)
+    assert w.values["shift_in_stated_sds"] == pytest.approx((w.values["value"] - 3.0) / 0.1)
+    assert "identified from the logs" in w.message
+
+
+def test_calibration_report_warns_on_a_parameter_beyond_three_stated_sds():
+    from types import SimpleNamespace
+
+    from tcamlab.report.calibration_report import stated_shift_warnings
+
+    def p(value, sd):
+        return SimpleNamespace(
+            field="thermal_mass",
+            where="rig",
+            key="thermal_mass_J_per_K",
+            symbol="C_th",
+            unit="J/K",
+            value=value,
+            stated=0.0266,
+            stated_sd=sd,
+        )
+
+    res = SimpleNamespace(parameters=[p(0.0604, 0.00845), p(0.03, 0.00845), p(0.09, None)])
+    warnings = stated_shift_warnings(res)
+    assert len(warnings) == 1  # within 3 sds, and without a stated sd: no warning
+    assert "rig.thermal_mass_J_per_K (C_th) = 0.0604 J/K" in warnings[0] and "+4.0 stated sds" in warnings[0]

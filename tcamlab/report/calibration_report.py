@@ -31,7 +31,7 @@ from tcamlab.report.calibration_figures import (
 from tcamlab.report.document import Document, Figure, Section, Table
 from tcamlab.report.validation_report import synthetic_banner
 
-__all__ = ["calibration_document", "parameter_rows", "figure_files"]
+__all__ = ["calibration_document", "parameter_rows", "figure_files", "stated_shift_warnings"]
 
 DASH = "\u2013"
 
@@ -141,6 +141,24 @@ def _parameter_table(result) -> Table:
             "bound where the profile search stopped before |z| reached 1.96 (see the notes)."
         ),
     )
+
+
+def stated_shift_warnings(result) -> list[str]:
+    """A warning for each parameter calibrated more than 3 stated sds from its stated value
+    (:func:`tcamlab.metrics.stated_shift_warning`), with the numbers in lab units."""
+    from tcamlab.metrics import stated_shift_warning
+    from tcamlab.units import PARAMETER_UNITS
+
+    out = []
+    for p in result.parameters:
+        unit, fac = PARAMETER_UNITS.get(p.field, (p.unit, 1.0))
+        sd = None if p.stated_sd is None else p.stated_sd * fac
+        w = stated_shift_warning(
+            f"{p.where}.{p.key} ({p.symbol})", p.value * fac, p.stated * fac, sd, unit, "calibrated"
+        )
+        if w is not None:
+            out.append(w.message)
+    return out
 
 
 def _unsure_notes(result) -> list[str]:
@@ -370,6 +388,7 @@ def calibration_document(result, experiments: Sequence, *, command: str | None =
             ],
             tables=[_parameter_table(result)],
             notes=list(result.notes) + _unsure_notes(result),
+            warnings=stated_shift_warnings(result),
         ),
         Section("Identifiability", paragraphs=list(result.identifiability)),
         Section("Fit quality", tables=[_quality_table(result)]),
