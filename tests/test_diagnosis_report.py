@@ -212,7 +212,7 @@ def test_html_has_no_full_scale_overlay_and_no_negative_zero(glass):
     text = " ".join(p.text)
     assert "measured, thesis model and best candidate" not in text  # the old full-scale overlays
     assert "against temperature, every run" in text
-    assert "-0%" not in text and "-0 %" not in text
+    assert "-0%" not in text and "-0 %" not in text and not re.search(r"[-+]0\.00\b", text)
     assert not re.search(r"\] -(\s|$)", text)  # no "[...] -" parameter cells
 
 
@@ -241,6 +241,7 @@ def test_diagnose_text_units_and_standalone_figures(tmp_path):
     folder = out / sim.experiment_path.stem
     pngs, svgs = sorted(folder.glob("diagnosis-fig*.png")), sorted(folder.glob("diagnosis-fig*.svg"))
     html = (folder / "diagnosis.html").read_text()
+    assert "held-out RMSE before [1/m]" in html  # curvature RMSE in 1/m, not 0.0005 1/mm
     n_figures = len(re.findall(r"<figure\b", html))
     assert n_figures >= 3 and len(pngs) == len(svgs) == n_figures
     for png in pngs:

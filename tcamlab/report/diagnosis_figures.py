@@ -139,7 +139,8 @@ def residual_figure(result, q: str) -> Figure | None:
     colours = _run_colours(len(before))
     _panel(axes[0], result, before, colours, "before: thesis model", sigma, r_unit)
     if after is not None:
-        _panel(axes[1], result, after, colours, f"after: {name}", sigma, r_unit)
+        label = f"after: {name}" + (" (not needed: no gap)" if result.verdict == "none" else "")
+        _panel(axes[1], result, after, colours, label, sigma, r_unit)
     xlabel = _x(result, result._series["runs"][0])[1]
     for ax in axes:
         ax.set_xlabel(xlabel)

@@ -18,7 +18,11 @@ def _pct(x) -> str:
 
 
 def _num(x, fmt="{:.3g}") -> str:
-    return "–" if x is None or not math.isfinite(x) else fmt.format(x)
+    """``x`` in ``fmt``; a value that rounds to zero loses its sign (never ``-0.00``)."""
+    if x is None or not math.isfinite(x):
+        return MISSING
+    text = fmt.format(x)
+    return text.lstrip("+-") if float(text) == 0.0 else text
 
 
 def verdict_text(result) -> str:
@@ -120,17 +124,17 @@ def _scaled(x, fac):
     return None if x is None else float(x) * fac
 
 
-def _candidate_row(c, baseline) -> list:
+def _candidate_row(c, baseline, fac: float) -> list:
     get = (lambda k: c[k]) if isinstance(c, dict) else (lambda k: getattr(c, k))
     name = " + ".join(c["effects"]) + " (pair)" if isinstance(c, dict) else c.effect
     lo, hi = get("shrinkage_ci95")
     return [
         name,
-        _num(get("heldout_rmse_before"), "{:.4g}"),
-        _num(get("heldout_rmse_after"), "{:.4g}"),
-        fmt_percent(get("shrinkage")),
-        f"{fmt_percent(lo)} to {fmt_percent(hi)}",
-        fmt_percent(get("fraction_closed")),
+        _scaled(get("heldout_rmse_before"), fac),
+        _scaled(get("heldout_rmse_after"), fac),
+        _pct(get("shrinkage")),
+        f"{_pct(lo)} to {_pct(hi)}",
+        _pct(get("fraction_closed")),
         _num(get("aic") - baseline["aic"], "{:.1f}"),
         _num(get("bic") - baseline["bic"], "{:.1f}"),
         _params_text(get("parameters")) or MISSING,
@@ -139,11 +143,11 @@ def _candidate_row(c, baseline) -> list:
 
 def _ranking_table(result) -> Table:
     unit = result.ranking[0].unit if result.ranking else ""
-    shown = "x noise sd" if unit == "noise" else unit
-    rows = [_candidate_row(c, result.baseline) for c in result.ranking]
+    shown, fac = ("x noise sd", 1.0) if unit == "noise" else rmse_unit(unit)
+    rows = [_candidate_row(c, result.baseline, fac) for c in result.ranking]
     combo = getattr(result, "combination", None)
     if combo is not None:
-        rows.insert(0, _candidate_row(combo, result.baseline))
+        rows.insert(0, _candidate_row(combo, result.baseline, fac))
     return Table(
         [
             "effect",
