@@ -181,9 +181,9 @@ def test_overlapping_shrinkage_intervals_never_read_clearly_worse(glass):
     tests = paired_tests(result)
     assert tests, "the glass case has other candidates"
     text = verdict_text(result)
-    overlapping = [t for t in tests if t["intervals_overlap"]]
-    if overlapping:
-        assert "Every other candidate is clearly worse" not in text
+    # shrinkage 82-86 % for glass-transition against 80-84 % for the rest: the intervals overlap
+    assert any(t["intervals_overlap"] for t in tests)
+    assert "Every other candidate is clearly worse" not in text
     # the statistic behind any claim is printed: difference, interval, p
     assert re.search(r"noise sd² \(95 % [-0-9.e]+ to [-0-9.e]+, p [<=] [0-9.e-]+", text)
     doc = diagnosis_document(result, exp)

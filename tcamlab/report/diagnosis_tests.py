@@ -70,10 +70,10 @@ def paired_tests(result) -> list[dict]:
         ``clearly_worse``.
     """
     best = best_candidate(result)
-    if best is None or not _get(best, "folds"):
+    try:
+        n, mse_b = _fold_rows(result), _fold_mse(best)
+    except (AttributeError, KeyError, TypeError):  # no best, or a result without per-fold scores
         return []
-    n = _fold_rows(result)
-    mse_b = _fold_mse(best)
     if n.size != mse_b.size:
         return []
     s = result.settings
@@ -134,7 +134,10 @@ def paired_sentence(result) -> str:
     :func:`paired_table` gives every candidate's)."""
     tests = paired_tests(result)
     if not tests:
-        return "No other candidate was scored on the same withheld folds."
+        return (
+            "The paired test against the other candidates cannot be recomputed from this result "
+            "(no per-fold scores), so no candidate is called clearly worse."
+        )
     how = (
         f"in a paired bootstrap over the {tests[0]['folds']} withheld folds ({tests[0]['n_boot']} "
         f"resamples, seed {result.settings['seed']}), the held-out mean squared residual minus the best's"
