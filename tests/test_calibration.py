@@ -386,3 +386,45 @@ def test_static_map_fit_is_not_stopped_at_the_domain_edge(tmp_path):
     assert fit.chi2 <= chi2_from_truth + 1e-2 and fit.chi2 < 2 * prob.size
     rho = calibrate(path).parameter("radial_cte")
     assert rho.profile_95[0] <= truth["radial_cte"] <= rho.profile_95[1]
+
+
+def test_sensing_runs_have_a_per_run_geometry_random_effect(tmp_path):
+    """Each sensing run may depart from the shared twists and coil length by the kind's
+    run_reproducibility (0.05 %). Its effect is profiled out exactly: the penalised chi-square
+    equals the augmented least squares over delta ~ N(0, I), and a run whose measured curves
+    follow a geometry 2 reproducibility sds off costs at most 2^2 = 4, not the ~1e3 a shared
+    geometry would charge. (Synthetic: virtual rig seed 6, no scatter of its own.)"""
+    from tcamlab.calibration.problem import CalibrationProblem
+
+    res = simulate("sensing", TEMPLATES / "sensing.toml", seed=6, out_dir=tmp_path, scatter={})
+    exp = load_experiment(res.experiment_path)
+    runs = exp.read_runs()
+    prob = CalibrationProblem([exp], [runs])
+    assert len(prob.run_effects) == len(runs) and all(u.shape[1] == 2 for _, u, _ in prob.run_effects)
+    # exact profile: min over delta of |r - G delta|^2 + |delta|^2, solved directly
+    plain = CalibrationProblem([exp], [runs])
+    plain.run_effects = []
+    r = plain.data_residuals(prob.u0)
+    rows = prob.run_effects[0][0]
+    g = prob._effect_columns(0, 0, {"twists": 5e-4, "coil_length": 5e-4})
+    aug = np.vstack([g, np.eye(2)])
+    delta = np.linalg.lstsq(aug, np.concatenate([r[rows], np.zeros(2)]), rcond=None)[0]
+    direct = float(np.sum((r[rows] - g @ delta) ** 2) + delta @ delta)
+    whitened = prob.data_residuals(prob.u0)[rows]
+    assert float(whitened @ whitened) == pytest.approx(direct, rel=1e-9)
+    # move run 1's measured curves to a geometry 2 sds (1e-3) more twisted
+    sample, rig = prob.models(0, prob.u0)
+    moved = prob.predict_with(0, 0, sample.replace(twists=sample.twists * (1 + 1e-3)), rig)
+    chi = {}
+    for name, p in (("effect", prob), ("shared", plain)):
+        for q in p.quantities[0]:  # noiseless run 1: the model at the moved geometry
+            p._measured[(0, 0, q)] = moved[q]
+        p._cache[0].clear()
+        after = p.data_residuals(p.u0)[rows]
+        chi[name] = float(after @ after)
+    # delta = 2 sds of twists (columns in sorted order: coil_length, twists); coil length can
+    # share the shift (the columns are correlated), so the cost is below 4
+    delta, gtg = np.array([0.0, 2.0]), g.T @ g
+    expected = float(delta @ gtg @ np.linalg.solve(np.eye(2) + gtg, delta))
+    assert chi["effect"] == pytest.approx(expected, rel=0.02) and 1.0 < chi["effect"] < 4.0
+    assert chi["shared"] > 100 * chi["effect"]

@@ -204,6 +204,10 @@ class Kind:
     nuisance_zeros : tuple of str
         Measured quantities whose zero (tare) is a per-run nuisance offset in
         calibration: the logged first row or tare carries the instrument's noise.
+    run_reproducibility : mapping of str to float
+        Sample field -> relative sd [-] of each run's departure from the shared value
+        (re-mounting, annealing): calibration treats it as a per-run random effect
+        (:mod:`tcamlab.calibration.problem`). Empty: runs share the sample exactly.
     """
 
     name: str
@@ -247,6 +251,7 @@ class Kind:
     coil_length_rig_fields: tuple[str, ...]
     calibration: tuple[CalibrationParam, ...]
     nuisance_zeros: tuple[str, ...]
+    run_reproducibility: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def primary(self) -> str:
