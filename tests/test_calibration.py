@@ -428,3 +428,33 @@ def test_sensing_runs_have_a_per_run_geometry_random_effect(tmp_path):
     expected = float(delta @ gtg @ np.linalg.solve(np.eye(2) + gtg, delta))
     assert chi["effect"] == pytest.approx(expected, rel=0.02) and 1.0 < chi["effect"] < 4.0
     assert chi["shared"] > 100 * chi["effect"]
+
+
+def test_dynamic_resistance_stated_5_percent_off_is_calibrated_back_from_the_current(tmp_path):
+    """Five virtual-rig pulses (seed 25) with a logged current (synthetic: V / R_true plus
+    1 mA normal noise, numpy seed 25) and the file's R stated 5 % high (42 ohm, default 5 %
+    prior): R = V/I comes back to 40 ohm within its profile interval and is pinned; without the
+    current R is not calibrated at all (it would be one more unpinned factor of C_th)."""
+    import pandas as pd
+
+    res = simulate("dynamic", TEMPLATES / "dynamic.toml", seed=25, out_dir=tmp_path, n_runs=5)
+    path = res.experiment_path
+    from tcamlab.calibration.problem import CalibrationProblem
+
+    before = load_experiment(path)
+    names = [s.name for s in CalibrationProblem([before], [before.read_runs()]).specs]
+    assert "resistance" not in names and "thermal_mass" in names
+    text = path.read_text()
+    assert text.count("resistance_ohm = 40.0\n") == 1
+    path.write_text(text.replace("resistance_ohm = 40.0\n", "resistance_ohm = 42.0\n"))
+    rng = np.random.default_rng(25)
+    for run in load_experiment(path).read_runs():
+        frame = pd.read_csv(run.path)
+        frame["current_A"] = np.round(frame["voltage_V"] / 40.0 + rng.normal(0.0, 1e-3, len(frame)), 5)
+        frame.to_csv(run.path, index=False)
+    cal = calibrate(path)
+    r = cal.parameter("resistance")
+    assert r.stated == pytest.approx(42.0) and r.prior_sd == pytest.approx(0.05 * 42.0)
+    assert r.profile_95[0] <= 40.0 <= r.profile_95[1] and abs(r.value - 40.0) < 0.05
+    assert r.pinned and r.stated_sd is None and r.shift_in_stated_sds is None  # default prior
+    assert {q.quantity for q in cal.fit} == {"displacement", "current"}

@@ -192,6 +192,8 @@ class CalibrationProblem:
         several = len(self.experiments) > 1
         for i, kind in enumerate(self.kinds):
             for p in kind.calibration:
+                if p.needs and not all(any(c in r.data for c in p.needs) for r in self.runs[i]):
+                    continue  # e.g. dynamic R without a logged current or resistance
                 if p.where == "sample":
                     if p.field not in specs:
                         specs[p.field] = self._spec(p, tuple(range(len(self.experiments))), p.field)

@@ -87,6 +87,10 @@ class CalibrationParam:
         The experiment that would pin the parameter when the logs do not, in words.
     positive : bool
         Fitted as its logarithm (a Gaussian prior in log space, sd_log = sd / value).
+    needs : tuple of str
+        Columns of which every run must log at least one for the parameter to be calibrated
+        (dynamic R: ``current`` or ``resistance``); without them it stays at its stated
+        value. Empty: always calibrated.
     """
 
     field: str
@@ -96,6 +100,7 @@ class CalibrationParam:
     default_sd: float
     pinned_by: str
     positive: bool = True
+    needs: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
