@@ -320,8 +320,8 @@ class CalibrationProblem:
             scatter = dict(self.kinds[i].run_reproducibility)
             for j, run in enumerate(self.runs[i]):
                 n = len(run.data) * len(qs)
-                if scatter:
-                    g = self._effect_columns(i, j, scatter)
+                g = self._effect_columns(i, j, scatter) if scatter else np.zeros((n, 0))
+                if g.shape[1]:
                     u_mat, sv, _ = np.linalg.svd(g, full_matrices=False)
                     out.append((slice(start, start + n), u_mat, 1.0 - 1.0 / np.sqrt(1.0 + sv**2)))
                 start += n
@@ -334,17 +334,27 @@ class CalibrationProblem:
         base = self.predict_with(i, j, sample, rig)
         cols = []
         for fld, rel in sorted(scatter.items()):
-            moved = sample.replace(**{fld: getattr(sample, fld) * (1.0 + EFFECT_STEP)})
-            pred = self.predict_with(i, j, moved, rig)
+            pred, step = None, EFFECT_STEP
+            for step in (EFFECT_STEP, -EFFECT_STEP):  # the inner side at the model's domain edge
+                try:
+                    pred = self.predict_with(
+                        i, j, sample.replace(**{fld: getattr(sample, fld) * (1.0 + step)}), rig
+                    )
+                    break
+                except (TcamlabError, ArithmeticError, ValueError):
+                    continue
+            if pred is None:
+                continue  # no effect column where the model has no solution either side
             parts = []
             for q in self.quantities[i]:
-                g = (pred[q] - base[q]) * (rel / EFFECT_STEP)
+                g = (pred[q] - base[q]) * (rel / step)
                 sd = self.row_sigma[(i, j, q)]
                 if self.is_zeroed(i, q):
                     g = g - self.zero_of(i, j, q, g)
                 parts.append(g / sd)
             cols.append(np.concatenate(parts))
-        return np.column_stack(cols)
+        n = sum(len(self.runs[i][j].data) for _ in self.quantities[i])
+        return np.column_stack(cols) if cols else np.zeros((n, 0))
 
     # evaluation ------------------------------------------------------------------------
     def values(self, u: np.ndarray) -> dict[str, float]:
