@@ -101,6 +101,22 @@ def closer_than_stated(value: float, stated: float, true: float) -> bool:
     return abs(float(value) - float(true)) < abs(float(stated) - float(true))
 
 
+def predicted_closer(p: dict) -> float:
+    """P(calibrated closer to the truth than stated) for a truth drawn from the prior,
+    (2/pi) atan(prior sd / posterior sd) in relative terms
+    (:func:`tcamlab.calibration.identify.closer_probability`); nan without the sds."""
+    from tcamlab.calibration.identify import closer_probability
+
+    try:
+        post = float(p["posterior_sd"]) / abs(float(p["value"]))
+        prior = float(p["prior_sd"]) / abs(float(p["stated"]))
+    except (KeyError, TypeError, ZeroDivisionError):
+        return math.nan
+    if not (math.isfinite(post) and math.isfinite(prior) and prior > 0):
+        return math.nan
+    return closer_probability(post / prior)
+
+
 def standardized_error(
     value: float, true: float, posterior_sd: float, rel_sd: float, positive: bool
 ) -> float:
@@ -136,6 +152,8 @@ def summarise_kind(cases: list[dict]) -> dict:
         ps = [p for p in rows if p["name"] == name]
         zs = [p["z"] for p in ps if math.isfinite(p["z"])]
         pinned = [p for p in ps if p["pinned"] and p["drawn"]]
+        drawn = [p for p in ps if p["drawn"]]
+        expected = [x for x in map(predicted_closer, drawn) if math.isfinite(x)]
         per[name] = {
             "symbol": ps[0]["symbol"],
             "profile": fraction(sum(p["in_profile"] for p in ps), len(ps)),
@@ -143,6 +161,9 @@ def summarise_kind(cases: list[dict]) -> dict:
             "pinned_closer": fraction(sum(p["closer"] for p in pinned), len(pinned)),
             "pinned": sum(p["pinned"] for p in ps),
             "drawn": sum(p["drawn"] for p in ps),
+            # every drawn case, pinned or not: does (2/pi) atan(prior/posterior) predict it?
+            "closer_drawn": fraction(sum(p["closer"] for p in drawn), len(drawn)),
+            "closer_predicted": statistics.fmean(expected) if expected else math.nan,
             "open_bounds": sum(any(p["profile_open"]) for p in ps),
             "z_rms": math.sqrt(statistics.fmean(z * z for z in zs)) if zs else math.nan,
             "z_mean": statistics.fmean(zs) if zs else math.nan,
@@ -386,15 +407,16 @@ def markdown(summaries: dict, meta: dict) -> str:
     lines += [
         "",
         "| kind | parameter | profile coverage | Laplace coverage | pinned (drawn) | pinned closer |"
-        " z-RMS | mean z | open bounds |",
-        "|---|---|---|---|---|---|---|---|---|",
+        " z-RMS | mean z | open bounds | closer, all drawn (predicted) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for kind, s in summaries.items():
         for name, p in s["parameters"].items():
             lines.append(
                 f"| {kind} | {name} ({p['symbol']}) | {_pct(p['profile'])} | {_pct(p['laplace'])} |"
                 f" {p['pinned']} ({p['drawn']}) | {_pct(p['pinned_closer'])} | {p['z_rms']:.2f} |"
-                f" {p['z_mean']:+.2f} | {p['open_bounds']} |"
+                f" {p['z_mean']:+.2f} | {p['open_bounds']} | {_pct(p['closer_drawn'])}"
+                + (f" ({p['closer_predicted']:.3f}) |" if math.isfinite(p["closer_predicted"]) else " |")
             )
     lines += [
         "",

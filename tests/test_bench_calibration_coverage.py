@@ -106,3 +106,30 @@ def test_summarise_kind_pools_and_skips_failed_cases():
     assert s["parameters"]["b"]["profile"]["fraction"] == 0.5
     assert s["errors"] == ["boom"]
     assert cov.verdict(s) == "FAIL"  # 75 % coverage
+
+
+def test_predicted_closer_is_the_atan_law_of_the_relative_sds():
+    # posterior 10 % of value, prior 20 % of stated: ratio 0.5 -> (2/pi) atan(2) = 0.7048
+    rec = {"posterior_sd": 0.1, "value": 1.0, "prior_sd": 0.4, "stated": 2.0}
+    assert cov.predicted_closer(rec) == pytest.approx(2 / math.pi * math.atan(2.0), rel=1e-12)
+    assert cov.predicted_closer(rec) == pytest.approx(0.7048, abs=1e-4)
+    # the pinned threshold's ratio tan(0.05 pi) is exactly the 90 % the target asks for
+    edge = {"posterior_sd": math.tan(0.05 * math.pi), "value": 1.0, "prior_sd": 1.0, "stated": 1.0}
+    assert cov.predicted_closer(edge) == pytest.approx(0.90, abs=1e-12)
+    assert math.isnan(cov.predicted_closer({"posterior_sd": 0.1}))
+
+
+def test_summary_compares_closer_with_its_prediction_over_all_drawn_cases():
+    def rec(closer, drawn, pinned=False):
+        p = _param("a", True, True, pinned, drawn, closer)
+        p.update(posterior_sd=0.5, value=1.0, prior_sd=1.0, stated=1.0)  # predicted 0.7048
+        return p
+
+    cases = [
+        {"failed": False, "seconds": 1.0, "error": "", "parameters": [rec(c, d)]}
+        for c, d in ((True, True), (False, True), (True, True), (True, False))
+    ]
+    a = cov.summarise_kind(cases)["parameters"]["a"]
+    assert (a["closer_drawn"]["k"], a["closer_drawn"]["n"]) == (2, 3)  # the undrawn case left out
+    assert a["closer_predicted"] == pytest.approx(0.7048, abs=1e-4)
+    assert a["pinned_closer"]["n"] == 0

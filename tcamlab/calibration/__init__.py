@@ -2,7 +2,8 @@
 
 :func:`calibrate` fits, jointly over every run of one or more experiments of one
 sample, the parameters each kind lists in :attr:`tcamlab.kinds.Kind.calibration`
-(dynamic C_th, lambda, b, rho, G_t slope; static rho, G_t slope, E; sensing S, R0, E; curvature
+(dynamic C_th, lambda, b, rho, G_t slope and R where a current or resistance is logged; static
+rho, G_t slope, E; sensing S, R0, E; curvature
 d1, S, R0). It maximises the posterior: the stacked residuals
 ``(measured - predicted - zero) / sigma`` of every run and quantity, with each
 run's zero of a zero-referenced quantity a flat-prior nuisance

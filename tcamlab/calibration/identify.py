@@ -9,13 +9,16 @@ i.e. the product ``prod(theta_k ** a_k)``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = [
     "PINNED_REL_SD",
+    "PINNED_PROMISE",
     "PINNED_RATIO",
+    "closer_probability",
     "CONSTRAINED_RATIO",
     "Direction",
     "directions",
@@ -27,8 +30,26 @@ PINNED_REL_SD = 0.10
 """A parameter or combination is pinned only if its posterior sd is at most 10 % of its value
 (in log space) ..."""
 
-PINNED_RATIO = 1 / 3
-"""... and at most a third of its prior sd: the logs, not the prior, fix it."""
+PINNED_PROMISE = 0.90
+"""What "pinned" promises: the calibrated value is closer to the truth than the stated one in
+at least this fraction of cases where the truth is drawn from the prior."""
+
+# Derivation: the stated value errs by e0 ~ N(0, s_prior) and the calibrated one, given the
+# truth, by e1 ~ N(0, s_post), independently (the posterior error is orthogonal to the data).
+# P(|e1| < |e0|) = (2/pi) atan(s_prior/s_post) (the angle of the wedge |y| > |x| in the
+# whitened plane), so P >= PINNED_PROMISE needs s_post / s_prior <= tan(pi/2 (1 - promise)):
+# tan(0.05 pi) = 0.158 for 90 %, i.e. the logs shrink the prior sd at least 6.31-fold.
+PINNED_RATIO = math.tan(0.5 * math.pi * (1.0 - PINNED_PROMISE))
+"""... and at most tan(pi/2 (1 - PINNED_PROMISE)) = 0.158 of its prior sd, so that the
+calibrated value is closer to the truth than the stated one with probability
+(2/pi) atan(prior/posterior) >= PINNED_PROMISE (see the derivation above)."""
+
+
+def closer_probability(ratio: float) -> float:
+    """P(calibrated closer to the truth than stated) = (2/pi) atan(1 / ratio) [-], for
+    posterior sd / prior sd ``ratio`` [-] and a truth drawn from the prior."""
+    return 1.0 if ratio <= 0 else 2.0 / math.pi * math.atan(1.0 / ratio)
+
 
 CONSTRAINED_RATIO = 0.5
 """Otherwise it is constrained when the logs at least halve its prior sd, and rests on its
@@ -100,6 +121,13 @@ def tier(posterior_sd_rel: float, prior_sd_rel: float) -> str:
     return "constrained" if ratio <= CONSTRAINED_RATIO else "prior"
 
 
+def _short_of_pinned(p) -> str:
+    """Why a constrained parameter is not pinned: too wide, or not narrowed enough."""
+    if p.posterior_sd_rel > PINNED_REL_SD:
+        return f"not to {100 * PINNED_REL_SD:.0f}%"
+    return f"less than the {1 / PINNED_RATIO:.3g}-fold a {100 * PINNED_PROMISE:.0f}% chance of beating the stated value needs"
+
+
 def _sds(p) -> str:
     return f"posterior sd {100 * p.posterior_sd_rel:.3g}% vs prior {100 * p.prior_sd_rel:.3g}%"
 
@@ -131,7 +159,7 @@ def identifiability_text(params: list, dirs: list[Direction], experiments: str) 
         if tiers[p.name] == "constrained":
             lines.append(
                 f"Constrained, not pinned: {p.symbol} ({_sds(p)}: the logs narrow it "
-                f"{p.prior_sd_rel / p.posterior_sd_rel:.3g}-fold, not to {100 * PINNED_REL_SD:.0f}%); "
+                f"{p.prior_sd_rel / p.posterior_sd_rel:.3g}-fold, {_short_of_pinned(p)}); "
                 f"to pin it: {p.pinned_by}."
             )
     for p in params:

@@ -43,6 +43,10 @@ ROW_SIGMA_FLOOR = 0.5
 """Smallest row sd of :meth:`CalibrationProblem.row_noise`, a fraction of the single-sd
 noise floor: no row weighs more than four times as much as under one sd."""
 
+EFFECT_STEP = 1e-4
+"""Relative step of a sample field for the random-effect columns of a run (its departures
+are about 5e-4: the model is linear over them)."""
+
 MAX_LOG_SPAN = math.log(1e3)
 """Largest excursion of a positive parameter from its stated value, in log space."""
 
@@ -159,6 +163,7 @@ class CalibrationProblem:
         self.quantities = [self._quantities(i) for i in range(len(self.experiments))]
         self.sigma = self._noise()
         self.size = sum(len(r.data) * len(q) for rs, q in zip(self.runs, self.quantities) for r in rs)
+        self.run_effects = self._run_effects()
 
     # construction ----------------------------------------------------------------------
     def _filled_rig(self, i: int):
@@ -187,6 +192,8 @@ class CalibrationProblem:
         several = len(self.experiments) > 1
         for i, kind in enumerate(self.kinds):
             for p in kind.calibration:
+                if p.needs and not all(any(c in r.data for c in p.needs) for r in self.runs[i]):
+                    continue  # e.g. dynamic R without a logged current or resistance
                 if p.where == "sample":
                     if p.field not in specs:
                         specs[p.field] = self._spec(p, tuple(range(len(self.experiments))), p.field)
@@ -294,6 +301,61 @@ class CalibrationProblem:
             return None
         return rows
 
+    def _run_effects(self) -> list[tuple[slice, np.ndarray, np.ndarray]]:
+        """Per run with a random effect: its rows in :meth:`data_residuals`, the orthonormal
+        basis U of its whitened effect columns and the shrink factors 1 - 1/sqrt(1 + s^2).
+
+        Each run's sample may depart from the shared one by ``Kind.run_reproducibility``
+        (relative sds; the virtual rig's per-run scatter of twists and coil length is such a
+        departure). Linearised at the stated values (the departures are 1e-3 or less), a run's
+        normalised residuals carry ``G delta`` with ``delta ~ N(0, I)``; minimising
+        ``|r - G delta|^2 + |delta|^2`` over ``delta`` leaves ``r^T (I + G G^T)^-1 r``, the
+        squared norm of ``(I + G G^T)^-1/2 r = r - U diag(1 - 1/sqrt(1 + s^2)) U^T r``
+        (G = U S V^T): the random effects are profiled out exactly, like the zeros, and the
+        residual vector keeps its length. G's columns are taken after the zeros are projected
+        out (a flat-prior zero absorbs any constant part first).
+        """
+        out, start = [], 0
+        for i, qs in enumerate(self.quantities):
+            scatter = dict(self.kinds[i].run_reproducibility)
+            for j, run in enumerate(self.runs[i]):
+                n = len(run.data) * len(qs)
+                g = self._effect_columns(i, j, scatter) if scatter else np.zeros((n, 0))
+                if g.shape[1]:
+                    u_mat, sv, _ = np.linalg.svd(g, full_matrices=False)
+                    out.append((slice(start, start + n), u_mat, 1.0 - 1.0 / np.sqrt(1.0 + sv**2)))
+                start += n
+        return out
+
+    def _effect_columns(self, i: int, j: int, scatter: dict[str, float]) -> np.ndarray:
+        """Whitened columns G of run ``j``'s random effects: d (residual / row sd) per prior sd
+        of each sample field, zeros projected out, quantities stacked as in the residuals."""
+        sample, rig = self.models(i, self.u0)
+        base = self.predict_with(i, j, sample, rig)
+        cols = []
+        for fld, rel in sorted(scatter.items()):
+            pred, step = None, EFFECT_STEP
+            for step in (EFFECT_STEP, -EFFECT_STEP):  # the inner side at the model's domain edge
+                try:
+                    pred = self.predict_with(
+                        i, j, sample.replace(**{fld: getattr(sample, fld) * (1.0 + step)}), rig
+                    )
+                    break
+                except (TcamlabError, ArithmeticError, ValueError):
+                    continue
+            if pred is None:
+                continue  # no effect column where the model has no solution either side
+            parts = []
+            for q in self.quantities[i]:
+                g = (pred[q] - base[q]) * (rel / step)
+                sd = self.row_sigma[(i, j, q)]
+                if self.is_zeroed(i, q):
+                    g = g - self.zero_of(i, j, q, g)
+                parts.append(g / sd)
+            cols.append(np.concatenate(parts))
+        n = sum(len(self.runs[i][j].data) for _ in self.quantities[i])
+        return np.column_stack(cols) if cols else np.zeros((n, 0))
+
     # evaluation ------------------------------------------------------------------------
     def values(self, u: np.ndarray) -> dict[str, float]:
         """Calibrated values [SI] by spec name."""
@@ -312,8 +374,12 @@ class CalibrationProblem:
 
         ``mods`` (a :class:`tcamlab.effects.Mods`) adds effect terms; the diagnosis fits an
         effect together with the calibrated parameters through it."""
-        kind = self.kinds[i]
         sample, rig = self.models(i, u)
+        return self.predict_with(i, j, sample, rig, mods)
+
+    def predict_with(self, i: int, j: int, sample, rig, mods=None) -> dict[str, np.ndarray]:
+        """Predictions [SI] of run ``j`` of experiment ``i`` with the given sample and rig."""
+        kind = self.kinds[i]
         data = self.runs[i][j].data
         opts = dict(kind.run_options(sample, rig, data, where=str(self.experiments[i].path)).options)
         opts.update(kind.variants[kind.primary])
@@ -402,7 +468,11 @@ class CalibrationProblem:
         for i, j, q, r in raw:
             zero = self.zero_of(i, j, q, r) if self.is_zeroed(i, q) else 0.0
             parts.append((r - zero) / self.row_sigma[(i, j, q)])
-        return np.concatenate(parts)
+        out = np.concatenate(parts)
+        # per-run random effects profiled out (see _run_effects)
+        for rows, u_mat, shrink in self.run_effects:
+            out[rows] -= u_mat @ (shrink * (u_mat.T @ out[rows]))
+        return out
 
     def failed(self, chi2: float) -> bool:
         """Whether a chi-square comes from :data:`FAIL_RESIDUAL` (the model has no solution)."""

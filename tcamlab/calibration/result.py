@@ -54,7 +54,7 @@ class ParameterEstimate:
     pinned : bool
         ``identification == "pinned"``.
     identification : str
-        ``"pinned"`` (relative posterior sd at most 10 % and at most a third of the prior's),
+        ``"pinned"`` (relative posterior sd at most 10 % and at most 0.158 of the prior's),
         ``"constrained"`` (the logs at least halve the prior sd) or ``"prior"`` (rests on its
         prior); see :func:`tcamlab.calibration.identify.tier`.
     pinned_by : str

@@ -87,6 +87,10 @@ class CalibrationParam:
         The experiment that would pin the parameter when the logs do not, in words.
     positive : bool
         Fitted as its logarithm (a Gaussian prior in log space, sd_log = sd / value).
+    needs : tuple of str
+        Columns of which every run must log at least one for the parameter to be calibrated
+        (dynamic R: ``current`` or ``resistance``); without them it stays at its stated
+        value. Empty: always calibrated.
     """
 
     field: str
@@ -96,6 +100,7 @@ class CalibrationParam:
     default_sd: float
     pinned_by: str
     positive: bool = True
+    needs: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -204,6 +209,10 @@ class Kind:
     nuisance_zeros : tuple of str
         Measured quantities whose zero (tare) is a per-run nuisance offset in
         calibration: the logged first row or tare carries the instrument's noise.
+    run_reproducibility : mapping of str to float
+        Sample field -> relative sd [-] of each run's departure from the shared value
+        (re-mounting, annealing): calibration treats it as a per-run random effect
+        (:mod:`tcamlab.calibration.problem`). Empty: runs share the sample exactly.
     """
 
     name: str
@@ -247,6 +256,7 @@ class Kind:
     coil_length_rig_fields: tuple[str, ...]
     calibration: tuple[CalibrationParam, ...]
     nuisance_zeros: tuple[str, ...]
+    run_reproducibility: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def primary(self) -> str:

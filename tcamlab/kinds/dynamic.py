@@ -64,7 +64,9 @@ def predict(
     Returns
     -------
     dict
-        ``displacement`` [m] (zero at the first row), ``temperature`` [degC].
+        ``displacement`` [m] (zero at the first row), ``temperature`` [degC], ``current``
+        [A] (V / R(T)) and ``resistance`` [ohm] (R(T)); calibration compares the last three
+        with the logs where logged.
     """
     t = data["time"].to_numpy(float)
     v = data["voltage"].to_numpy(float)
@@ -89,7 +91,9 @@ def predict(
         # Shift the output, not the held input: continuous in the delay, so fits work.
         disp = np.interp(t - mods.delay, t, disp, left=0.0)
         temp = np.interp(t - mods.delay, t, temp, left=temp[0])
-    return {"displacement": disp, "temperature": temp}
+    # R(T) = R (1 + beta (T - T_a)) as in (2.18) with the effect library's beta; I = V / R(T)
+    resistance = rig.resistance * (1.0 + mods.resistance_tc * (temp - rig.ambient))
+    return {"displacement": disp, "temperature": temp, "current": v / resistance, "resistance": resistance}
 
 
 def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, **_) -> RunOptions:
@@ -500,6 +504,15 @@ CALIBRATION = (
         "log faster than the mechanical time constant b/k (e.g. 1 kHz), or a load step",
     ),
     CalibrationParam(
+        "resistance",
+        "rig",
+        "R",
+        "ohm",
+        0.05,
+        "log the current with the voltage (R = V/I during the pulse), or the resistance",
+        needs=("current", "resistance"),
+    ),
+    CalibrationParam(
         "radial_cte",
         "sample",
         "rho",
@@ -521,7 +534,12 @@ CALIBRATION = (
 """Calibratable parameters of the voltage-step test; the default prior sds are wide
 (the thesis's own sds are 32 %, 181 % and 14 %). rho and the G_t slope are calibrated too:
 the displacement sees the temperature only through them, so without them the pulse would
-seem to fix C_th and lambda separately on the strength of the sample's stated rho alone."""
+seem to fix C_th and lambda separately on the strength of the sample's stated rho alone.
+R (at ambient) is calibrated only where every run logs ``current_A`` (R = V/I) or
+``resistance_ohm`` (its default prior sd 5 %, an ohmmeter reading of the actuator): without
+them the heating power V^2/R is one more factor along C_th's unpinned direction, and R stays
+at its stated value. beta of R(T) is not calibrated: the rig has no field for it (it is the
+effect library's ``resistance_tc``, fitted by the diagnosis)."""
 
 
 KIND = Kind(

@@ -380,4 +380,8 @@ KIND = Kind(
     coil_length_rig_fields=(),
     calibration=CALIBRATION,
     nuisance_zeros=("force",),
+    # each pull test re-mounts the sensor: twists and coil length differ by about 0.05 % a
+    # run (the virtual rig's default_scatter models the same); R0 and E are pinned to 0.03 %
+    # or better, so calibration must not treat the runs as sharing one geometry exactly
+    run_reproducibility={"twists": 5e-4, "coil_length": 5e-4},
 )
