@@ -34,7 +34,7 @@ from tcamlab.models.coil import compliance_coefficients, compliance_terms, resto
 from tcamlab.models.dynamic import acceleration
 from tcamlab.params import G_ACCEL, Rig, Sample
 
-__all__ = ["PoweredRun", "powered_run", "internal_force", "GRID_HALF_WIDTH_M"]
+__all__ = ["PoweredRun", "powered_run", "rest_state", "internal_force", "GRID_HALF_WIDTH_M"]
 
 GRID_HALF_WIDTH_M = 15e-3
 """Half-width of the tabulated g(x) around the rest extension [m] (strokes are a few mm)."""
@@ -102,6 +102,22 @@ def _g_table(sample: Sample, spring_constant: float, x_rest: float) -> CubicSpli
     )
 
 
+def rest_state(sample: Sample, rig: Rig, voltage: float, mass: float, tcr: float) -> tuple[float, float]:
+    """Temperature [degC] and extension [m] at rest under a held probe voltage and mass.
+
+    (2.18) at steady state with P = V^2 / R(T, x) and the statics at that T, solved
+    together by fixed-point passes (the probe heats by a few kelvin, so they converge fast).
+    """
+    ta, r0 = rig.ambient, float(rig.initial_resistance)
+    t0, x0 = ta, float(static.displacement(0.0, mass * G_ACCEL, **sample.model_kwargs()))
+    for _ in range(20):
+        heat = ssm.coating_factor(t0, ta, tcr) * ssm.swelling_factor(t0, ta, sample.radial_cte)
+        g0 = float(ssm.geometric_ratio(x0, spring_constant=rig.spring_constant, **sample.sensor_kwargs()))
+        t0 = ssm.rest_temperature(voltage**2 / (r0 * g0 * heat), rig.heat_loss, ta)
+        x0 = float(static.displacement(t0 - ta, mass * G_ACCEL, **sample.model_kwargs()))
+    return float(t0), x0
+
+
 def powered_run(
     sample: Sample, rig: Rig, time, voltage, load_mass, mods: Mods = NO_MODS, *, rtol: float = 1e-8
 ) -> PoweredRun:
@@ -136,15 +152,7 @@ def powered_run(
     _, gt, n = _mechanics(sample)
     r0, tcr, ta = float(rig.initial_resistance), rig.tcr + mods.tcr_extra, rig.ambient
     cth, lam, b = rig.thermal_mass, rig.heat_loss, rig.damping
-    # start at rest under the first voltage (the probe) and load: solve T0 and x0 together
-    t0, x0 = ta, float(static.displacement(0.0, m[0] * G_ACCEL, **sample.model_kwargs()))
-    for _ in range(20):
-        heat = ssm.coating_factor(t0, ta, tcr) * ssm.swelling_factor(t0, ta, sample.radial_cte)
-        r_rest = r0 * float(
-            ssm.geometric_ratio(x0, spring_constant=rig.spring_constant, **sample.sensor_kwargs())
-        )
-        t0 = ssm.rest_temperature(v[0] ** 2 / (r_rest * heat), lam, ta)
-        x0 = float(static.displacement(t0 - ta, m[0] * G_ACCEL, **sample.model_kwargs()))
+    t0, x0 = rest_state(sample, rig, float(v[0]), float(m[0]), tcr)
     g = _g_table(sample, rig.spring_constant, x0)
 
     def r_of(tt, temp, x):
