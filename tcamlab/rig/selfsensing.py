@@ -20,6 +20,7 @@ relative error below 1e-9), so the right-hand side needs no root solve.
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,6 +119,26 @@ def rest_state(sample: Sample, rig: Rig, voltage: float, mass: float, tcr: float
     return float(t0), x0
 
 
+def _scalar_resistance(g: CubicSpline, r0, tcr, ta, rho, x0, t0, mods: Mods):
+    """R(t, T, x) in float arithmetic for the ODE's right-hand side (same terms as the arrays'
+    :func:`tcamlab.models.selfsensing.resistance` and ``effect_factor``; numpy scalar calls
+    cost ten times more)."""
+    xs = g.x.tolist()
+    c3, c2, c1, c0 = (row.tolist() for row in g.c)
+    last = len(xs) - 2
+
+    def r(tt, temp, x):
+        i = min(max(bisect_right(xs, x) - 1, 0), last)
+        dx = x - xs[i]
+        gx = ((c3[i] * dx + c2[i]) * dx + c1[i]) * dx + c0[i]
+        dT = temp - ta
+        heat = (1.0 + tcr * dT) / (1.0 + rho * dT) ** 2
+        contact = 1.0 - mods.contact_slope * max(0.0, x0 - x - mods.contact_onset)
+        return r0 * gx * heat * (1.0 + mods.r0_drift * (tt - t0)) * contact
+
+    return r
+
+
 def powered_run(
     sample: Sample, rig: Rig, time, voltage, load_mass, mods: Mods = NO_MODS, *, rtol: float = 1e-8
 ) -> PoweredRun:
@@ -159,12 +180,14 @@ def powered_run(
         heat = ssm.coating_factor(temp, ta, tcr) * ssm.swelling_factor(temp, ta, sample.radial_cte)
         return r0 * g(x) * heat * ssm.effect_factor(tt - t[0], x0 - x, mods)
 
+    r_scalar = _scalar_resistance(g, r0, tcr, ta, sample.radial_cte, x0, float(t[0]), mods)
+
     def rhs(tt, y, volt, mass):
         temp, x, vel = y
         if abs(x - x0) > GRID_HALF_WIDTH_M:
             raise ModelDomainError("self-sensing rig: the stroke left the tabulated range")
         dT = temp - ta
-        tdot = (volt * volt / r_of(tt, temp, x) - lam * dT) / cth
+        tdot = (volt * volt / r_scalar(tt, temp, x) - lam * dT) / cth
         acc = acceleration(vel, internal_force(x, dT, sample, gt, n), mass, b, mass * G_ACCEL)
         return [tdot, vel, acc]
 
