@@ -195,6 +195,13 @@ GUIDE: dict[str, Guide] = {
         "calipers on the cast robot",
         "[30, 30] (thesis sec. 4.3)",
     ),
+    "tcr_per_K": Guide(
+        "temperature coefficient of the coating's resistance, TCR [1/K] (self-sensing)",
+        "an oven test of R against temperature with the muscle unloaded",
+        "0.0038 (bulk silver; thin coatings are often lower)",
+        "typical",
+        0.0038,
+    ),
 }
 """Experiment-file key -> :class:`Guide`."""
 

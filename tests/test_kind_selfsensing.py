@@ -170,3 +170,11 @@ def test_r0_drift_and_tcr_extra_in_predict_undo_their_rescalings(setup, exact):
     plus = KIND.predict(sample, rig, exact, Mods(tcr_extra=3e-4), **opts)["displacement"]
     same = KIND.predict(sample, rig.replace(tcr=rig.tcr + 3e-4), exact, **opts)["displacement"]
     np.testing.assert_array_equal(plus, same)
+
+
+def test_missing_spring_constant_is_one_line_input_error(setup, exact):
+    from tcamlab.errors import InputError
+
+    sample, rig = setup
+    with pytest.raises(InputError, match="spring constant S"):
+        KIND.run_options(sample, rig.replace(spring_constant=None), exact)

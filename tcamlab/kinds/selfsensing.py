@@ -35,6 +35,7 @@ import pandas as pd
 
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import InputError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
 from tcamlab.models import selfsensing as ssm
 from tcamlab.models import static
@@ -197,7 +198,18 @@ def initial_resistance(sample: Sample, rig: Rig, data: pd.DataFrame, provenance=
 
 
 def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, provenance=None, **_) -> RunOptions:
-    """R0 of the run by the module's rule, with its source."""
+    """R0 of the run by the module's rule, with its source.
+
+    Raises
+    ------
+    InputError
+        Without a spring constant S: chapter 3's map from R to delta needs it.
+    """
+    if rig.spring_constant is None:
+        raise InputError(
+            "selfsensing run needs the muscle's spring constant S (chapter 3's R-to-delta map)",
+            hint="set spring_constant_N_per_m in [rig] (tcamlab fit-spring on a pull test of the muscle)",
+        )
     r0, source = initial_resistance(sample, rig, data, provenance)
     return RunOptions(
         # not "initial_resistance_ohm": validation's rest-row check compares that key with the
