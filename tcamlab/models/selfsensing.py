@@ -296,10 +296,30 @@ def temperature_from_power(time, power, *, thermal_mass, heat_loss, ambient, ini
 
 
 def effect_factor(time, contraction, mods=None):
-    """Factor of the library's self-sensing effects on R [-].
+    """Factor of the effect library's self-sensing terms on R [-] (not part of the thesis model).
 
-    (1 + r0_drift t) (1 - contact_slope max(0, c - contact_onset)), c the contraction
-    from rest [m] (positive when shorter), t [s] from the first row.
+    (1 + r0_drift t) (1 - contact_slope max(0, c - contact_onset)): R0 drifting with
+    time, and turns short-circuited by coils that touch once the muscle has contracted
+    past the contact length.
+
+    Parameters
+    ----------
+    time : array_like
+        t from the run's first row [s].
+    contraction : array_like
+        c, shortening from the rest length [m] (positive when shorter).
+    mods : tcamlab.effects.Mods, optional
+        ``r0_drift`` [1/s], ``contact_slope`` [1/m], ``contact_onset`` [m]; None: factor 1.
+
+    Returns
+    -------
+    ndarray
+        The factor [-], broadcast over time and contraction.
+
+    Raises
+    ------
+    ModelDomainError
+        If the contact would short the whole muscle (factor <= 0).
     """
     if mods is None:
         return np.ones(np.broadcast_shapes(np.shape(time), np.shape(contraction)))
@@ -312,5 +332,15 @@ def effect_factor(time, contraction, mods=None):
 
 
 def rest_temperature(power, heat_loss, ambient):
-    """Steady temperature under a held probe power, (2.18) with dT/dt = 0 [degC]."""
+    """Steady temperature under a held power, (2.18) with dT/dt = 0: T_a + P / lambda [degC].
+
+    Parameters
+    ----------
+    power : array_like
+        P [W].
+    heat_loss : array_like
+        lambda [W/K].
+    ambient : array_like
+        T_a [degC].
+    """
     return ambient + power / heat_loss
