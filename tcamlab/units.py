@@ -61,7 +61,7 @@ QUANTITIES: dict[str, Quantity] = dict(
         _q("current", "current_A", "A", "A", 1.0),
         _q("resistance", "resistance_ohm", "ohm", "ohm", 1.0),
         _q("force", "force_N", "N", "N", 1.0),
-        _q("load_force", "load_N", "N", "N", 1.0),
+        _q("load", "load_N", "N", "N", 1.0),
         _q("cable", "cable_mm", "mm", "m", 1e3),
         _q("r1", "r1_ohm", "ohm", "ohm", 1.0),
         _q("r2", "r2_ohm", "ohm", "ohm", 1.0),

@@ -138,7 +138,7 @@ def predict_displacement(
     delta = ssm.invert_displacement(r, temp, **kw)
     # the model's rest extension, not the rest rows' mean of delta: that mean would cancel a
     # common error of R, hiding it from the noise floor and the nuisance zero alike
-    mass = float(data["load_force"].iloc[0]) / G_ACCEL if "load_force" in data else rig.load
+    mass = float(data["load"].iloc[0]) / G_ACCEL if "load" in data else rig.load
     x_rest = _rest_extension(sample, rig, t0, mass)
     if mods.contact_slope:
         delta = _undo_contact(r, temp, delta, x_rest, mods, kw)
@@ -191,7 +191,7 @@ def initial_resistance(sample: Sample, rig: Rig, data: pd.DataFrame, provenance=
     v, i = data["voltage"].to_numpy(float)[rows], data["current"].to_numpy(float)[rows]
     r_rest = float(np.mean(v / i))
     t0 = ssm.rest_temperature(float(np.mean(v * i)), rig.heat_loss, rig.ambient)
-    mass = float(data["load_force"].iloc[0]) / G_ACCEL if "load_force" in data else rig.load
+    mass = float(data["load"].iloc[0]) / G_ACCEL if "load" in data else rig.load
     x_rest = _rest_extension(sample, rig, t0, mass)
     unit = ssm.resistance(t0, x_rest, **_model_kwargs(sample, rig, 1.0, rig.tcr))
     return r_rest / float(unit), f"mean R of the {rows.size} rows at rest / model R/R0 there"
@@ -409,7 +409,7 @@ def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_
     Returns
     -------
     pandas.DataFrame
-        ``time`` [s], ``voltage`` [V], ``current`` [A], ``load_force`` [N] (the
+        ``time`` [s], ``voltage`` [V], ``current`` [A], ``load`` [N] (the
         hanging weight), and ``true_displacement`` [m] from the first row, which
         the laser of :func:`measure` reads (never an input of the model).
     """
@@ -424,7 +424,7 @@ def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_
             "time": t,
             "voltage": v,
             "current": run.current,
-            "load_force": mass * G_ACCEL,
+            "load": mass * G_ACCEL,
             "true_displacement": run.extension - run.rest_extension,
         }
     )
@@ -438,7 +438,7 @@ def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
         "time": 0.0,
         "voltage": float(np.hypot(VOLTAGE_SD_V * noise_scale, qv / np.sqrt(12))),
         "current": float(np.hypot(CURRENT_SD_A * noise_scale, qi / np.sqrt(12))),
-        "load_force": 0.0,
+        "load": 0.0,
         "displacement": instruments.laser_sd(noise_scale),
     }
 
@@ -446,7 +446,7 @@ def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
 def measure(
     inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float, *, noisy_zero=False
 ) -> pd.DataFrame:
-    """Logged ``time``, ``voltage`` and ``current`` (ADCs), ``load_force`` (exact), ``displacement`` (laser).
+    """Logged ``time``, ``voltage`` and ``current`` (ADCs), ``load`` (exact), ``displacement`` (laser).
 
     The laser reads the true displacement of :func:`exact_inputs` (the model's
     ``outputs`` are self-sensed, not measured); ``noisy_zero`` as the dynamic kind.
@@ -462,7 +462,7 @@ def measure(
             "time": inputs["time"].to_numpy(float),
             "voltage": v_log,
             "current": i_log,
-            "load_force": inputs["load_force"].to_numpy(float),
+            "load": inputs["load"].to_numpy(float),
             "displacement": disp,
         }
     )
@@ -537,7 +537,7 @@ KIND = Kind(
     figures=figures,
     extras_section=extras_section,
     preset=THESIS_TCA,
-    logged_columns=("time", "voltage", "current", "load_force", "displacement"),
+    logged_columns=("time", "voltage", "current", "load", "displacement"),
     decimals={"time_s": 3, "voltage_V": 4, "current_A": 6, "load_N": 6, "displacement_mm": 3},
     written_rig_fields=RIG_FIELDS,
     hidden_rig_fields=(),
