@@ -178,3 +178,14 @@ def test_missing_spring_constant_is_one_line_input_error(setup, exact):
     sample, rig = setup
     with pytest.raises(InputError, match="spring constant S"):
         KIND.run_options(sample, rig.replace(spring_constant=None), exact)
+
+
+def test_no_current_is_one_line_input_error(setup, exact):
+    from tcamlab.errors import InputError
+
+    sample, rig = setup
+    dead = exact.assign(current=0.0)
+    with pytest.raises(InputError, match="R = V / I"):
+        KIND.predict(sample, rig, dead, initial_resistance=24.0)
+    with pytest.raises(InputError, match="rest rows"):
+        KIND.run_options(sample, rig.replace(initial_resistance=None), dead)

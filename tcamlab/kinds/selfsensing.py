@@ -103,6 +103,18 @@ def _model_kwargs(sample: Sample, rig: Rig, r0: float, tcr: float) -> dict:
     )
 
 
+def _readable(current: np.ndarray, what: str = "the run") -> np.ndarray:
+    """Rows whose current reads R (:data:`MIN_CURRENT_A`); InputError when there is none."""
+    ok = np.abs(current) >= MIN_CURRENT_A
+    if not ok.any():
+        raise InputError(
+            f"selfsensing: no row of {what} carries {MIN_CURRENT_A * 1e3:g} mA or more, so R = V / I "
+            "cannot be read",
+            hint="keep a probe voltage on between heating phases, and check the current column's unit",
+        )
+    return ok
+
+
 def predict_displacement(
     sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *, initial_resistance: float
 ) -> dict[str, np.ndarray]:
@@ -120,12 +132,17 @@ def predict_displacement(
     Returns
     -------
     dict
-        ``displacement`` [m] (from the rest rows' mean), ``temperature`` [degC].
+        ``displacement`` [m] (from the statics' rest extension), ``temperature`` [degC].
+
+    Raises
+    ------
+    InputError
+        When no row carries the current needed to read R.
     """
     t = data["time"].to_numpy(float)
     v = data["voltage"].to_numpy(float)
     i = data["current"].to_numpy(float)
-    ok = np.abs(i) >= MIN_CURRENT_A
+    ok = _readable(i)
     p = np.where(ok, v * i, 0.0)
     rest = rest_rows(KIND, data)
     t0 = ssm.rest_temperature(float(np.mean(p[rest])), rig.heat_loss, rig.ambient)
@@ -189,7 +206,8 @@ def initial_resistance(sample: Sample, rig: Rig, data: pd.DataFrame, provenance=
         return float(rig.initial_resistance), stated_source(provenance, "initial_resistance")
     rows = rest_rows(KIND, data)
     v, i = data["voltage"].to_numpy(float)[rows], data["current"].to_numpy(float)[rows]
-    r_rest = float(np.mean(v / i))
+    ok = _readable(i, what="the rest rows")
+    r_rest = float(np.mean(v[ok] / i[ok]))
     t0 = ssm.rest_temperature(float(np.mean(v * i)), rig.heat_loss, rig.ambient)
     mass = float(data["load"].iloc[0]) / G_ACCEL if "load" in data else rig.load
     x_rest = _rest_extension(sample, rig, t0, mass)
