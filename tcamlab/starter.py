@@ -232,6 +232,7 @@ _WORDS: dict[str, tuple[str, ...]] = {
     "resistance": ("resistance", "widerstand", "res", "r"),
     "voltage": ("voltage", "volt", "u", "v"),
     "current": ("current", "i"),
+    "load": ("load", "weight", "hanging load"),  # self-sensing: the hanging weight [N]
     "cable": ("cable", "tendon", "pull"),
     "r1": ("r1", "resistance1", "resistance 1"),
     "r2": ("r2", "resistance2", "resistance 2"),
