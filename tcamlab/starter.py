@@ -195,6 +195,13 @@ GUIDE: dict[str, Guide] = {
         "calipers on the cast robot",
         "[30, 30] (thesis sec. 4.3)",
     ),
+    "tcr_per_K": Guide(
+        "temperature coefficient of the coating's resistance, TCR [1/K] (self-sensing)",
+        "an oven test of R against temperature with the muscle unloaded",
+        "0.0038 (bulk silver; thin coatings are often lower)",
+        "typical",
+        0.0038,
+    ),
 }
 """Experiment-file key -> :class:`Guide`."""
 
@@ -225,6 +232,7 @@ _WORDS: dict[str, tuple[str, ...]] = {
     "resistance": ("resistance", "widerstand", "res", "r"),
     "voltage": ("voltage", "volt", "u", "v"),
     "current": ("current", "i"),
+    "load": ("load", "weight", "hanging load"),  # self-sensing: the hanging weight [N]
     "cable": ("cable", "tendon", "pull"),
     "r1": ("r1", "resistance1", "resistance 1"),
     "r2": ("r2", "resistance2", "resistance 2"),
