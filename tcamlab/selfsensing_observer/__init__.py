@@ -1,0 +1,386 @@
+"""Self-sensing estimator: displacement and temperature from voltage and current alone.
+
+An extended Kalman filter (EKF) on the state (T, x, v, F):
+
+* time update: the electro-thermal model (2.18) driven by the *measured* power
+  P = V I held over the sample interval, and the dynamic model (2.14)-(2.19)
+  with the load force F as a random walk (unknown unless a ``load_N`` column
+  is logged, then it is a second measurement);
+* measurement update: the measured current I against V / R(T, x), the combined
+  resistance model (temperature coefficient of the silver, fiber swelling and
+  the coil's geometry), tabulated on a (T, x) grid (:class:`ResistanceTable`).
+
+Why an EKF: the model is smooth, the state is small (4), and the per-sample
+cost must stay in microseconds for a 1 kHz loop; an unscented filter costs
+2n + 1 = 9 propagations a sample against 5 here and gains little on a model
+this close to linear over one millisecond.
+
+Noise, from the instruments (:data:`DEFAULT_NOISE`, documented there): the
+voltage and current channels' sds enter both the measurement (I) and the
+process (the power's error, sd_P^2 = (I sd_V)^2 + (V sd_I)^2, integrated over
+the interval by 1/C_th). The model-error densities q_T, q_v and q_F say how
+far the calibrated thermal model, the mechanics and the load may wander per
+second.
+
+Parameters (C_th, lambda, b, m, R0, the sample's geometry, ...) come from an
+experiment file or its ``NAME.calibrated.toml`` (:func:`observer_config`), never
+from constants here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from tcamlab.params import G_ACCEL, SILVER_TCR, Rig, Sample
+
+__all__ = [
+    "ObserverConfig",
+    "ResistanceTable",
+    "SelfSensingObserver",
+    "EstimateResult",
+    "estimate",
+    "observer_config",
+    "interim_resistance",
+    "parameter_vector",
+    "DEFAULT_NOISE",
+    "MAX_STEP_S",
+]
+
+MAX_STEP_S = 1e-3
+"""Largest integration sub-step of the filter's time update [s] (RK4; the
+mechanics' natural frequency is about 14 rad/s, the thermal time constant 3 s)."""
+
+DEFAULT_NOISE = {
+    "sd_voltage": 8e-3,
+    "sd_current": 1.0e-3,
+    "q_temperature": 0.5,
+    "q_velocity": 1e-8,
+    "q_force": 1e-5,
+    "sd_load": 2e-3,
+}
+"""Noise of the filter, SI.
+
+* ``sd_voltage`` [V]: driver output read by a 10-bit ADC over a 15 V divider
+  (one code 14.7 mV, sd 4.2 mV) plus 5 mV analogue noise, sqrt(4.2^2 + 5^2) = 6.5 mV,
+  rounded up to 8 mV.
+* ``sd_current`` [A]: 0.1 ohm sense resistor, gain 50, 10-bit ADC over 5 V
+  (one code 0.98 mA, sd 0.28 mA) plus 0.5 mA amplifier noise: 0.6 mA, rounded up to 1 mA.
+* ``q_temperature`` [K^2/s]: model error of (2.18) beyond the power noise: a
+  lambda 5% off at 60 K above ambient errs by 0.16 K/s; 0.5 K^2/s lets the
+  estimate move 0.7 K in a second on the resistance's word. Much looser makes T
+  and the load unobservable apart (the estimate drifts: README).
+* ``q_velocity`` [m^2/s^3]: unmodelled forces on the mechanics.
+* ``q_force`` [N^2/s]: the load's random walk (sd 3 mN after 1 s): looser lets the
+  resistance noise into x through the load (dx = f11 dF, f11 = 0.09 m/N for the
+  thesis TCA), tighter follows a load change more slowly (measured: README).
+* ``sd_load`` [N]: a logged load cell (LSP-5 with amplifier, 2 mN).
+"""
+
+
+@dataclass(frozen=True)
+class ResistanceTable:
+    """R(T, x) on a regular grid, for the compiled filter.
+
+    Attributes
+    ----------
+    values : ndarray, shape (nT, nx)
+        R [ohm].
+    grid : ndarray, shape (4,)
+        (first T [degC], T step [K], first x [m], x step [m]).
+    """
+
+    values: np.ndarray
+    grid: np.ndarray
+
+    @classmethod
+    def build(cls, resistance, t_range, x_range, n_t=121, n_x=161):
+        """Tabulate a vectorised ``resistance(temperature [degC], extension [m])`` [ohm]."""
+        t = np.linspace(t_range[0], t_range[1], n_t)
+        x = np.linspace(x_range[0], x_range[1], n_x)
+        tt, xx = np.meshgrid(t, x, indexing="ij")
+        values = np.ascontiguousarray(np.asarray(resistance(tt, xx), float))
+        grid = np.array([t[0], t[1] - t[0], x[0], x[1] - x[0]])
+        return cls(values, grid)
+
+
+@dataclass(frozen=True)
+class ObserverConfig:
+    """Everything the filter needs, SI.
+
+    Attributes
+    ----------
+    sample : Sample
+    rig : Rig
+        C_th, lambda, b, the hanging mass m (inertia and the load's prior) and
+        T_a are read from here.
+    initial_resistance : float
+        R at ambient under the initial load [ohm].
+    resistance_tc : float
+        Temperature coefficient of R [1/K].
+    table : ResistanceTable
+    noise : dict
+        As :data:`DEFAULT_NOISE`.
+    initial_temperature_sd : float
+        Prior sd of T at the start [K].
+    initial_load_sd : float
+        Prior sd of the load force at the start [N].
+    """
+
+    sample: Sample
+    rig: Rig
+    initial_resistance: float
+    resistance_tc: float
+    table: ResistanceTable
+    noise: dict = field(default_factory=lambda: dict(DEFAULT_NOISE))
+    initial_temperature_sd: float = 2.0
+    initial_load_sd: float = 0.02
+
+    def noise_vector(self) -> np.ndarray:
+        n = self.noise
+        keys = ("sd_voltage", "sd_current", "q_temperature", "q_velocity", "q_force", "sd_load")
+        return np.array([float(n[k]) for k in keys])
+
+    def with_noise(self, **changes) -> ObserverConfig:
+        return replace(self, noise={**self.noise, **changes})
+
+
+def parameter_vector(sample: Sample, rig: Rig) -> np.ndarray:
+    """Parameter vector of :mod:`tcamlab.selfsensing_observer.kernel` [SI]."""
+    from tcamlab.models import static
+    from tcamlab.selfsensing_observer import kernel as K
+
+    p = np.zeros(K.N_PARAMS)
+    p[K.P_TA], p[K.P_CTH], p[K.P_LAM] = rig.ambient, rig.thermal_mass, rig.heat_loss
+    p[K.P_MASS], p[K.P_DAMP] = rig.load, rig.damping
+    p[K.P_L], p[K.P_D0], p[K.P_RHO] = sample.fiber_length, sample.fiber_diameter, sample.radial_cte
+    p[K.P_GT] = float(
+        static.sample_shear_modulus(
+            sample.fiber_diameter,
+            sample.fiber_length,
+            sample.twists,
+            sample.youngs_modulus,
+            sample.thread_plies,
+            sample.max_volume_fraction,
+        )
+    )
+    p[K.P_SLOPE], p[K.P_E] = sample.shear_modulus_slope, sample.youngs_modulus
+    p[K.P_PHI0] = 2.0 * np.pi * sample.twists
+    p[K.P_NCOIL] = float(static.n_coils(sample.fiber_length, sample.coil_length, sample.coil_diameter))
+    p[K.P_S0] = sample.coil_length / sample.fiber_length
+    return p
+
+
+def rest_extension(sample: Sample, rig: Rig, temperature=None, force=None) -> float:
+    """Static extension x under the rig's load at ambient (or the given T [degC], F [N]) [m]."""
+    from tcamlab.selfsensing_observer import kernel as K
+
+    p = parameter_vector(sample, rig)
+    t = rig.ambient if temperature is None else temperature
+    f = rig.force if force is None else force
+    return float(K.equilibrium(float(t), float(f), p, 0.5 * sample.coil_length))
+
+
+def interim_resistance(sample: Sample, rig: Rig, initial_resistance: float, resistance_tc: float):
+    """R(T, x) = R0 (1 + a dT) (d0 / d)^2 with d = d0 (1 + rho dT) (1 - nu (x - x0) / l).
+
+    The silver's temperature coefficient a; the fiber's swelling (2.8) thins
+    the silver's share of R by (3.2); stretching the coil by x - x0 beyond its
+    loaded rest length x0 twists and thins the fiber, taken here as a linear
+    thinning with nu = 0.5 per unit of fiber-length strain. A stand-in for the
+    combined model of :mod:`tcamlab.models.selfsensing` where that is absent.
+    Returns a vectorised function of (T [degC], x [m]) -> R [ohm].
+    """
+    x0 = rest_extension(sample, rig)
+    l, rho, ta = sample.fiber_length, sample.radial_cte, rig.ambient
+
+    def resistance(temperature, extension):
+        dT = np.asarray(temperature, float) - ta
+        ratio = (1.0 + rho * dT) * (1.0 - 0.5 * (np.asarray(extension, float) - x0) / l)
+        return initial_resistance * (1.0 + resistance_tc * dT) / ratio**2
+
+    return resistance
+
+
+def observer_config(experiment, *, resistance=None, noise=None, temperature_span=160.0) -> ObserverConfig:
+    """The filter's configuration from an experiment (or calibrated) file.
+
+    Parameters
+    ----------
+    experiment : tcamlab.config.Experiment
+        Its ``sample`` and ``rig`` (C_th, lambda, b, load, ambient, R0 as
+        ``initial_resistance`` or else ``resistance``; the TCR as
+        ``resistance_tc`` where the rig has one, else silver's).
+    resistance : callable, optional
+        R(T [degC], x [m]) [ohm], vectorised; default :func:`interim_resistance`.
+    noise : dict, optional
+        Overrides of :data:`DEFAULT_NOISE`.
+    temperature_span : float
+        Tabulated range above ambient [K].
+    """
+    sample, rig = experiment.sample, experiment.rig
+    r0 = rig.initial_resistance if rig.initial_resistance is not None else rig.resistance
+    tcr = float(getattr(rig, "resistance_tc", None) or SILVER_TCR)
+    fn = resistance or interim_resistance(sample, rig, r0, tcr)
+    x0 = rest_extension(sample, rig)
+    half = 0.6 * x0 + 2e-3  # loads from 40% to 160% of the stated one
+    table = ResistanceTable.build(
+        fn, (rig.ambient - 20.0, rig.ambient + temperature_span), (x0 - half, x0 + half)
+    )
+    return ObserverConfig(sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})})
+
+
+@dataclass
+class EstimateResult:
+    """The filter's estimates over a log, SI.
+
+    Attributes
+    ----------
+    time : ndarray [s]
+    displacement : ndarray
+        Estimated x - x(0), the logs' convention (positive longer) [m].
+    temperature : ndarray [degC]
+    load_force : ndarray [N]
+    variance : ndarray, shape (n, 4)
+        Posterior variances of (T, x, v, F) [K^2, m^2, m^2/s^2, N^2].
+    nis : ndarray
+        Normalised innovation squared per sample (NaN where V carried no information).
+    extension0 : float
+        x at the start [m].
+    """
+
+    time: np.ndarray
+    displacement: np.ndarray
+    temperature: np.ndarray
+    load_force: np.ndarray
+    variance: np.ndarray
+    nis: np.ndarray
+    extension0: float
+
+    @property
+    def displacement_sd(self) -> np.ndarray:
+        return np.sqrt(self.variance[:, 1])
+
+
+def initial_state(config: ObserverConfig, temperature=None):
+    """(s0, C0): the state at rest under the stated load and its prior covariance."""
+    rig = config.rig
+    t0 = rig.ambient if temperature is None else float(temperature)
+    x0 = rest_extension(config.sample, rig, t0)
+    s0 = np.array([t0, x0, 0.0, rig.force])
+    # The load's prior spreads x too: dx = f11 dF with f11 = dx/dF at rest.
+    f11 = (rest_extension(config.sample, rig, t0, rig.force + 1e-3) - x0) / 1e-3
+    c0 = np.diag([config.initial_temperature_sd**2, (f11 * config.initial_load_sd) ** 2, 1e-8, 0.0])
+    c0[3, 3] = config.initial_load_sd**2
+    c0[1, 3] = c0[3, 1] = f11 * config.initial_load_sd**2
+    return s0, c0
+
+
+def _as_load(load, n):
+    if load is None:
+        return np.full(n, np.nan)
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(load, float), (n,)))
+
+
+def estimate(
+    time, voltage, current, config: ObserverConfig, load=None, initial_temperature=None
+) -> EstimateResult:
+    """Estimate displacement and temperature over a whole log (compiled, causal).
+
+    Parameters
+    ----------
+    time : array_like, shape (n,)
+        [s], strictly increasing.
+    voltage, current : array_like, shape (n,)
+        Measured V [V] and I [A]; V is held from each sample to the next.
+    config : ObserverConfig
+    load : array_like, optional
+        Logged load force [N] (NaN where not logged); default unknown.
+    initial_temperature : float, optional
+        The filter's initial guess [degC]; default ambient.
+
+    Returns
+    -------
+    EstimateResult
+    """
+    from tcamlab.selfsensing_observer import kernel as K
+
+    t = np.ascontiguousarray(time, float)
+    v = np.ascontiguousarray(voltage, float)
+    i = np.ascontiguousarray(current, float)
+    n = t.size
+    s0, c0 = initial_state(config, initial_temperature)
+    out_s = np.empty((n, K.NX))
+    out_var = np.empty((n, K.NX))
+    out_nis = np.empty(n)
+    p = parameter_vector(config.sample, config.rig)
+    K.ekf_batch(
+        t, v, i, _as_load(load, n), s0, c0, p, config.noise_vector(), config.table.values,
+        config.table.grid, MAX_STEP_S, out_s, out_var, out_nis,
+    )  # fmt: skip
+    x_start = rest_extension(config.sample, config.rig)
+    return EstimateResult(t, out_s[:, 1] - x_start, out_s[:, 0], out_s[:, 3], out_var, out_nis, x_start)
+
+
+class SelfSensingObserver:
+    """The estimator on a live stream: one :meth:`step` per sample.
+
+    Parameters
+    ----------
+    config : ObserverConfig
+    dt : float
+        Sample period [s] (a call may pass its own).
+    initial_temperature : float, optional
+        [degC]; default ambient.
+
+    Examples
+    --------
+    >>> obs = SelfSensingObserver(config, dt=1e-3)          # doctest: +SKIP
+    >>> delta, temperature, cov = obs.step(4.0, 0.1)        # doctest: +SKIP
+    """
+
+    def __init__(self, config: ObserverConfig, dt: float = 1e-3, initial_temperature=None):
+        from tcamlab.selfsensing_observer import kernel as K
+
+        self._k = K
+        self.config = config
+        self.dt = float(dt)
+        self.state, self.covariance = initial_state(config, initial_temperature)
+        self.extension0 = rest_extension(config.sample, config.rig)
+        self._p = parameter_vector(config.sample, config.rig)
+        self._noise = config.noise_vector()
+        self._carry = np.zeros(2)
+        self._nsub = max(1, int(np.ceil(self.dt / MAX_STEP_S)))
+        self._first = True
+        self.nis = float("nan")
+
+    def step(self, voltage: float, current: float, load: float | None = None, dt: float | None = None):
+        """Take one sample (V [V], I [A], optional load force [N]).
+
+        Returns
+        -------
+        delta : float
+            Estimated displacement from the start, positive longer [m].
+        temperature : float
+            [degC].
+        covariance : ndarray, shape (4, 4)
+            Of (T, x, v, F), a copy.
+        """
+        lf = float("nan") if load is None else float(load)
+        if self._first:  # the first sample only starts the power held over the next interval
+            self._carry[0], self._carry[1] = voltage, current
+            self._first = False
+        else:
+            h = self.dt if dt is None else float(dt)
+            nsub = self._nsub if dt is None else max(1, int(np.ceil(h / MAX_STEP_S)))
+            self.nis = self._k.ekf_step(
+                self.state, self.covariance, float(voltage), float(current), lf, h, self._p, nsub,
+                self._noise, self.config.table.values, self.config.table.grid, self._carry,
+            )  # fmt: skip
+        return self.state[1] - self.extension0, self.state[0], self.covariance.copy()
+
+
+def default_load_force(rig: Rig) -> float:
+    """The stated load as a force, m g [N]."""
+    return rig.load * G_ACCEL
