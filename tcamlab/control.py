@@ -31,6 +31,10 @@ import numpy as np
 
 from tcamlab.params import Rig, Sample
 from tcamlab.selfsensing_observer import (
+    CURRENT_NOISE_SD,
+    CURRENT_QUANTUM,
+    VOLTAGE_NOISE_SD,
+    VOLTAGE_QUANTUM,
     MAX_STEP_S,
     ObserverConfig,
     initial_state,
@@ -60,10 +64,10 @@ __all__ = [
 class Instruments:
     """The rig's measurement chains [SI] (see :data:`tcamlab.selfsensing_observer.DEFAULT_NOISE`)."""
 
-    sd_voltage: float = 5e-3
-    sd_current: float = 0.5e-3
-    voltage_quantum: float = 15.0 / 1023
-    current_quantum: float = 1.0 / 1023
+    sd_voltage: float = VOLTAGE_NOISE_SD
+    sd_current: float = CURRENT_NOISE_SD
+    voltage_quantum: float = VOLTAGE_QUANTUM
+    current_quantum: float = CURRENT_QUANTUM
     laser_sd: float = 5e-6
     laser_quantum: float = 10e-3 / 1023
 

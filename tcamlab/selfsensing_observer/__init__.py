@@ -45,6 +45,11 @@ __all__ = [
     "interim_resistance",
     "parameter_vector",
     "DEFAULT_NOISE",
+    "chain_sd",
+    "VOLTAGE_NOISE_SD",
+    "VOLTAGE_QUANTUM",
+    "CURRENT_NOISE_SD",
+    "CURRENT_QUANTUM",
     "MAX_STEP_S",
 ]
 
@@ -52,9 +57,24 @@ MAX_STEP_S = 1e-3
 """Largest integration sub-step of the filter's time update [s] (RK4; the
 mechanics' natural frequency is about 14 rad/s, the thermal time constant 3 s)."""
 
+VOLTAGE_NOISE_SD = 5e-3
+"""Analogue noise on the driver-voltage reading [V]."""
+VOLTAGE_QUANTUM = 15.0 / 1023
+"""One code of a 10-bit ADC over a 15 V divider [V] (14.7 mV)."""
+CURRENT_NOISE_SD = 0.5e-3
+"""Amplifier noise of the current sense (0.1 ohm, gain 50) [A]."""
+CURRENT_QUANTUM = 1.0 / 1023
+"""One code of a 10-bit ADC over the sense's 1 A span [A] (0.98 mA)."""
+
+
+def chain_sd(noise_sd: float, quantum: float) -> float:
+    """sd of a reading: noise and uniform quantisation, sqrt(sd^2 + q^2 / 12)."""
+    return float(np.hypot(noise_sd, quantum / np.sqrt(12.0)))
+
+
 DEFAULT_NOISE = {
-    "sd_voltage": 8e-3,
-    "sd_current": 1.0e-3,
+    "sd_voltage": chain_sd(VOLTAGE_NOISE_SD, VOLTAGE_QUANTUM),
+    "sd_current": chain_sd(CURRENT_NOISE_SD, CURRENT_QUANTUM),
     "q_temperature": 0.5,
     "q_velocity": 1e-8,
     "q_force": 1e-5,
@@ -62,11 +82,10 @@ DEFAULT_NOISE = {
 }
 """Noise of the filter, SI.
 
-* ``sd_voltage`` [V]: driver output read by a 10-bit ADC over a 15 V divider
-  (one code 14.7 mV, sd 4.2 mV) plus 5 mV analogue noise, sqrt(4.2^2 + 5^2) = 6.5 mV,
-  rounded up to 8 mV.
-* ``sd_current`` [A]: 0.1 ohm sense resistor, gain 50, 10-bit ADC over 5 V
-  (one code 0.98 mA, sd 0.28 mA) plus 0.5 mA amplifier noise: 0.6 mA, rounded up to 1 mA.
+* ``sd_voltage`` [V]: the driver voltage read by a 10-bit ADC over a 15 V divider
+  (one code 14.7 mV, sd 4.2 mV) with 5 mV analogue noise: 6.5 mV.
+* ``sd_current`` [A]: a 0.1 ohm sense resistor, gain 50, 10-bit ADC over 5 V
+  (one code 0.98 mA, sd 0.28 mA) with 0.5 mA amplifier noise: 0.58 mA.
 * ``q_temperature`` [K^2/s]: model error of (2.18) beyond the power noise: a
   lambda 5% off at 60 K above ambient errs by 0.16 K/s; 0.5 K^2/s lets the
   estimate move 0.7 K in a second on the resistance's word. Much looser makes T
