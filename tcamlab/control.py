@@ -33,9 +33,9 @@ from tcamlab.params import Rig, Sample
 from tcamlab.selfsensing_observer import (
     CURRENT_NOISE_SD,
     CURRENT_QUANTUM,
+    MAX_STEP_S,
     VOLTAGE_NOISE_SD,
     VOLTAGE_QUANTUM,
-    MAX_STEP_S,
     ObserverConfig,
     initial_state,
     parameter_vector,

@@ -11,7 +11,6 @@ from tcamlab import control as ct
 from tcamlab import selfsensing_observer as so
 from tcamlab.config import load_experiment
 
-
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -61,9 +60,9 @@ def test_step_and_batch_agree(config, exact_truth):
     r = _run(config, exact_truth, np.where(np.arange(3000) < 1500, 3.0, 5.0), 3.0)
     # replay the logged readings through the live-stream class and the batch function
     volts = r.voltage
-    currents = volts / so.interim_resistance(config.sample, config.rig, config.initial_resistance, config.resistance_tc)(
-        r.temperature, r.displacement + so.rest_extension(config.sample, config.rig)
-    )
+    currents = volts / so.interim_resistance(
+        config.sample, config.rig, config.initial_resistance, config.resistance_tc
+    )(r.temperature, r.displacement + so.rest_extension(config.sample, config.rig))
     batch = so.estimate(r.time, volts, currents, config)
     obs = so.SelfSensingObserver(config, dt=1e-3)
     live = np.array([obs.step(v, i)[0] for v, i in zip(volts, currents)])
