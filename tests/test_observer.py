@@ -22,7 +22,7 @@ def config():
 @pytest.fixture(scope="module")
 def exact_truth(config):
     """The plant with the filter's own parameters: only noise separates them."""
-    return ct.truth_config(config, (config.sample, config.rig, config.resistance_tc), so.interim_resistance)
+    return ct.truth_config(config, (config.sample, config.rig, config.resistance_tc), so.combined_resistance)
 
 
 def _run(config, truth, volts, duration, load_change=0.0, at=1e9, seed=3, initial_temperature=None):
@@ -60,7 +60,7 @@ def test_step_and_batch_agree(config, exact_truth):
     r = _run(config, exact_truth, np.where(np.arange(3000) < 1500, 3.0, 5.0), 3.0)
     # replay the logged readings through the live-stream class and the batch function
     volts = r.voltage
-    currents = volts / so.interim_resistance(
+    currents = volts / so.combined_resistance(
         config.sample, config.rig, config.initial_resistance, config.resistance_tc
     )(r.temperature, r.displacement + so.rest_extension(config.sample, config.rig))
     batch = so.estimate(r.time, volts, currents, config)
@@ -72,7 +72,7 @@ def test_step_and_batch_agree(config, exact_truth):
 
 def test_innovations_are_consistent(config):
     """Mean NIS near its 1 degree of freedom on a run with noise only (no quantisation)."""
-    truth = ct.truth_config(config, (config.sample, config.rig, config.resistance_tc), so.interim_resistance)
+    truth = ct.truth_config(config, (config.sample, config.rig, config.resistance_tc), so.combined_resistance)
     inst = ct.Instruments(voltage_quantum=0.0, current_quantum=0.0)
     cfg = config.with_noise(sd_voltage=inst.sd_voltage, sd_current=inst.sd_current)
     scenario = ct.Scenario(duration=20.0, load_change=0.0, seed=11)
@@ -81,7 +81,7 @@ def test_innovations_are_consistent(config):
     r = ct.simulate_loop("voltage", cfg, truth, scenario, voltage=volts, instruments=inst)
     v_read = r.voltage  # exact V; the NIS of the batch replay on noisy I
     rng = np.random.default_rng(11)
-    r_true = so.interim_resistance(cfg.sample, cfg.rig, cfg.initial_resistance, cfg.resistance_tc)(
+    r_true = so.combined_resistance(cfg.sample, cfg.rig, cfg.initial_resistance, cfg.resistance_tc)(
         r.temperature, r.displacement + so.rest_extension(cfg.sample, cfg.rig)
     )
     i_read = v_read / r_true + inst.sd_current * rng.standard_normal(time.size)

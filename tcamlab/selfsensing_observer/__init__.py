@@ -43,6 +43,8 @@ __all__ = [
     "estimate",
     "observer_config",
     "interim_resistance",
+    "combined_resistance",
+    "TCS_STIFFNESS_RATIO",
     "parameter_vector",
     "DEFAULT_NOISE",
     "chain_sd",
@@ -222,6 +224,37 @@ def interim_resistance(sample: Sample, rig: Rig, initial_resistance: float, resi
     return resistance
 
 
+TCS_STIFFNESS_RATIO = 0.6
+"""S f11(alpha0) assumed for chapter 3's map when the rig states no spring constant
+(the ratio of the sensing template, README "Presets and assumed values")."""
+
+
+def combined_resistance(sample: Sample, rig: Rig, initial_resistance: float, resistance_tc: float):
+    """R(T, x) of :mod:`tcamlab.models.selfsensing`, scaled so that R = ``initial_resistance`` at rest.
+
+    ``initial_resistance`` is R at ambient under the rig's load (what a run's
+    leading rows measure); the model's R0 (unloaded) follows from its g(x0).
+    S is ``rig.spring_constant``, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0).
+    Returns a vectorised function of (T [degC], x [m]) -> R [ohm].
+    """
+    from tcamlab.models import selfsensing, sensing
+
+    kw = sample.sensor_kwargs()
+    s_c = rig.spring_constant
+    if s_c is None:
+        s_c = TCS_STIFFNESS_RATIO * sensing.conditioning(1.0, **kw).spring_stiffness_model
+    x0 = rest_extension(sample, rig)
+    r0_unloaded = initial_resistance / float(selfsensing.geometric_ratio(x0, spring_constant=s_c, **kw))
+
+    def resistance(temperature, extension):
+        return selfsensing.resistance(
+            temperature, extension, initial_resistance=r0_unloaded, reference_temperature=rig.ambient,
+            tcr=resistance_tc, radial_cte=sample.radial_cte, spring_constant=s_c, **kw,
+        )  # fmt: skip
+
+    return resistance
+
+
 def observer_config(experiment, *, resistance=None, noise=None, temperature_span=160.0) -> ObserverConfig:
     """The filter's configuration from an experiment (or calibrated) file.
 
@@ -232,7 +265,7 @@ def observer_config(experiment, *, resistance=None, noise=None, temperature_span
         ``initial_resistance`` or else ``resistance``; the TCR as
         ``resistance_tc`` where the rig has one, else silver's).
     resistance : callable, optional
-        R(T [degC], x [m]) [ohm], vectorised; default :func:`interim_resistance`.
+        R(T [degC], x [m]) [ohm], vectorised; default :func:`combined_resistance`.
     noise : dict, optional
         Overrides of :data:`DEFAULT_NOISE`.
     temperature_span : float
@@ -241,9 +274,9 @@ def observer_config(experiment, *, resistance=None, noise=None, temperature_span
     sample, rig = experiment.sample, experiment.rig
     r0 = rig.initial_resistance if rig.initial_resistance is not None else rig.resistance
     tcr = float(getattr(rig, "resistance_tc", None) or SILVER_TCR)
-    fn = resistance or interim_resistance(sample, rig, r0, tcr)
+    fn = resistance or combined_resistance(sample, rig, r0, tcr)
     x0 = rest_extension(sample, rig)
-    half = 0.6 * x0 + 2e-3  # loads from 40% to 160% of the stated one
+    half = 0.3 * x0 + 2e-3  # loads from about 70% to 130% of the stated one
     table = ResistanceTable.build(
         fn, (rig.ambient - 20.0, rig.ambient + temperature_span), (x0 - half, x0 + half)
     )
