@@ -239,11 +239,14 @@ def simulate_loop(
     reference=None,
     instruments: Instruments = INSTRUMENTS,
     initial_temperature=None,
+    load_logged: bool = False,
 ) -> LoopResult:
     """Run the virtual rig under one feedback (or a given ``voltage`` profile for ``mode="voltage"``).
 
     ``model`` is what the controller and the estimator believe (calibrated);
     ``truth`` drives the plant. Noise draws are seeded by ``scenario.seed``.
+    ``load_logged``: a load cell (sd ``model.noise["sd_load"]``) reads the load force
+    and the estimator takes it as a measurement; otherwise the load is unknown.
     """
     from tcamlab import control_kernel as CK
 
@@ -259,9 +262,13 @@ def simulate_loop(
     s_true, _ = initial_state(truth)
     s_est, c_est = initial_state(model, initial_temperature)
     draws = np.random.default_rng([scenario.seed, 0xC0]).standard_normal((n, 3))
+    load_meas = np.full(n, np.nan)
+    if load_logged:
+        cell = np.random.default_rng([scenario.seed, 0x10AD]).standard_normal(n)
+        load_meas = force + model.noise["sd_load"] * cell
     out = np.empty((n, 6))
     CK.run_loop(
-        MODES[mode], time, np.ascontiguousarray(ref, float), force, v_given, s_true,
+        MODES[mode], time, np.ascontiguousarray(ref, float), force, load_meas, v_given, s_true,
         parameter_vector(truth.sample, truth.rig), truth.table.values, truth.table.grid, s_est, c_est,
         parameter_vector(model.sample, model.rig), model.noise_vector(), model.table.values, model.table.grid,
         ctrl, ff[0], ff[1], instruments.vector(), draws, out,
@@ -313,7 +320,7 @@ class ClosedLoopStudy:
 
 
 def closed_loop_study(
-    model: ObserverConfig, scenario: Scenario, resistance_factory, truth=None
+    model: ObserverConfig, scenario: Scenario, resistance_factory, truth=None, load_logged=False
 ) -> ClosedLoopStudy:
     """Open-loop, laser and self-sensing feedback on the same virtual rig and noise.
 
@@ -322,7 +329,10 @@ def closed_loop_study(
     """
     sample, rig, tcr = perturbed_truth(model, scenario.seed) if truth is None else truth
     true_cfg = _truth_config(model, sample, rig, tcr, resistance_factory)
-    results = {m: simulate_loop(m, model, true_cfg, scenario) for m in ("open-loop", "laser", "self-sensing")}
+    results = {
+        m: simulate_loop(m, model, true_cfg, scenario, load_logged=load_logged)
+        for m in ("open-loop", "laser", "self-sensing")
+    }
     study = ClosedLoopStudy(
         scenario, results, rig, tcr, model.rig, model.resistance_tc, controller_gains(model, scenario)
     )

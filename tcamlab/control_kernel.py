@@ -69,7 +69,7 @@ def _measure(s, volt, table_t, grid_t, x0_true, inst, draws):
 
 
 @njit(cache=True)
-def run_loop(mode, time, ref, force, v_given, s_true, p_true, table_t, grid_t, s_est, c_est, p_m, noise, table_m,
+def run_loop(mode, time, ref, force, load_meas, v_given, s_true, p_true, table_t, grid_t, s_est, c_est, p_m, noise, table_m,
              grid_m, ctrl, ff_r, ff_t, inst, draws, out):  # fmt: skip
     """Run the loop; ``out`` columns: true displacement, estimate, V, true T, estimated T, laser reading."""
     n = time.size
@@ -92,7 +92,7 @@ def run_loop(mode, time, ref, force, v_given, s_true, p_true, table_t, grid_t, s
         if k == 0:
             carry[0], carry[1] = v_read, i_read
         else:
-            K.ekf_step(s_est, c_est, v_read, i_read, np.nan, time[k] - time[k - 1], p_m, nsub, noise, table_m,
+            K.ekf_step(s_est, c_est, v_read, i_read, load_meas[k], time[k] - time[k - 1], p_m, nsub, noise, table_m,
                        grid_m, carry)  # fmt: skip
         y = laser if mode == MODE_LASER else s_est[1] - x0_m
         out[k, 0] = s_true[1] - x0_true

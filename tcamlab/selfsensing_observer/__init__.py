@@ -79,7 +79,7 @@ DEFAULT_NOISE = {
     "sd_current": chain_sd(CURRENT_NOISE_SD, CURRENT_QUANTUM),
     "q_temperature": 0.5,
     "q_velocity": 1e-8,
-    "q_force": 1e-5,
+    "q_force": 1e-6,
     "sd_load": 2e-3,
 }
 """Noise of the filter, SI.
@@ -93,7 +93,7 @@ DEFAULT_NOISE = {
   estimate move 0.7 K in a second on the resistance's word. Much looser makes T
   and the load unobservable apart (the estimate drifts: README).
 * ``q_velocity`` [m^2/s^3]: unmodelled forces on the mechanics.
-* ``q_force`` [N^2/s]: the load's random walk (sd 3 mN after 1 s): looser lets the
+* ``q_force`` [N^2/s]: the load's random walk (sd 1 mN after 1 s): looser lets the
   resistance noise into x through the load (dx = f11 dF, f11 = 0.09 m/N for the
   thesis TCA), tighter follows a load change more slowly (measured: README).
 * ``sd_load`` [N]: a logged load cell (LSP-5 with amplifier, 2 mN).
@@ -156,7 +156,7 @@ class ObserverConfig:
     table: ResistanceTable
     noise: dict = field(default_factory=lambda: dict(DEFAULT_NOISE))
     initial_temperature_sd: float = 2.0
-    initial_load_sd: float = 0.02
+    initial_load_sd: float = 1e-3
 
     def noise_vector(self) -> np.ndarray:
         n = self.noise
