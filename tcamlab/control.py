@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -348,3 +349,75 @@ def truth_config(model: ObserverConfig, truth, resistance_factory) -> ObserverCo
 
 
 __all__ += ["truth_config", "MODES", "feedforward_table", "MAX_STEP_S"]
+
+
+@dataclass
+class ClosedLoopOutcome:
+    """What :func:`closed_loop_experiment` made: the studies, a summary and the files written."""
+
+    studies: dict
+    summary: dict
+    files: list
+
+
+def study_summary(studies: dict) -> dict:
+    """Tracking RMS and the estimate's error per load regime [m], the ratios, the stroke."""
+    from tcamlab.report.closed_loop_report import estimate_metrics
+
+    out = {}
+    for label, st in studies.items():
+        out[label] = {
+            "rms_m": dict(st.rms),
+            "rms_after_load_change_m": dict(st.rms_after_load_change),
+            "self_sensing_over_laser": st.rms["self-sensing"] / st.rms["laser"],
+            "estimate": estimate_metrics(st.results["laser"], st.scenario.stroke),
+        }
+    first = next(iter(studies.values()))
+    return {"stroke_m": first.scenario.stroke, "seed": first.scenario.seed, "regimes": out}
+
+
+def closed_loop_experiment(path, out_dir, *, seed: int = 1, duration: float = 120.0, force: bool = False):
+    """``tcamlab closed-loop``: the three feedbacks on the virtual rig, load unknown and logged.
+
+    Writes OUT/NAME/closed_loop.html, closed_loop.pdf and closed_loop.json
+    (nothing is overwritten without ``force``; all three or none).
+    """
+    from tcamlab import __version__
+    from tcamlab.config import load_experiment
+    from tcamlab.io import sha256_file
+    from tcamlab.jsonutil import dumps_json
+    from tcamlab.report.atomic import write_all_or_nothing
+    from tcamlab.report.closed_loop_report import closed_loop_document
+    from tcamlab.report.html import render_html
+    from tcamlab.report.pdf import render_pdf
+    from tcamlab.rig.writers import refuse_overwrite
+    from tcamlab.selfsensing_observer import combined_resistance, observer_config
+
+    exp = load_experiment(path, require_runs=False)
+    target = Path(out_dir) / exp.name
+    names = ("closed_loop.html", "closed_loop.pdf", "closed_loop.json")
+    refuse_overwrite([target / n for n in names], force=force)
+    model = observer_config(exp)
+    scenario = Scenario(duration=float(duration), load_change_at=float(duration) / 2, seed=int(seed))
+    studies = {
+        "load unknown": closed_loop_study(model, scenario, combined_resistance),
+        "load logged": closed_loop_study(model, scenario, combined_resistance, load_logged=True),
+    }
+    summary = study_summary(studies)
+    meta = {
+        "tool": f"tcamlab {__version__}",
+        "experiment file": exp.path.name,
+        "experiment SHA-256": sha256_file(exp.path),
+        "command": f"tcamlab closed-loop {exp.path.name} --seed {seed} --duration {duration:g}",
+    }
+    doc = closed_loop_document(studies, exp.name, meta)
+    payload = {
+        names[0]: render_html(doc).encode(),
+        names[1]: render_pdf(doc),
+        names[2]: dumps_json(summary).encode(),
+    }
+    files = write_all_or_nothing(target, payload)
+    return ClosedLoopOutcome(studies, summary, files)
+
+
+__all__ += ["ClosedLoopOutcome", "study_summary", "closed_loop_experiment"]

@@ -56,3 +56,21 @@ def test_feedback_beats_open_loop_under_a_load_change(config):
     study = ct.closed_loop_study(config, ct.Scenario(duration=120.0, seed=1), so.combined_resistance)
     assert study.rms["laser"] < study.rms["open-loop"]
     assert study.rms["self-sensing"] < study.rms["open-loop"]
+
+
+def test_closed_loop_command_writes_the_report_and_refuses_to_overwrite(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "tcamlab", "closed-loop", str(ROOT / "experiments" / "dynamic.toml")]
+    cmd += ["--out", str(tmp_path), "--duration", "20"]
+    first = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert first.returncode == 0, first.stderr
+    folder = tmp_path / "dynamic"
+    assert (folder / "closed_loop.pdf").read_bytes()[:5] == b"%PDF-"
+    assert "SYNTHETIC" in (folder / "closed_loop.html").read_text()
+    summary = json.loads((folder / "closed_loop.json").read_text())
+    assert set(summary["regimes"]) == {"load unknown", "load logged"}
+    again = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert again.returncode == 2 and "--force" in again.stderr and "Traceback" not in again.stderr
