@@ -82,6 +82,15 @@ class Mods:
         Curvature offset of a misplaced camera [1/m].
     offset_error : float
         Error of the sensor-to-cable distance d1 [m].
+    contact_slope : float
+        Self-sensing: relative fall of R per metre of contraction past
+        ``contact_onset``, as touching coils short-circuit turns [1/m].
+    contact_onset : float
+        Self-sensing: contraction from rest at which neighbouring coils first touch [m].
+    r0_drift : float
+        Self-sensing: relative drift of R0 per second of cycling [1/s].
+    tcr_extra : float
+        Self-sensing: the coating's TCR minus the stated one [1/K].
     """
 
     shear_slope_extra: float = 0.0
@@ -102,6 +111,11 @@ class Mods:
     compression: float = 0.0
     camera_offset: float = 0.0
     offset_error: float = 0.0
+    # self-sensing (h-ssmodel)
+    contact_slope: float = 0.0
+    contact_onset: float = 0.2e-3
+    r0_drift: float = 0.0
+    tcr_extra: float = 0.0
 
     def replace(self, **changes) -> Mods:
         return dataclasses.replace(self, **changes)
@@ -333,6 +347,35 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             "the sensor sits at a different distance from the cable than the 9 mm assumed",
             "thesis sec. 4.3 (d1 = 9 mm)",
             "section the robot and measure d1, or bend it to a known curvature",
+        ),
+        # -- self-sensing powered run (h-ssmodel) --------------------------------------
+        _e(
+            "inter-coil-contact",
+            "selfsensing",
+            [EffectParam("contact_slope", "1/m", 20.0, 0.0, 40.0)],
+            "past a contraction, neighbouring coils touch and short-circuit turns, so R falls "
+            "as the muscle contracts further (bounded below chapter 3's own 47 /m of the thesis TCA, "
+            "beyond which R would no longer rise with length)",
+            "thesis sec. 3.2 assumes coils never touch ('as observed under a microscope')",
+            "contract the muscle slowly against a stop at known lengths: R drops at the contact length",
+            {"contact_onset": 0.2e-3},
+        ),
+        _e(
+            "resistance-drift",
+            "selfsensing",
+            [EffectParam("r0_drift", "1/s", 1e-4, -2e-3, 2e-3)],
+            "R0 drifts as the muscle is cycled (silver coating cracking, oxidation, annealing)",
+            "silver-coated thread under cyclic strain; thesis sec. 5.2 (untested combination)",
+            "measure R at rest, cold and unloaded, before and after the run",
+        ),
+        _e(
+            "coating-tcr",
+            "selfsensing",
+            [EffectParam("tcr_extra", "1/K", 2e-4, -3e-3, 3e-3)],
+            "the coating's temperature coefficient differs from bulk silver's (thin film, alloy, "
+            "nylon contribution), so heating moves R more or less than 0.38 %/K",
+            "thin-film silver TCR below the bulk value (CRC Handbook: bulk 3.8e-3 /K)",
+            "an oven test of R against temperature with the muscle unloaded",
         ),
     )
 }

@@ -171,6 +171,9 @@ class Rig:
         Sensor-to-cable distance d1 of the curvature robot [m].
     segment_lengths : tuple of float
         Rest lengths of the robot's sensor segments, tip first [m].
+    tcr : float
+        Temperature coefficient of the heater/sensor coating's resistance [1/K]
+        (self-sensing; silver's by default).
     uncertainty : mapping
         Standard deviations of any of the fields above, same units.
     """
@@ -187,6 +190,7 @@ class Rig:
     spring_constant: float | None = None
     sensor_offset: float = 9e-3
     segment_lengths: tuple[float, ...] = (30e-3, 30e-3)
+    tcr: float = SILVER_TCR
     uncertainty: Mapping[str, float] = field(default_factory=dict)
 
     @property
@@ -227,6 +231,7 @@ RIG_KEYS: dict[str, tuple[str, float]] = {
     "spring_constant_N_per_m": ("spring_constant", 1.0),
     "sensor_offset_mm": ("sensor_offset", 1e-3),
     "segment_lengths_mm": ("segment_lengths", 1e-3),
+    "tcr_per_K": ("tcr", 1.0),
 }
 
 

@@ -61,6 +61,7 @@ QUANTITIES: dict[str, Quantity] = dict(
         _q("current", "current_A", "A", "A", 1.0),
         _q("resistance", "resistance_ohm", "ohm", "ohm", 1.0),
         _q("force", "force_N", "N", "N", 1.0),
+        _q("load_force", "load_N", "N", "N", 1.0),
         _q("cable", "cable_mm", "mm", "m", 1e3),
         _q("r1", "r1_ohm", "ohm", "ohm", 1.0),
         _q("r2", "r2_ohm", "ohm", "ohm", 1.0),
@@ -96,6 +97,7 @@ PARAMETER_UNITS: dict[str, tuple[str, float]] = {
     "spring_constant": ("N/m", 1.0),
     "sensor_offset": ("mm", 1e3),
     "segment_lengths": ("mm", 1e3),
+    "tcr": ("1/K", 1.0),
 }
 """SI field of Sample or Rig -> (lab unit, factor from SI); the experiment file's key is
 the field plus the unit (``coil_length_mm``, ``youngs_modulus_GPa``, ``load_g``)."""

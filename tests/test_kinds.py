@@ -38,7 +38,7 @@ CALLABLES = (
 
 
 def test_registry_holds_the_four_thesis_kinds_and_nothing_else_branches_on_them():
-    assert set(kinds.KINDS) == {"static", "dynamic", "sensing", "curvature"}
+    assert set(kinds.KINDS) == {"static", "dynamic", "sensing", "curvature", "selfsensing"}
     assert kinds.KINDS == tio.KINDS
     for name, kind in kinds.REGISTRY.items():
         assert kind.name == name
@@ -122,7 +122,9 @@ def test_predict_on_the_bundled_run_gives_every_output(name):
 
 
 def test_unknown_kind_fails_in_one_place_with_the_choices():
-    with pytest.raises(ConfigError, match="unknown kind 'oven'.*static, dynamic, sensing, curvature"):
+    with pytest.raises(
+        ConfigError, match="unknown kind 'oven'.*static, dynamic, sensing, curvature, selfsensing"
+    ):
         kinds.get_kind("oven")
     with pytest.raises(ConfigError):
         kinds.predict("oven", None, None, pd.DataFrame())

@@ -8,14 +8,15 @@ added to :data:`REGISTRY`. ``tests/test_kinds.py`` checks, in the manner of
 python-control's ``kwargs_test.py``, that every registered kind fills in
 every part consistently.
 
-==========  ============================  ==============================
-kind        inputs                        predicted
-==========  ============================  ==============================
-static      temperature (time)            displacement
-dynamic     time, voltage                 displacement (temperature)
-sensing     resistance (time)             displacement, force
-curvature   cable, r1, r2                 kappa1, kappa2
-==========  ============================  ==============================
+===========  ============================  ==============================
+kind         inputs                        predicted
+===========  ============================  ==============================
+static       temperature (time)            displacement
+dynamic      time, voltage                 displacement (temperature)
+sensing      resistance (time)             displacement, force
+curvature    cable, r1, r2                 kappa1, kappa2
+selfsensing  time, voltage, current        displacement (temperature)
+===========  ============================  ==============================
 """
 
 from __future__ import annotations
@@ -297,7 +298,7 @@ def stated_source(provenance, name: str) -> str:
     )
 
 
-KINDS: tuple[str, ...] = ("static", "dynamic", "sensing", "curvature")
+KINDS: tuple[str, ...] = ("static", "dynamic", "sensing", "curvature", "selfsensing")
 """The kinds of run tcamlab knows, in the order reports list them: the name of each is
 the name of its module in this package, which defines ``KIND``. Registering a new rig
 kind is adding its module and its name here."""

@@ -61,6 +61,8 @@ __all__ = [
     "invert_displacement",
     "temperature_from_power",
     "DELTA_STEP",
+    "effect_factor",
+    "rest_temperature",
 ]
 
 DELTA_STEP = 1e-6
@@ -291,3 +293,24 @@ def temperature_from_power(time, power, *, thermal_mass, heat_loss, ambient, ini
             "self-sensing model: negative electrical power", hint="check the sign of the current column"
         )
     return thermal.temperature(time, np.sqrt(p), 1.0, thermal_mass, heat_loss, ambient, initial)
+
+
+def effect_factor(time, contraction, mods=None):
+    """Factor of the library's self-sensing effects on R [-].
+
+    (1 + r0_drift t) (1 - contact_slope max(0, c - contact_onset)), c the contraction
+    from rest [m] (positive when shorter), t [s] from the first row.
+    """
+    if mods is None:
+        return np.ones(np.broadcast_shapes(np.shape(time), np.shape(contraction)))
+    t = np.asarray(time, float)
+    c = np.asarray(contraction, float)
+    contact = 1.0 - mods.contact_slope * np.maximum(0.0, c - mods.contact_onset)
+    if np.any(contact <= 0):
+        raise ModelDomainError("self-sensing model: inter-coil contact would short the whole muscle")
+    return (1.0 + mods.r0_drift * t) * contact
+
+
+def rest_temperature(power, heat_loss, ambient):
+    """Steady temperature under a held probe power, (2.18) with dT/dt = 0 [degC]."""
+    return ambient + power / heat_loss

@@ -1,0 +1,543 @@
+"""Self-sensing powered run (thesis sec. 5.2 future work, issue 14): displacement from V and I.
+
+A TCA is heated by its own current under a hanging load; the rig logs
+``time_s``, ``voltage_V``, ``current_A``, optionally ``load_N`` (the hanging
+weight, when logged) and a reference laser ``displacement_mm`` used only to
+validate. The prediction is the self-sensed displacement, made in one place,
+:func:`predict_displacement`.
+
+Baseline ("open-loop inversion", until the estimator of issue 14 item 3 replaces
+it): R = V / I and P = V I from the logged channels; T from the electro-thermal
+model (2.18) driven by P, starting at the steady temperature of the rest rows'
+probe power; delta from inverting the combined model R(T, delta)
+(:mod:`tcamlab.models.selfsensing`) at that T; the displacement is delta minus
+its mean over the rest rows. Rows whose current is below
+:data:`MIN_CURRENT_A` hold the last estimate (causal). It never uses the load
+or the laser, and it is causal, but it trusts the thermal model's T: an error
+of 1 K reads as about 0.36 % of R, i.e. tens of um of displacement.
+
+R0 (``initial_resistance_ohm``) is chapter 3's: unloaded, at ambient. When the
+file does not state it, it is the mean R of the rest rows divided by the model's
+g(x_rest) and thermal factor at the rest temperature.
+
+The virtual rig (:func:`protocol`, :func:`exact_inputs`, :func:`measure`) runs
+every protocol the issue asks for in one run: a quiet start at the probe
+voltage, voltage steps, PWM, a sine and a chirp, with a rider put on the hanger
+at a random time (the load changes, so the thermal model alone cannot predict
+the displacement). The truth is :func:`tcamlab.rig.selfsensing.powered_run`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from tcamlab import instruments
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
+from tcamlab.models import selfsensing as ssm
+from tcamlab.models import static
+from tcamlab.params import G_ACCEL, THESIS_TCA, Rig, Sample
+from tcamlab.report.document import Figure, Section, Table
+from tcamlab.report.figures import legend_label, new_figure
+
+MIN_CURRENT_A = 1e-3
+"""Below this current R = V / I is not read; the estimate is held [A]."""
+CONTACT_ITERATIONS = 12
+"""Secant steps that undo the inter-coil contact factor in the inversion."""
+
+RATE_HZ = 100
+"""Logging rate of the powered run [Hz]."""
+PROBE_V = 1.5
+"""Probe voltage between heating phases [V]: keeps a current to read R (about 35 mA, 6 K of self-heating)."""
+SEGMENTS = (
+    ("rest", 2.0),
+    ("steps", 12.0),
+    ("pwm", 12.0),
+    ("sine", 12.0),
+    ("chirp", 12.0),
+)
+"""Protocol segments and their durations [s], in order."""
+STEP_LEVELS_V = (4.0, 6.0)
+"""Voltage steps, each 3 s on then 3 s at the probe [V] (6 V on 40 ohm: about 100 K at steady state)."""
+PWM_V, PWM_HZ, PWM_DUTY = 6.0, 1.0, 0.5
+"""PWM amplitude [V], frequency [Hz] and duty cycle [-]."""
+SINE_MEAN_V, SINE_AMP_V, SINE_HZ = 3.5, 2.5, 0.25
+"""Sine voltage: mean [V], amplitude [V], frequency [Hz]."""
+CHIRP_F0_HZ, CHIRP_F1_HZ = 0.05, 1.0
+"""Chirp of the same mean and amplitude, linear from f0 to f1 over its segment [Hz]."""
+RIDER_KG = 5e-3
+"""Mass of the rider put on the hanger during the run [kg] (5 g, a tenth of the load)."""
+RIDER_WINDOW_S = (15.0, 35.0)
+"""The rider goes on at a uniform random time in this window [s]."""
+
+CURRENT_SD_A = 0.05e-3
+"""Noise of the current-sense chain (0.1 ohm shunt into an INA219-class monitor) [A]."""
+CURRENT_SPAN_A, CURRENT_BITS = 0.4, 12
+"""Span and resolution of the current ADC: quantum 0.4 A / 4095 = 98 uA."""
+VOLTAGE_SD_V = 5e-3
+"""Noise of the voltage divider and ADC input [V]."""
+VOLTAGE_SPAN_V, VOLTAGE_BITS = 12.0, 12
+"""Voltage ADC span and resolution: quantum 12 V / 4095 = 2.9 mV."""
+
+
+def _quantise(x, span, bits):
+    q = span / (2**bits - 1)
+    return np.clip(np.round(np.asarray(x, float) / q), 0, 2**bits - 1) * q
+
+
+def _rest_extension(sample: Sample, rig: Rig, temperature: float, mass: float) -> float:
+    return float(static.displacement(temperature - rig.ambient, mass * G_ACCEL, **sample.model_kwargs()))
+
+
+def _model_kwargs(sample: Sample, rig: Rig, r0: float, tcr: float) -> dict:
+    return dict(
+        initial_resistance=r0,
+        reference_temperature=rig.ambient,
+        tcr=tcr,
+        radial_cte=sample.radial_cte,
+        spring_constant=rig.spring_constant,
+        **sample.sensor_kwargs(),
+    )
+
+
+def predict_displacement(
+    sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *, initial_resistance: float
+) -> dict[str, np.ndarray]:
+    """The self-sensed displacement and temperature of a run: open-loop inversion (module docstring).
+
+    Parameters
+    ----------
+    data : DataFrame
+        ``time`` [s], ``voltage`` [V], ``current`` [A].
+    initial_resistance : float
+        R0 of chapter 3 (unloaded, at ambient) [ohm].
+    mods : Mods
+        contact_slope, contact_onset, r0_drift, tcr_extra (undone in the inversion).
+
+    Returns
+    -------
+    dict
+        ``displacement`` [m] (from the rest rows' mean), ``temperature`` [degC].
+    """
+    t = data["time"].to_numpy(float)
+    v = data["voltage"].to_numpy(float)
+    i = data["current"].to_numpy(float)
+    ok = np.abs(i) >= MIN_CURRENT_A
+    p = np.where(ok, v * i, 0.0)
+    rest = rest_rows(KIND, data)
+    t0 = ssm.rest_temperature(float(np.mean(p[rest])), rig.heat_loss, rig.ambient)
+    temp = ssm.temperature_from_power(
+        t, p, thermal_mass=rig.thermal_mass, heat_loss=rig.heat_loss, ambient=rig.ambient, initial=t0
+    )
+    r = np.where(ok, v / np.where(ok, i, 1.0), np.nan)
+    r = pd.Series(r).ffill().bfill().to_numpy() / (1.0 + mods.r0_drift * (t - t[0]))
+    kw = _model_kwargs(sample, rig, initial_resistance, rig.tcr + mods.tcr_extra)
+    delta = ssm.invert_displacement(r, temp, **kw)
+    if mods.contact_slope:
+        delta = _undo_contact(r, temp, delta, delta[rest].mean(), mods, kw)
+    return {"displacement": delta - float(np.mean(delta[rest])), "temperature": temp}
+
+
+def _undo_contact(r, temp, delta, x_rest, mods, kw):
+    """delta solving delta = F(delta) = invert(R / contact(delta)) row by row, by secant steps.
+
+    A plain fixed-point pass converges only as fast as contact_slope / (d ln g / d delta)
+    (about 0.6 for a slope of 30 /m), so the secant step is used; rows out of contact are
+    already solved (F is constant there).
+    """
+    zero_t = np.zeros_like(delta)
+
+    def phi(d):
+        return d - ssm.invert_displacement(r / ssm.effect_factor(zero_t, x_rest - d, mods), temp, **kw)
+
+    a, pa = delta, phi(delta)
+    b = a - pa
+    pb = phi(b)
+    for _ in range(CONTACT_ITERATIONS):
+        step = pb - pa
+        live = np.abs(step) > 1e-15
+        c = np.where(live, b - pb * (b - a) / np.where(live, step, 1.0), b)
+        a, pa, b = b, pb, c
+        pb = phi(b)
+        if np.max(np.abs(pb)) < 1e-12:
+            break
+    return b
+
+
+def predict(
+    sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *, initial_resistance: float
+) -> dict[str, np.ndarray]:
+    """Self-sensed displacement from voltage and current (:func:`predict_displacement`).
+
+    ``mods``: contact_slope (inter-coil contact), r0_drift (R0 drift), tcr_extra
+    (a TCR other than the stated one).
+    """
+    return predict_displacement(sample, rig, data, mods, initial_resistance=initial_resistance)
+
+
+def initial_resistance(sample: Sample, rig: Rig, data: pd.DataFrame, provenance=None) -> tuple[float, str]:
+    """R0 [ohm] (unloaded, at ambient) and its source: stated, else from the rest rows."""
+    if rig.initial_resistance is not None:
+        return float(rig.initial_resistance), stated_source(provenance, "initial_resistance")
+    rows = rest_rows(KIND, data)
+    v, i = data["voltage"].to_numpy(float)[rows], data["current"].to_numpy(float)[rows]
+    r_rest = float(np.mean(v / i))
+    t0 = ssm.rest_temperature(float(np.mean(v * i)), rig.heat_loss, rig.ambient)
+    mass = float(data["load_force"].iloc[0]) / G_ACCEL if "load_force" in data else rig.load
+    x_rest = _rest_extension(sample, rig, t0, mass)
+    unit = ssm.resistance(t0, x_rest, **_model_kwargs(sample, rig, 1.0, rig.tcr))
+    return r_rest / float(unit), f"mean R of the {rows.size} rows at rest / model R/R0 there"
+
+
+def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, provenance=None, **_) -> RunOptions:
+    """R0 of the run by the module's rule, with its source."""
+    r0, source = initial_resistance(sample, rig, data, provenance)
+    return RunOptions(
+        # not "initial_resistance_ohm": validation's rest-row check compares that key with the
+        # logged R at rest, and this R0 is the unloaded, cold one
+        {"initial_resistance": r0},
+        {"unloaded_resistance_ohm": r0, "unloaded_resistance_source": source},
+    )
+
+
+def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarray]:
+    """Drive of every row: heating (above twice the rest voltage) or probe."""
+    v = data["voltage"].to_numpy(float)
+    probe = float(np.median(v[rest_rows(KIND, data)]))
+    return {"drive": np.where(v > 2.0 * max(probe, 1e-9), "heating", "probe").astype(object)}
+
+
+def published_metrics(error, measured) -> dict[str, float]:
+    """Mean error, sd and 95 % interval of the error, and the stroke, in mm (van der Weijde 2017's format).
+
+    Parameters
+    ----------
+    error : ndarray
+        Predicted - measured displacement [m] (finite rows).
+    measured : ndarray
+        Measured displacement [m] (its range is the stroke).
+    """
+    e = np.asarray(error, float) * 1e3
+    lo, hi = np.percentile(e, [2.5, 97.5])
+    stroke = float(np.ptp(np.asarray(measured, float))) * 1e3
+    return {
+        "stroke_mm": stroke,
+        "mean_error_mm": float(e.mean()),
+        "sd_error_mm": float(e.std(ddof=1)) if e.size > 1 else float("nan"),
+        "interval95_lo_mm": float(lo),
+        "interval95_hi_mm": float(hi),
+        "interval95_width_mm": float(hi - lo),
+        "mean_error_of_stroke": float(e.mean() / stroke) if stroke else float("nan"),
+        "interval95_of_stroke": float((hi - lo) / stroke) if stroke else float("nan"),
+        "n": int(e.size),
+    }
+
+
+def validation_extras(experiment, predictions, **_) -> tuple[list, dict]:
+    """The published format per run and pooled: mean error and 95 % interval over the stroke."""
+    runs, errs, meas = {}, [], []
+    for p in predictions:
+        m = p.data["displacement"].to_numpy(float)
+        e = p.predicted[KIND.primary]["displacement"] - m
+        ok = np.isfinite(e)
+        runs[p.name] = published_metrics(e[ok], m[ok])
+        errs.append(e[ok])
+        meas.append(m[ok])
+    pooled = published_metrics(np.concatenate(errs), np.concatenate(meas))
+    note = (
+        f"pooled: mean error {pooled['mean_error_mm']:.3g} mm, 95% interval "
+        f"{pooled['interval95_width_mm']:.3g} mm over a {pooled['stroke_mm']:.3g} mm stroke "
+        f"({pooled['interval95_of_stroke']:.1%}); published inductive self-sensing: -0.27 mm, "
+        "2.14 mm over 10-30 mm (van der Weijde et al. 2017)"
+    )
+    return [note], {"published_format": {"runs": runs, "pooled": pooled}}
+
+
+def figures(result) -> list[Figure]:
+    """Both traces against time; the error against time and against displacement."""
+    figs = []
+    fig, ax = new_figure()
+    for p in result.predictions:
+        t, name = p.data["time"].to_numpy(), legend_label(p.name)
+        (line,) = ax.plot(t, p.data["displacement"] * 1e3, ".", ms=1, label=f"{name} laser")
+        ax.plot(
+            t,
+            p.predicted[KIND.primary]["displacement"] * 1e3,
+            "-",
+            color=line.get_color(),
+            lw=0.8,
+            label=f"{name} self-sensed",
+        )
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("displacement [mm]")
+    ax.legend(fontsize=6, ncol=2)
+    figs.append(
+        Figure(
+            fig,
+            "Displacement against time: laser (points) and self-sensed (line).",
+            alt="self-sensing traces",
+        )
+    )
+    for x_name, label in (("time", "time [s]"), ("displacement", "laser displacement [mm]")):
+        fig, ax = new_figure()
+        for p in result.predictions:
+            x = p.data[x_name].to_numpy() * (1e3 if x_name == "displacement" else 1.0)
+            e = (p.predicted[KIND.primary]["displacement"] - p.data["displacement"].to_numpy()) * 1e3
+            ax.plot(x, e, ".", ms=1, label=legend_label(p.name))
+        ax.axhline(0.0, color="0.5", lw=0.6)
+        ax.set_xlabel(label)
+        ax.set_ylabel("error (self-sensed - laser) [mm]")
+        ax.legend(fontsize=6)
+        figs.append(
+            Figure(fig, f"Self-sensing error against {label.split(' [')[0]}.", alt=f"error against {x_name}")
+        )
+    return figs
+
+
+def extras_section(result) -> Section | None:
+    """The published-format table (per run and pooled)."""
+    info = result.extras.get("published_format")
+    if not info:
+        return None
+    keys = (
+        "stroke_mm",
+        "mean_error_mm",
+        "interval95_lo_mm",
+        "interval95_hi_mm",
+        "interval95_width_mm",
+        "mean_error_of_stroke",
+        "interval95_of_stroke",
+        "n",
+    )
+    rows = [[name, *(m[k] for k in keys)] for name, m in {**info["runs"], "pooled": info["pooled"]}.items()]
+    head = [
+        "run",
+        "stroke [mm]",
+        "mean error [mm]",
+        "2.5 % [mm]",
+        "97.5 % [mm]",
+        "95 % interval [mm]",
+        "mean / stroke",
+        "interval / stroke",
+        "rows",
+    ]
+    return Section(
+        "Self-sensing error in the published format",
+        paragraphs=[
+            "Error = self-sensed - laser displacement (after the run's zero). The 95 % interval is "
+            "from the 2.5 % to the 97.5 % percentile of the error; the stroke is the range of the "
+            "laser displacement. Published inductive self-sensing (van der Weijde et al., Soft "
+            "Robotics 2017): mean -0.27 mm, 95 % interval 2.14 mm over 10-30 mm."
+        ],
+        tables=[Table(head, rows, caption="Self-sensing error per run and pooled")],
+    )
+
+
+# --- virtual rig ---------------------------------------------------------------------------
+
+
+def _segment_voltage(name: str, tau: np.ndarray, duration: float) -> np.ndarray:
+    """Commanded voltage of one protocol segment at local times ``tau`` [s] from its start [V]."""
+    if name == "steps":
+        half = duration / (2 * len(STEP_LEVELS_V))
+        k = np.minimum((tau // (2 * half)).astype(int), len(STEP_LEVELS_V) - 1)
+        on = (tau % (2 * half)) < half
+        return np.where(on, np.asarray(STEP_LEVELS_V)[k], PROBE_V)
+    if name == "pwm":
+        return np.where((tau * PWM_HZ) % 1.0 < PWM_DUTY, PWM_V, PROBE_V)
+    if name == "sine":
+        return SINE_MEAN_V + SINE_AMP_V * np.sin(2 * np.pi * SINE_HZ * tau)
+    if name == "chirp":
+        phase = 2 * np.pi * (CHIRP_F0_HZ * tau + 0.5 * (CHIRP_F1_HZ - CHIRP_F0_HZ) / duration * tau**2)
+        return SINE_MEAN_V + SINE_AMP_V * np.sin(phase)
+    return np.full(tau.shape, PROBE_V)
+
+
+def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+    """The commanded voltage and hanging mass of one run.
+
+    Parameters
+    ----------
+    rig : Rig
+        ``load`` [kg] before the rider goes on.
+    rng : numpy.random.Generator
+        Draws the time the rider goes on (uniform in :data:`RIDER_WINDOW_S`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time`` [s], ``voltage`` [V] (held, 1 mV steps of the driver), ``load_mass`` [kg].
+    """
+    total = sum(d for _, d in SEGMENTS)
+    t = np.arange(int(round(total * RATE_HZ))) / RATE_HZ
+    v = np.empty(t.size)
+    start = 0.0
+    for name, duration in SEGMENTS:
+        m = (t >= start - 1e-9) & (t < start + duration - 1e-9)
+        v[m] = _segment_voltage(name, t[m] - start, duration)
+        start += duration
+    on = float(rng.uniform(*RIDER_WINDOW_S))
+    mass = np.where(t >= on, rig.load + RIDER_KG, rig.load)
+    return pd.DataFrame({"time": t, "voltage": np.round(v, 3), "load_mass": mass})
+
+
+def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
+    """The exact logged inputs and the true displacement of a powered run.
+
+    :func:`tcamlab.rig.selfsensing.powered_run` with the rig's true R0, S and TCR
+    and the effects in ``mods`` (they act on the true R).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``time`` [s], ``voltage`` [V], ``current`` [A], ``load_force`` [N] (the
+        hanging weight), and ``true_displacement`` [m] from the first row, which
+        the laser of :func:`measure` reads (never an input of the model).
+    """
+    t = proto["time"].to_numpy(float)
+    v = proto["voltage"].to_numpy(float)
+    mass = proto["load_mass"].to_numpy(float)
+    from tcamlab.rig.selfsensing import powered_run  # the rig package imports the registry
+
+    run = powered_run(sample, rig, t, v, mass, mods)
+    return pd.DataFrame(
+        {
+            "time": t,
+            "voltage": v,
+            "current": run.current,
+            "load_force": mass * G_ACCEL,
+            "true_displacement": run.extension - run.rest_extension,
+        }
+    )
+
+
+def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
+    """Sd of each logged column's chain [SI]: ADC noise and quantisation, the laser; time and load exact."""
+    qv = VOLTAGE_SPAN_V / (2**VOLTAGE_BITS - 1)
+    qi = CURRENT_SPAN_A / (2**CURRENT_BITS - 1)
+    return {
+        "time": 0.0,
+        "voltage": float(np.hypot(VOLTAGE_SD_V * noise_scale, qv / np.sqrt(12))),
+        "current": float(np.hypot(CURRENT_SD_A * noise_scale, qi / np.sqrt(12))),
+        "load_force": 0.0,
+        "displacement": instruments.laser_sd(noise_scale),
+    }
+
+
+def measure(
+    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float, *, noisy_zero=False
+) -> pd.DataFrame:
+    """Logged ``time``, ``voltage`` and ``current`` (ADCs), ``load_force`` (exact), ``displacement`` (laser).
+
+    The laser reads the true displacement of :func:`exact_inputs` (the model's
+    ``outputs`` are self-sensed, not measured); ``noisy_zero`` as the dynamic kind.
+    """
+    v = inputs["voltage"].to_numpy(float)
+    i = inputs["current"].to_numpy(float)
+    v_log = _quantise(v + rng.normal(0.0, VOLTAGE_SD_V * noise_scale, v.size), VOLTAGE_SPAN_V, VOLTAGE_BITS)
+    i_log = _quantise(i + rng.normal(0.0, CURRENT_SD_A * noise_scale, i.size), CURRENT_SPAN_A, CURRENT_BITS)
+    truth = inputs["true_displacement"] if "true_displacement" in inputs else outputs["displacement"]
+    disp, zero = instruments.laser_zeroed(np.asarray(truth, float), rng, noise_scale, noisy_zero=noisy_zero)
+    out = pd.DataFrame(
+        {
+            "time": inputs["time"].to_numpy(float),
+            "voltage": v_log,
+            "current": i_log,
+            "load_force": inputs["load_force"].to_numpy(float),
+            "displacement": disp,
+        }
+    )
+    out.attrs["zero_error"] = {"displacement": zero}
+    return out
+
+
+RIG_FIELDS = (
+    "load",
+    "ambient",
+    "thermal_mass",
+    "heat_loss",
+    "damping",
+    "initial_resistance",
+    "spring_constant",
+    "tcr",
+)
+"""Rig fields of the powered run: shown in the report and written by the virtual rig."""
+
+CALIBRATION = (
+    CalibrationParam("initial_resistance", "rig", "R0", "ohm", 0.05, "R of the unloaded muscle at ambient"),
+    CalibrationParam("tcr", "rig", "TCR", "1/K", 0.1, "an oven test of R against temperature, unloaded"),
+    CalibrationParam(
+        "thermal_mass",
+        "rig",
+        "C_th",
+        "J/K",
+        0.5,
+        "a logged temperature during a pulse (heating rate P / C_th)",
+    ),
+    CalibrationParam(
+        "heat_loss",
+        "rig",
+        "lambda",
+        "W/K",
+        0.5,
+        "a logged temperature at steady state (T - T_a = P / lambda)",
+    ),
+    CalibrationParam(
+        "damping",
+        "rig",
+        "b",
+        "N s/m",
+        0.3,
+        "a load step logged faster than b/k; the open-loop inversion does not use b, the estimator does",
+    ),
+)
+"""Calibratable parameters of the powered run (R0, the TCR and the thermal constants set the
+open-loop inversion; b enters once the estimator models the mechanics)."""
+
+
+KIND = Kind(
+    name="selfsensing",
+    description="self-sensing powered run (thesis sec. 5.2, issue 14): displacement from voltage and "
+    "current through the combined model R(T, delta) (chapter 3 x silver TCR x swelling (2.8)) and the "
+    "electro-thermal model (2.18), against a reference laser",
+    required_columns=("time_s", "voltage_V", "current_A", "displacement_mm"),
+    optional_columns=("load_N", "resistance_ohm", "temperature_C"),
+    min_rows=10,
+    inputs=("time", "voltage", "current"),
+    outputs=("displacement",),
+    tension_outputs=(),
+    variants={"open-loop inversion": {}},
+    predict=predict,
+    run_options=run_options,
+    needs_training=False,
+    validation_extras=validation_extras,
+    x_column="time",
+    regimes=regimes,
+    shared_inputs=("voltage",),
+    report_rig_fields=RIG_FIELDS,
+    figures=figures,
+    extras_section=extras_section,
+    preset=THESIS_TCA,
+    logged_columns=("time", "voltage", "current", "load_force", "displacement"),
+    decimals={"time_s": 3, "voltage_V": 4, "current_A": 6, "load_N": 6, "displacement_mm": 3},
+    written_rig_fields=RIG_FIELDS,
+    hidden_rig_fields=(),
+    default_runs=3,
+    default_scatter={"twists": 2e-3, "coil_length": 2e-3},
+    noisy_inputs=("voltage", "current"),
+    strength_quantities=("displacement",),
+    protocol=protocol,
+    benchmark_program={},
+    benchmark_uncertainty={},
+    benchmark_pairs=(("inter-coil-contact", "coating-tcr"),),
+    program_options=(),
+    exact_inputs=exact_inputs,
+    instrument_sd=instrument_sd,
+    measure=measure,
+    simulation_rig_defaults={"initial_resistance": 24.0, "spring_constant": 2.5},
+    segment_rig_fields=(),
+    coil_length_rig_fields=(),
+    calibration=CALIBRATION,
+    nuisance_zeros=("displacement",),
+)

@@ -1,0 +1,187 @@
+"""Virtual rig of the self-sensing kind: a powered TCA under a hanging load that may change.
+
+The truth of a powered run is the thesis's dynamic model (2.14)-(2.19) with two
+changes the self-sensing run needs:
+
+* the Joule power is V^2 / R(T, x), with R the combined model of
+  :mod:`tcamlab.models.selfsensing` (the thesis holds R constant in (2.18)), and
+  the current is I = V / R;
+* the hanging mass m(t) may change during the run (a rider put on the hanger):
+  m x'' + b x' + F_i(x, T) = m g.
+
+Effects of the library act on the true R (:func:`effect_factor`):
+inter-coil contact, R0 drift and a TCR other than the stated one.
+
+The ODE is integrated by :func:`scipy.integrate.solve_ivp` (RK45) piece by piece
+between changes of the held voltage and load, as the dynamic model's reference path.
+g(x) = R / R0 of chapter 3 is tabulated once per run on a fine grid (cubic spline,
+relative error below 1e-9), so the right-hand side needs no root solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.interpolate import CubicSpline
+
+from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import ModelDomainError
+from tcamlab.models import selfsensing as ssm
+from tcamlab.models import static
+from tcamlab.models.coil import compliance_coefficients, compliance_terms, restoring_force
+from tcamlab.models.dynamic import acceleration
+from tcamlab.params import G_ACCEL, Rig, Sample
+
+__all__ = ["PoweredRun", "powered_run", "internal_force", "GRID_HALF_WIDTH_M"]
+
+GRID_HALF_WIDTH_M = 15e-3
+"""Half-width of the tabulated g(x) around the rest extension [m] (strokes are a few mm)."""
+
+
+@dataclass(frozen=True)
+class PoweredRun:
+    """The true state of a powered run at the sample times (SI).
+
+    Attributes
+    ----------
+    temperature : ndarray
+        T [degC].
+    extension : ndarray
+        x, extension from the unloaded length at ambient [m].
+    resistance : ndarray
+        True R [ohm] (effects included).
+    current : ndarray
+        I = V / R [A].
+    rest_extension : float
+        x at the first sample [m].
+    """
+
+    temperature: np.ndarray
+    extension: np.ndarray
+    resistance: np.ndarray
+    current: np.ndarray
+    rest_extension: float
+
+
+def _mechanics(sample: Sample):
+    """Constants of F_i(x, T) (2.15) as the dynamic model's reference right-hand side."""
+    kw = sample.model_kwargs()
+    gt = float(
+        static.sample_shear_modulus(
+            kw["fiber_diameter"],
+            kw["fiber_length"],
+            kw["twists"],
+            kw["youngs_modulus"],
+            kw["thread_plies"],
+            kw["max_volume_fraction"],
+        )
+    )
+    n = float(static.n_coils(kw["fiber_length"], kw["coil_length"], kw["coil_diameter"]))
+    return kw, gt, n
+
+
+def internal_force(x, dT, sample: Sample, gt: float, n: float):
+    """F_i of (2.15) at extension x [m] and temperature rise dT [K] [N]."""
+    l, d0 = sample.fiber_length, sample.fiber_diameter
+    g_tau = static.softened_modulus(dT, gt, sample.shear_modulus_slope)
+    if g_tau <= 0:
+        raise ModelDomainError("self-sensing rig: the temperature passed the G_t' = 0 limit of (2.13)")
+    r = sample.radial_cte * dT
+    tau = static.torque_from_strain(g_tau, 2.0 * np.pi * sample.twists, d0, l, r)
+    a, b, c = compliance_coefficients(d0 * (1.0 + r), l, n)
+    f11, _, f12, _ = compliance_terms(sample.coil_length / l + x / l, a, b, c, gt, sample.youngs_modulus)
+    return restoring_force(x, f11, f12, tau)
+
+
+def _g_table(sample: Sample, spring_constant: float, x_rest: float) -> CubicSpline:
+    grid = np.linspace(x_rest - GRID_HALF_WIDTH_M, x_rest + GRID_HALF_WIDTH_M, 601)
+    return CubicSpline(
+        grid, ssm.geometric_ratio(grid, spring_constant=spring_constant, **sample.sensor_kwargs())
+    )
+
+
+def powered_run(
+    sample: Sample, rig: Rig, time, voltage, load_mass, mods: Mods = NO_MODS, *, rtol: float = 1e-8
+) -> PoweredRun:
+    """Integrate a powered run: T, x, R and I at the sample times.
+
+    Parameters
+    ----------
+    sample, rig : Sample, Rig
+        True parameters [SI]; the rig's ``initial_resistance`` (R0, unloaded, at
+        ambient), ``spring_constant`` (S of chapter 3), ``tcr``, ``thermal_mass``,
+        ``heat_loss``, ``damping`` and ``ambient`` are used.
+    time : array_like, shape (n,)
+        Strictly increasing [s].
+    voltage : array_like, shape (n,)
+        Held from each sample to the next [V].
+    load_mass : array_like, shape (n,)
+        Hanging mass, held likewise [kg].
+    mods : Mods
+        contact_slope, contact_onset, r0_drift, tcr_extra.
+    rtol : float
+        Relative tolerance of the integrator.
+
+    Returns
+    -------
+    PoweredRun
+    """
+    t = np.asarray(time, float)
+    v = np.asarray(voltage, float)
+    m = np.asarray(load_mass, float)
+    if rig.initial_resistance is None or rig.spring_constant is None:
+        raise ModelDomainError("self-sensing rig needs initial_resistance and spring_constant in [rig]")
+    _, gt, n = _mechanics(sample)
+    r0, tcr, ta = float(rig.initial_resistance), rig.tcr + mods.tcr_extra, rig.ambient
+    cth, lam, b = rig.thermal_mass, rig.heat_loss, rig.damping
+    # start at rest under the first voltage (the probe) and load: solve T0 and x0 together
+    t0, x0 = ta, float(static.displacement(0.0, m[0] * G_ACCEL, **sample.model_kwargs()))
+    for _ in range(20):
+        heat = ssm.coating_factor(t0, ta, tcr) * ssm.swelling_factor(t0, ta, sample.radial_cte)
+        r_rest = r0 * float(
+            ssm.geometric_ratio(x0, spring_constant=rig.spring_constant, **sample.sensor_kwargs())
+        )
+        t0 = ssm.rest_temperature(v[0] ** 2 / (r_rest * heat), lam, ta)
+        x0 = float(static.displacement(t0 - ta, m[0] * G_ACCEL, **sample.model_kwargs()))
+    g = _g_table(sample, rig.spring_constant, x0)
+
+    def r_of(tt, temp, x):
+        heat = ssm.coating_factor(temp, ta, tcr) * ssm.swelling_factor(temp, ta, sample.radial_cte)
+        return r0 * g(x) * heat * ssm.effect_factor(tt - t[0], x0 - x, mods)
+
+    def rhs(tt, y, volt, mass):
+        temp, x, vel = y
+        if abs(x - x0) > GRID_HALF_WIDTH_M:
+            raise ModelDomainError("self-sensing rig: the stroke left the tabulated range")
+        dT = temp - ta
+        tdot = (volt * volt / r_of(tt, temp, x) - lam * dT) / cth
+        acc = acceleration(vel, internal_force(x, dT, sample, gt, n), mass, b, mass * G_ACCEL)
+        return [tdot, vel, acc]
+
+    out = np.empty((t.size, 3))
+    out[0] = (t0, x0, 0.0)
+    change = np.flatnonzero((np.diff(v[:-1]) != 0) | (np.diff(m[:-1]) != 0)) + 1
+    bounds = np.concatenate(([0], change, [t.size - 1]))
+    for i0, i1 in zip(bounds[:-1], bounds[1:]):
+        if i1 <= i0:
+            continue
+        sol = solve_ivp(
+            rhs,
+            (t[i0], t[i1]),
+            out[i0],
+            method="RK45",
+            t_eval=t[i0 : i1 + 1],
+            args=(v[i0], m[i0]),
+            rtol=rtol,
+            atol=(1e-6, 1e-10, 1e-9),
+        )
+        if not sol.success:
+            raise ModelDomainError(
+                f"self-sensing rig: integration failed at t = {t[i0]:.4g} s: {sol.message}"
+            )
+        out[i0 : i1 + 1] = sol.y.T
+    temp, x = out[:, 0], out[:, 1]
+    res = r_of(t, temp, x)
+    return PoweredRun(temp, x, res, v / res, x0)

@@ -1,0 +1,142 @@
+"""The selfsensing kind: open-loop inversion, virtual rig, effects, and the CLI on the sample data."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from tcamlab import kinds
+from tcamlab.cli import app
+from tcamlab.effects import NO_MODS, get_effect
+from tcamlab.kinds import selfsensing as ss
+from tcamlab.models import static
+from tcamlab.params import G_ACCEL
+
+ROOT = Path(__file__).resolve().parents[1]
+KIND = kinds.get_kind("selfsensing")
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def setup():
+    sample = KIND.preset.build_sample()
+    rig = KIND.preset.build_rig().replace(**KIND.simulation_rig_defaults)
+    return sample, rig
+
+
+def short_protocol(rig, rider_at=6.0):
+    """8 s: 1 s probe, a 6 V step for 3 s, probe; the 5 g rider goes on at ``rider_at``."""
+    t = np.arange(800) / 100.0
+    v = np.where((t >= 1.0) & (t < 4.0), 6.0, ss.PROBE_V)
+    mass = np.where(t >= rider_at, rig.load + ss.RIDER_KG, rig.load)
+    return pd.DataFrame({"time": t, "voltage": v, "load_mass": mass})
+
+
+@pytest.fixture(scope="module")
+def exact(setup):
+    sample, rig = setup
+    return KIND.exact_inputs(sample, rig, short_protocol(rig))
+
+
+def test_open_loop_inversion_recovers_the_truth_on_exact_inputs(setup, exact):
+    sample, rig = setup
+    opts = KIND.run_options(sample, rig, exact).options
+    out = KIND.predict(sample, rig, exact, **opts)
+    truth = exact["true_displacement"].to_numpy()
+    # heating contracts the muscle by more than 0.2 mm, the rider stretches it by more than 1 mm
+    assert truth.min() < -0.2e-3 and truth.max() > 1e-3
+    # only the zero-order hold of the measured power separates the two (1.5 um)
+    assert np.max(np.abs(out["displacement"] - truth)) < 3e-6
+
+
+def test_load_change_is_tracked_where_the_thermal_model_alone_cannot(setup, exact):
+    sample, rig = setup
+    out = KIND.predict(sample, rig, exact, **KIND.run_options(sample, rig, exact).options)
+    after = exact["time"].to_numpy() >= 7.5
+    truth = exact["true_displacement"].to_numpy()
+    # statics at the estimated temperature and the ORIGINAL load: what power alone predicts
+    kw = sample.model_kwargs()
+    temp = out["temperature"]
+    x_thermal = static.displacement(temp - rig.ambient, rig.load * G_ACCEL, **kw)
+    thermal_only = x_thermal - x_thermal[0]
+    assert np.mean(np.abs(thermal_only[after] - truth[after])) > 1e-3
+    assert np.mean(np.abs(out["displacement"][after] - truth[after])) < 3e-6
+
+
+def test_rest_rule_recovers_the_unloaded_r0(setup, exact):
+    sample, rig = setup
+    free = KIND.run_options(sample, rig.replace(initial_resistance=None), exact)
+    assert free.options["initial_resistance"] == pytest.approx(rig.initial_resistance, rel=1e-6)
+    assert "rows at rest" in free.info["unloaded_resistance_source"]
+
+
+@pytest.mark.parametrize(
+    "effect, value",
+    [("inter-coil-contact", 30.0), ("resistance-drift", 2e-4), ("coating-tcr", 4e-4)],
+)
+def test_each_effect_moves_r_and_its_own_term_undoes_it(setup, effect, value):
+    sample, rig = setup
+    mods = get_effect(effect, "selfsensing").mods([value])
+    inputs = KIND.exact_inputs(sample, rig, short_protocol(rig), mods)
+    opts = KIND.run_options(sample, rig, inputs).options
+    truth = inputs["true_displacement"].to_numpy()
+    fitted = KIND.predict(sample, rig, inputs, mods, **opts)["displacement"]
+    blind = KIND.predict(sample, rig, inputs, NO_MODS, **opts)["displacement"]
+    assert np.max(np.abs(fitted - truth)) < 5e-6
+    assert np.max(np.abs(blind - truth)) > 20e-6
+
+
+def test_published_metrics_hand_values():
+    err = np.linspace(-1.0, 1.0, 4001) * 1e-3 + 0.1e-3  # uniform -0.9..1.1 mm
+    meas = np.array([0.0, 10e-3])
+    m = ss.published_metrics(err, meas)
+    assert m["stroke_mm"] == pytest.approx(10.0)
+    assert m["mean_error_mm"] == pytest.approx(0.1, abs=1e-12)
+    assert m["interval95_width_mm"] == pytest.approx(1.9, rel=1e-3)  # 95 % of a 2 mm uniform spread
+    assert m["interval95_of_stroke"] == pytest.approx(0.19, rel=1e-3)
+
+
+def test_protocol_has_every_drive_and_a_rider(setup):
+    _, rig = setup
+    p = KIND.protocol(rig, np.random.default_rng(3))
+    v, t = p["voltage"].to_numpy(), p["time"].to_numpy()
+    assert v.min() >= ss.PROBE_V - ss.SINE_AMP_V and set(ss.STEP_LEVELS_V) <= set(np.round(v, 3))
+    on = t[np.flatnonzero(np.diff(p["load_mass"].to_numpy()))[0] + 1]
+    assert ss.RIDER_WINDOW_S[0] <= on <= ss.RIDER_WINDOW_S[1]
+    assert p["load_mass"].iloc[-1] == pytest.approx(rig.load + ss.RIDER_KG)
+
+
+def test_sample_data_are_labelled_synthetic():
+    text = (ROOT / "experiments" / "selfsensing.toml").read_text()
+    assert "[synthetic]" in text and "seed = 1" in text and "tcamlab simulate" in text
+
+
+def test_validate_from_the_file_and_by_kind(tmp_path):
+    exp = str(ROOT / "experiments" / "selfsensing.toml")
+    for args, out in ((["validate", exp], "a"), (["validate", "selfsensing", exp], "b")):
+        res = runner.invoke(app, [*args, "--out", str(tmp_path / out), "--format", "html"])
+        assert res.exit_code == 0, res.output
+    metrics = json.loads((tmp_path / "a" / "selfsensing" / "metrics.json").read_text())
+    pub = metrics["extras"]["published_format"]
+    assert set(pub["runs"]) == {"selfsensing_run1", "selfsensing_run2", "selfsensing_run3"}
+    # the open-loop baseline with the stated parameters: stroke about 2 mm, interval under 40 % of it
+    assert 1.0 < pub["pooled"]["stroke_mm"] < 4.0
+    assert pub["pooled"]["interval95_of_stroke"] < 0.4
+    html = (tmp_path / "a" / "selfsensing" / "report.html").read_text()
+    assert "published format" in html
+
+
+def test_calibrate_and_diagnose_run_through_the_registry(tmp_path):
+    exp = tmp_path / "selfsensing.toml"
+    text = (ROOT / "experiments" / "selfsensing.toml").read_text().replace("../raw/", str(ROOT / "raw") + "/")
+    exp.write_text(text)
+    res = runner.invoke(app, ["calibrate", str(exp), "--out", str(tmp_path / "cal"), "--json"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "selfsensing.calibrated.toml").exists()
+    res = runner.invoke(
+        app, ["diagnose", str(exp), "--effects", "resistance-drift", "--out", str(tmp_path / "d"), "--json"]
+    )
+    assert res.exit_code == 0, res.output
