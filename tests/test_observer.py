@@ -88,3 +88,21 @@ def test_innovations_are_consistent(config):
     est = so.estimate(time, v_read + inst.sd_voltage * rng.standard_normal(time.size), i_read, cfg)
     nis = est.nis[time > 2.0]
     assert np.nanmean(nis) == pytest.approx(1.0, abs=0.15)
+
+
+def test_on_the_selfsensing_sample_data():
+    """Independent data: the selfsensing kind's virtual rig (raw/, synthetic, seed 1), stated parameters."""
+    from tcamlab.io import read_run
+
+    exp = load_experiment(ROOT / "experiments" / "selfsensing.toml")
+    data = read_run(exp.runs[0], "selfsensing", exp.columns).data
+    measured = data["displacement"].to_numpy()
+    measured = measured - measured[0]
+    stroke = np.ptp(measured)
+    assert stroke > 1.5e-3  # the rider's 5 g is in the run
+    logged = so.predict_displacement(exp.sample, exp.rig, data)["displacement"] - measured
+    assert abs(np.mean(logged)) < 0.02 * stroke  # measured 0.2 %
+    assert np.percentile(logged, 97.5) - np.percentile(logged, 2.5) < 0.05 * stroke  # measured 1.3 %
+    unknown = so.predict_displacement(exp.sample, exp.rig, data, use_load=False)["displacement"] - measured
+    # without the load column the rider is followed only slowly: much worse, and said so in README
+    assert np.sqrt(np.mean(unknown**2)) > 5 * np.sqrt(np.mean(logged**2))

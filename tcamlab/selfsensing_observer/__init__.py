@@ -42,8 +42,11 @@ __all__ = [
     "EstimateResult",
     "estimate",
     "observer_config",
-    "interim_resistance",
+    "config_from",
     "combined_resistance",
+    "spring_constant",
+    "unloaded_resistance",
+    "predict_displacement",
     "TCS_STIFFNESS_RATIO",
     "parameter_vector",
     "DEFAULT_NOISE",
@@ -137,7 +140,7 @@ class ObserverConfig:
         C_th, lambda, b, the hanging mass m (inertia and the load's prior) and
         T_a are read from here.
     initial_resistance : float
-        R at ambient under the initial load [ohm].
+        Chapter 3's R0: unloaded, at ambient [ohm].
     resistance_tc : float
         Temperature coefficient of R [1/K].
     table : ResistanceTable
@@ -203,56 +206,51 @@ def rest_extension(sample: Sample, rig: Rig, temperature=None, force=None) -> fl
     return float(K.equilibrium(float(t), float(f), p, 0.5 * sample.coil_length))
 
 
-def interim_resistance(sample: Sample, rig: Rig, initial_resistance: float, resistance_tc: float):
-    """R(T, x) = R0 (1 + a dT) (d0 / d)^2 with d = d0 (1 + rho dT) (1 - nu (x - x0) / l).
-
-    The silver's temperature coefficient a; the fiber's swelling (2.8) thins
-    the silver's share of R by (3.2); stretching the coil by x - x0 beyond its
-    loaded rest length x0 twists and thins the fiber, taken here as a linear
-    thinning with nu = 0.5 per unit of fiber-length strain. A stand-in for the
-    combined model of :mod:`tcamlab.models.selfsensing` where that is absent.
-    Returns a vectorised function of (T [degC], x [m]) -> R [ohm].
-    """
-    x0 = rest_extension(sample, rig)
-    l, rho, ta = sample.fiber_length, sample.radial_cte, rig.ambient
-
-    def resistance(temperature, extension):
-        dT = np.asarray(temperature, float) - ta
-        ratio = (1.0 + rho * dT) * (1.0 - 0.5 * (np.asarray(extension, float) - x0) / l)
-        return initial_resistance * (1.0 + resistance_tc * dT) / ratio**2
-
-    return resistance
-
-
 TCS_STIFFNESS_RATIO = 0.6
 """S f11(alpha0) assumed for chapter 3's map when the rig states no spring constant
 (the ratio of the sensing template, README "Presets and assumed values")."""
 
 
 def combined_resistance(sample: Sample, rig: Rig, initial_resistance: float, resistance_tc: float):
-    """R(T, x) of :mod:`tcamlab.models.selfsensing`, scaled so that R = ``initial_resistance`` at rest.
+    """R(T, x) of :mod:`tcamlab.models.selfsensing` as a function of (T [degC], x [m]) -> R [ohm].
 
-    ``initial_resistance`` is R at ambient under the rig's load (what a run's
-    leading rows measure); the model's R0 (unloaded) follows from its g(x0).
-    S is ``rig.spring_constant``, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0).
-    Returns a vectorised function of (T [degC], x [m]) -> R [ohm].
+    ``initial_resistance`` is chapter 3's R0: unloaded, at ambient. S is
+    ``rig.spring_constant``, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0).
     """
-    from tcamlab.models import selfsensing, sensing
+    from tcamlab.models import selfsensing
 
     kw = sample.sensor_kwargs()
-    s_c = rig.spring_constant
-    if s_c is None:
-        s_c = TCS_STIFFNESS_RATIO * sensing.conditioning(1.0, **kw).spring_stiffness_model
-    x0 = rest_extension(sample, rig)
-    r0_unloaded = initial_resistance / float(selfsensing.geometric_ratio(x0, spring_constant=s_c, **kw))
+    s_c = spring_constant(sample, rig)
 
     def resistance(temperature, extension):
         return selfsensing.resistance(
-            temperature, extension, initial_resistance=r0_unloaded, reference_temperature=rig.ambient,
+            temperature, extension, initial_resistance=initial_resistance, reference_temperature=rig.ambient,
             tcr=resistance_tc, radial_cte=sample.radial_cte, spring_constant=s_c, **kw,
         )  # fmt: skip
 
     return resistance
+
+
+def spring_constant(sample: Sample, rig: Rig) -> float:
+    """S of chapter 3's map: the rig's, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0) [N/m]."""
+    from tcamlab.models import sensing
+
+    if rig.spring_constant is not None:
+        return float(rig.spring_constant)
+    return TCS_STIFFNESS_RATIO * sensing.conditioning(1.0, **sample.sensor_kwargs()).spring_stiffness_model
+
+
+def unloaded_resistance(sample: Sample, rig: Rig) -> float:
+    """Chapter 3's R0 (unloaded, at ambient) [ohm]: ``initial_resistance`` when stated, else the
+    rig's ``resistance`` (the loaded actuator's, as the dynamic kind states it) over g(x0)."""
+    from tcamlab.models import selfsensing
+
+    if rig.initial_resistance is not None:
+        return float(rig.initial_resistance)
+    g = selfsensing.geometric_ratio(
+        rest_extension(sample, rig), spring_constant=spring_constant(sample, rig), **sample.sensor_kwargs()
+    )
+    return float(rig.resistance / g)
 
 
 def observer_config(experiment, *, resistance=None, noise=None, temperature_span=160.0) -> ObserverConfig:
@@ -261,9 +259,8 @@ def observer_config(experiment, *, resistance=None, noise=None, temperature_span
     Parameters
     ----------
     experiment : tcamlab.config.Experiment
-        Its ``sample`` and ``rig`` (C_th, lambda, b, load, ambient, R0 as
-        ``initial_resistance`` or else ``resistance``; the TCR as
-        ``resistance_tc`` where the rig has one, else silver's).
+        Its ``sample`` and ``rig`` (C_th, lambda, b, load, ambient, R0 by
+        :func:`unloaded_resistance`, the TCR ``tcr``, S by :func:`spring_constant`).
     resistance : callable, optional
         R(T [degC], x [m]) [ohm], vectorised; default :func:`combined_resistance`.
     noise : dict, optional
@@ -271,9 +268,21 @@ def observer_config(experiment, *, resistance=None, noise=None, temperature_span
     temperature_span : float
         Tabulated range above ambient [K].
     """
-    sample, rig = experiment.sample, experiment.rig
-    r0 = rig.initial_resistance if rig.initial_resistance is not None else rig.resistance
-    tcr = float(getattr(rig, "resistance_tc", None) or SILVER_TCR)
+    return config_from(
+        experiment.sample,
+        experiment.rig,
+        resistance=resistance,
+        noise=noise,
+        temperature_span=temperature_span,
+    )
+
+
+def config_from(
+    sample: Sample, rig: Rig, *, initial_resistance=None, resistance=None, noise=None, temperature_span=160.0
+) -> ObserverConfig:
+    """As :func:`observer_config`, from a sample and a rig; ``initial_resistance`` overrides R0 [ohm]."""
+    r0 = unloaded_resistance(sample, rig) if initial_resistance is None else float(initial_resistance)
+    tcr = float(getattr(rig, "tcr", SILVER_TCR))
     fn = resistance or combined_resistance(sample, rig, r0, tcr)
     x0 = rest_extension(sample, rig)
     half = 0.3 * x0 + 2e-3  # loads from about 70% to 130% of the stated one
@@ -281,6 +290,51 @@ def observer_config(experiment, *, resistance=None, noise=None, temperature_span
         fn, (rig.ambient - 20.0, rig.ambient + temperature_span), (x0 - half, x0 + half)
     )
     return ObserverConfig(sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})})
+
+
+def predict_displacement(
+    sample: Sample, rig: Rig, data, mods=None, *, initial_resistance=None, use_load=True
+):
+    """The self-sensed displacement and temperature of a logged run, by the EKF (causal).
+
+    The selfsensing kind's prediction: same signature and return as
+    ``tcamlab.kinds.selfsensing.predict_displacement``.
+
+    Parameters
+    ----------
+    sample, rig :
+        Calibrated or stated parameters [SI].
+    data : DataFrame
+        ``time`` [s], ``voltage`` [V], ``current`` [A]; ``load_force`` [N] is used as a
+        measurement when present and ``use_load`` (else the load is unknown).
+    mods : Mods, optional
+        ``r0_drift`` and ``tcr_extra`` are undone (the drift by scaling I back).
+    initial_resistance : float, optional
+        Chapter 3's R0 [ohm]; default :func:`unloaded_resistance`.
+
+    Returns
+    -------
+    dict
+        ``displacement`` [m] from the run's rest rows (leading rows at the first
+        voltage), ``temperature`` [degC].
+    """
+    t = data["time"].to_numpy(float)
+    v = data["voltage"].to_numpy(float)
+    i = data["current"].to_numpy(float)
+    if mods is not None and getattr(mods, "tcr_extra", 0.0):
+        rig = replace(rig, tcr=rig.tcr + mods.tcr_extra)
+    if mods is not None and getattr(mods, "r0_drift", 0.0):
+        i = i * (1.0 + mods.r0_drift * (t - t[0]))
+    config = config_from(sample, rig, initial_resistance=initial_resistance)
+    load = data["load_force"].to_numpy(float) if use_load and "load_force" in data else None
+    moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))
+    rest = slice(0, max(int(moved[0]) if moved.size else v.size, 1))
+    t0 = rig.ambient + float(np.mean(v[rest] * i[rest])) / rig.heat_loss  # steady at the probe power
+    est = estimate(t, v, i, config, load=load, initial_temperature=t0)
+    return {
+        "displacement": est.displacement - float(np.mean(est.displacement[rest])),
+        "temperature": est.temperature,
+    }
 
 
 @dataclass
