@@ -71,11 +71,27 @@ def speed(config, quick):
     return per_step, batch / n, batch * 600_000 / n, ref
 
 
-def accuracy(config, quick):
+def accuracy(config, quick, load_logged):
     sc = ct.Scenario(duration=60.0 if quick else 120.0, load_change_at=30.0 if quick else 60.0)
-    study = ct.closed_loop_study(config, sc, so.combined_resistance)
+    study = ct.closed_loop_study(config, sc, so.combined_resistance, load_logged=load_logged)
     e = study.results["laser"].estimate_error
     return study, float(np.mean(e)), float(np.percentile(e, 97.5) - np.percentile(e, 2.5)), sc.stroke
+
+
+def independent():
+    """The selfsensing kind's sample runs (raw/, made by that kind's own virtual rig), stated parameters."""
+    from tcamlab.io import read_run
+
+    exp = load_experiment(ROOT / "experiments" / "selfsensing.toml")
+    for run in exp.runs:
+        data = read_run(run, "selfsensing", exp.columns).data
+        meas = data["displacement"].to_numpy() - data["displacement"].iloc[0]
+        for use_load in (True, False):
+            e = so.predict_displacement(exp.sample, exp.rig, data, use_load=use_load)["displacement"] - meas
+            width = np.percentile(e, 97.5) - np.percentile(e, 2.5)
+            label = "load logged" if use_load else "load unknown"
+            print(f"  {run.name} ({label}): stroke {np.ptp(meas) * 1e3:.2f} mm, mean {np.mean(e) * 1e6:.1f} um, "
+                  f"95% interval {width * 1e6:.1f} um ({width / np.ptp(meas):.1%})")  # fmt: skip
 
 
 def main(argv=None):
@@ -89,14 +105,17 @@ def main(argv=None):
     print(
         f"plain Python (NUMBA_DISABLE_JIT): {ref * 1e6:.0f} us/sample; batch {ref / per_sample:.0f}x faster"
     )
-    study, mean, width, stroke = accuracy(config, args.quick)
-    print(f"stroke {stroke * 1e3:.2f} mm; estimate error mean {mean * 1e6:.1f} um ({mean / stroke:.1%}), "
-          f"95% interval {width * 1e6:.1f} um ({width / stroke:.1%}); goals 2% and 10%")  # fmt: skip
-    for m, v in study.rms.items():
-        print(
-            f"closed loop {m}: RMS {v * 1e6:.1f} um, after the load change {study.rms_after_load_change[m] * 1e6:.1f} um"
-        )
-    print(f"self-sensing / laser RMS: {study.rms['self-sensing'] / study.rms['laser']:.2f} (goal <= 2)")
+    for logged in (False, True):
+        study, mean, width, stroke = accuracy(config, args.quick, logged)
+        print(f"load {'logged' if logged else 'unknown'}: stroke {stroke * 1e3:.2f} mm; estimate error mean "
+              f"{mean * 1e6:.1f} um ({mean / stroke:.1%}), 95% interval {width * 1e6:.1f} um "
+              f"({width / stroke:.1%}); goals 2% and 10%")  # fmt: skip
+        for m, v in study.rms.items():
+            after = study.rms_after_load_change[m]
+            print(f"  closed loop {m}: RMS {v * 1e6:.1f} um, after the load change {after * 1e6:.1f} um")
+        print(f"  self-sensing / laser RMS: {study.rms['self-sensing'] / study.rms['laser']:.2f} (goal <= 2)")
+    print("independent data (the selfsensing kind's virtual rig):")
+    independent()
 
 
 if __name__ == "__main__":

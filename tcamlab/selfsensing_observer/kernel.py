@@ -32,6 +32,8 @@ N_PARAMS = 14
 G_T0, G_DT, G_X0, G_DX = 0, 1, 2, 3
 NX = 4
 """State dimension."""
+EPS = (1e-4, 1e-7, 1e-6, 1e-5)
+"""Forward-difference steps of (T [K], x [m], v [m/s], F [N]) for the transition Jacobian."""
 
 _heating = njit(cache=True)(thermal.heating_rate)  # (2.18)
 _softened = njit(cache=True)(static.softened_modulus)  # (2.13)
@@ -77,31 +79,26 @@ def equilibrium(temp, force, p, x_guess):
 
 
 @njit(cache=True)
-def _deriv(temp, x, v, force, power, p, out):
-    out[0] = _heating(temp - p[P_TA], 0.0, 1.0, p[P_CTH], p[P_LAM], 0.0, 0.0) + power / p[P_CTH]
-    out[1] = v
-    out[2] = _acceleration(v, internal_force(x, temp, p), p[P_MASS], p[P_DAMP], force)
+def _deriv(temp, x, v, force, power, p):
+    """(dT/dt, dx/dt, dv/dt) of (2.18) and (2.19)."""
+    d_temp = _heating(temp - p[P_TA], 0.0, 1.0, p[P_CTH], p[P_LAM], 0.0, 0.0) + power / p[P_CTH]
+    return d_temp, v, _acceleration(v, internal_force(x, temp, p), p[P_MASS], p[P_DAMP], force)
 
 
 @njit(cache=True)
 def propagate(s, power, dt, p, nsub, out):
     """RK4 over dt in ``nsub`` sub-steps with the power held; F is held too."""
     h = dt / nsub
-    k1 = np.empty(3)
-    k2 = np.empty(3)
-    k3 = np.empty(3)
-    k4 = np.empty(3)
-    y = np.empty(3)
-    y[0], y[1], y[2] = s[0], s[1], s[2]
-    f = s[3]
+    y0, y1, y2, f = s[0], s[1], s[2], s[3]
     for _ in range(nsub):
-        _deriv(y[0], y[1], y[2], f, power, p, k1)
-        _deriv(y[0] + 0.5 * h * k1[0], y[1] + 0.5 * h * k1[1], y[2] + 0.5 * h * k1[2], f, power, p, k2)
-        _deriv(y[0] + 0.5 * h * k2[0], y[1] + 0.5 * h * k2[1], y[2] + 0.5 * h * k2[2], f, power, p, k3)
-        _deriv(y[0] + h * k3[0], y[1] + h * k3[1], y[2] + h * k3[2], f, power, p, k4)
-        for i in range(3):
-            y[i] += h * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) / 6.0
-    out[0], out[1], out[2], out[3] = y[0], y[1], y[2], f
+        a0, a1, a2 = _deriv(y0, y1, y2, f, power, p)
+        b0, b1, b2 = _deriv(y0 + 0.5 * h * a0, y1 + 0.5 * h * a1, y2 + 0.5 * h * a2, f, power, p)
+        c0, c1, c2 = _deriv(y0 + 0.5 * h * b0, y1 + 0.5 * h * b1, y2 + 0.5 * h * b2, f, power, p)
+        d0, d1, d2 = _deriv(y0 + h * c0, y1 + h * c1, y2 + h * c2, f, power, p)
+        y0 += h * (a0 + 2.0 * b0 + 2.0 * c0 + d0) / 6.0
+        y1 += h * (a1 + 2.0 * b1 + 2.0 * c1 + d1) / 6.0
+        y2 += h * (a2 + 2.0 * b2 + 2.0 * c2 + d2) / 6.0
+    out[0], out[1], out[2], out[3] = y0, y1, y2, f
 
 
 @njit(cache=True)
@@ -122,22 +119,39 @@ def table_resistance(temp, x, table, grid):
 
 
 @njit(cache=True)
-def _predict(s, c, power, dt, p, nsub, q, s_new, c_new):
-    """EKF time update: s_new = f(s), c_new = A c A' + Q with A by forward differences."""
+def _predict(s, c, power, dt, p, nsub, q, s_new, work):
+    """EKF time update in place: s <- f(s), c <- A c A' + Q, A by forward differences.
+
+    ``work`` is scratch of shape (3, NX, NX) (no allocation per sample).
+    """
     propagate(s, power, dt, p, nsub, s_new)
-    a = np.zeros((NX, NX))
-    pert = np.empty(NX)
-    moved = np.empty(NX)
-    eps = (1e-4, 1e-7, 1e-6, 1e-5)
+    a = work[0]
+    ac = work[1]
+    pert = work[2, 0]
+    moved = work[2, 1]
     for j in range(NX):
-        pert[:] = s
-        pert[j] += eps[j]
+        for i in range(NX):
+            pert[i] = s[i]
+        eps = EPS[j]
+        pert[j] += eps
         propagate(pert, power, dt, p, nsub, moved)
         for i in range(NX):
-            a[i, j] = (moved[i] - s_new[i]) / eps[j]
-    c_new[:, :] = a @ c @ a.T
+            a[i, j] = (moved[i] - s_new[i]) / eps
+    for i in range(NX):  # 4x4 products by hand: a BLAS call costs more than the arithmetic
+        for j in range(NX):
+            acc = 0.0
+            for k in range(NX):
+                acc += a[i, k] * c[k, j]
+            ac[i, j] = acc
     for i in range(NX):
-        c_new[i, i] += q[i]
+        for j in range(NX):
+            acc = 0.0
+            for k in range(NX):
+                acc += ac[i, k] * a[j, k]
+            c[i, j] = acc
+        c[i, i] += q[i]
+    for i in range(NX):
+        s[i] = s_new[i]
 
 
 @njit(cache=True)
@@ -154,16 +168,15 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     power = v_prev * i_prev
     sd_v, sd_i = noise[0], noise[1]
     sd_p = math.sqrt((i_prev * sd_v) ** 2 + (v_prev * sd_i) ** 2)
-    q = np.empty(NX)
-    q[0] = (sd_p * dt / p[P_CTH]) ** 2 + noise[2] * dt
-    q[1] = 0.0
-    q[2] = noise[3] * dt
-    q[3] = noise[4] * dt
+    q = (
+        (sd_p * dt / p[P_CTH]) ** 2 + noise[2] * dt,
+        0.0,
+        noise[3] * dt,
+        noise[4] * dt,
+    )
     s_new = np.empty(NX)
-    c_new = np.empty((NX, NX))
-    _predict(s, c, power, dt, p, nsub, q, s_new, c_new)
-    s[:] = s_new
-    c[:, :] = c_new
+    work = np.empty((3, NX, NX))
+    _predict(s, c, power, dt, p, nsub, q, s_new, work)
     out[0], out[1] = volt, cur
     nis = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid)
     if load_force == load_force:  # a logged load is a second measurement
