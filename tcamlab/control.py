@@ -35,6 +35,7 @@ from tcamlab.selfsensing_observer import (
     CURRENT_NOISE_SD,
     CURRENT_QUANTUM,
     MAX_STEP_S,
+    THETA_NOISE,
     VOLTAGE_NOISE_SD,
     VOLTAGE_QUANTUM,
     ObserverConfig,
@@ -256,6 +257,8 @@ def simulate_loop(
     """
     from tcamlab import control_kernel as CK
 
+    if load_logged:  # theta is observable only with the load known (README)
+        model = model.with_noise(**THETA_NOISE)
     time = np.arange(0.0, scenario.duration, scenario.dt)
     n = time.size
     ref = reference_profile(time, scenario.stroke, scenario.duration) if reference is None else reference

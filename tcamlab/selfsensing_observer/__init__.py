@@ -50,6 +50,7 @@ __all__ = [
     "TCS_STIFFNESS_RATIO",
     "parameter_vector",
     "DEFAULT_NOISE",
+    "THETA_NOISE",
     "chain_sd",
     "VOLTAGE_NOISE_SD",
     "VOLTAGE_QUANTUM",
@@ -84,6 +85,8 @@ DEFAULT_NOISE = {
     "q_velocity": 1e-8,
     "q_force": 1e-6,
     "sd_load": 2e-3,
+    "q_theta": 0.0,
+    "sd_theta": 0.0,
 }
 """Noise of the filter, SI.
 
@@ -100,7 +103,15 @@ DEFAULT_NOISE = {
   resistance noise into x through the load (dx = f11 dF, f11 = 0.09 m/N for the
   thesis TCA), tighter follows a load change more slowly (measured: README).
 * ``sd_load`` [N]: a logged load cell (LSP-5 with amplifier, 2 mN).
+* ``sd_theta`` [1/K], ``q_theta`` [1/K^2/s]: prior sd and random walk of theta, the
+  filter's correction to the thermal part of R, R = R(T, x) (1 + theta (T - T_a)).
+  Off (0) by default; :data:`THETA_NOISE` when the load is logged (README: with the load
+  unknown, theta and the load trade off and the estimate gets worse, not better).
 """
+
+
+THETA_NOISE = {"sd_theta": 1e-4, "q_theta": 1e-12}
+"""theta on: 1e-4 /K covers a TCR 2 % off (7.6e-5 /K) or lambda 1-2 % off at 60 K."""
 
 
 @dataclass(frozen=True)
@@ -163,7 +174,7 @@ class ObserverConfig:
 
     def noise_vector(self) -> np.ndarray:
         n = self.noise
-        keys = ("sd_voltage", "sd_current", "q_temperature", "q_velocity", "q_force", "sd_load")
+        keys = ("sd_voltage", "sd_current", "q_temperature", "q_velocity", "q_force", "sd_load", "q_theta")
         return np.array([float(n[k]) for k in keys])
 
     def with_noise(self, **changes) -> ObserverConfig:
@@ -325,8 +336,10 @@ def predict_displacement(
         rig = replace(rig, tcr=rig.tcr + mods.tcr_extra)
     if mods is not None and getattr(mods, "r0_drift", 0.0):
         i = i * (1.0 + mods.r0_drift * (t - t[0]))
-    config = config_from(sample, rig, initial_resistance=initial_resistance)
     load = data["load_force"].to_numpy(float) if use_load and "load_force" in data else None
+    config = config_from(
+        sample, rig, initial_resistance=initial_resistance, noise=THETA_NOISE if load is not None else None
+    )
     moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))
     rest = slice(0, max(int(moved[0]) if moved.size else v.size, 1))
     t0 = rig.ambient + float(np.mean(v[rest] * i[rest])) / rig.heat_loss  # steady at the probe power
@@ -374,10 +387,11 @@ def initial_state(config: ObserverConfig, temperature=None):
     rig = config.rig
     t0 = rig.ambient if temperature is None else float(temperature)
     x0 = rest_extension(config.sample, rig, t0)
-    s0 = np.array([t0, x0, 0.0, rig.force])
+    s0 = np.array([t0, x0, 0.0, rig.force, 0.0])
     # The load's prior spreads x too: dx = f11 dF with f11 = dx/dF at rest.
     f11 = (rest_extension(config.sample, rig, t0, rig.force + 1e-3) - x0) / 1e-3
-    c0 = np.diag([config.initial_temperature_sd**2, (f11 * config.initial_load_sd) ** 2, 1e-8, 0.0])
+    c0 = np.diag([config.initial_temperature_sd**2, (f11 * config.initial_load_sd) ** 2, 1e-8, 0.0, 0.0])
+    c0[4, 4] = config.noise["sd_theta"] ** 2
     c0[3, 3] = config.initial_load_sd**2
     c0[1, 3] = c0[3, 1] = f11 * config.initial_load_sd**2
     return s0, c0

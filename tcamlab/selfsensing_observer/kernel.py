@@ -30,10 +30,10 @@ P_GT, P_SLOPE, P_E, P_PHI0, P_NCOIL, P_S0 = 8, 9, 10, 11, 12, 13
 N_PARAMS = 14
 # Grid layout of the resistance table: T_first, dT_step, x_first, x_step.
 G_T0, G_DT, G_X0, G_DX = 0, 1, 2, 3
-NX = 4
-"""State dimension."""
-EPS = (1e-4, 1e-7, 1e-6, 1e-5)
-"""Forward-difference steps of (T [K], x [m], v [m/s], F [N]) for the transition Jacobian."""
+NX = 5
+"""State dimension: (T, x, v, F, theta)."""
+EPS = (1e-4, 1e-7, 1e-6, 1e-5, 1e-6)
+"""Forward-difference steps of (T [K], x [m], v [m/s], F [N], theta [1/K]) for the transition Jacobian."""
 
 _heating = njit(cache=True)(thermal.heating_rate)  # (2.18)
 _softened = njit(cache=True)(static.softened_modulus)  # (2.13)
@@ -99,6 +99,8 @@ def propagate(s, power, dt, p, nsub, out):
         y1 += h * (a1 + 2.0 * b1 + 2.0 * c1 + d1) / 6.0
         y2 += h * (a2 + 2.0 * b2 + 2.0 * c2 + d2) / 6.0
     out[0], out[1], out[2], out[3] = y0, y1, y2, f
+    for i in range(4, out.size):  # theta (the filter's) is constant in the model
+        out[i] = s[i]
 
 
 @njit(cache=True)
@@ -173,31 +175,41 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
         0.0,
         noise[3] * dt,
         noise[4] * dt,
+        noise[6] * dt,
     )
     s_new = np.empty(NX)
     work = np.empty((3, NX, NX))
     _predict(s, c, power, dt, p, nsub, q, s_new, work)
     out[0], out[1] = volt, cur
-    nis = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid)
+    nis = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, p[P_TA])
     if load_force == load_force:  # a logged load is a second measurement
         _update_load(s, c, load_force, noise[5])
     return nis
 
 
 @njit(cache=True)
-def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid):
-    """Measurement update on the current I = V / R(T, x); returns the NIS."""
-    r, drdt, drdx = table_resistance(s[0], s[1], table, grid)
+def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, ta):
+    """Measurement update on the current I = V / (R(T, x) (1 + theta (T - T_a))); returns the NIS.
+
+    theta [1/K] absorbs a thermal part of R the calibrated model gets wrong (a TCR
+    off, or a temperature off in proportion to the rise, as a lambda off makes it).
+    """
+    r_tab, drdt, drdx = table_resistance(s[0], s[1], table, grid)
+    dT = s[0] - ta
+    scale = 1.0 + s[4] * dT
+    r = r_tab * scale
     if not (abs(volt) > 3.0 * sd_v) or r <= 0.0:
         return np.nan
     pred = volt / r
-    h0 = -volt * drdt / (r * r)
-    h1 = -volt * drdx / (r * r)
+    k = -volt / (r * r)
+    h0 = k * (drdt * scale + r_tab * s[4])
+    h1 = k * drdx * scale
+    h4 = k * r_tab * dT
     var = sd_i * sd_i + (sd_v / r) ** 2
     ch = np.empty(NX)
     for i in range(NX):
-        ch[i] = c[i, 0] * h0 + c[i, 1] * h1
-    sv = h0 * ch[0] + h1 * ch[1] + var
+        ch[i] = c[i, 0] * h0 + c[i, 1] * h1 + c[i, 4] * h4
+    sv = h0 * ch[0] + h1 * ch[1] + h4 * ch[4] + var
     innov = cur - pred
     for i in range(NX):
         s[i] += ch[i] * innov / sv
