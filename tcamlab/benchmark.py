@@ -69,13 +69,19 @@ GENERATOR = "tcamlab.rig"
 """The simulator the benchmark's cases come from (recorded in every result)."""
 
 
+BENCHMARK_KINDS = tuple(k for k in KINDS if k != "selfsensing")
+"""Kinds the benchmark runs unless told otherwise: selfsensing's virtual rig integrates a
+50 s powered run per simulation (about 4 s), too slow for the benchmark's budget while its
+diagnosis is not a target (issue 14); pass ``kinds`` to include it."""
+
+
 # ---------------------------------------------------------------------------
 # tasks
 # ---------------------------------------------------------------------------
 
 
 def make_tasks(
-    *, quick: bool = False, seeds: int = 10, kinds=KINDS, effects=None, lies: bool = False
+    *, quick: bool = False, seeds: int = 10, kinds=None, effects=None, lies: bool = False
 ) -> list[dict]:
     """Task dicts (case, kind, effects {name: strength}, seed).
 
@@ -84,6 +90,7 @@ def make_tasks(
     and noisy zeros (:func:`lying_null_task`). The other tasks do not change.
     """
     tasks = []
+    kinds = BENCHMARK_KINDS if kinds is None else kinds
     strengths = (3.0,) if quick else STRENGTHS
     n_seeds = min(2, max(int(seeds), 1)) if quick else max(int(seeds), 1)
     for kind in kinds:
@@ -470,7 +477,7 @@ def run_benchmark(
     scheduler=None,
     workers=None,
     seeds: int = 10,
-    kinds=KINDS,
+    kinds=None,
     effects=None,
     tasks=None,
     lies: bool = False,

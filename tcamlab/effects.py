@@ -352,10 +352,9 @@ EFFECTS: dict[tuple[str, str], Effect] = {
         _e(
             "inter-coil-contact",
             "selfsensing",
-            [EffectParam("contact_slope", "1/m", 20.0, 0.0, 40.0)],
+            [EffectParam("contact_slope", "1/m", 20.0, 0.0, 200.0)],
             "past a contraction, neighbouring coils touch and short-circuit turns, so R falls "
-            "as the muscle contracts further (bounded below chapter 3's own 47 /m of the thesis TCA, "
-            "beyond which R would no longer rise with length)",
+            "as the muscle contracts further",
             "thesis sec. 3.2 assumes coils never touch ('as observed under a microscope')",
             "contract the muscle slowly against a stop at known lengths: R drops at the contact length",
             {"contact_onset": 0.2e-3},

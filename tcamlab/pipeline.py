@@ -593,12 +593,13 @@ def _write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
 def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, **options):
     """Withheld-effect benchmark of the diagnosis (:func:`tcamlab.benchmark.run_benchmark`).
 
-    ``kinds`` (default all) are checked first, so a typo fails before minutes
-    of simulation; ``options`` are ``quick``, ``scheduler``, ``workers``, ``seeds``, ``lies``.
+    ``kinds`` (default :data:`tcamlab.benchmark.BENCHMARK_KINDS`) are checked first, so a typo
+    fails before minutes of simulation; ``options`` are ``quick``, ``scheduler``, ``workers``,
+    ``seeds``, ``lies``.
     """
-    from tcamlab.benchmark import run_benchmark
+    from tcamlab.benchmark import BENCHMARK_KINDS, run_benchmark
 
-    kinds = tuple(kinds) if kinds else KINDS
+    kinds = tuple(kinds) if kinds else BENCHMARK_KINDS
     for k in kinds:
         _check_kind(k, "--kind")
     return run_benchmark(out_dir, kinds=kinds, effects=list(effects) if effects else None, **options)

@@ -43,9 +43,15 @@ def test_every_mods_field_is_covered():
         "compression",
         "camera_offset",
         "offset_error",
+        # self-sensing: hand values in tests/test_kind_selfsensing.py
+        "contact_slope",
+        "contact_onset",
+        "r0_drift",
+        "tcr_extra",
     }
     assert set(Mods.__dataclass_fields__) == covered
-    assert all(getattr(NONE, f) == 0.0 for f in covered - {"glass_temperature", "relaxation_tau"})
+    fixed = {"glass_temperature", "relaxation_tau", "contact_onset"}
+    assert all(getattr(NONE, f) == 0.0 for f in covered - fixed)
 
 
 # ---------------------------------------------------------------------------

@@ -11,10 +11,11 @@ it): R = V / I and P = V I from the logged channels; T from the electro-thermal
 model (2.18) driven by P, starting at the steady temperature of the rest rows'
 probe power; delta from inverting the combined model R(T, delta)
 (:mod:`tcamlab.models.selfsensing`) at that T; the displacement is delta minus
-its mean over the rest rows. Rows whose current is below
-:data:`MIN_CURRENT_A` hold the last estimate (causal). It never uses the load
-or the laser, and it is causal, but it trusts the thermal model's T: an error
-of 1 K reads as about 0.36 % of R, i.e. tens of um of displacement.
+the statics' rest extension ((2.10)-(2.11) at the rest temperature under the
+first row's load: ``load_N`` when logged, else the rig's). Rows whose current is
+below :data:`MIN_CURRENT_A` hold the last estimate (causal). It uses the load
+only for that reference and never the laser, but it trusts the thermal model's T: an error
+of 1 K reads as 0.36 % of R, about 150 um of displacement for the template's muscle.
 
 R0 (``initial_resistance_ohm``) is chapter 3's: unloaded, at ambient. When the
 file does not state it, it is the mean R of the rest rows divided by the model's
@@ -134,17 +135,22 @@ def predict_displacement(
     r = pd.Series(r).ffill().bfill().to_numpy() / (1.0 + mods.r0_drift * (t - t[0]))
     kw = _model_kwargs(sample, rig, initial_resistance, rig.tcr + mods.tcr_extra)
     delta = ssm.invert_displacement(r, temp, **kw)
+    # the model's rest extension, not the rest rows' mean of delta: that mean would cancel a
+    # common error of R, hiding it from the noise floor and the nuisance zero alike
+    mass = float(data["load_force"].iloc[0]) / G_ACCEL if "load_force" in data else rig.load
+    x_rest = _rest_extension(sample, rig, t0, mass)
     if mods.contact_slope:
-        delta = _undo_contact(r, temp, delta, delta[rest].mean(), mods, kw)
-    return {"displacement": delta - float(np.mean(delta[rest])), "temperature": temp}
+        delta = _undo_contact(r, temp, delta, x_rest, mods, kw)
+    return {"displacement": delta - x_rest, "temperature": temp}
 
 
 def _undo_contact(r, temp, delta, x_rest, mods, kw):
     """delta solving delta = F(delta) = invert(R / contact(delta)) row by row, by secant steps.
 
-    A plain fixed-point pass converges only as fast as contact_slope / (d ln g / d delta)
-    (about 0.6 for a slope of 30 /m), so the secant step is used; rows out of contact are
-    already solved (F is constant there).
+    R stays monotone in delta (contact lowers R as contraction does), but a plain
+    fixed-point pass has the gain -contact_slope / (d ln g / d delta), beyond 1 in size
+    for slopes above about 24 /m with the template's muscle, so the secant step is used;
+    rows out of contact are already solved (F is constant there).
     """
     zero_t = np.zeros_like(delta)
 

@@ -104,6 +104,20 @@ instruments.CAMERA_SD_PER_M            0.2 1/m             curvature from the ca
 instruments.CAMERA_RESOLUTION_PER_M    0.001 1/m           written with 6 decimals in per_mm
 (resistances)                                              two channels of the same multimeter as above
 curvature.KIND.default_runs            3
+**self-sensing powered run** (issue 14; truth: :mod:`.selfsensing`)
+selfsensing.RATE_HZ                    100 Hz              logging rate; one run holds every protocol, 50 s
+selfsensing.SEGMENTS                   2+12+12+12+12 s     rest at the probe, voltage steps, PWM, sine, chirp
+selfsensing.PROBE_V                    1.5 V               probe between heating phases: a current to read R
+selfsensing.STEP_LEVELS_V              4 V, 6 V            3 s each; 6 V on 40 ohm is ~100 K at steady state
+selfsensing.PWM_V, _HZ, _DUTY          6 V, 1 Hz, 0.5      PWM drive
+selfsensing.SINE_MEAN_V, _AMP_V        3.5 V, 2.5 V        sine at 0.25 Hz; chirp 0.05 -> 1 Hz
+selfsensing.RIDER_KG                   5 g                 rider put on the 50 g hanger at a uniform random
+                                                           time in RIDER_WINDOW_S = 15-35 s: the load changes
+selfsensing.CURRENT_SD_A               0.05 mA             0.1 ohm shunt into an INA219-class monitor
+selfsensing.CURRENT_SPAN_A, _BITS      0.4 A, 12 bit       current ADC: quantum 98 uA
+selfsensing.VOLTAGE_SD_V               5 mV                voltage divider and ADC input noise
+selfsensing.VOLTAGE_SPAN_V, _BITS      12 V, 12 bit        voltage ADC: quantum 2.9 mV
+(displacement, load)                                       the laser chain above; the logged weight is exact
 **per-run scatter** (relative sd, ``KIND.default_scatter`` of each kind module)
 actuators                              0.2 % twists,       re-mounting and slow annealing make repeats of the
                                        0.2 % coil_length   same sample differ slightly; far below noise here

@@ -20,6 +20,7 @@ relative error below 1e-9), so the right-hand side needs no root solve.
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,7 +35,7 @@ from tcamlab.models.coil import compliance_coefficients, compliance_terms, resto
 from tcamlab.models.dynamic import acceleration
 from tcamlab.params import G_ACCEL, Rig, Sample
 
-__all__ = ["PoweredRun", "powered_run", "internal_force", "GRID_HALF_WIDTH_M"]
+__all__ = ["PoweredRun", "powered_run", "rest_state", "internal_force", "GRID_HALF_WIDTH_M"]
 
 GRID_HALF_WIDTH_M = 15e-3
 """Half-width of the tabulated g(x) around the rest extension [m] (strokes are a few mm)."""
@@ -102,6 +103,42 @@ def _g_table(sample: Sample, spring_constant: float, x_rest: float) -> CubicSpli
     )
 
 
+def rest_state(sample: Sample, rig: Rig, voltage: float, mass: float, tcr: float) -> tuple[float, float]:
+    """Temperature [degC] and extension [m] at rest under a held probe voltage and mass.
+
+    (2.18) at steady state with P = V^2 / R(T, x) and the statics at that T, solved
+    together by fixed-point passes (the probe heats by a few kelvin, so they converge fast).
+    """
+    ta, r0 = rig.ambient, float(rig.initial_resistance)
+    t0, x0 = ta, float(static.displacement(0.0, mass * G_ACCEL, **sample.model_kwargs()))
+    for _ in range(20):
+        heat = ssm.coating_factor(t0, ta, tcr) * ssm.swelling_factor(t0, ta, sample.radial_cte)
+        g0 = float(ssm.geometric_ratio(x0, spring_constant=rig.spring_constant, **sample.sensor_kwargs()))
+        t0 = ssm.rest_temperature(voltage**2 / (r0 * g0 * heat), rig.heat_loss, ta)
+        x0 = float(static.displacement(t0 - ta, mass * G_ACCEL, **sample.model_kwargs()))
+    return float(t0), x0
+
+
+def _scalar_resistance(g: CubicSpline, r0, tcr, ta, rho, x0, t0, mods: Mods):
+    """R(t, T, x) in float arithmetic for the ODE's right-hand side (same terms as the arrays'
+    :func:`tcamlab.models.selfsensing.resistance` and ``effect_factor``; numpy scalar calls
+    cost ten times more)."""
+    xs = g.x.tolist()
+    c3, c2, c1, c0 = (row.tolist() for row in g.c)
+    last = len(xs) - 2
+
+    def r(tt, temp, x):
+        i = min(max(bisect_right(xs, x) - 1, 0), last)
+        dx = x - xs[i]
+        gx = ((c3[i] * dx + c2[i]) * dx + c1[i]) * dx + c0[i]
+        dT = temp - ta
+        heat = (1.0 + tcr * dT) / (1.0 + rho * dT) ** 2
+        contact = 1.0 - mods.contact_slope * max(0.0, x0 - x - mods.contact_onset)
+        return r0 * gx * heat * (1.0 + mods.r0_drift * (tt - t0)) * contact
+
+    return r
+
+
 def powered_run(
     sample: Sample, rig: Rig, time, voltage, load_mass, mods: Mods = NO_MODS, *, rtol: float = 1e-8
 ) -> PoweredRun:
@@ -136,27 +173,21 @@ def powered_run(
     _, gt, n = _mechanics(sample)
     r0, tcr, ta = float(rig.initial_resistance), rig.tcr + mods.tcr_extra, rig.ambient
     cth, lam, b = rig.thermal_mass, rig.heat_loss, rig.damping
-    # start at rest under the first voltage (the probe) and load: solve T0 and x0 together
-    t0, x0 = ta, float(static.displacement(0.0, m[0] * G_ACCEL, **sample.model_kwargs()))
-    for _ in range(20):
-        heat = ssm.coating_factor(t0, ta, tcr) * ssm.swelling_factor(t0, ta, sample.radial_cte)
-        r_rest = r0 * float(
-            ssm.geometric_ratio(x0, spring_constant=rig.spring_constant, **sample.sensor_kwargs())
-        )
-        t0 = ssm.rest_temperature(v[0] ** 2 / (r_rest * heat), lam, ta)
-        x0 = float(static.displacement(t0 - ta, m[0] * G_ACCEL, **sample.model_kwargs()))
+    t0, x0 = rest_state(sample, rig, float(v[0]), float(m[0]), tcr)
     g = _g_table(sample, rig.spring_constant, x0)
 
     def r_of(tt, temp, x):
         heat = ssm.coating_factor(temp, ta, tcr) * ssm.swelling_factor(temp, ta, sample.radial_cte)
         return r0 * g(x) * heat * ssm.effect_factor(tt - t[0], x0 - x, mods)
 
+    r_scalar = _scalar_resistance(g, r0, tcr, ta, sample.radial_cte, x0, float(t[0]), mods)
+
     def rhs(tt, y, volt, mass):
         temp, x, vel = y
         if abs(x - x0) > GRID_HALF_WIDTH_M:
             raise ModelDomainError("self-sensing rig: the stroke left the tabulated range")
         dT = temp - ta
-        tdot = (volt * volt / r_of(tt, temp, x) - lam * dT) / cth
+        tdot = (volt * volt / r_scalar(tt, temp, x) - lam * dT) / cth
         acc = acceleration(vel, internal_force(x, dT, sample, gt, n), mass, b, mass * G_ACCEL)
         return [tdot, vel, acc]
 
