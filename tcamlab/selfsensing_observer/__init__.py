@@ -326,8 +326,8 @@ def predict_displacement(
     Returns
     -------
     dict
-        ``displacement`` [m] from the run's rest rows (leading rows at the first
-        voltage), ``temperature`` [degC].
+        ``displacement`` [m] from the static rest extension at the rest rows' steady
+        temperature (leading rows at the first voltage), ``temperature`` [degC].
     """
     t = data["time"].to_numpy(float)
     v = data["voltage"].to_numpy(float)
@@ -344,8 +344,11 @@ def predict_displacement(
     rest = slice(0, max(int(moved[0]) if moved.size else v.size, 1))
     t0 = rig.ambient + float(np.mean(v[rest] * i[rest])) / rig.heat_loss  # steady at the probe power
     est = estimate(t, v, i, config, load=load, initial_temperature=t0)
+    # from the statics' rest extension at the rest temperature, as the kind does: the rest
+    # rows' mean of the estimate would cancel a common error and hide it
+    x_rest = rest_extension(sample, rig, t0)
     return {
-        "displacement": est.displacement - float(np.mean(est.displacement[rest])),
+        "displacement": est.displacement + est.extension0 - x_rest,
         "temperature": est.temperature,
     }
 
