@@ -9,6 +9,10 @@ One loop per sample k (period dt), in the order a real controller runs:
 4. the plant (the dynamic model with the TRUE parameters and the TRUE
    resistance R(T, x)) integrates over [t_k, t_k+1] with V_k held, heated by
    V_k^2 / R, under the TRUE load force of the interval.
+
+Numba's disk cache does not notice edits to :mod:`tcamlab.selfsensing_observer.kernel`
+(whose functions and constants, NX among them, are compiled in here): touch this file
+after changing that one.
 """
 
 from __future__ import annotations
