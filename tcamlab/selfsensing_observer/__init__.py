@@ -49,6 +49,8 @@ __all__ = [
     "predict_displacement",
     "TCS_STIFFNESS_RATIO",
     "parameter_vector",
+    "initial_state",
+    "rest_extension",
     "DEFAULT_NOISE",
     "THETA_NOISE",
     "chain_sd",
@@ -502,8 +504,3 @@ class SelfSensingObserver:
                 self._noise, self.config.table.values, self.config.table.grid, self._carry,
             )  # fmt: skip
         return self.state[1] - self.extension0, self.state[0], self.covariance.copy()
-
-
-def default_load_force(rig: Rig) -> float:
-    """The stated load as a force, m g [N]."""
-    return rig.load * G_ACCEL
