@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from tcamlab.params import G_ACCEL, SILVER_TCR, Rig, Sample
+from tcamlab.params import SILVER_TCR, Rig, Sample
 
 __all__ = [
     "ObserverConfig",
