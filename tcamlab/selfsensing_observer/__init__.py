@@ -1,0 +1,506 @@
+"""Self-sensing estimator: displacement and temperature from voltage and current alone.
+
+An extended Kalman filter (EKF) on the state (T, x, v, F):
+
+* time update: the electro-thermal model (2.18) driven by the *measured* power
+  P = V I held over the sample interval, and the dynamic model (2.14)-(2.19)
+  with the load force F as a random walk (unknown unless a ``load_N`` column
+  is logged, then it is a second measurement);
+* measurement update: the measured current I against V / R(T, x), the combined
+  resistance model (temperature coefficient of the silver, fiber swelling and
+  the coil's geometry), tabulated on a (T, x) grid (:class:`ResistanceTable`).
+
+Why an EKF: the model is smooth, the state is small (4), and the per-sample
+cost must stay in microseconds for a 1 kHz loop; an unscented filter costs
+2n + 1 = 9 propagations a sample against 5 here and gains little on a model
+this close to linear over one millisecond.
+
+Noise, from the instruments (:data:`DEFAULT_NOISE`, documented there): the
+voltage and current channels' sds enter both the measurement (I) and the
+process (the power's error, sd_P^2 = (I sd_V)^2 + (V sd_I)^2, integrated over
+the interval by 1/C_th). The model-error densities q_T, q_v and q_F say how
+far the calibrated thermal model, the mechanics and the load may wander per
+second.
+
+Parameters (C_th, lambda, b, m, R0, the sample's geometry, ...) come from an
+experiment file or its ``NAME.calibrated.toml`` (:func:`observer_config`), never
+from constants here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from tcamlab.params import SILVER_TCR, Rig, Sample
+
+__all__ = [
+    "ObserverConfig",
+    "ResistanceTable",
+    "SelfSensingObserver",
+    "EstimateResult",
+    "estimate",
+    "observer_config",
+    "config_from",
+    "combined_resistance",
+    "spring_constant",
+    "unloaded_resistance",
+    "predict_displacement",
+    "TCS_STIFFNESS_RATIO",
+    "parameter_vector",
+    "initial_state",
+    "rest_extension",
+    "DEFAULT_NOISE",
+    "THETA_NOISE",
+    "chain_sd",
+    "VOLTAGE_NOISE_SD",
+    "VOLTAGE_QUANTUM",
+    "CURRENT_NOISE_SD",
+    "CURRENT_QUANTUM",
+    "MAX_STEP_S",
+]
+
+MAX_STEP_S = 1e-3
+"""Largest integration sub-step of the filter's time update [s] (RK4; the
+mechanics' natural frequency is about 14 rad/s, the thermal time constant 3 s)."""
+
+VOLTAGE_NOISE_SD = 5e-3
+"""Analogue noise on the driver-voltage reading [V]."""
+VOLTAGE_QUANTUM = 15.0 / 1023
+"""One code of a 10-bit ADC over a 15 V divider [V] (14.7 mV)."""
+CURRENT_NOISE_SD = 0.5e-3
+"""Amplifier noise of the current sense (0.1 ohm, gain 50) [A]."""
+CURRENT_QUANTUM = 1.0 / 1023
+"""One code of a 10-bit ADC over the sense's 1 A span [A] (0.98 mA)."""
+
+
+def chain_sd(noise_sd: float, quantum: float) -> float:
+    """sd of a reading: noise and uniform quantisation, sqrt(sd^2 + q^2 / 12)."""
+    return float(np.hypot(noise_sd, quantum / np.sqrt(12.0)))
+
+
+DEFAULT_NOISE = {
+    "sd_voltage": chain_sd(VOLTAGE_NOISE_SD, VOLTAGE_QUANTUM),
+    "sd_current": chain_sd(CURRENT_NOISE_SD, CURRENT_QUANTUM),
+    "q_temperature": 0.5,
+    "q_velocity": 1e-8,
+    "q_force": 1e-6,
+    "sd_load": 2e-3,
+    "q_theta": 0.0,
+    "sd_theta": 0.0,
+}
+"""Noise of the filter, SI.
+
+* ``sd_voltage`` [V]: the driver voltage read by a 10-bit ADC over a 15 V divider
+  (one code 14.7 mV, sd 4.2 mV) with 5 mV analogue noise: 6.5 mV.
+* ``sd_current`` [A]: a 0.1 ohm sense resistor, gain 50, 10-bit ADC over 5 V
+  (one code 0.98 mA, sd 0.28 mA) with 0.5 mA amplifier noise: 0.58 mA.
+* ``q_temperature`` [K^2/s]: model error of (2.18) beyond the power noise: a
+  lambda 5% off at 60 K above ambient errs by 0.16 K/s; 0.5 K^2/s lets the
+  estimate move 0.7 K in a second on the resistance's word. Much looser makes T
+  and the load unobservable apart (the estimate drifts: README).
+* ``q_velocity`` [m^2/s^3]: unmodelled forces on the mechanics.
+* ``q_force`` [N^2/s]: the load's random walk (sd 1 mN after 1 s): looser lets the
+  resistance noise into x through the load (dx = f11 dF, f11 = 0.09 m/N for the
+  thesis TCA), tighter follows a load change more slowly (measured: README).
+* ``sd_load`` [N]: a logged load cell (LSP-5 with amplifier, 2 mN).
+* ``sd_theta`` [1/K], ``q_theta`` [1/K^2/s]: prior sd and random walk of theta, the
+  filter's correction to the thermal part of R, R = R(T, x) (1 + theta (T - T_a)).
+  Off (0) by default; :data:`THETA_NOISE` when the load is logged (README: with the load
+  unknown, theta and the load trade off and the estimate gets worse, not better).
+"""
+
+
+THETA_NOISE = {"sd_theta": 1e-4, "q_theta": 1e-12}
+"""theta on: 1e-4 /K covers a TCR 2 % off (7.6e-5 /K) or lambda 1-2 % off at 60 K."""
+
+
+@dataclass(frozen=True)
+class ResistanceTable:
+    """R(T, x) on a regular grid, for the compiled filter.
+
+    Attributes
+    ----------
+    values : ndarray, shape (nT, nx)
+        R [ohm].
+    grid : ndarray, shape (4,)
+        (first T [degC], T step [K], first x [m], x step [m]).
+    """
+
+    values: np.ndarray
+    grid: np.ndarray
+
+    @classmethod
+    def build(cls, resistance, t_range, x_range, n_t=121, n_x=161):
+        """Tabulate a vectorised ``resistance(temperature [degC], extension [m])`` [ohm]."""
+        t = np.linspace(t_range[0], t_range[1], n_t)
+        x = np.linspace(x_range[0], x_range[1], n_x)
+        tt, xx = np.meshgrid(t, x, indexing="ij")
+        values = np.ascontiguousarray(np.asarray(resistance(tt, xx), float))
+        grid = np.array([t[0], t[1] - t[0], x[0], x[1] - x[0]])
+        return cls(values, grid)
+
+
+@dataclass(frozen=True)
+class ObserverConfig:
+    """Everything the filter needs, SI.
+
+    Attributes
+    ----------
+    sample : Sample
+    rig : Rig
+        C_th, lambda, b, the hanging mass m (inertia and the load's prior) and
+        T_a are read from here.
+    initial_resistance : float
+        Chapter 3's R0: unloaded, at ambient [ohm].
+    resistance_tc : float
+        Temperature coefficient of R [1/K].
+    table : ResistanceTable
+    noise : dict
+        As :data:`DEFAULT_NOISE`.
+    initial_temperature_sd : float
+        Prior sd of T at the start [K].
+    initial_load_sd : float
+        Prior sd of the load force at the start [N].
+    """
+
+    sample: Sample
+    rig: Rig
+    initial_resistance: float
+    resistance_tc: float
+    table: ResistanceTable
+    noise: dict = field(default_factory=lambda: dict(DEFAULT_NOISE))
+    initial_temperature_sd: float = 2.0
+    initial_load_sd: float = 1e-3
+
+    def noise_vector(self) -> np.ndarray:
+        n = self.noise
+        keys = ("sd_voltage", "sd_current", "q_temperature", "q_velocity", "q_force", "sd_load", "q_theta")
+        return np.array([float(n[k]) for k in keys])
+
+    def with_noise(self, **changes) -> ObserverConfig:
+        return replace(self, noise={**self.noise, **changes})
+
+
+def parameter_vector(sample: Sample, rig: Rig) -> np.ndarray:
+    """Parameter vector of :mod:`tcamlab.selfsensing_observer.kernel` [SI]."""
+    from tcamlab.models import static
+    from tcamlab.selfsensing_observer import kernel as K
+
+    p = np.zeros(K.N_PARAMS)
+    p[K.P_TA], p[K.P_CTH], p[K.P_LAM] = rig.ambient, rig.thermal_mass, rig.heat_loss
+    p[K.P_MASS], p[K.P_DAMP] = rig.load, rig.damping
+    p[K.P_L], p[K.P_D0], p[K.P_RHO] = sample.fiber_length, sample.fiber_diameter, sample.radial_cte
+    p[K.P_GT] = float(
+        static.sample_shear_modulus(
+            sample.fiber_diameter,
+            sample.fiber_length,
+            sample.twists,
+            sample.youngs_modulus,
+            sample.thread_plies,
+            sample.max_volume_fraction,
+        )
+    )
+    p[K.P_SLOPE], p[K.P_E] = sample.shear_modulus_slope, sample.youngs_modulus
+    p[K.P_PHI0] = 2.0 * np.pi * sample.twists
+    p[K.P_NCOIL] = float(static.n_coils(sample.fiber_length, sample.coil_length, sample.coil_diameter))
+    p[K.P_S0] = sample.coil_length / sample.fiber_length
+    return p
+
+
+def rest_extension(sample: Sample, rig: Rig, temperature=None, force=None) -> float:
+    """Static extension x under the rig's load at ambient (or the given T [degC], F [N]) [m]."""
+    from tcamlab.selfsensing_observer import kernel as K
+
+    p = parameter_vector(sample, rig)
+    t = rig.ambient if temperature is None else temperature
+    f = rig.force if force is None else force
+    return float(K.equilibrium(float(t), float(f), p, 0.5 * sample.coil_length))
+
+
+TCS_STIFFNESS_RATIO = 0.6
+"""S f11(alpha0) assumed for chapter 3's map when the rig states no spring constant
+(the ratio of the sensing template, README "Presets and assumed values")."""
+
+
+def combined_resistance(sample: Sample, rig: Rig, initial_resistance: float, resistance_tc: float):
+    """R(T, x) of :mod:`tcamlab.models.selfsensing` as a function of (T [degC], x [m]) -> R [ohm].
+
+    ``initial_resistance`` is chapter 3's R0: unloaded, at ambient. S is
+    ``rig.spring_constant``, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0).
+    """
+    from tcamlab.models import selfsensing
+
+    kw = sample.sensor_kwargs()
+    s_c = spring_constant(sample, rig)
+
+    def resistance(temperature, extension):
+        return selfsensing.resistance(
+            temperature, extension, initial_resistance=initial_resistance, reference_temperature=rig.ambient,
+            tcr=resistance_tc, radial_cte=sample.radial_cte, spring_constant=s_c, **kw,
+        )  # fmt: skip
+
+    return resistance
+
+
+def spring_constant(sample: Sample, rig: Rig) -> float:
+    """S of chapter 3's map: the rig's, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0) [N/m]."""
+    from tcamlab.models import sensing
+
+    if rig.spring_constant is not None:
+        return float(rig.spring_constant)
+    return TCS_STIFFNESS_RATIO * sensing.conditioning(1.0, **sample.sensor_kwargs()).spring_stiffness_model
+
+
+def unloaded_resistance(sample: Sample, rig: Rig) -> float:
+    """Chapter 3's R0 (unloaded, at ambient) [ohm]: ``initial_resistance`` when stated, else the
+    rig's ``resistance`` (the loaded actuator's, as the dynamic kind states it) over g(x0)."""
+    from tcamlab.models import selfsensing
+
+    if rig.initial_resistance is not None:
+        return float(rig.initial_resistance)
+    g = selfsensing.geometric_ratio(
+        rest_extension(sample, rig), spring_constant=spring_constant(sample, rig), **sample.sensor_kwargs()
+    )
+    return float(rig.resistance / g)
+
+
+def observer_config(experiment, *, resistance=None, noise=None, temperature_span=160.0) -> ObserverConfig:
+    """The filter's configuration from an experiment (or calibrated) file.
+
+    Parameters
+    ----------
+    experiment : tcamlab.config.Experiment
+        Its ``sample`` and ``rig`` (C_th, lambda, b, load, ambient, R0 by
+        :func:`unloaded_resistance`, the TCR ``tcr``, S by :func:`spring_constant`).
+    resistance : callable, optional
+        R(T [degC], x [m]) [ohm], vectorised; default :func:`combined_resistance`.
+    noise : dict, optional
+        Overrides of :data:`DEFAULT_NOISE`.
+    temperature_span : float
+        Tabulated range above ambient [K].
+    """
+    return config_from(
+        experiment.sample,
+        experiment.rig,
+        resistance=resistance,
+        noise=noise,
+        temperature_span=temperature_span,
+    )
+
+
+def config_from(
+    sample: Sample, rig: Rig, *, initial_resistance=None, resistance=None, noise=None, temperature_span=160.0
+) -> ObserverConfig:
+    """As :func:`observer_config`, from a sample and a rig; ``initial_resistance`` overrides R0 [ohm]."""
+    r0 = unloaded_resistance(sample, rig) if initial_resistance is None else float(initial_resistance)
+    tcr = float(getattr(rig, "tcr", SILVER_TCR))
+    fn = resistance or combined_resistance(sample, rig, r0, tcr)
+    x0 = rest_extension(sample, rig)
+    half = 0.3 * x0 + 2e-3  # loads from about 70% to 130% of the stated one
+    table = ResistanceTable.build(
+        fn, (rig.ambient - 20.0, rig.ambient + temperature_span), (x0 - half, x0 + half)
+    )
+    return ObserverConfig(sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})})
+
+
+def predict_displacement(
+    sample: Sample, rig: Rig, data, mods=None, *, initial_resistance=None, use_load=True
+):
+    """The self-sensed displacement and temperature of a logged run, by the EKF (causal).
+
+    The selfsensing kind's prediction: same signature and return as
+    ``tcamlab.kinds.selfsensing.predict_displacement``.
+
+    Parameters
+    ----------
+    sample, rig :
+        Calibrated or stated parameters [SI].
+    data : DataFrame
+        ``time`` [s], ``voltage`` [V], ``current`` [A]; ``load_force`` [N] is used as a
+        measurement when present and ``use_load`` (else the load is unknown).
+    mods : Mods, optional
+        ``r0_drift`` and ``tcr_extra`` are undone (the drift by scaling I back).
+    initial_resistance : float, optional
+        Chapter 3's R0 [ohm]; default :func:`unloaded_resistance`.
+
+    Returns
+    -------
+    dict
+        ``displacement`` [m] from the static rest extension at the rest rows' steady
+        temperature (leading rows at the first voltage), ``temperature`` [degC].
+    """
+    t = data["time"].to_numpy(float)
+    v = data["voltage"].to_numpy(float)
+    i = data["current"].to_numpy(float)
+    if mods is not None and getattr(mods, "tcr_extra", 0.0):
+        rig = replace(rig, tcr=rig.tcr + mods.tcr_extra)
+    if mods is not None and getattr(mods, "r0_drift", 0.0):
+        i = i * (1.0 + mods.r0_drift * (t - t[0]))
+    load = data["load_force"].to_numpy(float) if use_load and "load_force" in data else None
+    config = config_from(
+        sample, rig, initial_resistance=initial_resistance, noise=THETA_NOISE if load is not None else None
+    )
+    moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))
+    rest = slice(0, max(int(moved[0]) if moved.size else v.size, 1))
+    t0 = rig.ambient + float(np.mean(v[rest] * i[rest])) / rig.heat_loss  # steady at the probe power
+    est = estimate(t, v, i, config, load=load, initial_temperature=t0)
+    # from the statics' rest extension at the rest temperature, as the kind does: the rest
+    # rows' mean of the estimate would cancel a common error and hide it
+    x_rest = rest_extension(sample, rig, t0)
+    return {
+        "displacement": est.displacement + est.extension0 - x_rest,
+        "temperature": est.temperature,
+    }
+
+
+@dataclass
+class EstimateResult:
+    """The filter's estimates over a log, SI.
+
+    Attributes
+    ----------
+    time : ndarray [s]
+    displacement : ndarray
+        Estimated x - x(0), the logs' convention (positive longer) [m].
+    temperature : ndarray [degC]
+    load_force : ndarray [N]
+    variance : ndarray, shape (n, 4)
+        Posterior variances of (T, x, v, F) [K^2, m^2, m^2/s^2, N^2].
+    nis : ndarray
+        Normalised innovation squared per sample (NaN where V carried no information).
+    extension0 : float
+        x at the start [m].
+    """
+
+    time: np.ndarray
+    displacement: np.ndarray
+    temperature: np.ndarray
+    load_force: np.ndarray
+    variance: np.ndarray
+    nis: np.ndarray
+    extension0: float
+
+    @property
+    def displacement_sd(self) -> np.ndarray:
+        return np.sqrt(self.variance[:, 1])
+
+
+def initial_state(config: ObserverConfig, temperature=None):
+    """(s0, C0): the state at rest under the stated load and its prior covariance."""
+    rig = config.rig
+    t0 = rig.ambient if temperature is None else float(temperature)
+    x0 = rest_extension(config.sample, rig, t0)
+    s0 = np.array([t0, x0, 0.0, rig.force, 0.0])
+    # The load's prior spreads x too: dx = f11 dF with f11 = dx/dF at rest.
+    f11 = (rest_extension(config.sample, rig, t0, rig.force + 1e-3) - x0) / 1e-3
+    c0 = np.diag([config.initial_temperature_sd**2, (f11 * config.initial_load_sd) ** 2, 1e-8, 0.0, 0.0])
+    c0[4, 4] = config.noise["sd_theta"] ** 2
+    c0[3, 3] = config.initial_load_sd**2
+    c0[1, 3] = c0[3, 1] = f11 * config.initial_load_sd**2
+    return s0, c0
+
+
+def _as_load(load, n):
+    if load is None:
+        return np.full(n, np.nan)
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(load, float), (n,)))
+
+
+def estimate(
+    time, voltage, current, config: ObserverConfig, load=None, initial_temperature=None
+) -> EstimateResult:
+    """Estimate displacement and temperature over a whole log (compiled, causal).
+
+    Parameters
+    ----------
+    time : array_like, shape (n,)
+        [s], strictly increasing.
+    voltage, current : array_like, shape (n,)
+        Measured V [V] and I [A]; V is held from each sample to the next.
+    config : ObserverConfig
+    load : array_like, optional
+        Logged load force [N] (NaN where not logged); default unknown.
+    initial_temperature : float, optional
+        The filter's initial guess [degC]; default ambient.
+
+    Returns
+    -------
+    EstimateResult
+    """
+    from tcamlab.selfsensing_observer import kernel as K
+
+    t = np.ascontiguousarray(time, float)
+    v = np.ascontiguousarray(voltage, float)
+    i = np.ascontiguousarray(current, float)
+    n = t.size
+    s0, c0 = initial_state(config, initial_temperature)
+    out_s = np.empty((n, K.NX))
+    out_var = np.empty((n, K.NX))
+    out_nis = np.empty(n)
+    p = parameter_vector(config.sample, config.rig)
+    K.ekf_batch(
+        t, v, i, _as_load(load, n), s0, c0, p, config.noise_vector(), config.table.values,
+        config.table.grid, MAX_STEP_S, out_s, out_var, out_nis,
+    )  # fmt: skip
+    x_start = rest_extension(config.sample, config.rig)
+    return EstimateResult(t, out_s[:, 1] - x_start, out_s[:, 0], out_s[:, 3], out_var, out_nis, x_start)
+
+
+class SelfSensingObserver:
+    """The estimator on a live stream: one :meth:`step` per sample.
+
+    Parameters
+    ----------
+    config : ObserverConfig
+    dt : float
+        Sample period [s] (a call may pass its own).
+    initial_temperature : float, optional
+        [degC]; default ambient.
+
+    Examples
+    --------
+    >>> obs = SelfSensingObserver(config, dt=1e-3)          # doctest: +SKIP
+    >>> delta, temperature, cov = obs.step(4.0, 0.1)        # doctest: +SKIP
+    """
+
+    def __init__(self, config: ObserverConfig, dt: float = 1e-3, initial_temperature=None):
+        from tcamlab.selfsensing_observer import kernel as K
+
+        self._k = K
+        self.config = config
+        self.dt = float(dt)
+        self.state, self.covariance = initial_state(config, initial_temperature)
+        self.extension0 = rest_extension(config.sample, config.rig)
+        self._p = parameter_vector(config.sample, config.rig)
+        self._noise = config.noise_vector()
+        self._carry = np.zeros(2)
+        self._nsub = max(1, int(np.ceil(self.dt / MAX_STEP_S)))
+        self._first = True
+        self.nis = float("nan")
+
+    def step(self, voltage: float, current: float, load: float | None = None, dt: float | None = None):
+        """Take one sample (V [V], I [A], optional load force [N]).
+
+        Returns
+        -------
+        delta : float
+            Estimated displacement from the start, positive longer [m].
+        temperature : float
+            [degC].
+        covariance : ndarray, shape (4, 4)
+            Of (T, x, v, F), a copy.
+        """
+        lf = float("nan") if load is None else float(load)
+        if self._first:  # the first sample only starts the power held over the next interval
+            self._carry[0], self._carry[1] = voltage, current
+            self._first = False
+        else:
+            h = self.dt if dt is None else float(dt)
+            nsub = self._nsub if dt is None else max(1, int(np.ceil(h / MAX_STEP_S)))
+            self.nis = self._k.ekf_step(
+                self.state, self.covariance, float(voltage), float(current), lf, h, self._p, nsub,
+                self._noise, self.config.table.values, self.config.table.grid, self._carry,
+            )  # fmt: skip
+        return self.state[1] - self.extension0, self.state[0], self.covariance.copy()

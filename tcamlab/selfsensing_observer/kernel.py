@@ -1,0 +1,251 @@
+"""Numba kernels of the self-sensing estimator and the closed-loop plant (SI throughout).
+
+State s = (T, x, v, F): actuator temperature [degC], extension from the
+unloaded length [m], its rate [m/s] and the external (load) force [N].
+
+  C_th dT/dt = P - lambda (T - T_a)          (2.18), P the measured power V I
+  m dv/dt    = F - b v - F_i(x, T)           (2.19), F_i of (2.15)
+  dF/dt      = w                             (random walk: the load is unknown)
+
+The resistance R(T, x) enters through a table on a regular (T, x) grid,
+interpolated bilinearly, so any combined resistance model (a Python function)
+can be used at compiled speed; its slopes come from the same table.
+
+Every physical equation is compiled from the one Python function the rest of
+tcamlab uses (coil.compliance_terms, static.torque_from_strain, ...).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from tcamlab.models import coil, dynamic, static, thermal
+
+# Parameter vector layout.
+P_TA, P_CTH, P_LAM, P_MASS, P_DAMP, P_L, P_D0, P_RHO = 0, 1, 2, 3, 4, 5, 6, 7
+P_GT, P_SLOPE, P_E, P_PHI0, P_NCOIL, P_S0 = 8, 9, 10, 11, 12, 13
+N_PARAMS = 14
+# Grid layout of the resistance table: T_first, dT_step, x_first, x_step.
+G_T0, G_DT, G_X0, G_DX = 0, 1, 2, 3
+NX = 5
+"""State dimension: (T, x, v, F, theta)."""
+EPS = (1e-4, 1e-7, 1e-6, 1e-5, 1e-6)
+"""Forward-difference steps of (T [K], x [m], v [m/s], F [N], theta [1/K]) for the transition Jacobian."""
+
+_heating = njit(cache=True)(thermal.heating_rate)  # (2.18)
+_softened = njit(cache=True)(static.softened_modulus)  # (2.13)
+_torque = njit(cache=True)(static.torque_from_strain)  # (2.9)
+_coefficients = njit(cache=True)(coil.compliance_coefficients)  # (2.11)
+_terms = njit(cache=True)(coil.compliance_terms)  # (2.11)
+_restoring = njit(cache=True)(coil.restoring_force)  # (2.15)
+_acceleration = njit(cache=True)(dynamic.acceleration)  # (2.19)
+
+
+@njit(cache=True)
+def internal_force(x, temp, p):
+    """F_i(x, T) of (2.15) [N]; the state is clamped into the model's domain."""
+    dT = temp - p[P_TA]
+    g_tau = _softened(dT, p[P_GT], p[P_SLOPE])
+    floor = 0.05 * p[P_GT]
+    if g_tau < floor:
+        g_tau = floor
+    r = p[P_RHO] * dT
+    tau = _torque(g_tau, p[P_PHI0], p[P_D0], p[P_L], r)
+    s = p[P_S0] + x / p[P_L]
+    s = min(max(s, 1e-3), 0.999)
+    a, b, c = _coefficients(p[P_D0] * (1.0 + r), p[P_L], p[P_NCOIL])
+    f11, _, f12, _ = _terms(s, a, b, c, p[P_GT], p[P_E])
+    return _restoring(x, f11, f12, tau)
+
+
+@njit(cache=True)
+def equilibrium(temp, force, p, x_guess):
+    """Static extension x with F_i(x, T) = F (2.11), by a secant iteration [m]."""
+    x0 = x_guess
+    x1 = x_guess + 1e-4
+    f0 = internal_force(x0, temp, p) - force
+    for _ in range(60):
+        f1 = internal_force(x1, temp, p) - force
+        if f1 == f0:
+            break
+        x2 = x1 - f1 * (x1 - x0) / (f1 - f0)
+        x0, f0, x1 = x1, f1, x2
+        if abs(x1 - x0) < 1e-13:
+            break
+    return x1
+
+
+@njit(cache=True)
+def _deriv(temp, x, v, force, power, p):
+    """(dT/dt, dx/dt, dv/dt) of (2.18) and (2.19)."""
+    d_temp = _heating(temp - p[P_TA], 0.0, 1.0, p[P_CTH], p[P_LAM], 0.0, 0.0) + power / p[P_CTH]
+    return d_temp, v, _acceleration(v, internal_force(x, temp, p), p[P_MASS], p[P_DAMP], force)
+
+
+@njit(cache=True)
+def propagate(s, power, dt, p, nsub, out):
+    """RK4 over dt in ``nsub`` sub-steps with the power held; F is held too."""
+    h = dt / nsub
+    y0, y1, y2, f = s[0], s[1], s[2], s[3]
+    for _ in range(nsub):
+        a0, a1, a2 = _deriv(y0, y1, y2, f, power, p)
+        b0, b1, b2 = _deriv(y0 + 0.5 * h * a0, y1 + 0.5 * h * a1, y2 + 0.5 * h * a2, f, power, p)
+        c0, c1, c2 = _deriv(y0 + 0.5 * h * b0, y1 + 0.5 * h * b1, y2 + 0.5 * h * b2, f, power, p)
+        d0, d1, d2 = _deriv(y0 + h * c0, y1 + h * c1, y2 + h * c2, f, power, p)
+        y0 += h * (a0 + 2.0 * b0 + 2.0 * c0 + d0) / 6.0
+        y1 += h * (a1 + 2.0 * b1 + 2.0 * c1 + d1) / 6.0
+        y2 += h * (a2 + 2.0 * b2 + 2.0 * c2 + d2) / 6.0
+    out[0], out[1], out[2], out[3] = y0, y1, y2, f
+    for i in range(4, out.size):  # theta (the filter's) is constant in the model
+        out[i] = s[i]
+
+
+@njit(cache=True)
+def table_resistance(temp, x, table, grid):
+    """Bilinear R(T, x) from the table and its slopes (R [ohm], dR/dT [ohm/K], dR/dx [ohm/m])."""
+    nt, nx = table.shape
+    ft = (temp - grid[G_T0]) / grid[G_DT]
+    fx = (x - grid[G_X0]) / grid[G_DX]
+    i = min(max(int(math.floor(ft)), 0), nt - 2)
+    j = min(max(int(math.floor(fx)), 0), nx - 2)
+    u = ft - i
+    w = fx - j
+    r00, r01, r10, r11 = table[i, j], table[i, j + 1], table[i + 1, j], table[i + 1, j + 1]
+    r = (1 - u) * ((1 - w) * r00 + w * r01) + u * ((1 - w) * r10 + w * r11)
+    drdt = ((1 - w) * (r10 - r00) + w * (r11 - r01)) / grid[G_DT]
+    drdx = ((1 - u) * (r01 - r00) + u * (r11 - r10)) / grid[G_DX]
+    return r, drdt, drdx
+
+
+@njit(cache=True)
+def _predict(s, c, power, dt, p, nsub, q, s_new, work):
+    """EKF time update in place: s <- f(s), c <- A c A' + Q, A by forward differences.
+
+    ``work`` is scratch of shape (3, NX, NX) (no allocation per sample).
+    """
+    propagate(s, power, dt, p, nsub, s_new)
+    a = work[0]
+    ac = work[1]
+    pert = work[2, 0]
+    moved = work[2, 1]
+    for j in range(NX):
+        for i in range(NX):
+            pert[i] = s[i]
+        eps = EPS[j]
+        pert[j] += eps
+        propagate(pert, power, dt, p, nsub, moved)
+        for i in range(NX):
+            a[i, j] = (moved[i] - s_new[i]) / eps
+    for i in range(NX):  # 4x4 products by hand: a BLAS call costs more than the arithmetic
+        for j in range(NX):
+            acc = 0.0
+            for k in range(NX):
+                acc += a[i, k] * c[k, j]
+            ac[i, j] = acc
+    for i in range(NX):
+        for j in range(NX):
+            acc = 0.0
+            for k in range(NX):
+                acc += ac[i, k] * a[j, k]
+            c[i, j] = acc
+        c[i, i] += q[i]
+    for i in range(NX):
+        s[i] = s_new[i]
+
+
+@njit(cache=True)
+def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
+    """One causal EKF step from the previous sample's (V, I) to this sample's (V, I).
+
+    ``noise`` = (sd_V [V], sd_I [A], q_T [K^2/s], q_v [m^2/s^3], q_F [N^2/s],
+    sd_load [N]). The power held over the last interval is the previous
+    sample's V I (``out[0]``, ``out[1]`` carry V and I between calls).
+    Updates ``s`` and ``c`` in place; returns the normalised innovation
+    squared of the current measurement (NaN when it carried no information).
+    """
+    v_prev, i_prev = out[0], out[1]
+    power = v_prev * i_prev
+    sd_v, sd_i = noise[0], noise[1]
+    sd_p = math.sqrt((i_prev * sd_v) ** 2 + (v_prev * sd_i) ** 2)
+    q = (
+        (sd_p * dt / p[P_CTH]) ** 2 + noise[2] * dt,
+        0.0,
+        noise[3] * dt,
+        noise[4] * dt,
+        noise[6] * dt,
+    )
+    s_new = np.empty(NX)
+    work = np.empty((3, NX, NX))
+    _predict(s, c, power, dt, p, nsub, q, s_new, work)
+    out[0], out[1] = volt, cur
+    nis = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, p[P_TA])
+    if load_force == load_force:  # a logged load is a second measurement
+        _update_load(s, c, load_force, noise[5])
+    return nis
+
+
+@njit(cache=True)
+def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, ta):
+    """Measurement update on the current I = V / (R(T, x) (1 + theta (T - T_a))); returns the NIS.
+
+    theta [1/K] absorbs a thermal part of R the calibrated model gets wrong (a TCR
+    off, or a temperature off in proportion to the rise, as a lambda off makes it).
+    """
+    r_tab, drdt, drdx = table_resistance(s[0], s[1], table, grid)
+    dT = s[0] - ta
+    scale = 1.0 + s[4] * dT
+    r = r_tab * scale
+    if not (abs(volt) > 3.0 * sd_v) or r <= 0.0:
+        return np.nan
+    pred = volt / r
+    k = -volt / (r * r)
+    h0 = k * (drdt * scale + r_tab * s[4])
+    h1 = k * drdx * scale
+    h4 = k * r_tab * dT
+    var = sd_i * sd_i + (sd_v / r) ** 2
+    ch = np.empty(NX)
+    for i in range(NX):
+        ch[i] = c[i, 0] * h0 + c[i, 1] * h1 + c[i, 4] * h4
+    sv = h0 * ch[0] + h1 * ch[1] + h4 * ch[4] + var
+    innov = cur - pred
+    for i in range(NX):
+        s[i] += ch[i] * innov / sv
+    for i in range(NX):
+        for j in range(NX):
+            c[i, j] -= ch[i] * ch[j] / sv
+    return innov * innov / sv
+
+
+@njit(cache=True)
+def _update_load(s, c, load_force, sd):
+    sv = c[3, 3] + sd * sd
+    innov = load_force - s[3]
+    k = c[:, 3].copy() / sv
+    for i in range(NX):
+        s[i] += k[i] * innov
+    for i in range(NX):
+        for j in range(NX):
+            c[i, j] -= k[i] * k[j] * sv
+
+
+@njit(cache=True)
+def ekf_batch(time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_step, out_s, out_var, out_nis):
+    """The EKF over a whole log (sample by sample, exactly as :func:`ekf_step`)."""
+    s = s0.copy()
+    c = c0.copy()
+    carry = np.empty(2)
+    carry[0], carry[1] = volt[0], cur[0]
+    out_s[0, :] = s
+    for i in range(NX):
+        out_var[0, i] = c[i, i]
+    out_nis[0] = np.nan
+    for k in range(1, time.size):
+        dt = time[k] - time[k - 1]
+        nsub = max(1, int(math.ceil(dt / max_step)))
+        out_nis[k] = ekf_step(s, c, volt[k], cur[k], load_force[k], dt, p, nsub, noise, table, grid, carry)
+        out_s[k, :] = s
+        for i in range(NX):
+            out_var[k, i] = c[i, i]

@@ -1,0 +1,108 @@
+"""The self-sensing estimator on the virtual rig (synthetic: tcamlab.control, seeds in the tests)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tcamlab import control as ct
+from tcamlab import selfsensing_observer as so
+from tcamlab.config import load_experiment
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def config():
+    return so.observer_config(load_experiment(ROOT / "experiments" / "dynamic.toml"))
+
+
+@pytest.fixture(scope="module")
+def exact_truth(config):
+    """The plant with the filter's own parameters: only noise separates them."""
+    return ct.truth_config(config, (config.sample, config.rig, config.resistance_tc), so.combined_resistance)
+
+
+def _run(config, truth, volts, duration, load_change=0.0, at=1e9, seed=3, initial_temperature=None):
+    scenario = ct.Scenario(duration=duration, load_change=load_change, load_change_at=at, seed=seed)
+    return ct.simulate_loop(
+        "voltage", config, truth, scenario, voltage=volts, initial_temperature=initial_temperature
+    )
+
+
+def test_converges_from_a_wrong_initial_temperature(config, exact_truth):
+    r = _run(config, exact_truth, 4.0, 20.0, initial_temperature=config.rig.ambient + 15.0)
+    err = r.temperature_estimate - r.temperature
+    assert abs(err[0]) == pytest.approx(15.0, abs=0.1)
+    late = r.time > 18.0
+    assert np.max(np.abs(err[late])) < 0.5  # from 15 K to under 0.5 K in 18 s
+    assert np.max(np.abs(err[(r.time > 9.0) & (r.time < 10.0)])) < 1.5
+    assert np.sqrt(np.mean(r.estimate_error[late] ** 2)) < 100e-6
+
+
+def test_a_load_change_is_tracked(config, exact_truth):
+    step = 10e-3  # N, unknown to the filter: extends the heated thesis TCA by about 0.3 mm
+    r = _run(config, exact_truth, 4.0, 40.0, load_change=step, at=15.0)
+    after = (r.time > 30.0) & (r.time < 40.0)
+    before = (r.time > 10.0) & (r.time < 15.0)
+    moved = r.displacement[after].mean() - r.displacement[before].mean()
+    assert moved > 250e-6
+    # the estimate follows the step: its error is a small part of the move, and shrinks
+    first = (r.time > 15.0) & (r.time < 16.0)
+    assert abs(r.estimate_error[after].mean()) < 0.15 * moved
+    assert abs(r.estimate_error[after].mean()) < 0.3 * abs(r.estimate_error[first].mean())
+    assert abs(r.load_force[-1] - r.load_force[0] - step) < 1e-12  # the plant's load did step
+
+
+def test_step_and_batch_agree(config, exact_truth):
+    r = _run(config, exact_truth, np.where(np.arange(3000) < 1500, 3.0, 5.0), 3.0)
+    # replay the logged readings through the live-stream class and the batch function
+    volts = r.voltage
+    currents = volts / so.combined_resistance(
+        config.sample, config.rig, config.initial_resistance, config.resistance_tc
+    )(r.temperature, r.displacement + so.rest_extension(config.sample, config.rig))
+    batch = so.estimate(r.time, volts, currents, config)
+    obs = so.SelfSensingObserver(config, dt=1e-3)
+    live = np.array([obs.step(v, i)[0] for v, i in zip(volts, currents)])
+    np.testing.assert_allclose(live, batch.displacement, rtol=0, atol=1e-12)
+    assert batch.temperature[-1] > config.rig.ambient + 5.0
+
+
+def test_innovations_are_consistent(config):
+    """Mean NIS near its 1 degree of freedom on a run with noise only (no quantisation)."""
+    truth = ct.truth_config(config, (config.sample, config.rig, config.resistance_tc), so.combined_resistance)
+    inst = ct.Instruments(voltage_quantum=0.0, current_quantum=0.0)
+    cfg = config.with_noise(sd_voltage=inst.sd_voltage, sd_current=inst.sd_current)
+    scenario = ct.Scenario(duration=20.0, load_change=0.0, seed=11)
+    time = np.arange(0, 20.0, 1e-3)
+    volts = 3.0 + 2.0 * np.sin(2 * np.pi * time / 8.0)
+    r = ct.simulate_loop("voltage", cfg, truth, scenario, voltage=volts, instruments=inst)
+    v_read = r.voltage  # exact V; the NIS of the batch replay on noisy I
+    rng = np.random.default_rng(11)
+    r_true = so.combined_resistance(cfg.sample, cfg.rig, cfg.initial_resistance, cfg.resistance_tc)(
+        r.temperature, r.displacement + so.rest_extension(cfg.sample, cfg.rig)
+    )
+    i_read = v_read / r_true + inst.sd_current * rng.standard_normal(time.size)
+    est = so.estimate(time, v_read + inst.sd_voltage * rng.standard_normal(time.size), i_read, cfg)
+    nis = est.nis[time > 2.0]
+    assert np.nanmean(nis) == pytest.approx(1.0, abs=0.15)
+
+
+def test_on_the_selfsensing_sample_data():
+    """Independent data: the selfsensing kind's virtual rig (raw/, synthetic, seed 1), stated parameters."""
+    from tcamlab.io import read_run
+
+    exp = load_experiment(ROOT / "experiments" / "selfsensing.toml")
+    data = read_run(exp.runs[0], "selfsensing", exp.columns).data
+    measured = data["displacement"].to_numpy()
+    measured = measured - measured[0]
+    stroke = np.ptp(measured)
+    assert stroke > 1.5e-3  # the rider's 5 g is in the run
+    logged = so.predict_displacement(exp.sample, exp.rig, data)["displacement"] - measured
+    assert abs(np.mean(logged)) < 0.02 * stroke  # measured 0.2 %
+    assert np.percentile(logged, 97.5) - np.percentile(logged, 2.5) < 0.05 * stroke  # measured 1.3 %
+    unknown = so.predict_displacement(exp.sample, exp.rig, data, use_load=False)["displacement"] - measured
+    # without the load column the rider is followed only slowly: much worse, and said so in README
+    assert np.sqrt(np.mean(unknown**2)) > 5 * np.sqrt(np.mean(logged**2))
