@@ -305,6 +305,28 @@ def config_from(
     return ObserverConfig(sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})})
 
 
+def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods):
+    """R(T, x) with the inter-coil contact term of ``mods``, or None when there is none.
+
+    The filter then reads R through the same contact factor the effect library puts on
+    the true R (:func:`tcamlab.models.selfsensing.effect_factor`, contraction from the
+    rest extension at ambient).
+    """
+    if mods is None or not getattr(mods, "contact_slope", 0.0):
+        return None
+    from tcamlab.models import selfsensing
+
+    r0 = unloaded_resistance(sample, rig) if initial_resistance is None else float(initial_resistance)
+    base = combined_resistance(sample, rig, r0, float(getattr(rig, "tcr", SILVER_TCR)))
+    contact = replace(mods, r0_drift=0.0)
+    x0 = rest_extension(sample, rig)
+
+    def resistance(temperature, extension):
+        return base(temperature, extension) * selfsensing.effect_factor(0.0, x0 - extension, contact)
+
+    return resistance
+
+
 def predict_displacement(
     sample: Sample, rig: Rig, data, mods=None, *, initial_resistance=None, use_load=True
 ):
@@ -318,7 +340,7 @@ def predict_displacement(
     sample, rig :
         Calibrated or stated parameters [SI].
     data : DataFrame
-        ``time`` [s], ``voltage`` [V], ``current`` [A]; ``load_force`` [N] is used as a
+        ``time`` [s], ``voltage`` [V], ``current`` [A]; ``load_force`` or ``load`` [N] is used as a
         measurement when present and ``use_load`` (else the load is unknown).
     mods : Mods, optional
         ``r0_drift`` and ``tcr_extra`` are undone (the drift by scaling I back).
@@ -338,9 +360,15 @@ def predict_displacement(
         rig = replace(rig, tcr=rig.tcr + mods.tcr_extra)
     if mods is not None and getattr(mods, "r0_drift", 0.0):
         i = i * (1.0 + mods.r0_drift * (t - t[0]))
-    load = data["load_force"].to_numpy(float) if use_load and "load_force" in data else None
+    # "load" is the selfsensing kind's logged load_N column; "load_force" the simulations'
+    column = next((c for c in ("load_force", "load") if c in data), None)
+    load = data[column].to_numpy(float) if use_load and column else None
     config = config_from(
-        sample, rig, initial_resistance=initial_resistance, noise=THETA_NOISE if load is not None else None
+        sample,
+        rig,
+        initial_resistance=initial_resistance,
+        resistance=_contact_resistance(sample, rig, initial_resistance, mods),
+        noise=THETA_NOISE if load is not None else None,
     )
     moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))
     rest = slice(0, max(int(moved[0]) if moved.size else v.size, 1))
