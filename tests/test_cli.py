@@ -39,6 +39,31 @@ def test_every_command_has_help_with_an_example():
     assert seen >= 12
 
 
+PLACEHOLDER = re.compile(r"<(str|int|float|bool|list|path|file|dict|tuple)\b[^>]*>")
+
+
+def test_help_shows_choices_and_defaults_never_type_placeholders():
+    """Typer appends ``<str>``, ``<int range>``, ``<list[Path]>`` where no metavar is given:
+    every option and argument of every command has one, and a file argument says how to
+    write it for one's own CSV logs (``tcamlab init``, ``[columns]``)."""
+    root = get_command(app)
+    for path, cmd in _all_commands(root):
+        text = runner.invoke(app, list(path) + ["--help"], terminal_width=200).output
+        found = PLACEHOLDER.findall(text)
+        assert not found, f"tcamlab {' '.join(path)} --help shows placeholders {found}:\n{text}"
+        if any(p.param_type_name == "argument" and "EXPERIMENT" in (p.metavar or "") for p in cmd.params):
+            assert "tcamlab init" in text and "[columns]" in text, " ".join(path)
+    text = runner.invoke(app, ["simulate", "--help"], terminal_width=200).output
+    assert "[static|dynamic|sensing|curvature]" in text and "--oven [heating|heat-cool]" in text
+    assert "[default: 1.0]" in text  # --noise-scale's default
+    text = runner.invoke(app, ["validate", "static", "--help"], terminal_width=200).output
+    assert "--format [html|pdf|html,pdf]" in text and "[default: html,pdf]" in text
+    assert "[default: reports]" in text
+    for path in (["validate"], ["fit-spring"], ["init"]):
+        text = runner.invoke(app, path + ["--help"], terminal_width=200).output
+        assert "tcamlab init" in text and "[columns]" in text, path
+
+
 def _hashes(folder):
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.glob("*"))}
 
