@@ -151,6 +151,9 @@ EXPERIMENT_HELP = (
     "Experiment file (TOML). For your own CSV logs, tcamlab init KIND --csv FILE writes one whose "
     "[columns] table maps your headers and units."
 )
+Force = Annotated[
+    bool, typer.Option("--force", help="Overwrite this command's existing outputs (default: refuse).")
+]
 Experiment = Annotated[Path, typer.Argument(help=EXPERIMENT_HELP, metavar="EXPERIMENT.toml")]
 
 
@@ -250,6 +253,7 @@ def _make_validate(kind: str, example: str):
         mc_draws: McDraws = None,
         max_bytes: MaxBytes = None,
         strict: Strict = False,
+        force: Force = False,
     ):
         from tcamlab.pipeline import validate_experiment
         from tcamlab.text import validate_command
@@ -264,6 +268,7 @@ def _make_validate(kind: str, example: str):
             mc_draws=mc_draws,
             max_bytes=max_bytes,
             command=validate_command(kind, experiment, drop_na, mc_draws),
+            force=force,
         )
         _print_validation(outcome, as_json)
         if outcome.failed or (strict and outcome.result.warnings):
@@ -272,7 +277,8 @@ def _make_validate(kind: str, example: str):
     command.__doc__ = (
         f"Validate the {kind} model against an experiment's runs.\n\n"
         f"Writes OUT/NAME/report.html, report.pdf, metrics.json and "
-        f"predictions.csv; exits 1 if a [thresholds] limit is exceeded (or, with --strict, "
+        f"predictions.csv (NAME the file's stem, or its path when another file of that stem "
+        f"has a report there; an existing report is replaced only with --force); exits 1 if a [thresholds] limit is exceeded (or, with --strict, "
         f"a sanity check warns); without [thresholds] the status is 'no limits set' (exit 0).\n\n"
         f"Example: {example}"
     )
@@ -674,14 +680,20 @@ def diagnose(
     ] = None,
     as_json: Json = False,
     seed: int = typer.Option(0, "--seed", metavar="N", help="Seed of the bootstrap."),
+    force: Force = False,
 ):
     """Where the model departs from the logs, which effect explains it, and by how much.
+
+    With --out, writes OUT/NAME/ (NAME the file's stem, or its path when another file of
+    that stem has a diagnosis there); an existing diagnosis is replaced only with --force.
 
     Example: tcamlab diagnose experiments/static.toml --out reports --json
     """
     from tcamlab.pipeline import diagnose_experiment
 
-    doc = _run(diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out).result.to_dict()
+    doc = _run(
+        diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out, force=force
+    ).result.to_dict()
     if as_json:
         _print_json(doc)
         return

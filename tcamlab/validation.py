@@ -13,13 +13,14 @@ No file is written here: see :mod:`tcamlab.pipeline`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from tcamlab.config import Experiment
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
-from tcamlab.io import RunData, sha256_file
+from tcamlab.io import RunData, input_files, sha256_file
 from tcamlab.kinds import Kind, get_kind, rest_rows
 from tcamlab.metrics import (
     MIN_REST_ROWS,
@@ -196,7 +197,11 @@ class ValidationResult:
             "title": exp.title,
             "kind": exp.kind,
             "synthetic": exp.synthetic,
-            "experiment_file": {"file": exp.path.name, "sha256": sha256_file(exp.path)},
+            "experiment_file": {
+                "file": exp.path.name,
+                "path": relative_to(exp.path, Path.cwd()),
+                "sha256": sha256_file(exp.path),
+            },
             "inputs": [
                 {
                     "file": r.path.name,
@@ -205,6 +210,7 @@ class ValidationResult:
                     "rows": int(len(r.data)),
                     "dropped_rows": int(r.n_dropped),
                 }
+                | _joined_input(r, exp.path.parent)
                 for r in self.runs
             ],
             "primary_model": self.primary,
@@ -238,6 +244,23 @@ class ValidationResult:
         ax.set_xlabel(f"measured {name}")
         ax.set_ylabel(f"predicted {name}")
         return ax
+
+
+def _joined_input(run: RunData, start) -> dict:
+    """``{"joined": {...}}``: the second instrument's file of a run joined on time (its path
+    relative to the experiment file's folder and SHA-256), or {} for a run of one file."""
+    joined = [(p, h) for role, p, h in input_files(run) if role == "joined"]
+    if not joined:
+        return {}
+    (path, sha), join = joined[0], run.join
+    return {
+        "joined": {
+            "file": path.name,
+            "path": relative_to(path, start),
+            "sha256": sha,
+            "offset_s": join["offset_s"],
+        }
+    }
 
 
 def relative_to(path, start) -> str:

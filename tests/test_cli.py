@@ -435,3 +435,35 @@ def test_diagnose_writes_all_or_nothing(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError):
         diagnose_experiment(sim.experiment_path, out_dir=tmp_path / "d")
     assert not (tmp_path / "d/curvature").exists() or list((tmp_path / "d/curvature").iterdir()) == []
+
+
+def test_validate_diagnose_calibrate_name_by_path_and_refuse_a_rerun(lab, monkeypatch):
+    """Two valid ``case.toml`` in different folders get two output folders (the second named
+    by its path, as ``report`` names them); a second run of the same file into the same
+    folder is refused without --force and changes no byte."""
+    monkeypatch.chdir(lab)
+    for d in ("lab1", "lab2"):
+        (lab / d).mkdir()
+        (lab / d / "case.toml").write_bytes((lab / "experiments/sensing.toml").read_bytes())
+    commands = {
+        "metrics.json": ["validate", "{}", "--out", "R", "--format", "html"],
+        "diagnosis.json": ["diagnose", "{}", "--out", "R", "--effects", "initial-slack"],
+        "calibration.json": ["calibrate", "{}", "--out", "R", "--params", "spring_constant"],
+    }
+    for record, args in commands.items():
+        for d in ("lab1", "lab2"):
+            r = runner.invoke(app, [a.format(f"{d}/case.toml") for a in args])
+            assert r.exit_code == 0, (record, d, r.output)
+        assert (lab / "R/case" / record).exists() and (lab / "R/lab2-case" / record).exists(), record
+        before = _hashes(lab / "R/case")
+        for f in (lab / "lab1").glob("*.calibrated.toml"):
+            f.unlink()  # calibrate's own refusal of the calibrated file is tested apart
+        r = runner.invoke(app, [a.format("lab1/case.toml") for a in args])
+        assert r.exit_code == 2 and f"R/case/{record}" in r.output and "exists" in r.output, r.output
+        assert "--force" in r.output
+        assert "Traceback" not in r.output and _hashes(lab / "R/case") == before
+    metrics = json.loads((lab / "R/lab2-case/metrics.json").read_text())
+    assert metrics["experiment_file"]["path"] == "lab2/case.toml"
+    r = runner.invoke(app, ["validate", "lab1/case.toml", "--out", "R", "--format", "html", "--force"])
+    assert r.exit_code == 0 and "wrote R/case" in r.output, r.output
+    assert sorted(p.name for p in (lab / "R").iterdir()) == ["case", "lab2-case"]
