@@ -674,7 +674,22 @@ def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, **options):
     kinds = tuple(kinds) if kinds else KINDS
     for k in kinds:
         _check_kind(k, "--kind")
+    _check_effects(effects or (), kinds)
     return run_benchmark(out_dir, kinds=kinds, effects=list(effects) if effects else None, **options)
+
+
+def _check_effects(effects, kinds) -> None:
+    """An unknown effect (or one of none of ``kinds``) is a ConfigError, before any simulation."""
+    from tcamlab.effects import EFFECTS
+    from tcamlab.text import did_you_mean
+
+    known = sorted({name for kind, name in EFFECTS if kind in kinds})
+    for name in effects:
+        if name not in known:
+            raise ConfigError(
+                f"unknown effect {name!r} of {', '.join(kinds)}{did_you_mean(name, known)}",
+                hint="tcamlab effects list shows them",
+            )
 
 
 @dataclass

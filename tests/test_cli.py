@@ -467,3 +467,20 @@ def test_validate_diagnose_calibrate_name_by_path_and_refuse_a_rerun(lab, monkey
     r = runner.invoke(app, ["validate", "lab1/case.toml", "--out", "R", "--format", "html", "--force"])
     assert r.exit_code == 0 and "wrote R/case" in r.output, r.output
     assert sorted(p.name for p in (lab / "R").iterdir()) == ["case", "lab2-case"]
+
+
+def test_benchmark_refuses_an_unknown_effect_before_simulating(tmp_path):
+    """A misspelt --effect used to run the null cases alone and exit 0."""
+    out = tmp_path / "bench"
+    r = runner.invoke(app, ["benchmark", "diagnose", "--quick", "--effect", "hysterisis", "--out", str(out)])
+    assert (
+        r.exit_code == 2
+        and "unknown effect 'hysterisis'" in r.output
+        and "did you mean 'hysteresis'" in r.output
+    )
+    r = runner.invoke(
+        app,
+        ["benchmark", "diagnose", "--quick", "--kind", "static", "--effect", "hysteresis", "--out", str(out)],
+    )
+    assert r.exit_code == 2 and "unknown effect 'hysteresis' of static" in r.output
+    assert not out.exists()
