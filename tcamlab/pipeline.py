@@ -347,7 +347,8 @@ def report_names(paths: Sequence) -> list[str]:
 def recorded_experiments(record: Path) -> list[Path] | None:
     """The experiment files an output was made from, as its JSON record lists them
     (``metrics.json``, ``diagnosis.json``, ``calibration.json``), resolved against the
-    working folder; None when the record names none (or cannot be read)."""
+    working folder; None when the record names none, or a file outside the working folder
+    (``.../NAME``: reports hold no absolute paths), or cannot be read."""
     import json
 
     try:
@@ -362,7 +363,7 @@ def recorded_experiments(record: Path) -> list[Path] | None:
         found = [(doc.get("experiment") or {}).get("path")]
     else:
         found = [i.get("path") for i in doc.get("inputs") or [] if i.get("role") == "experiment"]
-    if not found or not all(isinstance(f, str) and f for f in found):
+    if not found or not all(isinstance(f, str) and f and not f.startswith(".../") for f in found):
         return None
     return [Path(f).resolve() for f in found]
 
@@ -374,7 +375,8 @@ def output_folder(out_dir, paths: Sequence, record: str, *, force: bool = False)
     stem; when ``out_dir/STEM`` holds the outputs (``record``, e.g. ``metrics.json``) of
     another experiment file of that stem (``lab1/case.toml`` then ``lab2/case.toml``), the
     files are named by their path as :func:`report_names` names the two (``lab2-case``).
-    Outputs of the same files are replaced only with ``force``.
+    Outputs of the same files, or of files the record cannot tell (an experiment file
+    outside the working folder), are replaced only with ``force``.
 
     Raises
     ------

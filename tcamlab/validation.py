@@ -13,7 +13,6 @@ No file is written here: see :mod:`tcamlab.pipeline`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -40,6 +39,7 @@ from tcamlab.metrics import (
     zero_offset_warning,
 )
 from tcamlab.numbers import unit_label
+from tcamlab.text import shown_path
 from tcamlab.units import quantity
 
 __all__ = ["ValidationResult", "RunPrediction", "validate", "MC_DRAWS"]
@@ -199,7 +199,7 @@ class ValidationResult:
             "synthetic": exp.synthetic,
             "experiment_file": {
                 "file": exp.path.name,
-                "path": relative_to(exp.path, Path.cwd()),
+                "path": shown_path(exp.path),
                 "sha256": sha256_file(exp.path),
             },
             "inputs": [
