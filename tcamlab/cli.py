@@ -660,7 +660,15 @@ def calibrate(
     for line in doc["identifiability"]:
         typer.echo("  " + line)
     for f in outcome.files:
-        typer.echo(f"wrote {f}")
+        typer.echo(f"wrote {_relative_if_below(f)}")
+
+
+def _relative_if_below(path: Path) -> Path:
+    """A path as the user would type it: relative to the working folder when below it."""
+    try:
+        return Path(path).resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return Path(path)
 
 
 # -- diagnose ---------------------------------------------------------------------------

@@ -108,6 +108,7 @@ def test_the_guide_walks_a_csv_to_a_validated_calibrated_diagnosed_experiment(gu
     s = next(p for p in cal["parameters"] if p["name"] == "spring_constant")
     assert s["value"] == pytest.approx(4.7, rel=0.01)
     assert (lab / "experiments/pull.calibrated.toml").exists()
+    assert "wrote experiments/pull.calibrated.toml\nwrote reports/pull/calibration.json\n" in out
     diagnosis = json.loads((lab / "reports/pull/diagnosis.json").read_text())
     assert diagnosis["verdict"] in ("none", "attributed", "aliased", "miscalibrated")
     for name in ("report.html", "report.pdf", "calibration.html", "diagnosis.html"):
