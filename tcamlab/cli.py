@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from typer.core import TyperGroup
+from typer.core import TyperArgument, TyperCommand, TyperGroup
 
 from tcamlab import __version__
 from tcamlab.kinds import KINDS
@@ -34,6 +34,23 @@ app = typer.Typer(
     # Plain help: rich markup would swallow "[columns]" and "[rig.uncertainty]" and show <bool>.
     rich_markup_mode=None,
 )
+
+
+class _MetavarArgument(TyperArgument):
+    """An argument shown by its metavar alone (Typer appends a placeholder such as ``<list[Path]>``)."""
+
+    def display_type_rich(self, ctx):
+        return None if self.metavar else super().display_type_rich(ctx)
+
+
+class _Command(TyperCommand):
+    """A command whose help names its arguments by their metavars (choices, ``EXPERIMENT.toml``)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        for param in self.params:
+            if type(param) is TyperArgument:
+                param.__class__ = _MetavarArgument  # same fields, only the help line changes
 
 
 class _ValidateGroup(TyperGroup):
@@ -62,7 +79,8 @@ def _kind_in_file(path: str) -> str:
 validate_app = typer.Typer(
     cls=_ValidateGroup,
     help="Validate a model against an experiment's runs and write its report; the kind is read "
-    "from the file (or named first).\n\n"
+    "from the file (or named first). For your own CSV logs, tcamlab init KIND --csv FILE writes "
+    "the experiment file, its [columns] table mapping your headers and units.\n\n"
     "Example: tcamlab validate experiments/static.toml --out reports",
     no_args_is_help=True,
     rich_markup_mode=None,
@@ -103,7 +121,7 @@ def _max_bytes(value: str) -> int:
 
 # -- options shared by several commands, declared once ---------------------------------
 
-Out = Annotated[Path, typer.Option("--out", help="Output folder (created if missing).")]
+Out = Annotated[Path, typer.Option("--out", metavar="DIR", help="Output folder (created if missing).")]
 Json = Annotated[bool, typer.Option("--json", help="Print the result as JSON to stdout.")]
 DropNa = Annotated[
     bool, typer.Option("--drop-na", help="Drop rows with blank cells (counted in the report).")
@@ -125,9 +143,18 @@ Strict = Annotated[
 ]
 McDraws = Annotated[
     int | None,
-    typer.Option("--mc-draws", min=0, help="Monte Carlo draws for the dynamic band (default 1000)."),
+    typer.Option(
+        "--mc-draws", min=0, metavar="N", help="Monte Carlo draws for the dynamic band (default 1000)."
+    ),
 ]
-Experiment = Annotated[Path, typer.Argument(help="Experiment file (TOML).", metavar="EXPERIMENT.toml")]
+EXPERIMENT_HELP = (
+    "Experiment file (TOML). For your own CSV logs, tcamlab init KIND --csv FILE writes one whose "
+    "[columns] table maps your headers and units."
+)
+Force = Annotated[
+    bool, typer.Option("--force", help="Overwrite this command's existing outputs (default: refuse).")
+]
+Experiment = Annotated[Path, typer.Argument(help=EXPERIMENT_HELP, metavar="EXPERIMENT.toml")]
 
 
 def _run(fn, *args, **kwargs):
@@ -218,12 +245,15 @@ def _make_validate(kind: str, example: str):
     def command(
         experiment: Experiment,
         out: Out = Path("reports"),
-        fmt: str = typer.Option("html,pdf", "--format", help="Report formats: html, pdf or html,pdf."),
+        fmt: str = typer.Option(
+            "html,pdf", "--format", metavar="[html|pdf|html,pdf]", help="Report formats."
+        ),
         as_json: Json = False,
         drop_na: DropNa = False,
         mc_draws: McDraws = None,
         max_bytes: MaxBytes = None,
         strict: Strict = False,
+        force: Force = False,
     ):
         from tcamlab.pipeline import validate_experiment
         from tcamlab.text import validate_command
@@ -238,6 +268,7 @@ def _make_validate(kind: str, example: str):
             mc_draws=mc_draws,
             max_bytes=max_bytes,
             command=validate_command(kind, experiment, drop_na, mc_draws),
+            force=force,
         )
         _print_validation(outcome, as_json)
         if outcome.failed or (strict and outcome.result.warnings):
@@ -246,7 +277,8 @@ def _make_validate(kind: str, example: str):
     command.__doc__ = (
         f"Validate the {kind} model against an experiment's runs.\n\n"
         f"Writes OUT/NAME/report.html, report.pdf, metrics.json and "
-        f"predictions.csv; exits 1 if a [thresholds] limit is exceeded (or, with --strict, "
+        f"predictions.csv (NAME the file's stem, or its path when another file of that stem "
+        f"has a report there; an existing report is replaced only with --force); exits 1 if a [thresholds] limit is exceeded (or, with --strict, "
         f"a sanity check warns); without [thresholds] the status is 'no limits set' (exit 0).\n\n"
         f"Example: {example}"
     )
@@ -254,7 +286,9 @@ def _make_validate(kind: str, example: str):
 
 
 for _kind in KINDS:
-    validate_app.command(_kind)(_make_validate(_kind, f"tcamlab validate {_kind} experiments/{_kind}.toml"))
+    validate_app.command(_kind, cls=_Command)(
+        _make_validate(_kind, f"tcamlab validate {_kind} experiments/{_kind}.toml")
+    )
 
 
 # -- report ---------------------------------------------------------------------------
@@ -273,14 +307,16 @@ def _progress_printer():
     return progress, interactive
 
 
-@app.command("report")
+@app.command("report", cls=_Command)
 def report(
     experiments: list[Path] | None = typer.Argument(
-        None, help="Experiment files (default: all of experiments/).", metavar="[EXPERIMENT.toml]..."
+        None,
+        help="Experiment files (default: all of experiments/). " + EXPERIMENT_HELP.split(". ", 1)[1],
+        metavar="[EXPERIMENT.toml]...",
     ),
     out: Out = Path("reports"),
     experiments_dir: Path = typer.Option(
-        Path("experiments"), "--experiments", help="Folder searched when no files are given."
+        Path("experiments"), "--experiments", metavar="DIR", help="Folder searched when no files are given."
     ),
     mc_draws: McDraws = None,
     drop_na: DropNa = False,
@@ -324,10 +360,13 @@ def report(
 # -- fit-spring -------------------------------------------------------------------------
 
 
-@app.command("fit-spring")
+@app.command("fit-spring", cls=_Command)
 def fit_spring(
     inputs: list[Path] = typer.Argument(
-        ..., help="Pull-test CSV logs or sensing experiment files.", metavar="CSV_OR_EXPERIMENT..."
+        ...,
+        help="Pull-test CSV logs (columns mapped with --column) or sensing experiment files (their "
+        "[columns] table maps the CSV; tcamlab init sensing --csv FILE writes one).",
+        metavar="CSV_OR_EXPERIMENT...",
     ),
     intercept: bool = typer.Option(
         True,
@@ -342,6 +381,7 @@ def fit_spring(
     plot: Path | None = typer.Option(
         None,
         "--plot",
+        metavar="FILE.png|.svg|.pdf",
         help="Write the fit and residual plot; the extension names the format (.png, .svg, .pdf).",
     ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing --plot file."),
@@ -418,7 +458,7 @@ def _spring_line(f) -> str:
 # -- init -------------------------------------------------------------------------------
 
 
-@app.command("init")
+@app.command("init", cls=_Command)
 def init(
     kind: str = typer.Argument(..., help="Rig kind of the log.", metavar=_KIND_CHOICES),
     csv: Path = typer.Option(
@@ -427,6 +467,7 @@ def init(
     out: Path | None = typer.Option(
         None,
         "--out",
+        metavar="EXPERIMENT.toml",
         help="Experiment file to write (default experiments/<CSV name>.toml); never overwritten.",
     ),
 ):
@@ -458,10 +499,10 @@ def init(
     typer.echo(f"wrote {res.path}; fill it in, then: tcamlab validate {kind} {res.path}")
 
 
-@app.command("check")
+@app.command("check", cls=_Command)
 def check(
     experiment: Experiment,
-    rows: int = typer.Option(3, "--rows", min=0, help="First rows of each run shown in SI."),
+    rows: int = typer.Option(3, "--rows", min=0, metavar="N", help="First rows of each run shown in SI."),
 ):
     """Dry run: what tcamlab makes of an experiment file, writing nothing.
 
@@ -483,7 +524,7 @@ def check(
 # -- simulate ---------------------------------------------------------------------------
 
 
-@app.command("simulate")
+@app.command("simulate", cls=_Command)
 def simulate(
     kind: str = typer.Argument(..., help="Rig kind to simulate.", metavar=_KIND_CHOICES),
     experiment: str = typer.Option(
@@ -492,7 +533,7 @@ def simulate(
         metavar="TEMPLATE.toml|KIND",
         help="Template experiment file (sample and rig), or a kind naming the shipped template.",
     ),
-    seed: int = typer.Option(..., "--seed", help="Seed of the random generator."),
+    seed: int = typer.Option(..., "--seed", metavar="N", help="Seed of the random generator."),
     out: Out = ...,
     effect: list[str] | None = typer.Option(
         None,
@@ -500,15 +541,19 @@ def simulate(
         metavar="NAME=STRENGTH",
         help="NAME=STRENGTH, strength in multiples of the noise RMS (repeatable).",
     ),
-    runs: int | None = typer.Option(None, "--runs", help="Number of runs (default 3)."),
-    name: str | None = typer.Option(None, "--name", help="Experiment name (default: the kind)."),
+    runs: int | None = typer.Option(None, "--runs", metavar="N", help="Number of runs (default 3)."),
+    name: str | None = typer.Option(
+        None, "--name", metavar="NAME", help="Experiment name (default: the template's name)."
+    ),
     scatter: list[str] | None = typer.Option(
         None,
         "--scatter",
         metavar="FIELD=REL",
         help="FIELD=REL: relative sd of a Sample/Rig field between runs, e.g. twists=0.002 (repeatable; default: the rig's small realistic scatter).",
     ),
-    noise_scale: float = typer.Option(1.0, "--noise-scale", help="Multiply every instrument noise sd."),
+    noise_scale: float = typer.Option(
+        1.0, "--noise-scale", metavar="F", help="Multiply every instrument noise sd."
+    ),
     oven: str = typer.Option(
         "heating",
         "--oven",
@@ -518,6 +563,7 @@ def simulate(
     parameter_error: float = typer.Option(
         0.0,
         "--parameter-error",
+        metavar="F",
         help="F: draw the true parameters with the stated [rig.uncertainty] sds times F "
         "(kept out of the experiment file; truth file only).",
     ),
@@ -561,19 +607,26 @@ def simulate(
 # -- calibrate --------------------------------------------------------------------------
 
 
-@app.command("calibrate")
+@app.command("calibrate", cls=_Command)
 def calibrate(
     experiments: Annotated[
         list[Path],
-        typer.Argument(help="Experiment files of one sample (TOML).", metavar="EXPERIMENT.toml..."),
+        typer.Argument(
+            help="Experiment files of one sample. " + EXPERIMENT_HELP.split(". ", 1)[1],
+            metavar="EXPERIMENT.toml...",
+        ),
     ],
     params: str | None = typer.Option(
-        None, "--params", help="Comma-separated parameters to calibrate (default: all of the kinds')."
+        None,
+        "--params",
+        metavar="P,Q,...",
+        help="Comma-separated parameters to calibrate (default: all of the kinds').",
     ),
     out: Annotated[
         Path | None,
         typer.Option(
             "--out",
+            metavar="DIR",
             help="Write OUT/NAME/calibration.json, the report calibration.html and .pdf, "
             "and its figures as calibration-figN.png and .svg.",
         ),
@@ -607,7 +660,15 @@ def calibrate(
     for line in doc["identifiability"]:
         typer.echo("  " + line)
     for f in outcome.files:
-        typer.echo(f"wrote {f}")
+        typer.echo(f"wrote {_relative_if_below(f)}")
+
+
+def _relative_if_below(path: Path) -> Path:
+    """A path as the user would type it: relative to the working folder when below it."""
+    try:
+        return Path(path).resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return Path(path)
 
 
 # -- closed-loop ------------------------------------------------------------------------
@@ -616,11 +677,13 @@ def calibrate(
 @app.command("closed-loop")
 def closed_loop(
     experiment: Experiment,
-    out: Annotated[Path, typer.Option("--out", help="Write OUT/NAME/closed_loop.{html,pdf,json}.")] = Path(
-        "reports"
+    out: Annotated[
+        Path, typer.Option("--out", metavar="DIR", help="Write OUT/NAME/closed_loop.{html,pdf,json}.")
+    ] = Path("reports"),
+    seed: int = typer.Option(
+        1, "--seed", metavar="N", help="Seed of the virtual rig's noise and of the truth's draw."
     ),
-    seed: int = typer.Option(1, "--seed", help="Seed of the virtual rig's noise and of the truth's draw."),
-    duration: float = typer.Option(120.0, "--duration", help="Run length [s] (1 kHz)."),
+    duration: float = typer.Option(120.0, "--duration", metavar="S", help="Run length [s] (1 kHz)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
 ):
     """Closed loop on the self-sensed displacement, on the virtual rig (synthetic).
@@ -648,29 +711,38 @@ def closed_loop(
 # -- diagnose ---------------------------------------------------------------------------
 
 
-@app.command("diagnose")
+@app.command("diagnose", cls=_Command)
 def diagnose(
     experiment: Experiment,
     effects: str | None = typer.Option(
-        None, "--effects", help="Comma-separated candidate effects (default: all of the kind)."
+        None,
+        "--effects",
+        metavar="A,B,...",
+        help="Comma-separated candidate effects (default: all of the kind; see tcamlab effects list).",
     ),
     out: Annotated[
         Path | None,
         typer.Option(
-            "--out", help="Write OUT/NAME/diagnosis.{html,pdf,json} and each figure as PNG and SVG."
+            "--out",
+            metavar="DIR",
+            help="Write OUT/NAME/diagnosis.{html,pdf,json} and each figure as PNG and SVG.",
         ),
     ] = None,
     as_json: Json = False,
-    seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
+    seed: int = typer.Option(0, "--seed", metavar="N", help="Seed of the bootstrap."),
+    force: Force = False,
 ):
     """Where the model departs from the logs, which effect explains it, and by how much.
+
+    With --out, writes OUT/NAME/ (NAME the file's stem, or its path when another file of
+    that stem has a diagnosis there); an existing diagnosis is replaced only with --force.
 
     Example: tcamlab diagnose experiments/static.toml --out reports --json
     """
     from tcamlab.pipeline import diagnose_experiment
     from tcamlab.report.diagnosis_report import diagnosis_lines
 
-    outcome = _run(diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out)
+    outcome = _run(diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out, force=force)
     if as_json:
         _print_json(outcome.result.to_dict())
         return
@@ -705,17 +777,25 @@ def _print_scores(sc: dict) -> None:
         typer.echo(f"{len(sc['errors'])} cases failed with an error (see benchmark.json)")
 
 
-@benchmark_app.command("diagnose")
+@benchmark_app.command("diagnose", cls=_Command)
 def benchmark_diagnose(
     quick: bool = typer.Option(False, "--quick", help="The CI subset (under 5 minutes)."),
-    scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address."),
-    out: Out = Path("reports/benchmark"),
-    seeds: int = typer.Option(10, "--seeds", help="Seeds per case (full run; --quick uses at most 2)."),
-    workers: int | None = typer.Option(
-        None, "--workers", help="Local worker processes (default: all cores)."
+    scheduler: str | None = typer.Option(
+        None, "--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: local processes)."
     ),
-    kind: list[str] | None = typer.Option(None, "--kind", help="Only this rig kind (repeatable)."),
-    effect: list[str] | None = typer.Option(None, "--effect", help="Only this effect (repeatable)."),
+    out: Out = Path("reports/benchmark"),
+    seeds: int = typer.Option(
+        10, "--seeds", metavar="N", help="Seeds per case (full run; --quick uses at most 2)."
+    ),
+    workers: int | None = typer.Option(
+        None, "--workers", metavar="N", help="Local worker processes (default: all cores)."
+    ),
+    kind: list[str] | None = typer.Option(
+        None, "--kind", metavar=_KIND_CHOICES, help="Only this rig kind (repeatable; default: all)."
+    ),
+    effect: list[str] | None = typer.Option(
+        None, "--effect", metavar="NAME", help="Only this effect (repeatable; see tcamlab effects list)."
+    ),
     lies: bool = typer.Option(
         False,
         "--lies",
@@ -751,7 +831,7 @@ def benchmark_diagnose(
 # -- effects ----------------------------------------------------------------------------
 
 
-@effects_app.command("list")
+@effects_app.command("list", cls=_Command)
 def effects_list(
     kind: str | None = typer.Option(None, "--kind", help="Only this rig kind.", metavar=_KIND_CHOICES),
     as_json: Json = False,

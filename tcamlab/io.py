@@ -77,6 +77,7 @@ __all__ = [
     "convert",
     "internal_to_canonical",
     "read_run",
+    "input_files",
     "sha256_file",
     "unit_key",
     "unit_suggestion",
@@ -572,6 +573,8 @@ class RunData:
         For a run joined with a second instrument's file: the file, ``offset_s`` [s],
         the overlap [s], rows of the run outside it (dropped), the joined rows and
         columns, and the resampling.
+    join_path : pathlib.Path or None
+        The second instrument's file of a joined run.
     """
 
     path: Path
@@ -586,6 +589,17 @@ class RunData:
     units: dict[str, str] = field(default_factory=dict)
     source_units: dict[str, str] = field(default_factory=dict)
     join: dict | None = None
+    join_path: Path | None = None
+
+
+def input_files(run: RunData) -> list[tuple[str, Path, str]]:
+    """Every file a run was read from, as ``(role, path, SHA-256)``: the run's CSV
+    (``"run"``) and, for a run joined on time, the second instrument's file (``"joined"``),
+    so that each output's provenance lists both."""
+    files = [("run", run.path, run.sha256)]
+    if run.join is not None and run.join_path is not None:
+        files.append(("joined", run.join_path, run.join["sha256"]))
+    return files
 
 
 def sha256_file(path: str | os.PathLike, chunk_size: int = 1 << 20) -> str:
@@ -1391,6 +1405,7 @@ def _read_run(
         units={name: SI_UNITS[_dimension(spec.unit)] for name, (spec, _) in (selected | jsel).items()},
         source_units={name: _how_read(spec) for name, (spec, _) in (selected | jsel).items()},
         join=record,
+        join_path=Path(join["file"]) if join else None,
     )
 
 

@@ -110,9 +110,13 @@ def validate_experiment(
     max_bytes: int | None = None,
     command: str | None = None,
     out_name: str | None = None,
+    force: bool = False,
 ) -> ValidateOutcome:
     """Validate one experiment and write ``out_dir/NAME/{report.html, report.pdf,
-    metrics.json, predictions.csv}`` (NAME: ``out_name``, default the file stem).
+    metrics.json, predictions.csv}`` (NAME: ``out_name``, default the file stem, or its
+    path when another experiment file of that stem wrote ``out_dir/STEM``; see
+    :func:`output_folder`). An existing report of the experiment is replaced only with
+    ``force``, checked before the validation runs.
 
     Parameters
     ----------
@@ -133,6 +137,11 @@ def validate_experiment(
         :data:`tcamlab.io.DEFAULT_MAX_BYTES`).
     command : str, optional
         Command line shown in the report's provenance.
+    out_name : str, optional
+        The report folder's name, chosen by the caller (``report``: :func:`report_names`);
+        then an existing report there is replaced.
+    force : bool
+        Replace an existing report of this experiment.
 
     Returns
     -------
@@ -142,9 +151,12 @@ def validate_experiment(
 
     formats = _parse_formats(formats)
     exp = load_experiment(path, expected_kind=expected_kind)
+    if out_name is None:
+        target = output_folder(out_dir, [exp.path], "metrics.json", force=force)
+    else:
+        target = Path(out_dir) / out_name
     kw = {} if mc_draws is None else {"mc_draws": mc_draws}
     result = validation.validate(exp, drop_na=drop_na, max_bytes=max_bytes, **kw)
-    target = Path(out_dir) / (out_name or exp.name)
     files = _write_validation(result, target, formats, command)
     return ValidateOutcome(result, target, files)
 
@@ -232,6 +244,7 @@ def build_reports(
     out = Path(out_dir)
     entries, results = [], []
     names = report_names(paths)
+    # report rebuilds its folders (named for the whole set): each is replaced
     kw = {"mc_draws": mc_draws, "drop_na": drop_na, "max_bytes": max_bytes, "command": None}
     for i, p in enumerate(paths):
         p = Path(p)
@@ -329,6 +342,61 @@ def report_names(paths: Sequence) -> list[str]:
         if seen[n] > 1:
             names[i] = f"{n}-{seen[n]}"
     return names
+
+
+def recorded_experiments(record: Path) -> list[Path] | None:
+    """The experiment files an output was made from, as its JSON record lists them
+    (``metrics.json``, ``diagnosis.json``, ``calibration.json``), resolved against the
+    working folder; None when the record names none, or a file outside the working folder
+    (``.../NAME``: reports hold no absolute paths), or cannot be read."""
+    import json
+
+    try:
+        doc = json.loads(record.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(doc, dict):
+        return None
+    if record.name == "metrics.json":
+        found = [(doc.get("experiment_file") or {}).get("path")]
+    elif record.name == "diagnosis.json":
+        found = [(doc.get("experiment") or {}).get("path")]
+    else:
+        found = [i.get("path") for i in doc.get("inputs") or [] if i.get("role") == "experiment"]
+    if not found or not all(isinstance(f, str) and f and not f.startswith(".../") for f in found):
+        return None
+    return [Path(f).resolve() for f in found]
+
+
+def output_folder(out_dir, paths: Sequence, record: str, *, force: bool = False) -> Path:
+    """``out_dir/NAME``, the folder of a command's outputs for the experiment files ``paths``.
+
+    NAME is :func:`report_names` of the files (joined with ``+``), so a file is named by its
+    stem; when ``out_dir/STEM`` holds the outputs (``record``, e.g. ``metrics.json``) of
+    another experiment file of that stem (``lab1/case.toml`` then ``lab2/case.toml``), the
+    files are named by their path as :func:`report_names` names the two (``lab2-case``).
+    Outputs of the same files, or of files the record cannot tell (an experiment file
+    outside the working folder), are replaced only with ``force``.
+
+    Raises
+    ------
+    InputError
+        The folder holds that command's outputs of these files (or of files it cannot tell),
+        and not ``force``.
+    """
+    paths = [Path(p).resolve() for p in paths]
+    folder = Path(out_dir) / "+".join(report_names(paths))
+    owners = recorded_experiments(folder / record) if (folder / record).exists() else None
+    if owners is not None and owners != paths:
+        # another experiment file of the same stem: one folder each, named by path
+        names = report_names([*owners, *paths])[len(owners) :]
+        folder = Path(out_dir) / "+".join(names)
+    if (folder / record).exists() and not force:
+        raise InputError(
+            f"{folder / record}: exists, from an earlier run of this experiment",
+            "pass --force to overwrite it, or --out another folder",
+        )
+    return folder
 
 
 def fit_spring_files(
@@ -555,24 +623,31 @@ class DiagnoseOutcome:
     files: list = field(default_factory=list)
 
 
-def diagnose_experiment(path, *, effects=None, seed: int = 0, out_dir=None) -> DiagnoseOutcome:
+def diagnose_experiment(
+    path, *, effects=None, seed: int = 0, out_dir=None, force: bool = False
+) -> DiagnoseOutcome:
     """Diagnose the sim-to-real gap of one experiment.
 
     ``effects`` restricts the candidates (a list, or a comma-separated string);
     ``seed`` seeds the bootstrap. With ``out_dir``, writes
-    ``out_dir/NAME/diagnosis.{json,html,pdf}`` all or nothing.
+    ``out_dir/NAME/diagnosis.{json,html,pdf}`` all or nothing (NAME as
+    :func:`output_folder` names it); an existing diagnosis of the experiment is
+    replaced only with ``force``, checked before the diagnosis runs.
     """
     from tcamlab.diagnosis import diagnose
 
     exp = load_experiment(path)
+    folder = (
+        output_folder(out_dir, [exp.path], "diagnosis.json", force=force) if out_dir is not None else None
+    )
     if isinstance(effects, str):
         effects = [e.strip() for e in effects.split(",") if e.strip()]
     result = diagnose(exp, effects=effects or None, seed=seed)
-    files = _write_diagnosis(result, exp, out_dir) if out_dir is not None else []
+    files = _write_diagnosis(result, exp, folder) if folder is not None else []
     return DiagnoseOutcome(result, exp, files)
 
 
-def _write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
+def _write_diagnosis(result, experiment: Experiment, folder) -> list[Path]:
     """Write OUT/NAME/diagnosis.json, diagnosis.html, diagnosis.pdf and each figure as
     standalone diagnosis-figN.png / .svg, all or nothing."""
     from tcamlab.report.calibration_report import figure_files
@@ -588,7 +663,7 @@ def _write_diagnosis(result, experiment: Experiment, out_dir) -> list[Path]:
         "diagnosis.pdf": render_pdf(doc),
     }
     payload.update(figure_files(doc, html, stem="diagnosis"))
-    return write_all_or_nothing(Path(out_dir) / experiment.name, payload)
+    return write_all_or_nothing(Path(folder), payload)
 
 
 # -- benchmark and effects ----------------------------------------------------------------
@@ -606,7 +681,22 @@ def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, **options):
     kinds = tuple(kinds) if kinds else BENCHMARK_KINDS
     for k in kinds:
         _check_kind(k, "--kind")
+    _check_effects(effects or (), kinds)
     return run_benchmark(out_dir, kinds=kinds, effects=list(effects) if effects else None, **options)
+
+
+def _check_effects(effects, kinds) -> None:
+    """An unknown effect (or one of none of ``kinds``) is a ConfigError, before any simulation."""
+    from tcamlab.effects import EFFECTS
+    from tcamlab.text import did_you_mean
+
+    known = sorted({name for kind, name in EFFECTS if kind in kinds})
+    for name in effects:
+        if name not in known:
+            raise ConfigError(
+                f"unknown effect {name!r} of {', '.join(kinds)}{did_you_mean(name, known)}",
+                hint="tcamlab effects list shows them",
+            )
 
 
 @dataclass
@@ -654,7 +744,8 @@ def calibrate_experiment(
     """Calibrate one or more experiments of one sample and write the results.
 
     Writes ``NAME.calibrated.toml`` beside each experiment file (never the file itself)
-    and, with ``out_dir``, ``out_dir/NAME/`` (NAME joins the experiment names with ``+``)
+    and, with ``out_dir``, ``out_dir/NAME/`` (NAME joins the experiment files' names with
+    ``+``, each named as :func:`output_folder` names it)
     with ``calibration.json``, the report ``calibration.html`` and ``calibration.pdf``
     (:mod:`tcamlab.report.calibration_report`) and each report figure as
     ``calibration-figN.png`` / ``.svg``. An existing output is overwritten only with
@@ -669,7 +760,9 @@ def calibrate_experiment(
     for e, t in zip(exps, targets):
         if t == e.path:
             raise InputError(f"{t}: refusing to overwrite the experiment file itself")
-    folder = Path(out_dir) / "+".join(e.name for e in exps) if out_dir is not None else None
+    folder = None
+    if out_dir is not None:
+        folder = output_folder(out_dir, [e.path for e in exps], "calibration.json", force=True)
     if not force:
         _refuse_existing(targets, folder)
     result = calibrate(exps, params)

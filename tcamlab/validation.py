@@ -19,7 +19,7 @@ import pandas as pd
 
 from tcamlab.config import Experiment
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
-from tcamlab.io import RunData, sha256_file
+from tcamlab.io import RunData, input_files, sha256_file
 from tcamlab.kinds import Kind, get_kind, rest_rows
 from tcamlab.metrics import (
     MIN_REST_ROWS,
@@ -40,6 +40,7 @@ from tcamlab.metrics import (
     zero_offset_warning,
 )
 from tcamlab.numbers import unit_label
+from tcamlab.text import shown_path
 from tcamlab.units import quantity
 
 __all__ = ["ValidationResult", "RunPrediction", "validate", "MC_DRAWS"]
@@ -197,7 +198,11 @@ class ValidationResult:
             "title": exp.title,
             "kind": exp.kind,
             "synthetic": exp.synthetic,
-            "experiment_file": {"file": exp.path.name, "sha256": sha256_file(exp.path)},
+            "experiment_file": {
+                "file": exp.path.name,
+                "path": shown_path(exp.path),
+                "sha256": sha256_file(exp.path),
+            },
             "inputs": [
                 {
                     "file": r.path.name,
@@ -206,6 +211,7 @@ class ValidationResult:
                     "rows": int(len(r.data)),
                     "dropped_rows": int(r.n_dropped),
                 }
+                | _joined_input(r, exp.path.parent)
                 for r in self.runs
             ],
             "primary_model": self.primary,
@@ -239,6 +245,23 @@ class ValidationResult:
         ax.set_xlabel(f"measured {name}")
         ax.set_ylabel(f"predicted {name}")
         return ax
+
+
+def _joined_input(run: RunData, start) -> dict:
+    """``{"joined": {...}}``: the second instrument's file of a run joined on time (its path
+    relative to the experiment file's folder and SHA-256), or {} for a run of one file."""
+    joined = [(p, h) for role, p, h in input_files(run) if role == "joined"]
+    if not joined:
+        return {}
+    (path, sha), join = joined[0], run.join
+    return {
+        "joined": {
+            "file": path.name,
+            "path": relative_to(path, start),
+            "sha256": sha,
+            "offset_s": join["offset_s"],
+        }
+    }
 
 
 def relative_to(path, start) -> str:

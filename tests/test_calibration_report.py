@@ -6,6 +6,7 @@ temporary folder because calibrate writes NAME.calibrated.toml beside the file.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import re
@@ -46,7 +47,14 @@ def written(tmp_path_factory):
 def fake_calibrate(written, monkeypatch):
     """Skip the fit in tests of the writing: calibrate returns the module's result."""
     result = written[2].result
-    monkeypatch.setattr(tcamlab.calibration, "calibrate", lambda exps, params=None: result)
+
+    def fake(exps, params=None):
+        # the inputs name the experiment given, as a real calibration's do (its output
+        # folder belongs to that file: pipeline.output_folder)
+        inputs = [{**i, "path": str(exps[0].path)} if i["role"] == "experiment" else i for i in result.inputs]
+        return dataclasses.replace(result, inputs=inputs)
+
+    monkeypatch.setattr(tcamlab.calibration, "calibrate", fake)
     return result
 
 

@@ -39,6 +39,31 @@ def test_every_command_has_help_with_an_example():
     assert seen >= 12
 
 
+PLACEHOLDER = re.compile(r"<(str|int|float|bool|list|path|file|dict|tuple)\b[^>]*>")
+
+
+def test_help_shows_choices_and_defaults_never_type_placeholders():
+    """Typer appends ``<str>``, ``<int range>``, ``<list[Path]>`` where no metavar is given:
+    every option and argument of every command has one, and a file argument says how to
+    write it for one's own CSV logs (``tcamlab init``, ``[columns]``)."""
+    root = get_command(app)
+    for path, cmd in _all_commands(root):
+        text = runner.invoke(app, list(path) + ["--help"], terminal_width=200).output
+        found = PLACEHOLDER.findall(text)
+        assert not found, f"tcamlab {' '.join(path)} --help shows placeholders {found}:\n{text}"
+        if any(p.param_type_name == "argument" and "EXPERIMENT" in (p.metavar or "") for p in cmd.params):
+            assert "tcamlab init" in text and "[columns]" in text, " ".join(path)
+    text = runner.invoke(app, ["simulate", "--help"], terminal_width=200).output
+    assert "[static|dynamic|sensing|curvature]" in text and "--oven [heating|heat-cool]" in text
+    assert "[default: 1.0]" in text  # --noise-scale's default
+    text = runner.invoke(app, ["validate", "static", "--help"], terminal_width=200).output
+    assert "--format [html|pdf|html,pdf]" in text and "[default: html,pdf]" in text
+    assert "[default: reports]" in text
+    for path in (["validate"], ["fit-spring"], ["init"]):
+        text = runner.invoke(app, path + ["--help"], terminal_width=200).output
+        assert "tcamlab init" in text and "[columns]" in text, path
+
+
 def _hashes(folder):
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.glob("*"))}
 
@@ -410,3 +435,52 @@ def test_diagnose_writes_all_or_nothing(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError):
         diagnose_experiment(sim.experiment_path, out_dir=tmp_path / "d")
     assert not (tmp_path / "d/curvature").exists() or list((tmp_path / "d/curvature").iterdir()) == []
+
+
+def test_validate_diagnose_calibrate_name_by_path_and_refuse_a_rerun(lab, monkeypatch):
+    """Two valid ``case.toml`` in different folders get two output folders (the second named
+    by its path, as ``report`` names them); a second run of the same file into the same
+    folder is refused without --force and changes no byte."""
+    monkeypatch.chdir(lab)
+    for d in ("lab1", "lab2"):
+        (lab / d).mkdir()
+        (lab / d / "case.toml").write_bytes((lab / "experiments/sensing.toml").read_bytes())
+    commands = {
+        "metrics.json": ["validate", "{}", "--out", "R", "--format", "html"],
+        "diagnosis.json": ["diagnose", "{}", "--out", "R", "--effects", "initial-slack"],
+        "calibration.json": ["calibrate", "{}", "--out", "R", "--params", "spring_constant"],
+    }
+    for record, args in commands.items():
+        for d in ("lab1", "lab2"):
+            r = runner.invoke(app, [a.format(f"{d}/case.toml") for a in args])
+            assert r.exit_code == 0, (record, d, r.output)
+        assert (lab / "R/case" / record).exists() and (lab / "R/lab2-case" / record).exists(), record
+        before = _hashes(lab / "R/case")
+        for f in (lab / "lab1").glob("*.calibrated.toml"):
+            f.unlink()  # calibrate's own refusal of the calibrated file is tested apart
+        r = runner.invoke(app, [a.format("lab1/case.toml") for a in args])
+        assert r.exit_code == 2 and f"R/case/{record}" in r.output and "exists" in r.output, r.output
+        assert "--force" in r.output
+        assert "Traceback" not in r.output and _hashes(lab / "R/case") == before
+    metrics = json.loads((lab / "R/lab2-case/metrics.json").read_text())
+    assert metrics["experiment_file"]["path"] == "lab2/case.toml"
+    r = runner.invoke(app, ["validate", "lab1/case.toml", "--out", "R", "--format", "html", "--force"])
+    assert r.exit_code == 0 and "wrote R/case" in r.output, r.output
+    assert sorted(p.name for p in (lab / "R").iterdir()) == ["case", "lab2-case"]
+
+
+def test_benchmark_refuses_an_unknown_effect_before_simulating(tmp_path):
+    """A misspelt --effect used to run the null cases alone and exit 0."""
+    out = tmp_path / "bench"
+    r = runner.invoke(app, ["benchmark", "diagnose", "--quick", "--effect", "hysterisis", "--out", str(out)])
+    assert (
+        r.exit_code == 2
+        and "unknown effect 'hysterisis'" in r.output
+        and "did you mean 'hysteresis'" in r.output
+    )
+    r = runner.invoke(
+        app,
+        ["benchmark", "diagnose", "--quick", "--kind", "static", "--effect", "hysteresis", "--out", str(out)],
+    )
+    assert r.exit_code == 2 and "unknown effect 'hysteresis' of static" in r.output
+    assert not out.exists()

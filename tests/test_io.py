@@ -920,3 +920,27 @@ def test_globs_in_runs_expand_sorted_relative_to_the_experiment_file(tmp_path):
     exp.write_text(exp.read_text().replace("pull_*", "nothing_*"))
     with pytest.raises(ConfigError, match="matches no file"):
         load_experiment(exp)
+
+
+def test_the_joined_file_is_in_every_output_s_provenance(tmp_path, monkeypatch):
+    """The second instrument's file of a two-clock run is an input like the run's own CSV:
+    its path and SHA-256 are in metrics.json, the report's input table and provenance, and
+    calibration.json (the diagnosis names only the experiment file)."""
+    import json
+
+    from tcamlab.pipeline import calibrate_experiment, validate_experiment
+
+    monkeypatch.chdir(tmp_path)
+    exp = two_clock_lab(tmp_path, -0.5)
+    sha = sha256_file(tmp_path / "raw" / "tc.csv")
+    outcome = validate_experiment(exp, tmp_path / "out", formats="html")
+    metrics = json.loads((outcome.out_dir / "metrics.json").read_text())
+    (entry,) = metrics["inputs"]
+    assert entry["path"] == "raw/laser.csv" and entry["sha256"] == sha256_file(tmp_path / "raw/laser.csv")
+    assert entry["joined"] == {"file": "tc.csv", "path": "raw/tc.csv", "sha256": sha, "offset_s": -0.5}
+    html = (outcome.out_dir / "report.html").read_text()
+    assert html.count(sha) >= 2 and "joined to raw/laser.csv" in html and "sha256 raw/tc.csv" in html
+    cal = calibrate_experiment([exp], params="shear_modulus_slope", out_dir=tmp_path / "cal")
+    doc = json.loads(next(f for f in cal.files if f.name == "calibration.json").read_text())
+    joined = [i for i in doc["inputs"] if i["role"] == "joined"]
+    assert [(Path(i["path"]).name, i["sha256"]) for i in joined] == [("tc.csv", sha)]

@@ -112,6 +112,7 @@ def test_killed_validate_leaves_no_partial_report_and_no_temp_files(lab):
             "out",
             "--mc-draws",
             "20000",
+            "--force",
         ],
         cwd=lab,
         stdout=subprocess.DEVNULL,
@@ -135,7 +136,7 @@ def test_killed_validate_leaves_no_partial_report_and_no_temp_files(lab):
 def _validate_in_process(lab: Path, out: Path):
     from tcamlab.pipeline import validate_experiment
 
-    return validate_experiment(lab / "experiments/static.toml", out)
+    return validate_experiment(lab / "experiments/static.toml", out, force=True)
 
 
 def test_renderer_failing_mid_run_writes_nothing(lab, monkeypatch):
@@ -192,7 +193,16 @@ def _run_everything(lab: Path, out: str) -> dict[str, bytes]:
         ["report", "--out", out, "--mc-draws", "30"],
         ["fit-spring", "raw/sensing_run1.csv", "raw/sensing_run2.csv", "--plot", f"{out}/fit.svg", "--force"],
         ["fit-spring", "raw/sensing_run1.csv", "--plot", f"{out}/fit.png", "--force"],
-        ["validate", "dynamic", "experiments/dynamic.toml", "--out", f"{out}/v", "--mc-draws", "30"],
+        [
+            "validate",
+            "dynamic",
+            "experiments/dynamic.toml",
+            "--out",
+            f"{out}/v",
+            "--mc-draws",
+            "30",
+            "--force",
+        ],
     ):
         result = runner.invoke(app, args)
         assert result.exit_code == 0, result.output

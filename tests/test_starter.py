@@ -360,3 +360,25 @@ def test_unknown_channels_are_listed_not_guessed(tmp_path):
     assert "not used: 'Torque [µNm]' (column 2), 'Normal stress [Pa]' (column 5)" in r.output
     cols = tomllib.loads((tmp_path / "o.toml").read_text(encoding="utf-8"))["columns"]
     assert cols["temperature_C"] == {"from": "T", "unit": "degC"} and cols["time_s"]["from"] == "Time [s]"
+
+
+def test_pull_tester_headers_with_units_in_them(tmp_path):
+    """A pull tester's export: units in the headers ("Extension (µm)", "Load [mN]", "R (Ohm)")
+    and in a spelling per column; every channel mapped with its unit, read in SI once filled."""
+    rows = ["Time [s],Extension (µm),Load [mN],R (Ohm)"]
+    rows += [f"{0.5 * i:.1f},{50.0 * i:.1f},{0.235 * i:.4f},{30 + 0.01 * i:.3f}" for i in range(12)]
+    csv = write(tmp_path / "raw" / "pull.csv", "\n".join(rows) + "\n")
+    res = write_starter("sensing", csv, tmp_path / "experiments" / "pull.toml")
+    cols = tomllib.loads(res.path.read_text(encoding="utf-8"))["columns"]
+    assert cols == {
+        "time_s": {"from": "Time [s]", "unit": "s"},
+        "displacement_mm": {"from": "Extension (µm)", "unit": "um"},
+        "force_N": {"from": "Load [mN]", "unit": "mN"},
+        "resistance_ohm": {"from": "R (Ohm)", "unit": "ohm"},
+    }
+    res.path.write_text(fill(res.path.read_text(encoding="utf-8"), SAMPLE), encoding="utf-8")
+    (run,) = load_experiment(res.path).read_runs()
+    # 50 µm and 0.235 mN per row: S = 4.7 N/m, the thesis sensor's
+    np.testing.assert_allclose(run.data["displacement"].to_numpy()[:2], [0.0, 50e-6], atol=1e-15)
+    np.testing.assert_allclose(run.data["force"].to_numpy()[:2], [0.0, 0.235e-3], atol=1e-15)
+    assert run.data["resistance"].iloc[1] == pytest.approx(30.01)

@@ -21,7 +21,7 @@ from tcamlab.calibration.result import (
 )
 from tcamlab.config import Experiment, load_experiment
 from tcamlab.errors import InputError
-from tcamlab.io import sha256_file
+from tcamlab.io import input_files, sha256_file
 
 __all__ = ["calibrate", "load_experiments", "one_numba_thread"]
 
@@ -192,7 +192,11 @@ def _inputs(exps, runs) -> list[dict]:
         out.append(
             {"experiment": e.name, "role": "experiment", "path": str(e.path), "sha256": sha256_file(e.path)}
         )
-        out += [{"experiment": e.name, "role": "run", "path": str(r.path), "sha256": r.sha256} for r in rs]
+        out += [
+            {"experiment": e.name, "role": role, "path": str(path), "sha256": sha}
+            for r in rs
+            for role, path, sha in input_files(r)
+        ]
     return out
 
 

@@ -202,7 +202,7 @@ class CalibrationResult:
     notes : list of str
         Remarks.
     inputs : list of dict
-        Every input file read: ``experiment``, ``role`` ("experiment" or "run"),
+        Every input file read: ``experiment``, ``role`` ("experiment", "run", or "joined" for a run's second instrument file),
         ``path`` (as given or as listed in the experiment file) and ``sha256``.
     curves : list of RunCurves
         Per-run curves for the report; arrays, so left out of :meth:`to_dict`.

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from tcamlab.config import EXPERIMENT_FILE
-from tcamlab.io import sha256_file
+from tcamlab.io import input_files, sha256_file
 from tcamlab.kinds import get_kind
 from tcamlab.metrics import METRIC_LABELS, METRIC_NAMES, SANITY_CHECKS
 from tcamlab.numbers import bare_name, fmt, fmt_r2, unit_label
@@ -88,7 +88,11 @@ def input_table(runs, start=None) -> Table:
 
     return Table(
         ["file", "rows", "dropped rows", "SHA-256"],
-        [[shown(r.path), len(r.data), r.n_dropped, r.sha256] for r in runs],
+        [
+            [shown(path), len(r.data) if role == "run" else f"joined to {shown(r.path)}", r.n_dropped, sha]
+            for r in runs
+            for role, path, sha in input_files(r)
+        ],
         caption="Input files, relative to the experiment file (raw data is never modified)",
     )
 
@@ -299,7 +303,8 @@ def validation_document(result, *, command: str | None = None) -> Document:
     if command:
         metadata["command"] = command
     for r in result.runs:
-        metadata[f"sha256 {relative_to(r.path, exp.path.parent)}"] = r.sha256
+        for _, path, sha in input_files(r):
+            metadata[f"sha256 {relative_to(path, exp.path.parent)}"] = sha
     return Document(
         title=exp.title,
         subtitle=f"Validation report: {exp.name}",
