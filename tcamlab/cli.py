@@ -218,7 +218,11 @@ def _make_validate(kind: str, example: str):
     def command(
         experiment: Experiment,
         out: Out = Path("reports"),
-        fmt: str = typer.Option("html,pdf", "--format", help="Report formats: html, pdf or html,pdf."),
+        fmt: str = typer.Option(
+            "html,pdf",
+            "--format",
+            help="Report formats: html, pdf or html,pdf; add png,svg for each figure as a file in figures/.",
+        ),
         as_json: Json = False,
         drop_na: DropNa = False,
         mc_draws: McDraws = None,

@@ -255,6 +255,9 @@ ENVELOPE_MIN_POINTS_PER_COLUMN = 4
 """A series is drawn as its envelope only when it has more points than this many per
 column [-]; a shorter one keeps every point (its markers stay visible)."""
 
+DENSE_POINTS_ALPHA = 0.4
+"""Opacity of the envelope that replaces a dense point series [-]."""
+
 LEGEND_MAX_ENTRIES = 6
 """Most entries in a legend; more are grouped by what they show (one entry per group) [-]."""
 
@@ -327,7 +330,8 @@ def _envelope_line(ax, line, columns: int) -> None:
         facecolor=colour,
         edgecolor=colour,
         linewidth=width,
-        alpha=line.get_alpha(),
+        # the points' envelope lighter, so that a model line drawn over it stays distinct
+        alpha=DENSE_POINTS_ALPHA if dense_points else line.get_alpha(),
         zorder=line.get_zorder(),
         gid="envelope",
     )
@@ -408,6 +412,10 @@ def _rebuild_legend(ax, legend) -> None:
     from matplotlib.legend_handler import HandlerTuple
 
     labels = [t.get_text() for t in legend.get_texts()]
+    for h in legend.legend_handles:
+        if hasattr(h, "set_markersize") and h.get_marker() not in ("None", "", None):
+            scale = 0.5 if h.get_marker() in (".", ",") else 1.0
+            h.set_markersize(max(h.get_markersize(), 1.5 * MIN_MARKER_PT / scale))
     handles, labels = group_legend_entries(list(legend.legend_handles), labels)
     size = max(legend.get_texts()[0].get_fontsize() if labels else 0.0, LEGEND_MIN_FONT_PT)
     grouped = any(isinstance(h, tuple) for h in handles)
