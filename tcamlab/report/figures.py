@@ -264,7 +264,7 @@ LEGEND_MAX_ENTRIES = 6
 LEGEND_MIN_FONT_PT = 8.0
 """Smallest legend font at the saved size [pt] (figures are saved at their own size)."""
 
-MIN_MARKER_PT = 2.5
+MIN_MARKER_PT = 2.0
 """Smallest drawn diameter of a marker [pt] (matplotlib's '.' is half its markersize)."""
 
 
@@ -338,6 +338,11 @@ def _envelope_line(ax, line, columns: int) -> None:
     line.remove()
 
 
+def _is_points(line) -> bool:
+    """A series drawn as markers only (measured points)."""
+    return line.get_linestyle() in ("None", "", " ") and line.get_marker() not in ("None", "", None)
+
+
 def compact_figure(fig: Figure) -> None:
     """Make ``fig`` compact and readable whatever the length of its series.
 
@@ -357,11 +362,14 @@ def compact_figure(fig: Figure) -> None:
     for ax in fig.axes:
         linear = ax.get_xscale() == "linear" and ax.get_yscale() == "linear"
         columns = max(100, int(ax.get_position().width * fig.get_figwidth() * ENVELOPE_COLUMNS_PER_INCH))
+        has_points = any(_is_points(line) for line in ax.get_lines())
         for line in list(ax.get_lines()):
+            if has_points and not _is_points(line) and line.get_zorder() == 2:
+                line.set_zorder(2.2)  # a model line over the measured points, not hidden by them
             n = len(line.get_xdata(orig=True))
             if linear and n > ENVELOPE_MIN_POINTS_PER_COLUMN * columns:
                 _envelope_line(ax, line, columns)
-            elif line.get_linestyle() in ("None", "", " ") and line.get_marker() not in ("None", "", None):
+            elif _is_points(line):
                 scale = 0.5 if line.get_marker() in (".", ",") else 1.0
                 line.set_markersize(max(line.get_markersize(), MIN_MARKER_PT / scale))
         legend = ax.get_legend()
@@ -416,6 +424,11 @@ def _rebuild_legend(ax, legend) -> None:
         if hasattr(h, "set_markersize") and h.get_marker() not in ("None", "", None):
             scale = 0.5 if h.get_marker() in (".", ",") else 1.0
             h.set_markersize(max(h.get_markersize(), 1.5 * MIN_MARKER_PT / scale))
+    if len(labels) <= LEGEND_MAX_ENTRIES:
+        # few enough: keep the legend where and as it is drawn, only the font made readable
+        for t in legend.get_texts():
+            t.set_fontsize(max(t.get_fontsize(), LEGEND_MIN_FONT_PT))
+        return
     handles, labels = group_legend_entries(list(legend.legend_handles), labels)
     size = max(legend.get_texts()[0].get_fontsize() if labels else 0.0, LEGEND_MIN_FONT_PT)
     grouped = any(isinstance(h, tuple) for h in handles)
