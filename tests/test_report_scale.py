@@ -21,6 +21,7 @@ from tcamlab.pipeline import simulate_experiment, validate_experiment
 from tcamlab.report.figures import (
     LEGEND_MAX_ENTRIES,
     LEGEND_MIN_FONT_PT,
+    MIN_MARKER_PT,
     compact_figure,
     envelope,
     figure_to_svg,
@@ -84,8 +85,8 @@ def test_compact_figure_keeps_short_series_and_envelopes_long_ones():
     compact_figure(fig)
     lines = ax.get_lines()
     assert len(lines) == 1 and len(lines[0].get_xdata()) == 50
-    # a '.' marker is drawn at half its size: at least 2.5 pt wide, not a 1-pixel dot
-    assert lines[0].get_markersize() * 0.5 >= 2.5
+    # a "." marker is drawn at half its size: at least 2 pt wide, not a 1-pixel dot
+    assert lines[0].get_markersize() * 0.5 >= MIN_MARKER_PT == 2.0
     (coll,) = [c for c in ax.collections if c.get_gid() == "envelope"]
     ys = coll.get_paths()[0].vertices[:, 1]
     assert ys.min() == pytest.approx(y.min()) and ys.max() == pytest.approx(y.max())
