@@ -103,7 +103,7 @@ def _cell(text: str) -> bytes:
 
 def fixed_csv_bytes(
     df: pd.DataFrame, label: str | None = None, text=str, header: bytes | None = None
-) -> bytes:
+) -> bytearray:
     """``df`` as CSV bytes (header, then one line a row, "\\n" line ends).
 
     Parameters
@@ -120,7 +120,8 @@ def fixed_csv_bytes(
 
     Returns
     -------
-    bytes
+    bytearray
+        The CSV text (a bytearray, so that it is built in place).
     """
     if header is None:
         header = df.iloc[:0].to_csv(index=False, lineterminator="\n").encode()
@@ -143,4 +144,12 @@ def fixed_csv_bytes(
             out = np.empty(chunk.shape[0] * (width + pre.size), np.uint8)
             used = _format_rows(np.ascontiguousarray(chunk), decimals, pre, out)
             parts.append(out[:used].tobytes())
-    return b"".join(parts)
+    # one buffer filled part by part, each freed once copied: peak about the text's size,
+    # not twice it as b"".join would need
+    out = bytearray(sum(len(p) for p in parts))
+    pos = 0
+    for i, part in enumerate(parts):
+        out[pos : pos + len(part)] = part
+        pos += len(part)
+        parts[i] = b""
+    return out
