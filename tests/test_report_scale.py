@@ -180,3 +180,21 @@ def test_fixed_csv_quotes_labels_and_leaves_nan_empty():
     assert text == 'run,x,n\n"a,b",1.5,1\n"a,b",,2\nc,-0.000125,3\n'
     back = pd.read_csv(io.StringIO(text))
     assert back["x"].isna().sum() == 1 and re.fullmatch(r"a,b", back["run"][0])
+
+
+def test_band_grid_of_a_long_log_keeps_the_model_in_its_domain():
+    """10,000 s at 1 kHz: on 5000 evenly spaced rows (2 s apart) the Monte Carlo left the
+    model's domain for every draw, the nominal one included; the grid now keeps <= 0.2 s."""
+    from tcamlab import band
+    from tcamlab.config import load_experiment
+    from tcamlab.models import dynamic
+
+    exp = load_experiment(ROOT / "experiments" / "dynamic.toml")
+    t = np.arange(10_000_000) / 1000.0
+    v = np.where((t % 20.0 >= 0.5) & (t % 20.0 < 1.5), 10.0, 0.0)
+    idx, decimated = band.band_grid(t, v)
+    assert decimated and np.diff(t[idx]).max() <= band.MAX_GRID_STEP_S + 1e-9
+    draws = {"heat_loss": exp.rig.heat_loss * np.array([0.5, 1.0, 2.0])}
+    mc = dynamic.monte_carlo(t[idx], v[idx], exp.sample, exp.rig, draws=draws)
+    assert mc.valid.all()
+    assert mc.displacement.min() == pytest.approx(-0.42e-3, rel=0.2)  # a full 1 s pulse's stroke
