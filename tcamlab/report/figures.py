@@ -384,7 +384,7 @@ def group_legend_entries(handles, labels, max_entries: int = LEGEND_MAX_ENTRIES)
     An entry's label is read as ``"RUN what"`` (first word: the run). With more
     entries than allowed, entries showing the same ``what`` become one entry whose
     handle is the tuple of theirs (drawn side by side, colours left to right) and
-    whose label names the first and last run; entries without a ``what`` group as
+    whose label names the runs (up to four; else the first and the last); entries without a ``what`` group as
     runs. Groups beyond the limit are merged into one last entry.
 
     Returns
@@ -405,7 +405,7 @@ def group_legend_entries(handles, labels, max_entries: int = LEGEND_MAX_ENTRIES)
             out_l.append(members[0][2])
             continue
         runs = [m[1] for m in members]
-        span = f"{runs[0]} … {runs[-1]}" if len(runs) > 2 else f"{runs[0]}, {runs[1]}"
+        span = f"{runs[0]} … {runs[-1]}" if len(runs) > 4 else ", ".join(runs)
         out_h.append(tuple(m[0] for m in members))
         out_l.append(f"{what or 'runs'}: {span} ({len(runs)} runs, colours left to right)")
     if len(out_l) > max_entries:
@@ -429,6 +429,8 @@ def _rebuild_legend(ax, legend) -> None:
         for t in legend.get_texts():
             t.set_fontsize(max(t.get_fontsize(), LEGEND_MIN_FONT_PT))
         return
+    # run names are user text: keep mathtext off where the figure was drawn with it off
+    parse_math = all(t.get_parse_math() for t in legend.get_texts())
     handles, labels = group_legend_entries(list(legend.legend_handles), labels)
     size = max(legend.get_texts()[0].get_fontsize() if labels else 0.0, LEGEND_MIN_FONT_PT)
     grouped = any(isinstance(h, tuple) for h in handles)
@@ -445,3 +447,5 @@ def _rebuild_legend(ax, legend) -> None:
             handler_map={tuple: HandlerTuple(ndivide=None)},
             handlelength=4.0 if grouped else None,
         )
+    for t in ax.get_legend().get_texts():
+        t.set_parse_math(parse_math)
