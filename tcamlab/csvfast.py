@@ -128,7 +128,9 @@ def fixed_csv_bytes(
     numeric = [c for c in df.columns if c != label]
     decimals = np.array([column_decimals(df[c].to_numpy(float)) for c in numeric], np.int64)
     width = int(sum(22 + d for d in decimals)) + len(numeric) + 1
-    parts = [header]
+    # the text grows in one bytearray (large reallocations are remapped, not copied), so
+    # the peak is about the text's size, not twice it as a list of parts and a join would be
+    text_out = bytearray(header)
     if label is None:
         blocks = [(0, len(df), b"")]
     else:
@@ -139,17 +141,9 @@ def fixed_csv_bytes(
     cols = [df.columns.get_loc(c) for c in numeric]
     for a, e, prefix in blocks:
         pre = np.frombuffer(prefix, np.uint8)
+        scratch = np.empty(min(CHUNK_ROWS, e - a) * (width + pre.size), np.uint8)
         for s in range(a, e, CHUNK_ROWS):
             chunk = df.iloc[s : min(e, s + CHUNK_ROWS), cols].to_numpy(float)
-            out = np.empty(chunk.shape[0] * (width + pre.size), np.uint8)
-            used = _format_rows(np.ascontiguousarray(chunk), decimals, pre, out)
-            parts.append(out[:used].tobytes())
-    # one buffer filled part by part, each freed once copied: peak about the text's size,
-    # not twice it as b"".join would need
-    out = bytearray(sum(len(p) for p in parts))
-    pos = 0
-    for i, part in enumerate(parts):
-        out[pos : pos + len(part)] = part
-        pos += len(part)
-        parts[i] = b""
-    return out
+            used = _format_rows(np.ascontiguousarray(chunk), decimals, pre, scratch)
+            text_out += memoryview(scratch)[:used]
+    return text_out
