@@ -246,7 +246,10 @@ def _make_validate(kind: str, example: str):
         experiment: Experiment,
         out: Out = Path("reports"),
         fmt: str = typer.Option(
-            "html,pdf", "--format", metavar="[html|pdf|html,pdf]", help="Report formats."
+            "html,pdf",
+            "--format",
+            metavar="html,pdf[,png,svg]",
+            help="Report formats: html, pdf or html,pdf; add png,svg for each figure as a file in figures/.",
         ),
         as_json: Json = False,
         drop_na: DropNa = False,

@@ -42,6 +42,9 @@ __all__ = [
 ]
 
 FORMATS = ("html", "pdf")
+FIGURE_FORMATS = ("png", "svg")
+"""Extra ``--format`` values: every figure of the report also as a standalone file,
+``figures/figN.png`` (150 dpi) and ``figures/figN.svg``, in the report folder."""
 
 
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
@@ -65,7 +68,21 @@ def neutralise_csv(df: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+FAST_CSV_ROWS = 200_000
+"""A table longer than this is written by :func:`tcamlab.csvfast.fixed_csv_bytes` (fixed
+point, 9 significant digits of each column's largest value) instead of pandas (%.9g),
+which needs minutes for a 10-million-row log."""
+
+
 def _csv_bytes(df: pd.DataFrame) -> bytes:
+    if len(df) > FAST_CSV_ROWS and list(df.columns[:1]) == ["run"]:
+        from tcamlab.csvfast import fixed_csv_bytes
+
+        def safe(text):  # a run name made safe once per run, not once per row
+            return neutralise_csv(pd.DataFrame({"run": [text]}))["run"].iloc[0]
+
+        header = neutralise_csv(df.iloc[:0]).to_csv(index=False, lineterminator="\n").encode()
+        return fixed_csv_bytes(df, label="run", text=safe, header=header)
     buf = _stdio.StringIO()
     neutralise_csv(df).to_csv(buf, index=False, float_format="%.9g", lineterminator="\n")
     return buf.getvalue().encode()
@@ -93,9 +110,12 @@ class ValidateOutcome:
 def _parse_formats(formats: Sequence[str] | str) -> tuple[str, ...]:
     if isinstance(formats, str):
         formats = [f.strip() for f in formats.split(",") if f.strip()]
-    bad = [f for f in formats if f not in FORMATS]
+    bad = [f for f in formats if f not in FORMATS + FIGURE_FORMATS]
     if bad:
-        raise ConfigError(f"--format: unknown format {bad[0]!r}", hint="use html, pdf or html,pdf")
+        raise ConfigError(
+            f"--format: unknown format {bad[0]!r}",
+            hint="use html, pdf or html,pdf (add png and/or svg for standalone figures)",
+        )
     return tuple(formats)
 
 
@@ -178,9 +198,31 @@ def _write_validation(result, target: Path, formats, command) -> list[Path]:
         from tcamlab.report.pdf import render_pdf
 
         payload["report.pdf"] = render_pdf(doc)
+    payload |= _standalone_figures(doc, payload.get("report.html"), formats)
+    if any(name.startswith("figures/") for name in payload):
+        (target / "figures").mkdir(parents=True, exist_ok=True)
     files = write_all_or_nothing(target, payload)
     result.document = doc
     return files
+
+
+def _standalone_figures(doc, html: bytes | None, formats) -> dict[str, bytes]:
+    """``figures/figN.png`` / ``.svg`` for the requested :data:`FIGURE_FORMATS` (the SVGs
+    are the ones inlined in the HTML when there is one, with an XML declaration)."""
+    wanted = [f for f in FIGURE_FORMATS if f in formats]
+    if not wanted:
+        return {}
+    from tcamlab.report.calibration_report import figure_files
+
+    files = figure_files(doc, html.decode() if html else None, stem="fig")
+    out = {}
+    for name, data in files.items():
+        ext = name.rsplit(".", 1)[1]
+        if ext in wanted:
+            if ext == "svg":
+                data = b'<?xml version="1.0" encoding="utf-8" standalone="no"?>\n' + data
+            out["figures/" + name.replace("fig-fig", "fig")] = data
+    return out
 
 
 @dataclass

@@ -1,0 +1,227 @@
+#!/usr/bin/env python
+"""``validate`` and ``report`` on a long 1 kHz dynamic log: time, peak RSS, report size.
+
+Run from the repository root::
+
+    python bench/bench_large_log.py            # 10,000,000 rows (about 2.8 h of logging)
+    python bench/bench_large_log.py --quick    # 1,000,000 rows (CI)
+    python bench/bench_large_log.py --rows N --work DIR --json out.json
+
+The log is SYNTHETIC, made by :func:`make_log` (seed 12, vectorised): a 10 V, 1 s
+pulse every 20 s, the thesis dynamic model (``tcamlab.kinds.dynamic.predict`` on the
+bundled experiment's sample and rig) evaluated on one 20 s period at 1 kHz and tiled
+(the actuator cools to within 0.2% of its rest length before the next pulse), plus
+laser noise (sd 5 um) rounded to the logged 1 um. The CSV is cached in ``--work``
+(default the system temporary folder) under a name carrying the rows and the seed.
+
+Each measurement runs in a fresh subprocess (wall time and ``ru_maxrss`` of that
+process): ``python -m tcamlab validate dynamic`` and ``python -m tcamlab report`` on the
+long log, and, in the same run, the straightforward references:
+
+* read: a plain ``pandas.read_csv(path)`` against ``tcamlab.io.read_run``;
+* figure: the dynamic figure drawn at full resolution (every row a marker, plain
+  matplotlib SVG) against the report's figure (min/max envelope per pixel column).
+
+Nothing asserts on time; each row prints PASS or FAIL against its goal.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+SEED = 12
+RATE_HZ = 1000
+PERIOD_S = 20.0
+NOISE_MM = 0.005
+TIME_GOAL_S = 60.0
+RSS_GOAL_MB = 4000.0
+HTML_GOAL_MB = 5.0
+MB = 1e6
+
+
+def make_log(rows: int, work: Path, seed: int = SEED) -> Path:
+    """Write (or reuse) a synthetic experiment of one ``rows``-row 1 kHz dynamic run.
+
+    Returns the experiment TOML's path (``work/biglog-ROWS-sSEED/experiment.toml``).
+    """
+    import numpy as np
+    import pandas as pd
+
+    from tcamlab.config import load_experiment
+    from tcamlab.csvfast import fixed_csv_bytes
+    from tcamlab.kinds import dynamic
+
+    folder = work / f"biglog-{rows}-s{seed}"
+    toml = folder / "experiment.toml"
+    if toml.exists():
+        return toml
+    folder.mkdir(parents=True, exist_ok=True)
+    exp = load_experiment(REPO / "experiments" / "dynamic.toml")
+    n_period = int(PERIOD_S * RATE_HZ)
+    t = np.arange(n_period) / RATE_HZ
+    v = np.where((t >= 0.5) & (t < 0.5 + exp.rig.pulse), exp.rig.voltage, 0.0)
+    one = dynamic.predict(exp.sample, exp.rig, pd.DataFrame({"time": t, "voltage": v}))
+    reps = -(-rows // n_period)
+    rng = np.random.default_rng(seed)
+    disp_um = np.tile(one["displacement"] * 1e6, reps)[:rows] + rng.normal(0, NOISE_MM * 1e3, rows)
+    disp_mm = np.round(disp_um) / 1e3  # logged to 1 um
+    disp_mm[0] = 0.0  # the log is zeroed on its first row
+    frame = pd.DataFrame(
+        {
+            "time_s": np.arange(rows) / RATE_HZ,
+            "voltage_V": np.tile(v, reps)[:rows],
+            "displacement_mm": disp_mm,
+        }
+    )
+    # fixed-point text by the numba writer of predictions.csv: pandas' float formatting
+    # takes minutes for 10 million rows
+    (folder / "run1.csv").write_bytes(fixed_csv_bytes(frame))
+    src = (REPO / "experiments" / "dynamic.toml").read_text()
+    body = src[src.index("[sample]") :]
+    toml.write_text(
+        'kind = "dynamic"\n'
+        f'title = "Long 1 kHz log, {rows} rows (synthetic)"\n'
+        'runs = ["run1.csv"]\n'
+        'notes = "SYNTHETIC: bench/bench_large_log.py make_log, the thesis model tiled plus noise."\n\n'
+        "[synthetic]\n"
+        'generator = "bench/bench_large_log.py make_log"\n'
+        f"seed = {seed}\n"
+        f'command = "python bench/bench_large_log.py --rows {rows}"\n\n' + body
+    )
+    return toml
+
+
+def run_measured(args: list[str]) -> dict:
+    """Run ``args`` from the repository root; wall time [s] and the child's peak RSS [MB]
+    (``os.wait4``'s ``ru_maxrss``; this parent stays small, so nothing of it is counted)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    out = proc.stdout.read().decode(errors="replace")
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return {
+        "wall_s": time.perf_counter() - t0,
+        "rss_mb": usage.ru_maxrss * 1024 / MB,
+        # CPU time does not grow with other jobs on the machine as the wall time does
+        "cpu_s": usage.ru_utime + usage.ru_stime,
+        "exit": proc.returncode,
+        "output": out,
+    }
+
+
+_READ = """
+import sys, time
+t0 = time.perf_counter()
+if sys.argv[2] == "tcamlab":
+    from tcamlab.io import read_run
+    read_run(sys.argv[1], "dynamic")
+else:
+    import pandas
+    pandas.read_csv(sys.argv[1])
+print(time.perf_counter() - t0)
+"""
+
+_FIGURE = """
+import sys, time
+import numpy as np, pandas as pd
+from tcamlab.report.figures import new_figure, figure_to_svg
+rows = int(sys.argv[3])
+df = pd.read_csv(sys.argv[1], nrows=rows, engine="c", dtype=float)
+t0 = time.perf_counter()
+fig, ax = new_figure()
+ax.plot(df["time_s"], df["displacement_mm"], ".", ms=1.5, label="run1 measured")
+ax.legend()
+if sys.argv[2] == "plain":
+    import io
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg")
+    size = len(buf.getvalue().encode())
+else:
+    size = len(figure_to_svg(fig).encode())
+print(time.perf_counter() - t0, size)
+"""
+
+
+def measure(rows: int, work: Path, ref_rows: int) -> dict:
+    """Every figure of the benchmark for a ``rows``-row log (see the module docstring)."""
+    py = sys.executable
+    gen = f"import sys; sys.path.insert(0, 'bench'); import bench_large_log as b; from pathlib import Path; print(b.make_log({rows}, Path({str(work)!r})))"
+    made = run_measured([py, "-c", gen])
+    toml = Path(made["output"].strip().splitlines()[-1])
+    csv = toml.parent / "run1.csv"
+    res = {"rows": rows, "csv_mb": csv.stat().st_size / MB}
+    for name, cmd in (
+        ("validate", [py, "-m", "tcamlab", "validate", "dynamic", str(toml), "--out", str(work / "v")]),
+        ("report", [py, "-m", "tcamlab", "report", str(toml), "--out", str(work / "r")]),
+    ):
+        r = run_measured(cmd)
+        folder = work / ("v" if name == "validate" else "r") / toml.stem
+        r["html_mb"] = (folder / "report.html").stat().st_size / MB if r["exit"] == 0 else None
+        res[name] = r
+    for how in ("tcamlab", "plain"):
+        r = run_measured([py, "-c", _READ, str(csv), how])
+        r["call_s"] = float(r["output"].split()[-1])
+        res[f"read_{how}"] = r
+    for how in ("envelope", "plain"):
+        r = run_measured([py, "-c", _FIGURE, str(csv), how, str(min(rows, ref_rows))])
+        call, size = r["output"].split()[-2:]
+        r["call_s"], r["svg_mb"] = float(call), int(size) / MB
+        res[f"figure_{how}"] = r
+    return res
+
+
+def print_table(res: dict) -> None:
+    """One line per figure, PASS/FAIL against the goals."""
+    rows = res["rows"]
+    print(f"SYNTHETIC 1 kHz dynamic log: {rows:,} rows, {res['csv_mb']:.0f} MB CSV (seed {SEED})")
+    for name in ("validate", "report"):
+        r = res[name]
+        ok = r["exit"] == 0 and r["wall_s"] < TIME_GOAL_S and r["rss_mb"] < RSS_GOAL_MB
+        ok = ok and r["html_mb"] is not None and r["html_mb"] < HTML_GOAL_MB
+        html = "-" if r["html_mb"] is None else f"{r['html_mb']:.2f} MB"
+        print(
+            f"{name:9s} {r['wall_s']:7.1f} s (CPU {r['cpu_s']:.1f} s)  peak RSS {r['rss_mb']:6.0f} MB  report.html {html}  "
+            f"exit {r['exit']}  goal < {TIME_GOAL_S:.0f} s, < {RSS_GOAL_MB:.0f} MB, < {HTML_GOAL_MB:.0f} MB: "
+            + ("PASS" if ok else "FAIL")
+        )
+    a, b = res["read_tcamlab"], res["read_plain"]
+    print(
+        f"read      read_run {a['call_s']:.2f} s ({a['rss_mb']:.0f} MB) against pandas.read_csv "
+        f"{b['call_s']:.2f} s ({b['rss_mb']:.0f} MB): ratio {a['call_s'] / b['call_s']:.2f}"
+    )
+    a, b = res["figure_envelope"], res["figure_plain"]
+    print(
+        f"figure    envelope {a['call_s']:.2f} s, {a['svg_mb']:.3f} MB SVG against full resolution "
+        f"{b['call_s']:.2f} s, {b['svg_mb']:.1f} MB (first {min(rows, res['ref_rows']):,} rows): "
+        f"{b['call_s'] / a['call_s']:.0f}x faster, {b['svg_mb'] / a['svg_mb']:.0f}x smaller"
+    )
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--rows", type=int, default=10_000_000)
+    parser.add_argument("--quick", action="store_true", help="1,000,000 rows (CI)")
+    parser.add_argument("--ref-rows", type=int, default=1_000_000, help="rows of the plain figure")
+    parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "tcamlab-bench-biglog")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args(argv)
+    rows = 1_000_000 if args.quick else args.rows
+    res = measure(rows, args.work, args.ref_rows)
+    res["ref_rows"] = args.ref_rows
+    print_table(res)
+    if args.json:
+        args.json.write_text(json.dumps(res, indent=1, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
