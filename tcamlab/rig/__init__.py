@@ -148,6 +148,7 @@ from tcamlab.kinds.static import OVEN_PROGRAMS
 from tcamlab.params import Rig, Sample
 from tcamlab.report.atomic import atomic_write_text
 from tcamlab.rig.lies import draw_parameters, stated_sds
+from tcamlab.rig.offlibrary import apply_form, get_form, scale_form
 from tcamlab.rig.runs import exact_inputs, instrument_sd, measure, program_options, protocol, true_options
 from tcamlab.rig.scatter import rig_truth, scattered
 from tcamlab.rig.strength import DOMAIN_BACKOFF, noise_sd, resolve_effect, scale_effect
@@ -261,6 +262,7 @@ def simulate(
     parameter_offsets: Mapping[str, float] | None = None,
     uncertainty: Mapping[str, Any] | None = None,
     noisy_zero: bool = False,
+    offlibrary: Mapping[str, float] | None = None,
 ) -> SimulationResult:
     """Simulate an experiment of one rig kind and write it like a lab would.
 
@@ -305,6 +307,10 @@ def simulate(
         {SI field: sd [SI]}: sds the template does not state (drawn, never written).
     noisy_zero : bool
         Zero each run on one noisy reading, not the averaged tare; zero errors go to the truth.
+    offlibrary : mapping, optional
+        {form: strength}: effects in forms outside the effect library
+        (:mod:`tcamlab.rig.offlibrary`), scaled like effects, applied after
+        them; the truth file records them under ``offlibrary``.
 
     Returns
     -------
@@ -318,9 +324,12 @@ def simulate(
     runs = _draw_runs(plan)
     sd = _strength_floor(plan)
     effect_truth, mods = _scale_effects(plan, effects or {}, runs, sd)
-    run_paths, runs_truth = _write_runs(plan, runs, mods)
+    forms = _scale_forms(plan, offlibrary or {}, runs, sd, mods)
+    run_paths, runs_truth = _write_runs(plan, runs, mods, forms)
     exp_path = _write_experiment(plan, run_paths)
     truth = _truth(plan, effect_truth, mods, sd, runs_truth)
+    if forms:
+        truth["offlibrary"] = to_jsonable({f.name: info for f, info in forms})
     truth_path = plan.out / "truth" / f"{plan.name}.truth.json"
     atomic_write_text(truth_path, dumps_json(truth, sort_keys=False))
     return SimulationResult(exp_path, tuple(run_paths), truth_path, truth)
@@ -446,7 +455,22 @@ def _scale_effects(
     return effect_truth, mods
 
 
-def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods) -> tuple[list[Path], list[dict]]:
+def _scale_forms(plan: _Plan, offlibrary: Mapping[str, float], runs: list[_Run], sd, mods: Mods) -> list:
+    """[(form, its truth)] of the out-of-library forms, each scaled on the first run (on top of the effects)."""
+    out = []
+    sample, rig, proto = plan.true_sample, plan.true_rig, runs[0].proto
+    for name, strength in offlibrary.items():
+        form = get_form(name, plan.kind)
+        inputs = exact_inputs(plan.kind, sample, rig, proto, mods)
+        opts = true_options(plan.kind, sample, rig, inputs)
+        outputs = predict(plan.kind, sample, rig, inputs, mods, **opts)
+        out.append(
+            (form, scale_form(form, float(strength), plan.kind, sample, rig, inputs, outputs, opts, sd))
+        )
+    return out
+
+
+def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods, forms=()) -> tuple[list[Path], list[dict]]:
     """Predict, measure and write each run's CSV; (paths, each run's truth)."""
     kind = plan.kind
     paths, truths = [], []
@@ -454,6 +478,10 @@ def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods) -> tuple[list[Path], 
         inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
         opts = true_options(kind, run.sample, run.rig, inputs)
         outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
+        for form, info in forms:
+            inputs, outputs = apply_form(
+                form, info["amplitude"], kind, run.sample, run.rig, inputs, outputs, opts
+            )
         zero = {"noisy_zero": True} if plan.lies["noisy_zero"] else {}
         logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale, **zero)
         fname = f"{plan.name}_run{k + 1}.csv"
