@@ -278,10 +278,8 @@ def simulate(
     out_dir : path-like
         Gets ``raw/<name>_runN.csv``, ``experiments/<name>.toml``, ``truth/<name>.truth.json``.
     effects : mapping, optional
-        Effect -> strength (in noise sd of the primary quantity,
-        :func:`scale_effect`) or ``{"value": x}`` (the parameters in SI). Names
-        joined by ``+`` act as one effect (:func:`resolve_effect`); several
-        effects are scaled one by one, then combined.
+        Effect -> strength (noise sds, :func:`scale_effect`) or ``{"value": x}`` (SI). Names joined
+        by ``+`` act as one (:func:`resolve_effect`); several are scaled one by one, then combined.
     n_runs : int, optional
         Runs (default :data:`DEFAULT_RUNS`).
     scatter : mapping, optional
@@ -291,16 +289,14 @@ def simulate(
     name : str, optional
         Output name (default: the template's file stem).
     command : str, optional
-        The command line of the truth file (``[synthetic]`` gets it without
-        the effects and lies, :func:`tcamlab.text.public_command`).
+        The truth file's command line (``[synthetic]``: :func:`tcamlab.text.public_command` of it).
     oven : {"heating", "heat-cool"}
         Static oven program (:data:`OVEN_PROGRAMS`); kinds without an oven ignore it.
     parameter_error : float
-        F [-]: every parameter with a stated sd (``[rig.uncertainty]``, a
-        sample uncertainty where the configuration has one, ``uncertainty``)
-        gets a TRUE value drawn with the stated mean and F stated sds
-        (:mod:`tcamlab.rig.lies`), used by every run; the experiment file keeps
-        the stated values. 0 (default): the stated values are the truth.
+        F [-]: every parameter with a stated sd (``[rig.uncertainty]``, ``[sample.uncertainty]``,
+        ``uncertainty``) gets a TRUE value drawn with the stated mean and F stated sds
+        (:mod:`tcamlab.rig.lies`), used by every run; the experiment file keeps the stated
+        values. 0 (default): the stated values are the truth.
     parameter_offsets : mapping, optional
         {SI field: d}: the true value is exactly stated + d sd (tests).
     uncertainty : mapping, optional
@@ -308,9 +304,7 @@ def simulate(
     noisy_zero : bool
         Zero each run on one noisy reading, not the averaged tare; zero errors go to the truth.
     offlibrary : mapping, optional
-        {form: strength}: effects in forms outside the effect library
-        (:mod:`tcamlab.rig.offlibrary`), scaled like effects, applied after
-        them; the truth file records them under ``offlibrary``.
+        {form: strength} of :mod:`tcamlab.rig.offlibrary`, applied after the effects (truth: ``offlibrary``).
 
     Returns
     -------
@@ -327,9 +321,7 @@ def simulate(
     forms = _scale_forms(plan, offlibrary or {}, runs, sd, mods)
     run_paths, runs_truth = _write_runs(plan, runs, mods, forms)
     exp_path = _write_experiment(plan, run_paths)
-    truth = _truth(plan, effect_truth, mods, sd, runs_truth)
-    if forms:
-        truth["offlibrary"] = to_jsonable({f.name: info for f, info in forms})
+    truth = _truth(plan, effect_truth, mods, sd, runs_truth, forms)
     truth_path = plan.out / "truth" / f"{plan.name}.truth.json"
     atomic_write_text(truth_path, dumps_json(truth, sort_keys=False))
     return SimulationResult(exp_path, tuple(run_paths), truth_path, truth)
@@ -505,7 +497,7 @@ def _write_experiment(plan: _Plan, run_paths: list[Path]) -> Path:
 
 
 def _truth(
-    plan: _Plan, effect_truth: dict, mods: Mods, sd: Mapping[str, float], runs_truth: list[dict]
+    plan: _Plan, effect_truth: dict, mods: Mods, sd: Mapping[str, float], runs_truth: list[dict], forms=()
 ) -> dict[str, Any]:
     """The truth file's content (JSON-ready)."""
     truth = {
@@ -526,6 +518,8 @@ def _truth(
         "template_rig": rig_truth(plan.exp.rig),
         "runs": runs_truth,
     }
+    if forms:
+        truth["offlibrary"] = {f.name: info for f, info in forms}
     return to_jsonable({**truth, **_lies_truth(plan)})
 
 
