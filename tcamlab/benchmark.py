@@ -17,6 +17,14 @@ parameters are drawn within their stated uncertainty (parameter error F =
 scored apart (``null_miscalibrated``): every confident verdict on them is a
 false attribution, physics blamed for a wrong parameter or zero.
 
+Four more families (:data:`FAMILIES`, :func:`family_tasks`) keep the benchmark from being
+the diagnosis's mirror: ``calibration-only`` (no effect, stated parameters 1-3 stated sds
+off), ``realistic`` (an effect, parameters drawn within their stated sds, noisy zeros),
+``off-library`` (each effect in a form outside the library, :mod:`tcamlab.rig.offlibrary`,
+which the diagnosis never imports) and ``null-noisy-zero``; their files state
+:data:`STATED_UNCERTAINTY`. :func:`family_scores` scores each against its target and
+:func:`plan_full_run` costs the full run from a run's per-case times.
+
 Each kind sets its cases' protocol options and effect pairs (:attr:`tcamlab.kinds.Kind.benchmark_program`,
 :attr:`~tcamlab.kinds.Kind.benchmark_pairs`); static cases use the heat-cool oven.
 """
