@@ -17,6 +17,14 @@ parameters are drawn within their stated uncertainty (parameter error F =
 scored apart (``null_miscalibrated``): every confident verdict on them is a
 false attribution, physics blamed for a wrong parameter or zero.
 
+Four more families (:data:`FAMILIES`, :func:`family_tasks`) keep the benchmark from being
+the diagnosis's mirror: ``calibration-only`` (no effect, stated parameters 1-3 stated sds
+off), ``realistic`` (an effect, parameters drawn within their stated sds, noisy zeros),
+``off-library`` (each effect in a form outside the library, :mod:`tcamlab.rig.offlibrary`,
+which the diagnosis never imports) and ``null-noisy-zero``; their files state
+:data:`STATED_UNCERTAINTY`. :func:`family_scores` scores each against its target and
+:func:`plan_full_run` costs the full run from a run's per-case times.
+
 Each kind sets its cases' protocol options and effect pairs (:attr:`tcamlab.kinds.Kind.benchmark_program`,
 :attr:`~tcamlab.kinds.Kind.benchmark_pairs`); static cases use the heat-cool oven.
 """
@@ -54,6 +62,15 @@ __all__ = [
     "noise_ceiling",
     "LIE_PARAMETER_ERROR",
     "lying_null_task",
+    "FAMILIES",
+    "CASE_FAMILY",
+    "STATED_UNCERTAINTY",
+    "family_tasks",
+    "family_scores",
+    "calibration_offsets",
+    "stated_template",
+    "true_effect",
+    "plan_full_run",
 ]
 
 STRENGTHS = (1.0, 3.0, 10.0)
@@ -80,15 +97,77 @@ diagnosis is not a target (issue 14); pass ``kinds`` to include it."""
 # ---------------------------------------------------------------------------
 
 
+FAMILIES = ("effect-only", "null", "calibration-only", "realistic", "off-library", "null-noisy-zero")
+"""Families of cases: the effect-only cases (singles and, in the full run, pairs), the
+null cases, and the families of a lab that lies (:func:`family_tasks`)."""
+
+CASE_FAMILY = {
+    "single": "effect-only",
+    "pair": "effect-only",
+    "null": "null",
+    "null-miscalibrated": "null",
+    "calibration-only": "calibration-only",
+    "realistic": "realistic",
+    "off-library": "off-library",
+    "null-noisy-zero": "null-noisy-zero",
+}
+"""The family of each task ``case``."""
+
+FAMILY_STRENGTHS = (3.0, 10.0)
+"""Strengths of the realistic and out-of-library families (their targets are at 3x and 10x)."""
+
+FAMILY_SEEDS = {"calibration-only": 7000, "realistic": 8000, "off-library": 8500, "null-noisy-zero": 5500}
+"""First seed of each lying family."""
+
+CALIBRATION_OFFSET_SD = (1.0, 3.0)
+"""|offset| of a calibration-only case's perturbed parameters, in stated sds (uniform)."""
+
+MIN_POSITIVE_SHARE = 0.3
+"""A positive parameter is moved down only while it keeps this share of its stated value
+(else up): C_th -3 sds would be 5 % of its stated value, a different actuator."""
+
+STATED_UNCERTAINTY: dict[str, dict[str, dict[str, float]]] = {
+    "static": {
+        "rig": {},
+        "sample": {"radial_cte": 8.1e-6, "youngs_modulus": 0.1725e9, "shear_modulus_slope": 0.222e6},
+    },
+    "dynamic": {
+        "rig": {"thermal_mass": 0.00845, "heat_loss": 0.0027, "damping": 0.12},
+        "sample": {"radial_cte": 8.1e-6, "shear_modulus_slope": 0.222e6},
+    },
+    "sensing": {"rig": {}, "sample": {"youngs_modulus": 0.345e9}},
+    "curvature": {"rig": {"sensor_offset": 0.3e-3}, "sample": {"youngs_modulus": 0.345e9}},
+}
+"""Stated sds [SI] of the lying families' experiment files ([rig.uncertainty],
+[sample.uncertainty]): the thesis's C_th 0.0266 +- 0.00845 J/K and b 0.84 +- 0.12 N s/m;
+lambda 0.00893 +- 0.0027 W/K (30 %, where the thesis's 0.01615 puts a third of the
+mass below zero); rho 10 %, E 5 % (static; 10 % sensing and curvature), G_t slope 20 %,
+d1 0.3 mm."""
+
+
 def make_tasks(
-    *, quick: bool = False, seeds: int = 10, kinds=None, effects=None, lies: bool = False
+    *,
+    quick: bool = False,
+    seeds: int = 10,
+    kinds=None,
+    effects=None,
+    lies: bool = False,
+    families=("effect-only", "null"),
 ) -> list[dict]:
     """Task dicts (case, kind, effects {name: strength}, seed).
 
-    ``lies`` adds, per kind and seed, a ``null-miscalibrated`` case (seeds
-    6000 on): no effect, true parameters drawn within their stated uncertainty
-    and noisy zeros (:func:`lying_null_task`). The other tasks do not change.
+    ``families`` (:data:`FAMILIES`) picks the families; the default is the
+    effect-only and null cases of the earlier benchmark. ``lies`` adds, per
+    kind and seed (6000 on), a ``null-miscalibrated`` case: no effect, true
+    parameters drawn within their stated uncertainty and noisy zeros
+    (:func:`lying_null_task`). The other families: :func:`family_tasks`.
     """
+    families = tuple(families)
+    unknown = sorted(set(families) - set(FAMILIES))
+    if unknown:
+        from tcamlab.errors import ConfigError
+
+        raise ConfigError(f"unknown benchmark family {unknown[0]!r}", hint="families: " + ", ".join(FAMILIES))
     tasks = []
     kinds = BENCHMARK_KINDS if kinds is None else kinds
     strengths = (3.0,) if quick else STRENGTHS
@@ -97,15 +176,19 @@ def make_tasks(
         names = [e.name for e in effects_for(kind)]
         if effects is not None:
             names = [n for n in names if n in effects]
-        for name in names:
-            for s in strengths:
-                for seed in range(n_seeds):
-                    tasks.append({"case": "single", "kind": kind, "effects": {name: s}, "seed": 1000 + seed})
-        for seed in range(n_seeds):
-            tasks.append({"case": "null", "kind": kind, "effects": {}, "seed": 5000 + seed})
+        if "effect-only" in families:
+            for name in names:
+                for s in strengths:
+                    for seed in range(n_seeds):
+                        tasks.append(
+                            {"case": "single", "kind": kind, "effects": {name: s}, "seed": 1000 + seed}
+                        )
+        if "null" in families:
+            for seed in range(n_seeds):
+                tasks.append({"case": "null", "kind": kind, "effects": {}, "seed": 5000 + seed})
         if lies:
             tasks += [lying_null_task(kind, 6000 + seed) for seed in range(n_seeds)]
-        if not quick:
+        if not quick and "effect-only" in families:
             for a, b in get_kind(kind).benchmark_pairs:
                 for seed in range(max(3, n_seeds // 2)):
                     tasks.append(
@@ -116,7 +199,125 @@ def make_tasks(
                             "seed": 9000 + seed,
                         }
                     )
+        tasks += family_tasks(kind, families, quick=quick, seeds=seeds, effects=effects)
     return tasks
+
+
+def family_seeds(quick: bool, seeds: int) -> int:
+    """Seeds per (effect or form, strength) cell of the realistic and out-of-library families:
+    1 in the quick run, else ``ceil(seeds / 5)`` (their cells are many; the full run must
+    stay plannable)."""
+    return 1 if quick else max(1, math.ceil(int(seeds) / 5))
+
+
+def family_tasks(kind: str, families, *, quick: bool = False, seeds: int = 10, effects=None) -> list[dict]:
+    """The lying families' tasks of one kind.
+
+    - ``calibration-only``: no effect; one or two stated parameters exactly 1-3
+      stated sds off (:func:`calibration_offsets`); ``seeds`` cases.
+    - ``realistic``: each effect at 3x and 10x with the parameters drawn within their
+      stated sds (F = 1) and noisy zeros.
+    - ``off-library``: each form of :mod:`tcamlab.rig.offlibrary` at 3x and 10x.
+    - ``null-noisy-zero``: no effect, noisy zeros; ``seeds`` cases.
+
+    Every case states :data:`STATED_UNCERTAINTY`. The quick run has one case of each
+    family per kind (the first effect or form, at 3x).
+    """
+    from tcamlab.rig.offlibrary import forms_for
+
+    n = family_seeds(quick, seeds)
+    n_null = 1 if quick else max(int(seeds), 1)
+    strengths = (3.0,) if quick else FAMILY_STRENGTHS
+    stated = {"stated": STATED_UNCERTAINTY[kind]}
+    names = [e.name for e in effects_for(kind) if effects is None or e.name in effects]
+    forms = [f for f in forms_for(kind) if effects is None or f.nearest in effects]
+    if quick:
+        names, forms = names[:1], forms[:1]
+    out = []
+    for fam in families:
+        base = FAMILY_SEEDS.get(fam)
+        if fam == "calibration-only":
+            for i in range(n_null):
+                seed = base + i
+                offsets = calibration_offsets(kind, seed)
+                out.append(
+                    {
+                        "case": fam,
+                        "kind": kind,
+                        "effects": {},
+                        "seed": seed,
+                        "parameter_offsets": offsets,
+                        **stated,
+                    }
+                )
+        elif fam == "null-noisy-zero":
+            out += [
+                {"case": fam, "kind": kind, "effects": {}, "seed": base + i, "noisy_zero": True, **stated}
+                for i in range(n_null)
+            ]
+        elif fam == "realistic":
+            out += [
+                {
+                    "case": fam,
+                    "kind": kind,
+                    "effects": {e: s},
+                    "seed": base + i,
+                    "parameter_error": 1.0,
+                    "noisy_zero": True,
+                    **stated,
+                }
+                for e in names
+                for s in strengths
+                for i in range(n)
+            ]
+        elif fam == "off-library":
+            out += [
+                {
+                    "case": fam,
+                    "kind": kind,
+                    "effects": {},
+                    "offlibrary": {f.name: s},
+                    "nearest": f.nearest,
+                    "seed": base + i,
+                    **stated,
+                }
+                for f in forms
+                for s in strengths
+                for i in range(n)
+            ]
+    return out
+
+
+def stated_template(kind: str):
+    """The kind's template experiment with :data:`STATED_UNCERTAINTY` stated in it."""
+    import dataclasses
+
+    from tcamlab.config import load_experiment
+
+    exp = load_experiment(template_path(kind), require_runs=False)
+    st = STATED_UNCERTAINTY[kind]
+    rig = exp.rig.replace(uncertainty={**exp.rig.uncertainty, **st["rig"]})
+    return dataclasses.replace(exp, rig=rig, sample_uncertainty={**exp.sample_uncertainty, **st["sample"]})
+
+
+def calibration_offsets(kind: str, seed: int) -> dict[str, float]:
+    """{field: offset in stated sds} of a calibration-only case: one or two of the stated
+    parameters, |offset| uniform in :data:`CALIBRATION_OFFSET_SD`, random sign (up where
+    down would leave a positive parameter under :data:`MIN_POSITIVE_SHARE` of its value)."""
+    exp = stated_template(kind)
+    st = STATED_UNCERTAINTY[kind]
+    fields = sorted(st["rig"]) + sorted(st["sample"])
+    rng = np.random.default_rng([int(seed), 0xCA1])
+    k = int(rng.integers(1, min(2, len(fields)) + 1))
+    out = {}
+    for fld in sorted(rng.choice(fields, size=k, replace=False)):
+        sd = {**st["rig"], **st["sample"]}[fld]
+        stated = getattr(exp.rig if fld in st["rig"] else exp.sample, fld)
+        d = float(rng.uniform(*CALIBRATION_OFFSET_SD)) * (1.0 if rng.random() < 0.5 else -1.0)
+        if d < 0 and stated > 0 and stated + d * sd < MIN_POSITIVE_SHARE * stated:
+            d = -d
+        out[str(fld)] = d
+    return out
 
 
 def lying_null_task(kind: str, seed: int) -> dict:
@@ -156,12 +357,15 @@ def run_task(task: dict) -> dict:
     out = dict(task)
     out["generator"] = GENERATOR
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
-        template = task.get("template") or template_path(kind)
         try:
+            template = task.get("template") or (
+                stated_template(kind) if "stated" in task else template_path(kind)
+            )
             extra = _program(kind, task)
             if "noise_scale" in task:
                 extra["noise_scale"] = float(task["noise_scale"])
-            extra.update({k: task[k] for k in ("parameter_error", "noisy_zero", "uncertainty") if k in task})
+            lies = ("parameter_error", "noisy_zero", "uncertainty", "parameter_offsets", "offlibrary")
+            extra.update({k: task[k] for k in lies if k in task})
             sim = simulate(
                 kind, template, seed=task["seed"], out_dir=tmp, effects=dict(task["effects"]), **extra
             )
@@ -191,6 +395,7 @@ def run_task(task: dict) -> dict:
             },
             "truth_values": _truth_values(truth, kind, task["effects"]),
             **_lies_values(truth),
+            **({"offlibrary_truth": truth["offlibrary"]} if "offlibrary" in truth else {}),
             "seconds": time.perf_counter() - t0,
         }
     )
@@ -236,6 +441,14 @@ def _label(r: dict) -> str:
     return r["verdict"]
 
 
+def true_effect(r: dict) -> str:
+    """The effect a right diagnosis names: the nearest library effect of an out-of-library
+    form, else the case's (first) effect; ``none (null)`` without one."""
+    if r.get("nearest"):
+        return r["nearest"]
+    return next(iter(r["effects"])) if r["effects"] else "none (null)"
+
+
 def _acc(rows: list[dict]) -> dict:
     """Top-1 / top-3 accuracy of single-effect cases (an error counts as wrong)."""
     n = len(rows)
@@ -243,7 +456,7 @@ def _acc(rows: list[dict]) -> dict:
         return {"n": 0, "top1": None, "top3": None}
     top1 = top3 = 0
     for r in rows:
-        truth = next(iter(r["effects"]))
+        truth = true_effect(r)
         if "error" in r:
             continue
         conf = r["verdict"] in CONFIDENT
@@ -254,7 +467,7 @@ def _acc(rows: list[dict]) -> dict:
 
 
 def _strength(r: dict) -> float:
-    return next(iter(r["effects"].values()))
+    return next(iter({**r["effects"], **r.get("offlibrary", {})}.values()))
 
 
 def _accuracy(singles: list[dict]) -> dict:
@@ -365,15 +578,101 @@ def _pair_row(r: dict) -> dict:
 def _confusion(rows: list[dict]) -> dict[str, dict[str, dict[str, int]]]:
     confusion: dict[str, dict[str, dict[str, int]]] = {}
     for r in rows:
-        truth = next(iter(r["effects"])) if r["effects"] else "none (null)"
+        truth = true_effect(r)
+        if r.get("offlibrary"):
+            truth = f"{next(iter(r['offlibrary']))} ({truth})"
         cell = confusion.setdefault(r["kind"], {}).setdefault(truth, {})
         lab = _label(r)
         cell[lab] = cell.get(lab, 0) + 1
     return confusion
 
 
+def _moved(r: dict) -> set[str]:
+    """The parameters the rig truly moved (an exact offset or a draw off the stated value)."""
+    return {f for f, d in (r.get("parameter_offsets_sd") or {}).items() if d}
+
+
+def _named_moved(r: dict) -> bool:
+    named = {n.rpartition(".")[2] for n in r.get("recalibrated") or []}
+    return r.get("verdict") == "miscalibrated" and bool(named & _moved(r))
+
+
+def _rate(k: int, n: int):
+    return k / n if n else None
+
+
+def _calibration_only(rows: list[dict]) -> dict:
+    """Calibration-only cases: attributed to an effect (target <= 5 %) and `miscalibrated`
+    naming a parameter the rig truly moved (target >= 80 %)."""
+    ok = [r for r in rows if "error" not in r]
+    attributed = sum(r["verdict"] == "attributed" for r in ok)
+    confident = sum(r["verdict"] in CONFIDENT for r in ok)
+    named = sum(_named_moved(r) for r in ok)
+    return {
+        "n": len(rows),
+        "attributed": attributed,
+        "attributed_rate": _rate(attributed, len(rows)),
+        "attributed_or_aliased_rate": _rate(confident, len(rows)),
+        "miscalibrated_naming_a_moved_parameter": named,
+        "miscalibrated_right_rate": _rate(named, len(rows)),
+        "verdicts": dict(Counter(r.get("verdict", "error") for r in rows)),
+    }
+
+
+def _noisy_nulls(rows: list[dict]) -> dict:
+    """Null cases: false attributions (target <= 5 %) and `none` (target >= 90 %)."""
+    false = sum(r.get("verdict") in CONFIDENT for r in rows)
+    none = sum(r.get("verdict") == "none" for r in rows)
+    return {
+        "n": len(rows),
+        "false_attributions": false,
+        "false_rate": _rate(false, len(rows)),
+        "none": none,
+        "none_rate": _rate(none, len(rows)),
+        "verdicts": dict(Counter(r.get("verdict", "error") for r in rows)),
+    }
+
+
+def family_scores(results: list[dict]) -> dict:
+    """Per family: the figures its targets are stated in (README, issue 11)."""
+    by = defaultdict(list)
+    for r in results:
+        by[CASE_FAMILY.get(r["case"], r["case"])].append(r)
+    out = {}
+    singles = [r for r in by.get("effect-only", []) if r["case"] == "single"]
+    if singles:
+        out["effect-only"] = {
+            str(s): _acc([r for r in singles if _strength(r) == s])
+            for s in sorted({_strength(r) for r in singles})
+        }
+    for fam in ("realistic", "off-library"):
+        rows = by.get(fam, [])
+        if rows:
+            out[fam] = {
+                str(s): _acc([r for r in rows if _strength(r) == s])
+                for s in sorted({_strength(r) for r in rows})
+            }
+    if by.get("calibration-only"):
+        out["calibration-only"] = _calibration_only(by["calibration-only"])
+    for fam in ("null", "null-noisy-zero"):
+        rows = [r for r in by.get(fam, []) if r["case"] != "null-miscalibrated"]
+        if rows:
+            out[fam] = _noisy_nulls(rows)
+    return out
+
+
+def _family_confusion(results: list[dict]) -> dict:
+    """{family: {kind: {truth: {diagnosis: n}}}} of the lying families."""
+    out = {}
+    for fam in ("calibration-only", "realistic", "off-library", "null-noisy-zero"):
+        rows = [r for r in results if r["case"] == fam]
+        if rows:
+            out[fam] = _confusion(rows)
+    return out
+
+
 def score(results: list[dict]) -> dict:
-    """Accuracy tables, false attributions, shrinkage, recovery, pairs, confusion."""
+    """Accuracy tables, false attributions, shrinkage, recovery, pairs, confusion, families."""
     singles = [r for r in results if r["case"] == "single"]
     nulls = [r for r in results if r["case"] == "null"]
     lying = [r for r in results if r["case"] == "null-miscalibrated"]
@@ -395,6 +694,9 @@ def score(results: list[dict]) -> dict:
         "pairs": pair_rows,
         "pair_outcomes": dict(Counter(p["outcome"] for p in pair_rows)),
         "confusion": _confusion(singles + nulls),
+        "families": family_scores(results),
+        "confusion_by_family": _family_confusion(results),
+        "seconds_by_family": _seconds_by_family(results),
         "errors": [
             {"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
             for r in results
@@ -402,6 +704,17 @@ def score(results: list[dict]) -> dict:
         ],
         "seconds_median": float(np.median([r["seconds"] for r in results])) if results else None,
     }
+
+
+def _seconds_by_family(results: list[dict]) -> dict:
+    """{family: {kind: median seconds per case}}: the per-case timings the full run is planned on."""
+    cells = defaultdict(list)
+    for r in results:
+        cells[(CASE_FAMILY.get(r["case"], r["case"]), r["kind"])].append(r.get("seconds", 0.0))
+    out: dict = {}
+    for (fam, kind), v in sorted(cells.items()):
+        out.setdefault(fam, {})[kind] = float(np.median(v))
+    return out
 
 
 def noise_ceiling(strength: float) -> float:
@@ -420,10 +733,12 @@ def _shrink_cell(strength: str, cell: dict) -> dict:
         v = [x for x in v if x is not None and math.isfinite(x)]
         return float(np.median(v)) if v else None
 
+    ceiling = noise_ceiling(float(strength))
     return {
         "n": len(cell["shrinkage"]),
         "median_shrinkage": med(cell["shrinkage"]),
-        "noise_ceiling": noise_ceiling(float(strength)),
+        "noise_ceiling": ceiling,
+        "median_share_of_ceiling": med([x / ceiling for x in cell["shrinkage"]]),
         "median_share_of_attainable": med(cell["attainable"]),
         "median_fraction_closed": med(cell["fraction_closed"]),
     }
@@ -481,6 +796,7 @@ def run_benchmark(
     effects=None,
     tasks=None,
     lies: bool = False,
+    families=None,
 ) -> BenchmarkResult:
     """Run the withheld-effect benchmark and write benchmark.json, benchmark.md and a report.
 
@@ -504,11 +820,16 @@ def run_benchmark(
     lies : bool
         Add the lying null cases (:func:`make_tasks`), scored apart as
         ``null_miscalibrated``.
+    families : sequence of str, optional
+        The families to run (:data:`FAMILIES`); default all of them.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if tasks is None:
-        tasks = make_tasks(quick=quick, seeds=seeds, kinds=kinds, effects=effects, lies=lies)
+        families = FAMILIES if families is None else tuple(families)
+        tasks = make_tasks(
+            quick=quick, seeds=seeds, kinds=kinds, effects=effects, lies=lies, families=families
+        )
     t0 = time.perf_counter()
     results = execute_tasks(tasks, scheduler, workers)
     wall = time.perf_counter() - t0
@@ -522,6 +843,10 @@ def run_benchmark(
         "strengths": [3.0] if quick else list(STRENGTHS),
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
         **({"lies": True} if lies else {}),
+        "families": list(families)
+        if families is not None
+        else sorted({CASE_FAMILY[t["case"]] for t in tasks}),
+        "full_run_estimate": plan_full_run(scores["seconds_by_family"], seeds=seeds, kinds=kinds),
     }
     res = BenchmarkResult(scores=scores, results=results, settings=settings)
     from tcamlab.report import render_html, render_pdf
@@ -538,6 +863,38 @@ def run_benchmark(
     paths = {key: str(p) for key, p in zip(("json", "markdown", "html", "pdf"), files)}
     res.paths = paths
     return res
+
+
+def plan_full_run(seconds_by_family: dict, *, seeds: int = 10, kinds=BENCHMARK_KINDS, cores: int = 2) -> dict:
+    """Estimated wall time of the full run of every family, from measured per-case times.
+
+    Each full-run task (:func:`make_tasks`, all :data:`FAMILIES`) is costed at the
+    median time of its (family, kind) cell, else of its kind, else of all cells;
+    the sum over ``cores`` processes is the estimate (cases are independent).
+
+    Returns
+    -------
+    dict
+        ``cases`` and ``seconds`` per family, ``total_seconds``, ``cores``.
+    """
+    flat = [v for fam in seconds_by_family.values() for v in fam.values()]
+    if not flat:
+        return {}
+    overall = float(np.median(flat))
+    by_kind = defaultdict(list)
+    for fam in seconds_by_family.values():
+        for k, v in fam.items():
+            by_kind[k].append(v)
+    out = {"cases": {}, "seconds": {}, "cores": cores}
+    for t in make_tasks(seeds=seeds, kinds=kinds, families=FAMILIES):
+        fam = CASE_FAMILY[t["case"]]
+        cost = seconds_by_family.get(fam, {}).get(t["kind"])
+        if cost is None:
+            cost = float(np.median(by_kind[t["kind"]])) if by_kind.get(t["kind"]) else overall
+        out["cases"][fam] = out["cases"].get(fam, 0) + 1
+        out["seconds"][fam] = out["seconds"].get(fam, 0.0) + cost / cores
+    out["total_seconds"] = float(sum(out["seconds"].values()))
+    return out
 
 
 # ---------------------------------------------------------------------------
@@ -590,13 +947,20 @@ def _null_table(n: dict, title: str = NULL_TITLE) -> tuple:
 
 
 def _shrinkage_table(by_strength: dict) -> tuple:
-    keys = ("median_shrinkage", "noise_ceiling", "median_share_of_attainable", "median_fraction_closed")
-    rows = [[k, str(v["n"])] + [_fmt(v[c], True) for c in keys] for k, v in by_strength.items()]
+    keys = (
+        "median_shrinkage",
+        "noise_ceiling",
+        "median_share_of_ceiling",
+        "median_share_of_attainable",
+        "median_fraction_closed",
+    )
+    rows = [[k, str(v["n"])] + [_fmt(v.get(c), True) for c in keys] for k, v in by_strength.items()]
     cols = [
         "strength",
         "cases",
         "median RMSE shrinkage",
-        "noise ceiling",
+        "noise ceiling 1 - 1/sqrt(1+s^2)",
+        "median % of the ceiling (target >= 90 %)",
         "median share of attainable",
         "median fraction of gap closed",
     ]
@@ -630,10 +994,62 @@ def _confusion_table(kind: str, conf: dict) -> tuple:
     return (title, ["true \\ diagnosed"] + cols, rows)
 
 
+def _family_rows(fams: dict) -> list[list[str]]:
+    rows = []
+    for fam in ("effect-only", "realistic", "off-library"):
+        for st, a in fams.get(fam, {}).items():
+            target = {"effect-only": ">= 0.7" if float(st) < 3 else ">= 0.9", "realistic": ">= 0.85"}.get(
+                fam, ">= 0.8"
+            )
+            rows.append([fam, f"top-1 at {st}x", str(a["n"]), _fmt(a["top1"]), target])
+    if "calibration-only" in fams:
+        c = fams["calibration-only"]
+        rows.append(
+            [
+                "calibration-only",
+                "attributed to an effect",
+                str(c["n"]),
+                _fmt(c["attributed_rate"], True),
+                "<= 5%",
+            ]
+        )
+        rows.append(
+            [
+                "calibration-only",
+                "miscalibrated naming a moved parameter",
+                str(c["n"]),
+                _fmt(c["miscalibrated_right_rate"], True),
+                ">= 80%",
+            ]
+        )
+    for fam in ("null", "null-noisy-zero"):
+        if fam in fams:
+            c = fams[fam]
+            rows.append([fam, "false attribution", str(c["n"]), _fmt(c["false_rate"], True), "<= 5%"])
+            rows.append([fam, "none", str(c["n"]), _fmt(c["none_rate"], True), ">= 90%"])
+    return rows
+
+
+FAMILY_TITLE = "Families against their targets"
+
+
+def _family_tables(s: dict) -> list:
+    tabs = []
+    if s.get("families"):
+        tabs.append(
+            (FAMILY_TITLE, ["family", "figure", "cases", "result", "target"], _family_rows(s["families"]))
+        )
+    for fam, conf in s.get("confusion_by_family", {}).items():
+        for kind, c in conf.items():
+            title, cols, rows = _confusion_table(kind, c)
+            tabs.append((f"{fam}: {title}", cols, rows))
+    return tabs
+
+
 def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]]:
     """(title, columns, rows) of every table of the benchmark's markdown and report."""
     s = res.scores
-    tabs = _accuracy_tables(s) + [_null_table(s["null"])]
+    tabs = _family_tables(s) + _accuracy_tables(s) + [_null_table(s["null"])]
     if s.get("null_miscalibrated"):
         tabs.append(_null_table(s["null_miscalibrated"], LYING_NULL_TITLE))
     if s.get("shrinkage_by_strength"):
@@ -674,6 +1090,17 @@ def markdown(res: BenchmarkResult) -> str:
         "in the shrinkage table).",
         "",
     ]
+    plan = res.settings.get("full_run_estimate") or {}
+    if plan:
+        per = ", ".join(
+            f"{f} {plan['cases'][f]} cases {plan['seconds'][f] / 60:.0f} min" for f in plan["cases"]
+        )
+        lines += [
+            f"Full run of every family (seeds {res.settings.get('seeds')}), estimated from this run's "
+            f"median seconds per case and kind on {plan['cores']} cores: "
+            f"**{plan['total_seconds'] / 60:.0f} min** ({per}).",
+            "",
+        ]
     if s.get("null_miscalibrated"):
         lying = s["null_miscalibrated"]
         lines += [

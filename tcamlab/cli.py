@@ -774,6 +774,20 @@ def _print_scores(sc: dict) -> None:
             f"null, miscalibrated: {lying['false_attributions']} false attributions of {lying['n']}, "
             f"{lying.get('right', 0)} none or miscalibrated"
         )
+    for fam, f in sc.get("families", {}).items():
+        if fam in ("realistic", "off-library"):
+            typer.echo(
+                f"{fam}: " + ", ".join(f"top-1 {a['top1']:.2f} at {st}x ({a['n']})" for st, a in f.items())
+            )
+        elif fam == "calibration-only":
+            typer.echo(
+                f"calibration-only: attributed {f['attributed']} of {f['n']}, miscalibrated naming a moved "
+                f"parameter {f['miscalibrated_naming_a_moved_parameter']} of {f['n']}"
+            )
+        elif fam == "null-noisy-zero":
+            typer.echo(
+                f"null, noisy zeros: {f['false_attributions']} false attributions, {f['none']} none, of {f['n']}"
+            )
     if sc.get("median_shrinkage_when_right") is not None:
         typer.echo(f"median held-out shrinkage when right: {100 * sc['median_shrinkage_when_right']:.0f}%")
     if sc["errors"]:
@@ -804,6 +818,12 @@ def benchmark_diagnose(
         "--lies",
         help="Add null cases of a lying rig (parameters 1 stated sd off, noisy zeros), scored apart.",
     ),
+    family: list[str] | None = typer.Option(
+        None,
+        "--family",
+        help="Only this family (repeatable): effect-only, null, calibration-only, realistic, "
+        "off-library, null-noisy-zero. Default: all.",
+    ),
 ):
     """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
 
@@ -824,8 +844,14 @@ def benchmark_diagnose(
         workers=workers,
         seeds=seeds,
         lies=lies,
+        families=family or None,
     )
     _print_scores(res.scores)
+    plan = res.settings.get("full_run_estimate") or {}
+    if plan:
+        typer.echo(
+            f"full run of every family, estimated: {plan['total_seconds'] / 60:.0f} min on {plan['cores']} cores"
+        )
     typer.echo(f"wrote {out}")
     if res.scores["errors"]:
         raise typer.Exit(code=2)

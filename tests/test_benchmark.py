@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 from tcamlab import benchmark
@@ -23,7 +24,13 @@ def _check_outputs(out, res):
 
 def test_quick_benchmark_tiny_subset(tmp_path):
     res = run_benchmark(
-        tmp_path, quick=True, seeds=1, kinds=("dynamic",), effects=["response-delay"], workers=1
+        tmp_path,
+        quick=True,
+        seeds=1,
+        kinds=("dynamic",),
+        effects=["response-delay"],
+        workers=1,
+        families=("effect-only", "null"),
     )
     assert len(res.results) == 2  # one effect case + one null case
     _check_outputs(tmp_path, res)
@@ -46,6 +53,7 @@ def test_dask_path_with_local_cluster(tmp_path):
             kinds=("curvature",),
             effects=["sensor-offset-error"],
             scheduler=cluster.scheduler_address,
+            families=("effect-only", "null"),
         )
     assert res.settings["executor"] == "dask"
     assert len(res.results) == 2
@@ -121,3 +129,177 @@ def test_scoring_rules():
     assert cell["median_share_of_attainable"] == pytest.approx(0.8)
     assert cell["noise_ceiling"] == pytest.approx(1 - 1 / math.sqrt(10), rel=1e-12)
     assert s["median_fraction_closed_when_right"] == pytest.approx(0.9)
+
+
+# --- the families of a lab that lies ------------------------------------------------------
+
+
+def test_family_task_lists():
+    quick = make_tasks(quick=True, families=benchmark.FAMILIES)
+    for fam in ("calibration-only", "realistic", "off-library", "null-noisy-zero"):
+        cases = [t for t in quick if t["case"] == fam]
+        assert {t["kind"] for t in cases} == set(benchmark.KINDS), fam
+        assert all(t["stated"] == benchmark.STATED_UNCERTAINTY[t["kind"]] for t in cases)
+    realistic = [t for t in quick if t["case"] == "realistic"]
+    assert all(t["parameter_error"] == 1.0 and t["noisy_zero"] and t["effects"] for t in realistic)
+    assert all(t["noisy_zero"] and not t["effects"] for t in quick if t["case"] == "null-noisy-zero")
+    full = make_tasks(seeds=10, families=("realistic", "off-library"))
+    assert {next(iter(t["offlibrary"].values())) for t in full if t["case"] == "off-library"} == {3.0, 10.0}
+    assert len({t["nearest"] for t in full if t["case"] == "off-library"}) == 14
+    with pytest.raises(Exception, match="unknown benchmark family"):
+        make_tasks(families=("nope",))
+
+
+def test_calibration_offsets_are_one_to_three_stated_sds():
+    for kind in benchmark.KINDS:
+        st = benchmark.STATED_UNCERTAINTY[kind]
+        seen = set()
+        for seed in range(7000, 7030):
+            offsets = benchmark.calibration_offsets(kind, seed)
+            assert 1 <= len(offsets) <= 2 and set(offsets) <= set(st["rig"]) | set(st["sample"])
+            assert all(1.0 <= abs(d) <= 3.0 for d in offsets.values())
+            seen |= {d > 0 for d in offsets.values()}
+        assert seen == {True, False}, kind  # both signs occur
+
+
+def test_calibration_only_case_is_really_off_and_states_its_uncertainty(tmp_path):
+    from tcamlab.config import load_experiment
+    from tcamlab.rig import simulate
+
+    task = next(t for t in make_tasks(quick=True, families=("calibration-only",)) if t["kind"] == "dynamic")
+    sim = simulate(
+        "dynamic",
+        benchmark.stated_template("dynamic"),
+        seed=task["seed"],
+        out_dir=tmp_path,
+        parameter_offsets=task["parameter_offsets"],
+    )
+    tp = json.loads(sim.truth_path.read_text())["true_parameters"]
+    for f, d in task["parameter_offsets"].items():
+        assert tp[f]["offset_sd"] == pytest.approx(d, rel=1e-9)
+        assert tp[f]["true"] == pytest.approx(tp[f]["stated"] + d * tp[f]["sd"], rel=1e-12)
+    for f in set(tp) - set(task["parameter_offsets"]):
+        assert tp[f]["true"] == tp[f]["stated"]
+    exp = load_experiment(sim.experiment_path)
+    st = benchmark.STATED_UNCERTAINTY["dynamic"]
+    assert exp.sample_uncertainty == pytest.approx(st["sample"])
+    assert {k: exp.rig.uncertainty[k] for k in st["rig"]} == pytest.approx(st["rig"])
+
+
+def test_null_noisy_zero_case_has_noisy_zeros(tmp_path):
+    from tcamlab.rig import simulate
+
+    sim = simulate(
+        "dynamic",
+        benchmark.stated_template("dynamic"),
+        seed=5500,
+        out_dir=tmp_path,
+        noisy_zero=True,
+        n_runs=12,
+    )
+    zeros = [r["zero_error"]["displacement"] for r in json.loads(sim.truth_path.read_text())["runs"]]
+    # one reading of a 5 um laser (10 um ADC step): the zeros scatter by microns, not the 64-reading tare
+    assert 2e-6 < float(np.std(zeros)) < 12e-6
+
+
+def _row(case, verdict, effect=None, **kw):
+    return {
+        "case": case,
+        "kind": "dynamic",
+        "effects": {},
+        "seed": 1,
+        "verdict": verdict,
+        "effect": effect,
+        "aliased_with": [],
+        "ranking": [effect] if effect else [],
+        "seconds": 2.0,
+        **kw,
+    }
+
+
+def test_family_scoring_on_hand_made_rows():
+    rows = [
+        _row(
+            "calibration-only",
+            "miscalibrated",
+            recalibrated=["thermal_mass"],
+            parameter_offsets_sd={"thermal_mass": 1.5, "damping": 0.0},
+        ),
+        _row(
+            "calibration-only",
+            "miscalibrated",
+            recalibrated=["damping"],
+            parameter_offsets_sd={"thermal_mass": 1.5, "damping": 0.0},
+        ),
+        _row(
+            "calibration-only", "attributed", "convective-heat-loss", parameter_offsets_sd={"heat_loss": 2.0}
+        ),
+        _row("calibration-only", "none", parameter_offsets_sd={"heat_loss": -2.0}),
+        _row("realistic", "attributed", "response-delay", effects={"response-delay": 3.0}),
+        _row("realistic", "miscalibrated", None, effects={"response-delay": 3.0}),
+        _row("realistic", "aliased", "response-delay", effects={"response-delay": 10.0}),
+        _row(
+            "off-library",
+            "attributed",
+            "response-delay",
+            offlibrary={"sensor-lag": 3.0},
+            nearest="response-delay",
+        ),
+        _row("off-library", "unexplained", None, offlibrary={"sensor-lag": 3.0}, nearest="response-delay"),
+        _row(
+            "off-library",
+            "attributed",
+            "convective-heat-loss",
+            offlibrary={"sensor-lag": 10.0},
+            nearest="response-delay",
+        ),
+        _row("null-noisy-zero", "none"),
+        _row("null-noisy-zero", "none"),
+        _row("null-noisy-zero", "unexplained"),
+        _row("null-noisy-zero", "attributed", "response-delay"),
+    ]
+    f = score(rows)["families"]
+    cal = f["calibration-only"]
+    assert cal["n"] == 4 and cal["attributed_rate"] == pytest.approx(0.25)
+    # the damping row names a parameter the rig did not move (offset 0)
+    assert cal["miscalibrated_naming_a_moved_parameter"] == 1 and cal["miscalibrated_right_rate"] == 0.25
+    assert f["realistic"]["3.0"]["top1"] == pytest.approx(0.5) and f["realistic"]["10.0"]["top1"] == 1.0
+    assert f["off-library"]["3.0"]["top1"] == pytest.approx(0.5) and f["off-library"]["10.0"]["top1"] == 0.0
+    nn = f["null-noisy-zero"]
+    assert (nn["n"], nn["false_attributions"], nn["none"]) == (4, 1, 2)
+    assert nn["false_rate"] == 0.25 and nn["none_rate"] == 0.5
+    conf = score(rows)["confusion_by_family"]
+    assert conf["off-library"]["dynamic"]["sensor-lag (response-delay)"] == {
+        "response-delay": 1,
+        "unexplained": 1,
+        "convective-heat-loss": 1,
+    }
+
+
+def test_shrinkage_against_the_noise_ceiling():
+    row = {
+        "case": "single",
+        "kind": "static",
+        "effects": {"a": 10.0},
+        "seed": 1,
+        "verdict": "attributed",
+        "effect": "a",
+        "aliased_with": [],
+        "ranking": ["a"],
+        "shrinkage": {"a": 0.81},
+        "fraction_closed": {"a": 0.9},
+        "heldout_rmse_before_noise": 10.0,
+        "seconds": 1.0,
+    }
+    cell = score([row])["shrinkage_by_strength"]["10.0"]
+    assert cell["median_share_of_ceiling"] == pytest.approx(0.81 / (1 - 1 / math.sqrt(101)))
+
+
+def test_full_run_estimate_from_per_case_times():
+    secs = {"effect-only": {"static": 4.0}, "calibration-only": {"static": 10.0}}
+    plan = benchmark.plan_full_run(secs, seeds=10, kinds=("static",), cores=2)
+    n = plan["cases"]
+    assert plan["seconds"]["calibration-only"] == pytest.approx(n["calibration-only"] * 10.0 / 2)
+    # families without a timing of their own are costed at the kind's median (7 s)
+    assert plan["seconds"]["off-library"] == pytest.approx(n["off-library"] * 7.0 / 2)
+    assert plan["total_seconds"] == pytest.approx(sum(plan["seconds"].values()))

@@ -162,6 +162,7 @@ from tcamlab.kinds.static import OVEN_PROGRAMS
 from tcamlab.params import Rig, Sample
 from tcamlab.report.atomic import atomic_write_text
 from tcamlab.rig.lies import draw_parameters, stated_sds
+from tcamlab.rig.offlibrary import apply_form, get_form, scale_form
 from tcamlab.rig.runs import exact_inputs, instrument_sd, measure, program_options, protocol, true_options
 from tcamlab.rig.scatter import rig_truth, scattered
 from tcamlab.rig.strength import DOMAIN_BACKOFF, noise_sd, resolve_effect, scale_effect
@@ -275,6 +276,7 @@ def simulate(
     parameter_offsets: Mapping[str, float] | None = None,
     uncertainty: Mapping[str, Any] | None = None,
     noisy_zero: bool = False,
+    offlibrary: Mapping[str, float] | None = None,
 ) -> SimulationResult:
     """Simulate an experiment of one rig kind and write it like a lab would.
 
@@ -290,10 +292,8 @@ def simulate(
     out_dir : path-like
         Gets ``raw/<name>_runN.csv``, ``experiments/<name>.toml``, ``truth/<name>.truth.json``.
     effects : mapping, optional
-        Effect -> strength (in noise sd of the primary quantity,
-        :func:`scale_effect`) or ``{"value": x}`` (the parameters in SI). Names
-        joined by ``+`` act as one effect (:func:`resolve_effect`); several
-        effects are scaled one by one, then combined.
+        Effect -> strength (noise sds, :func:`scale_effect`) or ``{"value": x}`` (SI). Names joined
+        by ``+`` act as one (:func:`resolve_effect`); several are scaled one by one, then combined.
     n_runs : int, optional
         Runs (default :data:`DEFAULT_RUNS`).
     scatter : mapping, optional
@@ -303,22 +303,22 @@ def simulate(
     name : str, optional
         Output name (default: the template's file stem).
     command : str, optional
-        The command line of the truth file (``[synthetic]`` gets it without
-        the effects and lies, :func:`tcamlab.text.public_command`).
+        The truth file's command line (``[synthetic]``: :func:`tcamlab.text.public_command` of it).
     oven : {"heating", "heat-cool"}
         Static oven program (:data:`OVEN_PROGRAMS`); kinds without an oven ignore it.
     parameter_error : float
-        F [-]: every parameter with a stated sd (``[rig.uncertainty]``, a
-        sample uncertainty where the configuration has one, ``uncertainty``)
-        gets a TRUE value drawn with the stated mean and F stated sds
-        (:mod:`tcamlab.rig.lies`), used by every run; the experiment file keeps
-        the stated values. 0 (default): the stated values are the truth.
+        F [-]: every parameter with a stated sd (``[rig.uncertainty]``, ``[sample.uncertainty]``,
+        ``uncertainty``) gets a TRUE value drawn with the stated mean and F stated sds
+        (:mod:`tcamlab.rig.lies`), used by every run; the experiment file keeps the stated
+        values. 0 (default): the stated values are the truth.
     parameter_offsets : mapping, optional
         {SI field: d}: the true value is exactly stated + d sd (tests).
     uncertainty : mapping, optional
         {SI field: sd [SI]}: sds the template does not state (drawn, never written).
     noisy_zero : bool
         Zero each run on one noisy reading, not the averaged tare; zero errors go to the truth.
+    offlibrary : mapping, optional
+        {form: strength} of :mod:`tcamlab.rig.offlibrary`, applied after the effects (truth: ``offlibrary``).
 
     Returns
     -------
@@ -332,9 +332,10 @@ def simulate(
     runs = _draw_runs(plan)
     sd = _strength_floor(plan)
     effect_truth, mods = _scale_effects(plan, effects or {}, runs, sd)
-    run_paths, runs_truth = _write_runs(plan, runs, mods)
+    forms = _scale_forms(plan, offlibrary or {}, runs, sd, mods)
+    run_paths, runs_truth = _write_runs(plan, runs, mods, forms)
     exp_path = _write_experiment(plan, run_paths)
-    truth = _truth(plan, effect_truth, mods, sd, runs_truth)
+    truth = _truth(plan, effect_truth, mods, sd, runs_truth, forms)
     truth_path = plan.out / "truth" / f"{plan.name}.truth.json"
     atomic_write_text(truth_path, dumps_json(truth, sort_keys=False))
     return SimulationResult(exp_path, tuple(run_paths), truth_path, truth)
@@ -460,7 +461,22 @@ def _scale_effects(
     return effect_truth, mods
 
 
-def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods) -> tuple[list[Path], list[dict]]:
+def _scale_forms(plan: _Plan, offlibrary: Mapping[str, float], runs: list[_Run], sd, mods: Mods) -> list:
+    """[(form, its truth)] of the out-of-library forms, each scaled on the first run (on top of the effects)."""
+    out = []
+    sample, rig, proto = plan.true_sample, plan.true_rig, runs[0].proto
+    for name, strength in offlibrary.items():
+        form = get_form(name, plan.kind)
+        inputs = exact_inputs(plan.kind, sample, rig, proto, mods)
+        opts = true_options(plan.kind, sample, rig, inputs)
+        outputs = predict(plan.kind, sample, rig, inputs, mods, **opts)
+        out.append(
+            (form, scale_form(form, float(strength), plan.kind, sample, rig, inputs, outputs, opts, sd))
+        )
+    return out
+
+
+def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods, forms=()) -> tuple[list[Path], list[dict]]:
     """Predict, measure and write each run's CSV; (paths, each run's truth)."""
     kind = plan.kind
     paths, truths = [], []
@@ -468,6 +484,10 @@ def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods) -> tuple[list[Path], 
         inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
         opts = true_options(kind, run.sample, run.rig, inputs)
         outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
+        for form, info in forms:
+            inputs, outputs = apply_form(
+                form, info["amplitude"], kind, run.sample, run.rig, inputs, outputs, opts
+            )
         zero = {"noisy_zero": True} if plan.lies["noisy_zero"] else {}
         logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale, **zero)
         fname = f"{plan.name}_run{k + 1}.csv"
@@ -491,7 +511,7 @@ def _write_experiment(plan: _Plan, run_paths: list[Path]) -> Path:
 
 
 def _truth(
-    plan: _Plan, effect_truth: dict, mods: Mods, sd: Mapping[str, float], runs_truth: list[dict]
+    plan: _Plan, effect_truth: dict, mods: Mods, sd: Mapping[str, float], runs_truth: list[dict], forms=()
 ) -> dict[str, Any]:
     """The truth file's content (JSON-ready)."""
     truth = {
@@ -512,6 +532,8 @@ def _truth(
         "template_rig": rig_truth(plan.exp.rig),
         "runs": runs_truth,
     }
+    if forms:
+        truth["offlibrary"] = {f.name: info for f, info in forms}
     return to_jsonable({**truth, **_lies_truth(plan)})
 
 

@@ -84,6 +84,13 @@ def _sample_table(exp) -> dict[str, Any]:
     for key, (si, factor) in SAMPLE_KEYS.items():
         v = getattr(exp.sample, si)
         table[key] = int(v) if key == "thread_plies" else lab_value(v, factor)
+    # The stated sds, when the template states any (none: no byte changes).
+    unc = getattr(exp, "sample_uncertainty", None) or {}
+    si_to_key = {si: (key, factor) for key, (si, factor) in SAMPLE_KEYS.items()}
+    if unc:
+        table["uncertainty"] = {
+            si_to_key[f][0]: lab_value(v, si_to_key[f][1]) for f, v in sorted(unc.items())
+        }
     return table
 
 
