@@ -158,6 +158,11 @@ class Effect:
         The experiment that tells it apart from look-alikes.
     fixed : dict
         Mods fields held at a set value while the effect is active.
+    generalises : tuple of str
+        Calibrated parameters (:attr:`tcamlab.kinds.Kind.calibration` fields) whose
+        error this effect's term *is* (e.g. a sensor-to-cable distance error and the
+        calibrated d1): the diagnosis holds them at their stated values while it fits
+        the effect, so the two are not fitted as one degenerate direction.
     """
 
     name: str
@@ -167,6 +172,7 @@ class Effect:
     source: str
     separate_by: str
     fixed: dict = field(default_factory=dict)
+    generalises: tuple[str, ...] = ()
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -185,8 +191,10 @@ class Effect:
         return base.replace(**changes)
 
 
-def _e(name, kind, params, cause, source, separate_by, fixed=None):
-    return Effect(name, kind, tuple(params), cause, source, separate_by, dict(fixed or {}))
+def _e(name, kind, params, cause, source, separate_by, fixed=None, generalises=()):
+    return Effect(
+        name, kind, tuple(params), cause, source, separate_by, dict(fixed or {}), tuple(generalises)
+    )
 
 
 EFFECTS: dict[tuple[str, str], Effect] = {
@@ -307,6 +315,8 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             "changes by 0.38 %/K",
             "thesis sec. 3.4 future work; CRC Handbook (silver TCR)",
             "measure R0 right before the run, or log temperature",
+            None,
+            ("initial_resistance",),
         ),
         _e(
             "stiffening-spring",
@@ -341,6 +351,8 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             "the sensor sits at a different distance from the cable than the 9 mm assumed",
             "thesis sec. 4.3 (d1 = 9 mm)",
             "section the robot and measure d1, or bend it to a known curvature",
+            None,
+            ("sensor_offset",),
         ),
     )
 }
@@ -388,7 +400,8 @@ def combine(*effects: Effect) -> CompositeEffect | None:
         "; ".join(e.source for e in effects),
         "; ".join(e.separate_by for e in effects),
         fixed,
-        parts,
+        tuple(dict.fromkeys(g for e in effects for g in e.generalises)),
+        components=parts,
     )
 
 
