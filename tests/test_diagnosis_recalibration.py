@@ -249,5 +249,8 @@ def test_an_effect_that_is_a_calibrated_parameter_is_fitted_with_it_held(tmp_pat
     c = next(c for c in res.ranking if c.effect == "sensor-offset-error")
     d1 = c.recalibrated["sensor_offset"]
     assert d1["value"] == pytest.approx(d1["stated"], rel=1e-4)
-    assert c.parameters["offset_error"]["value"] == pytest.approx(true, rel=0.15)
+    # S and E are recalibrated with it (S/E and d1 act together on the curvature), so the
+    # error is recovered within its interval, which must exclude 0
+    lo, hi = c.parameters["offset_error"]["ci95"]
+    assert 0 < lo <= true <= hi, (lo, true, hi)
     assert c.fraction_closed > 0.8
