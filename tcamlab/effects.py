@@ -42,7 +42,10 @@ class Mods:
     Attributes
     ----------
     shear_slope_extra : float
-        Added to the sample's G_t slope k of (2.13) [Pa/K].
+        Added to the sample's G_t slope k of (2.13), in the torque [Pa/K].
+    coil_shear_slope : float
+        k_c in G_c = G_t - k_c dT, the shear modulus of the coil compliances
+        f11, f12 [Pa/K] (the thesis keeps G_t there: 0).
     youngs_modulus_slope : float
         c in E' = E (1 - c dT) in the E terms of f11 [1/K].
     glass_gain : float
@@ -94,6 +97,7 @@ class Mods:
     """
 
     shear_slope_extra: float = 0.0
+    coil_shear_slope: float = 0.0
     youngs_modulus_slope: float = 0.0
     glass_gain: float = 0.0
     glass_temperature: float = 45.0
@@ -168,6 +172,11 @@ class Effect:
         The experiment that tells it apart from look-alikes.
     fixed : dict
         Mods fields held at a set value while the effect is active.
+    generalises : tuple of str
+        Calibrated parameters (:attr:`tcamlab.kinds.Kind.calibration` fields) whose
+        error this effect's term *is* (e.g. a sensor-to-cable distance error and the
+        calibrated d1): the diagnosis holds them at their stated values while it fits
+        the effect, so the two are not fitted as one degenerate direction.
     """
 
     name: str
@@ -177,6 +186,7 @@ class Effect:
     source: str
     separate_by: str
     fixed: dict = field(default_factory=dict)
+    generalises: tuple[str, ...] = ()
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -195,8 +205,10 @@ class Effect:
         return base.replace(**changes)
 
 
-def _e(name, kind, params, cause, source, separate_by, fixed=None):
-    return Effect(name, kind, tuple(params), cause, source, separate_by, dict(fixed or {}))
+def _e(name, kind, params, cause, source, separate_by, fixed=None, generalises=()):
+    return Effect(
+        name, kind, tuple(params), cause, source, separate_by, dict(fixed or {}), tuple(generalises)
+    )
 
 
 EFFECTS: dict[tuple[str, str], Effect] = {
@@ -206,10 +218,13 @@ EFFECTS: dict[tuple[str, str], Effect] = {
         _e(
             "shear-modulus-temperature",
             "static",
-            [EffectParam("shear_slope_extra", "Pa/K", 1e5, -2e6, 2e6)],
-            "the fiber's transverse shear modulus falls as it warms, lowering the untwisting torque (2.13)",
-            "thesis sec. 2.3.3 and 2.5.1; Haines et al., Science 343 (2014) [13]",
-            "a second load: the torque term scales with G, the spring term with the load",
+            [EffectParam("coil_shear_slope", "Pa/K", 1e4, -2e6, 2e6)],
+            "the fiber's shear modulus falls as it warms and softens the coil itself (f11, f12 of "
+            "(2.11) with G_t - k_c dT), not only the untwisting torque as (2.13) has it; the "
+            "torque's slope is the calibrated G_t slope",
+            "thesis sec. 2.3.3 and 2.5.1 (2.13 applied to the torque only, a modelling choice); "
+            "Haines et al., Science 343 (2014) [13]",
+            "a second load: the coil's compliance term scales with the load, the torque's does not",
         ),
         _e(
             "youngs-modulus-temperature",
@@ -266,10 +281,11 @@ EFFECTS: dict[tuple[str, str], Effect] = {
         _e(
             "shear-modulus-temperature",
             "dynamic",
-            [EffectParam("shear_slope_extra", "Pa/K", 1e5, -2e6, 2e6)],
-            "the shear modulus falls with temperature during the pulse (2.13)",
-            "thesis sec. 2.3.3",
-            "a static oven test of the same sample",
+            [EffectParam("coil_shear_slope", "Pa/K", 1e4, -2e6, 2e6)],
+            "the shear modulus falls with temperature during the pulse and softens the coil "
+            "(f11, f12 with G_t - k_c dT) as well as the torque (2.13)",
+            "thesis sec. 2.3.3 (2.13 in the torque only, a modelling choice)",
+            "a static oven test of the same sample at two loads",
         ),
         _e(
             "response-delay",
@@ -313,6 +329,8 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             "changes by 0.38 %/K",
             "thesis sec. 3.4 future work; CRC Handbook (silver TCR)",
             "measure R0 right before the run, or log temperature",
+            None,
+            ("initial_resistance",),
         ),
         _e(
             "stiffening-spring",
@@ -347,6 +365,8 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             "the sensor sits at a different distance from the cable than the 9 mm assumed",
             "thesis sec. 4.3 (d1 = 9 mm)",
             "section the robot and measure d1, or bend it to a known curvature",
+            None,
+            ("sensor_offset",),
         ),
         # -- self-sensing powered run (h-ssmodel) --------------------------------------
         _e(
@@ -422,7 +442,8 @@ def combine(*effects: Effect) -> CompositeEffect | None:
         "; ".join(e.source for e in effects),
         "; ".join(e.separate_by for e in effects),
         fixed,
-        parts,
+        tuple(dict.fromkeys(g for e in effects for g in e.generalises)),
+        components=parts,
     )
 
 

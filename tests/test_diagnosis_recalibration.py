@@ -206,3 +206,51 @@ def test_benchmark_scores_miscalibrated_right_on_a_lying_null_and_a_miss_on_an_e
     assert lying["false_attributions"] == 0
     assert lying["right"] == 3
     assert lying["miscalibrated_naming_a_moved_parameter"] == 1
+
+
+def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
+    # Recalibration moves C_th (interval excludes the stated value); an effect that fits the
+    # withheld runs as well *with C_th at its stated value* stands in for the shift: the verdict
+    # stays miscalibrated (parsimony) but names it in aliased_with. One that moves C_th the same
+    # way does not.
+    moved = {
+        "symbol": "C_th",
+        "value": 2.0,
+        "ci95": [1.8, 2.2],
+        "unit": "J/K",
+        "stated": 1.0,
+        "shift_in_stated_sds": 1.5,
+        "shift_in_prior_sds": 1.5,
+    }
+    kept = dict(moved, value=1.0, ci95=[0.9, 1.1], shift_in_stated_sds=0.0, shift_in_prior_sds=0.0)
+    idx = np.random.default_rng(0).integers(0, 5, size=(200, 5))
+    b_n = np.full(200, 500.0)
+    rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": moved})
+    stand = _C("resistance-temperature", 0.9, 0.3, params={"thermal_mass": kept})
+    same = _C("response-delay", 0.9, 0.3, params={"thermal_mass": moved})
+    after = _after({RECALIBRATION: 110, stand.effect: 110, same.effect: 110})
+    v = verdict([rec, stand, same], True, after, idx, b_n, 3.0, 1.1)
+    assert v[:3] == ("miscalibrated", None, ["resistance-temperature"])
+    assert "resistance-temperature" in v[3]
+
+
+def test_an_effect_that_is_a_calibrated_parameter_is_fitted_with_it_held(tmp_path):
+    # The curvature rig with d1 0.6 mm off, made as the sensor-offset-error effect (10x noise):
+    # the effect's fit holds the calibrated d1 at its stated value (they are one direction), so
+    # the effect's own parameter carries the error and recovers it.
+    from tcamlab.effects import get_effect
+
+    assert get_effect("sensor-offset-error", "curvature").generalises == ("sensor_offset",)
+    assert get_effect("ambient-temperature", "sensing").generalises == ("initial_resistance",)
+    exp = _simulate(tmp_path, "curvature", 4, effects={"sensor-offset-error": 10.0})
+    truth = json.loads(next(tmp_path.rglob("*.truth.json")).read_text())
+    true = truth["effects"]["sensor-offset-error"]["parameters"]["offset_error"]
+    res = diagnose(exp, n_boot=200, effects=["sensor-offset-error"])
+    c = next(c for c in res.ranking if c.effect == "sensor-offset-error")
+    d1 = c.recalibrated["sensor_offset"]
+    assert d1["value"] == pytest.approx(d1["stated"], rel=1e-4)
+    # S and E are recalibrated with it (S/E and d1 act together on the curvature), so the
+    # error is recovered within its interval, which must exclude 0
+    lo, hi = c.parameters["offset_error"]["ci95"]
+    assert 0 < lo <= true <= hi, (lo, true, hi)
+    assert c.fraction_closed > 0.8

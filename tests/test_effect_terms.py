@@ -26,6 +26,7 @@ def test_every_mods_field_is_covered():
     """A new Mods field must get a test here too."""
     covered = {
         "shear_slope_extra",
+        "coil_shear_slope",
         "youngs_modulus_slope",
         "glass_gain",
         "glass_temperature",
@@ -139,6 +140,45 @@ def test_shear_slope_extra_sign_and_first_order_size():
         h_prime, tau, g_T, f12, _ = _equilibrium_derivatives(dT)
         hand = TCA_SAMPLE.fiber_length * f12 * tau * k * dT / (g_T * h_prime)
         assert diff[j] == pytest.approx(hand, rel=0.02)
+
+
+def _hand_coil_softened(dT, k_c):
+    """Extension at rise dT with G_t - k_c dT in f11, f12, by brentq on h(s) by hand [m]."""
+    from scipy.optimize import brentq
+
+    s_ = TCA_SAMPLE
+    F, l = TCA_RIG.force, s_.fiber_length
+    s0 = s_.coil_length / l
+    n = static.n_coils(l, s_.coil_length, s_.coil_diameter)
+    g_t = float(
+        static.sample_shear_modulus(
+            s_.fiber_diameter, l, s_.twists, s_.youngs_modulus, s_.thread_plies, s_.max_volume_fraction
+        )
+    )
+    tau = float(
+        static.torque(dT, g_t - s_.shear_modulus_slope * dT, s_.fiber_diameter, s_.twists, l, s_.radial_cte)
+    )
+    d = s_.fiber_diameter * (1.0 + s_.radial_cte * dT)
+
+    def h(s):
+        f11, f12 = static.compliances(s, d, l, n, g_t - k_c * dT, s_.youngs_modulus)
+        return l * (s - s0) - F * f11 + tau * f12
+
+    return l * (brentq(h, 1e-9, 1.0 - 1e-9, xtol=1e-15) - s0)
+
+
+def test_coil_shear_slope_softens_the_coil_as_by_hand():
+    """G(T) in the coil (f11, f12), which (2.13) leaves at G_t: the hand solve of (2.11)."""
+    k_c = 2e4  # Pa/K
+    out = _static(Mods(coil_shear_slope=k_c))
+    hand = np.array([_hand_coil_softened(T - TCA_RIG.ambient, k_c) for T in TEMPS])
+    np.testing.assert_allclose(out, hand - hand[0], rtol=1e-6, atol=1e-12)
+    # a softer coil under the load extends: the difference grows with the rise
+    diff = out - _static()
+    assert diff[0] == 0.0 and np.all(np.diff(diff) > 0)
+    # and it is not the torque's slope: the same k in the torque moves the coil far less
+    torque_only = _static(Mods(shear_slope_extra=k_c)) - _static()
+    assert np.max(np.abs(torque_only)) < 0.1 * np.max(diff)
 
 
 def test_youngs_modulus_slope_sign_and_first_order_size():
@@ -273,6 +313,17 @@ def test_heat_loss_tc_first_order_cooling(dyn_base):
     assert np.all(dtemp[T_DYN > 0.05] < 0)
     ddisp = out["displacement"] - dyn_base["displacement"]
     assert np.all(ddisp[T_DYN > 0.2] > 0)
+
+
+def test_dynamic_coil_shear_slope_extends_while_hot(dyn_base):
+    """The coil softens while the fiber is warm: the loaded coil extends, temperature unchanged."""
+    out = _dynamic(Mods(coil_shear_slope=2e4))
+    np.testing.assert_allclose(out["temperature"], dyn_base["temperature"], rtol=0, atol=1e-9)
+    ddisp = out["displacement"] - dyn_base["displacement"]
+    assert np.all(ddisp[T_DYN > 0.2] > 0)
+    # largest where the fiber is hottest (end of the pulse, plus the mechanics' lag)
+    j_hot = int(np.argmax(dyn_base["temperature"]))
+    assert abs(int(np.argmax(ddisp)) - j_hot) * DT < 0.3
 
 
 def test_dynamic_shear_slope_extra_sign(dyn_base):

@@ -99,7 +99,7 @@ from tcamlab.diagnosis.noise import (
     pool_noise_estimates,
     second_difference_sigma,
 )
-from tcamlab.diagnosis.problem import Problem, complement, folds
+from tcamlab.diagnosis.problem import Problem, complement, folds, serial_kernels
 from tcamlab.diagnosis.recalibration import RECALIBRATION, Recalibration
 from tcamlab.diagnosis.regimes import label_rows, plot_series, regime_table, run_statistics
 from tcamlab.diagnosis.result import SCHEMA_VERSION, CandidateResult, DiagnosisResult, Settings
@@ -154,6 +154,11 @@ def diagnose(
     runs = list(experiment.read_runs() if runs is None else runs)
     if not runs:
         raise ConfigError("diagnosis: no runs")
+    with serial_kernels():
+        return _diagnose(experiment, runs, effects, n_boot, seed, workers)
+
+
+def _diagnose(experiment, runs, effects, n_boot: int, seed: int, workers) -> DiagnosisResult:
     cands = (
         [get_effect(e, experiment.kind) for e in effects]
         if effects is not None

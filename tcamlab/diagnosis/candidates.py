@@ -17,7 +17,7 @@ import numpy as np
 from scipy import stats
 
 from tcamlab.diagnosis.noise import BaselineFit, all_rows
-from tcamlab.diagnosis.problem import FAIL_RESIDUAL, Problem, complement, fit_effect, folds
+from tcamlab.diagnosis.problem import FAIL_RESIDUAL, Problem, complement, fit_effect, folds, serial_kernels
 from tcamlab.diagnosis.recalibration import (
     MAX_NFEV_FOLD,
     MAX_NFEV_FULL,
@@ -80,7 +80,13 @@ def effect_parameters(effect: Effect, fit: JointFit, cov: np.ndarray) -> dict:
 
 def candidate_job(job):
     """Fit one candidate (an effect with recalibration, or recalibration alone: ``eff`` None)
-    on all rows, then on every fold's training rows from that fit, and score the held-out rows."""
+    on all rows, then on every fold's training rows from that fit, and score the held-out rows
+    (kernels on one thread, also in a spawned worker: :func:`serial_kernels`)."""
+    with serial_kernels():
+        return _candidate_job(job)
+
+
+def _candidate_job(job):
     problem, rec, eff, held_sets, train, rows_all, u_start, spring = job
     Q = problem.quantities
     K = len(held_sets)

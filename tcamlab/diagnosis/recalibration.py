@@ -49,6 +49,13 @@ uncertainties are themselves in doubt, and an effect that explains the data
 with plausible parameters is an equal explanation (``aliased``)."""
 
 
+PIN_WEIGHT = 1.0e3
+"""A calibrated parameter an effect generalises (:attr:`tcamlab.effects.Effect.generalises`)
+is held at its stated value in that effect's fit by a prior row this many times its prior's
+weight: the effect's term is that parameter's error, and fitting both would leave one
+direction to two parameters (a singular Jacobian, and a fit that stalls)."""
+
+
 MAX_NFEV_FULL = 80
 """Most residual evaluations of a fit on all rows (per start)."""
 
@@ -139,38 +146,43 @@ class Recalibration:
         """Whether the shift is within :data:`PLAUSIBLE_LEVEL` of the priors."""
         return self.prior_chi2(u) <= float(stats.chi2.ppf(PLAUSIBLE_LEVEL, max(self.p, 1)))
 
+    def pinned(self, effect: Effect | None) -> np.ndarray:
+        """Indices of the calibrated parameters ``effect`` generalises (held at stated values)."""
+        names = set(effect.generalises) if effect is not None else set()
+        return np.array([m for m, s in enumerate(self.specs) if s.param.field in names], int)
+
     def fit(self, effect: Effect | None, rows, starts, box, max_nfev: int) -> JointFit:
         """Least-squares fit of (u, theta) on ``rows`` from each start; the best.
 
-        ``box`` is the effect's (lower, upper) scaled bounds (:func:`effect_box`).
+        ``box`` is the effect's (lower, upper) scaled bounds (:func:`effect_box`). The
+        parameters the effect generalises are held at their stated values
+        (:data:`PIN_WEIGHT`).
         """
         params = effect.params if effect is not None else ()
         scales = np.array([p.scale for p in params], float)
         p, k = self.p, len(params)
+        pin = self.pinned(effect)
         lo = np.concatenate([self.lo, box[0]])
         hi = np.concatenate([self.hi, box[1]])
+        u0, sd_u = self.cal.u0, self.cal.sd_u
 
         def fun(x):
             u = x[:p]
             mods = effect.mods(x[p:] * scales) if k else Mods()
             data = [self.resid(i, u, mods, m) for i, m in rows]
-            return np.concatenate(data + [self.cal.prior_residuals(u)])
+            pins = [PIN_WEIGHT * (u[pin] - u0[pin]) / sd_u[pin]]
+            return np.concatenate(data + [self.cal.prior_residuals(u)] + pins)
 
-        x_scale = np.concatenate([self.cal.sd_u, np.ones(k)])
+        x_scale = np.concatenate([sd_u, np.ones(k)])
+        x_scale[pin] /= PIN_WEIGHT
+        starts = [np.concatenate([np.where(np.isin(np.arange(p), pin), u0, x0[:p]), x0[p:]]) for x0 in starts]
+        extra = p + pin.size
         best = best_least_squares(fun, starts, lo, hi, x_scale, max_nfev)
         if best is None:
             x = np.clip(np.asarray(starts[0], float), *inner_box(lo, hi))
-            r = fun(x)
-            return JointFit(
-                x[:p],
-                x[p:],
-                x[p:] * scales,
-                float(r[:-p] @ r[:-p]) if p else float(r @ r),
-                r.size - p,
-                None,
-                False,
-            )
-        r = best.fun[: best.fun.size - p] if p else best.fun
+            r = fun(x)[: -extra or None]
+            return JointFit(x[:p], x[p:], x[p:] * scales, float(r @ r), r.size, None, False)
+        r = best.fun[: best.fun.size - extra]
         return JointFit(
             best.x[:p],
             best.x[p:],
@@ -194,15 +206,18 @@ class Recalibration:
         fit on all rows (:meth:`fit` with every row of every run) with its Jacobian.
         """
         sizes = [len(d) * len(self.problem.quantities) for d in self.problem.frames]
+        priors = self.p + self.pinned(effect).size
         keep = np.concatenate(
-            [np.full(n, i not in held, bool) for i, n in enumerate(sizes)] + [np.ones(self.p, bool)]
+            [np.full(n, i not in held, bool) for i, n in enumerate(sizes)] + [np.ones(priors, bool)]
         )
         J = np.asarray(fit.jac, float)[keep]
         step = np.linalg.lstsq(J, -fit.fun[keep], rcond=None)[0]
         x = np.clip(fit.x + step, fit.box[0], fit.box[1])
         p = self.p
         scales = np.array([q.scale for q in effect.params], float) if effect is not None else np.zeros(0)
-        return JointFit(x[:p], x[p:], x[p:] * scales, float("nan"), int(keep.sum()) - p, None, fit.success)
+        return JointFit(
+            x[:p], x[p:], x[p:] * scales, float("nan"), int(keep.sum()) - priors, None, fit.success
+        )
 
     def starts(self, effect: Effect | None, u: np.ndarray, box) -> list[np.ndarray]:
         """Starts of a fit on all rows: the recalibration's ``u`` with theta 0, +1 and -1."""

@@ -29,6 +29,7 @@ __all__ = [
     "beats",
     "named_parameters",
     "describe_parameter",
+    "stands_in",
     "pair_verdict",
     "pct",
 ]
@@ -169,23 +170,41 @@ def describe_parameter(name: str, p: dict) -> str:
     )
 
 
+def _covers(p: dict) -> bool:
+    return bool(p["ci95"][0] <= p["stated"] <= p["ci95"][1])
+
+
+def stands_in(c: CandidateResult, recal: CandidateResult, named) -> bool:
+    """Whether effect ``c`` explains the gap in place of the recalibration's shift: with it, every
+    parameter recalibration moves (``named``) keeps its stated value inside its 95 % interval."""
+    params = c.recalibrated or {}
+    # only parameters whose interval excludes the stated value (not the fallback "furthest")
+    named = [n for n in named if not _covers(recal.recalibrated[n])]
+    return bool(named) and all(
+        n in params and params[n]["ci95"][0] <= params[n]["stated"] <= params[n]["ci95"][1] for n in named
+    )
+
+
 def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n):
     """``miscalibrated``, or ``aliased`` when the shift is implausible and an effect with
-    plausible parameters fits the withheld runs as well."""
+    plausible parameters fits the withheld runs as well.
+
+    ``miscalibrated`` keeps the effects that fit the withheld runs as well *with the moved
+    parameters at their stated values* (:func:`stands_in`) in ``aliased_with``: the data
+    cannot tell the shift from them (parsimony names the shift, since the stated values are
+    known to be uncertain), and ``separate_by`` gives the experiments that would.
+    """
     named = named_parameters(recal)
     words = "; ".join(describe_parameter(n, recal.recalibrated[n]) for n in named)
     closes = (
         f"recalibrating {', '.join(named) or 'the parameters'} closes {pct(recal.fraction_closed)} "
         f"of the gap on withheld data (held-out RMSE shrinks by {recal.shrinkage:.0%}): {words}"
     )
+    as_well = [
+        c for c in effects if qualifies(c) and not beats(after_folds, RECALIBRATION, c.effect, boot_idx, b_n)
+    ]
     if not recal.recalibration_plausible:
-        rivals = [
-            c.effect
-            for c in effects
-            if qualifies(c)
-            and c.recalibration_plausible
-            and not beats(after_folds, RECALIBRATION, c.effect, boot_idx, b_n)
-        ]
+        rivals = [c.effect for c in as_well if c.recalibration_plausible]
         if rivals:
             return (
                 "aliased",
@@ -196,6 +215,15 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n):
                 "a parameter error from the effect",
             )
         closes += "; the shift is beyond the stated uncertainties (the stated values are in doubt)"
+    stand_ins = [c.effect for c in as_well if stands_in(c, recal, named)]
+    if stand_ins:
+        closes += (
+            f"; {', '.join(stand_ins)} with {', '.join(named)} at the stated value"
+            f"{'s' if len(named) > 1 else ''} fit{'s' if len(stand_ins) == 1 else ''} the withheld "
+            "runs as well (the experiments under separate_by tell them apart), and no effect "
+            "fitted with recalibration beats it"
+        )
+        return "miscalibrated", None, stand_ins, closes
     return "miscalibrated", None, [], closes + "; no effect fitted with recalibration beats it"
 
 
@@ -364,10 +392,11 @@ def decide(
 
 def _separate_by(ranking, v: str, effect, aliased) -> dict:
     """Aliased candidates -> the experiment that tells each apart (recalibration: the
-    experiments that pin the parameters it moves)."""
-    if v != "aliased":
+    experiments that pin the parameters it moves; also for ``miscalibrated`` with stand-ins)."""
+    if v not in ("aliased", "miscalibrated") or not aliased:
         return {}
-    out = {c.effect: c.separate_by for c in ranking if c.effect in [effect, *aliased]}
+    both = [effect, *aliased] + ([RECALIBRATION] if v == "miscalibrated" else [])
+    out = {c.effect: c.separate_by for c in ranking if c.effect in both}
     recal = next((c for c in ranking if c.effect == RECALIBRATION), None)
     if RECALIBRATION in out and recal is not None:
         named = named_parameters(recal)

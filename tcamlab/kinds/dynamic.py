@@ -2,7 +2,7 @@
 
 The model is (2.14)-(2.19): the electro-thermal balance (2.18) heats the
 actuator, whose mass-spring-damper follows the static force (2.15). Effect
-terms of :class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
+terms of :class:`tcamlab.effects.Mods` that act here: shear_slope_extra, coil_shear_slope,
 resistance_tc, heat_loss_tc, delay. Validation adds a band for the measured
 points (:mod:`tcamlab.band`): a prediction band from a calibrated file's joint
 posterior (``[calibration]``), else a stated-uncertainty band from the stated sds.
@@ -59,7 +59,7 @@ def predict(
     data : DataFrame
         ``time`` [s], ``voltage`` [V].
     mods : Mods
-        shear_slope_extra, resistance_tc, heat_loss_tc, delay.
+        shear_slope_extra, coil_shear_slope, resistance_tc, heat_loss_tc, delay.
 
     Returns
     -------
@@ -83,6 +83,7 @@ def predict(
         ambient=rig.ambient,
         resistance_tc=mods.resistance_tc,
         heat_loss_tc=mods.heat_loss_tc,
+        coil_shear_slope=mods.coil_shear_slope,
         method=method,
         **kw,
     )

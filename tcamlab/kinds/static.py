@@ -2,7 +2,7 @@
 
 The model is the static equilibrium of section 2.3 with the constant-G shear
 modulus (2.12) or its temperature-dependent form G(T) (2.13); effect terms of
-:class:`tcamlab.effects.Mods` that act here: shear_slope_extra,
+:class:`tcamlab.effects.Mods` that act here: shear_slope_extra, coil_shear_slope,
 youngs_modulus_slope, glass_gain/glass_temperature, lag_tau, drift.
 
 The virtual rig's oven test (:func:`protocol`, :func:`measure`): 5 degC oven
@@ -54,7 +54,8 @@ def predict(
     data : DataFrame
         ``temperature`` [degC], optional ``time`` [s].
     mods : Mods
-        Effect terms (shear_slope_extra, youngs_modulus_slope, glass_*, lag_tau, drift).
+        Effect terms (shear_slope_extra, coil_shear_slope, youngs_modulus_slope, glass_*, lag_tau,
+        drift).
     constant_g : bool
         Use the constant-G model of (2.12) (slope 0) instead of the sample's G(T).
 
@@ -73,7 +74,13 @@ def predict(
         strain = dT + mods.glass_gain * above
         safe = np.where(np.abs(dT) > 1e-12, dT, 1.0)
         kw["radial_cte"] = np.where(np.abs(dT) > 1e-12, sample.radial_cte * strain / safe, sample.radial_cte)
-    delta = _static.displacement(dT, rig.force, youngs_modulus_slope=mods.youngs_modulus_slope, **kw)
+    delta = _static.displacement(
+        dT,
+        rig.force,
+        youngs_modulus_slope=mods.youngs_modulus_slope,
+        coil_shear_slope=mods.coil_shear_slope,
+        **kw,
+    )
     disp = delta - delta[0] + mods.drift * t
     return {"displacement": disp}
 

@@ -31,8 +31,8 @@ from tcamlab.models import coil, dynamic, static, thermal
 # Parameter vector layout (shared with dynamic.py).
 P_MASS, P_DAMP, P_CTH, P_LAM, P_RES, P_TA, P_BETA, P_GAMMA = 0, 1, 2, 3, 4, 5, 6, 7
 P_S0, P_L, P_D0, P_RHO, P_GT, P_SLOPE, P_E, P_PHI0 = 8, 9, 10, 11, 12, 13, 14, 15
-P_NCOIL, P_FEXT = 16, 17
-N_PARAMS = 18
+P_NCOIL, P_FEXT, P_CSLOPE = 16, 17, 18
+N_PARAMS = 19
 
 OK, ERR_SHEAR, ERR_PITCH, ERR_NONFINITE, ERR_STEPS = 0, 1, 2, 3, 4
 MAX_HALVINGS = 16
@@ -71,9 +71,13 @@ def rhs(T, x, v, volt, p, out):
     s = p[P_S0] + x / p[P_L]
     if s <= 0.0 or s >= 1.0:
         return ERR_PITCH
-    # f11, f12 at the swollen diameter; G_t and E at their fabrication values.
+    # f11, f12 at the swollen diameter; E at its fabrication value, G_t too unless the
+    # coil slope (effect library's G(T)) softens it.
+    g_c = _softened(dT, p[P_GT], p[P_CSLOPE])
+    if g_c <= 0.0:
+        return ERR_SHEAR
     a, b, c = _coefficients(p[P_D0] * (1.0 + r), p[P_L], p[P_NCOIL])
-    f11, _, f12, _ = _terms(s, a, b, c, p[P_GT], p[P_E])
+    f11, _, f12, _ = _terms(s, a, b, c, g_c, p[P_E])
     out[2] = _acceleration(v, _restoring(x, f11, f12, tau), p[P_MASS], p[P_DAMP], p[P_FEXT])
     return OK
 

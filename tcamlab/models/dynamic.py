@@ -131,6 +131,7 @@ def _pack(
     ambient,
     resistance_tc,
     heat_loss_tc,
+    coil_shear_slope=0.0,
 ):
     """Parameter vector of the kernel (layout in _dynamic_kernel)."""
     from tcamlab.models import _dynamic_kernel as K
@@ -150,6 +151,7 @@ def _pack(
     p[K.P_E], p[K.P_PHI0] = youngs_modulus, 2.0 * np.pi * twists
     p[K.P_NCOIL] = n
     p[K.P_FEXT] = load * G_ACCEL
+    p[K.P_CSLOPE] = coil_shear_slope
     for name, value in (
         ("load", load),
         ("damping", damping),
@@ -177,7 +179,7 @@ def _raise_status(status, where, t, p):
 
     at = f"t = {t[where]:.4g} s" if where >= 0 else "start"
     if status == K.ERR_SHEAR:
-        dt_max = p[K.P_GT] / p[K.P_SLOPE]
+        dt_max = p[K.P_GT] / max(p[K.P_SLOPE], p[K.P_CSLOPE], 1e-300)
         raise ModelDomainError(
             f"dynamic model: at {at} the temperature exceeds T_a + {dt_max:.1f} K, where "
             f"G_t' of eq. (2.13) reaches zero",
@@ -214,6 +216,7 @@ def response(
     ambient=20.0,
     resistance_tc=0.0,
     heat_loss_tc=0.0,
+    coil_shear_slope=0.0,
     *,
     method=METHOD,
     rtol=RTOL,
@@ -257,6 +260,9 @@ def response(
         beta in R(T) = R (1 + beta dT) [1/K]; 0 in the thesis (effect library).
     heat_loss_tc : float
         gamma in lambda(T) = lambda (1 + gamma dT) [1/K]; 0 in the thesis.
+    coil_shear_slope : float
+        k_c in G_c = G_t - k_c dT of the f11, f12 terms [Pa/K]; 0 in the thesis, which
+        softens G only in the torque (effect library's G(T)).
     method : str
         ``"dp5"`` (JIT) or a :func:`scipy.integrate.solve_ivp` method name.
     rtol : float
@@ -295,6 +301,7 @@ def response(
         ambient,
         resistance_tc,
         heat_loss_tc,
+        coil_shear_slope,
     )
     x0 = float(
         _static.displacement(
@@ -366,7 +373,7 @@ def _python_rhs(p):
     m, b, cth, lam, res, ta = (p[K.P_MASS], p[K.P_DAMP], p[K.P_CTH], p[K.P_LAM], p[K.P_RES], p[K.P_TA])
     beta, gamma, s0, l, d0 = p[K.P_BETA], p[K.P_GAMMA], p[K.P_S0], p[K.P_L], p[K.P_D0]
     rho, gt, slope, e, phi0 = p[K.P_RHO], p[K.P_GT], p[K.P_SLOPE], p[K.P_E], p[K.P_PHI0]
-    n, fext = p[K.P_NCOIL], p[K.P_FEXT]
+    n, fext, cslope = p[K.P_NCOIL], p[K.P_FEXT], p[K.P_CSLOPE]
 
     def f(_t, y, volt):
         temp, x, vel = y
@@ -382,7 +389,10 @@ def _python_rhs(p):
         r = rho * dT
         tau = _static.torque_from_strain(g_tau, phi0, d0, l, r)
         a, b_, c = compliance_coefficients(d0 * (1 + r), l, n)
-        f11, _, f12, _ = compliance_terms(s0 + x / l, a, b_, c, gt, e)
+        g_c = _static.softened_modulus(dT, gt, cslope)
+        if g_c <= 0:
+            raise ModelDomainError("dynamic model: the coil's G_t - k_c dT reaches zero")
+        f11, _, f12, _ = compliance_terms(s0 + x / l, a, b_, c, g_c, e)
         return [tdot, vel, acceleration(vel, restoring_force(x, f11, f12, tau), m, b, fext)]
 
     return f

@@ -420,6 +420,7 @@ def displacement(
     radial_cte=8.1e-5,
     shear_modulus_slope=0.0,
     youngs_modulus_slope=0.0,
+    coil_shear_slope=0.0,
     *,
     method=METHOD,
     xtol=XTOL,
@@ -466,6 +467,10 @@ def displacement(
         c in E' = E (1 - c dT) for the E terms of f11 [1/K]. The thesis keeps E
         constant (section 2.3.3); the effect library uses this. G_t stays at
         its fabrication value.
+    coil_shear_slope : array_like, default 0.0
+        k_c in G_c = G_t - k_c dT, the shear modulus of the f11, f12 terms [Pa/K].
+        The thesis keeps G_t there (0); a physical G(T) softens the coil too
+        (the effect library's G(T) uses this).
     method : {"jit", "numpy"}
         ``"jit"`` (default): a compiled per-point safeguarded Newton, run in
         parallel; ``"numpy"``: the same iteration vectorised over arrays in
@@ -508,13 +513,14 @@ def displacement(
             radial_cte,
             shear_modulus_slope,
             youngs_modulus_slope,
+            coil_shear_slope,
         )
     ]
     shape = np.broadcast_shapes(*(a.shape for a in raw))
     # Scalars stay scalars (the common case: one sample, arrays of dT and F),
     # so the iteration indexes only what varies.
     flat = [a.reshape(()) if a.size == 1 else np.broadcast_to(a, shape).ravel() for a in raw]
-    dT, F, d0, l, L, D, N, E_fab, plies, vfmax, rho, slope, e_slope = flat
+    dT, F, d0, l, L, D, N, E_fab, plies, vfmax, rho, slope, e_slope, c_slope = flat
     size = int(np.prod(shape))
     g_t = sample_shear_modulus(d0, l, N, E_fab, plies, vfmax)
     E = youngs_modulus_at(dT, E_fab, e_slope)
@@ -525,6 +531,8 @@ def displacement(
         )
     g_tau = shear_modulus_at(dT, g_t, slope)
     tau = torque(dT, g_tau, d0, N, l, rho)
+    # the coil's compliance terms see G_t unless a coil slope is given (thesis: G_t there)
+    g_t = shear_modulus_at(dT, g_t, c_slope) if np.any(c_slope != 0) else g_t
     s0 = L / l
     n = n_coils(l, L, D)
     if method == "jit":
