@@ -677,7 +677,7 @@ def _relative_if_below(path: Path) -> Path:
 # -- closed-loop ------------------------------------------------------------------------
 
 
-@app.command("closed-loop")
+@app.command("closed-loop", cls=_Command)
 def closed_loop(
     experiment: Experiment,
     out: Annotated[
@@ -821,6 +821,7 @@ def benchmark_diagnose(
     family: list[str] | None = typer.Option(
         None,
         "--family",
+        metavar="FAMILY",
         help="Only this family (repeatable): effect-only, null, calibration-only, realistic, "
         "off-library, null-noisy-zero. Default: all.",
     ),

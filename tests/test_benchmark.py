@@ -138,7 +138,7 @@ def test_family_task_lists():
     quick = make_tasks(quick=True, families=benchmark.FAMILIES)
     for fam in ("calibration-only", "realistic", "off-library", "null-noisy-zero"):
         cases = [t for t in quick if t["case"] == fam]
-        assert {t["kind"] for t in cases} == set(benchmark.KINDS), fam
+        assert {t["kind"] for t in cases} == set(benchmark.BENCHMARK_KINDS), fam
         assert all(t["stated"] == benchmark.STATED_UNCERTAINTY[t["kind"]] for t in cases)
     realistic = [t for t in quick if t["case"] == "realistic"]
     assert all(t["parameter_error"] == 1.0 and t["noisy_zero"] and t["effects"] for t in realistic)
@@ -151,7 +151,7 @@ def test_family_task_lists():
 
 
 def test_calibration_offsets_are_one_to_three_stated_sds():
-    for kind in benchmark.KINDS:
+    for kind in benchmark.BENCHMARK_KINDS:
         st = benchmark.STATED_UNCERTAINTY[kind]
         seen = set()
         for seed in range(7000, 7030):

@@ -54,10 +54,10 @@ def test_help_shows_choices_and_defaults_never_type_placeholders():
         if any(p.param_type_name == "argument" and "EXPERIMENT" in (p.metavar or "") for p in cmd.params):
             assert "tcamlab init" in text and "[columns]" in text, " ".join(path)
     text = runner.invoke(app, ["simulate", "--help"], terminal_width=200).output
-    assert "[static|dynamic|sensing|curvature]" in text and "--oven [heating|heat-cool]" in text
+    assert "[static|dynamic|sensing|curvature|selfsensing]" in text and "--oven [heating|heat-cool]" in text
     assert "[default: 1.0]" in text  # --noise-scale's default
     text = runner.invoke(app, ["validate", "static", "--help"], terminal_width=200).output
-    assert "--format [html|pdf|html,pdf]" in text and "[default: html,pdf]" in text
+    assert "--format html,pdf[,png,svg]" in text and "[default: html,pdf]" in text
     assert "[default: reports]" in text
     for path in (["validate"], ["fit-spring"], ["init"]):
         text = runner.invoke(app, path + ["--help"], terminal_width=200).output

@@ -3,10 +3,9 @@
 A TCA is heated by its own current under a hanging load; the rig logs
 ``time_s``, ``voltage_V``, ``current_A``, optionally ``load_N`` (the hanging
 weight, when logged) and a reference laser ``displacement_mm`` used only to
-validate. The prediction is the self-sensed displacement of the causal EKF
-(:mod:`tcamlab.selfsensing_observer`), called from :func:`predict`.
-
-Baseline it is compared with, :func:`predict_displacement` ("open-loop inversion"): R = V / I and P = V I from the logged channels; T from the electro-thermal
+validate. The prediction is the self-sensed displacement, made in one place,
+:func:`predict_displacement` ("open-loop inversion"; the causal EKF of
+:mod:`tcamlab.selfsensing_observer` is the estimator for live use and closed loop): R = V / I and P = V I from the logged channels; T from the electro-thermal
 model (2.18) driven by P, starting at the steady temperature of the rest rows'
 probe power; delta from inverting the combined model R(T, delta)
 (:mod:`tcamlab.models.selfsensing`) at that T; the displacement is delta minus
@@ -32,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from tcamlab import instruments, selfsensing_observer
+from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import InputError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
@@ -191,18 +190,16 @@ def _undo_contact(r, temp, delta, x_rest, mods, kw):
 def predict(
     sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *, initial_resistance: float
 ) -> dict[str, np.ndarray]:
-    """Self-sensed displacement from voltage and current: the causal EKF of
-    :mod:`tcamlab.selfsensing_observer` (the logged load, when present, is one of its
-    measurements). :func:`predict_displacement` (open-loop inversion) is the baseline it
-    is compared with in README.
+    """Self-sensed displacement from voltage and current (:func:`predict_displacement`).
+
+    The open-loop inversion, not the EKF of :mod:`tcamlab.selfsensing_observer`: the rig's
+    effect strengths, the calibration and the diagnosis compare a model with the logs, and
+    a filter's lag after an unannounced load step is not a model error (README "Self-sensing").
 
     ``mods``: contact_slope (inter-coil contact), r0_drift (R0 drift), tcr_extra
     (a TCR other than the stated one).
     """
-    _readable(data["current"].to_numpy(float))  # the one-line error when no row reads R
-    return selfsensing_observer.predict_displacement(
-        sample, rig, data, mods, initial_resistance=initial_resistance
-    )
+    return predict_displacement(sample, rig, data, mods, initial_resistance=initial_resistance)
 
 
 def initial_resistance(sample: Sample, rig: Rig, data: pd.DataFrame, provenance=None) -> tuple[float, str]:
