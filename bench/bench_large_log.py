@@ -160,7 +160,10 @@ def measure(rows: int, work: Path, ref_rows: int) -> dict:
     csv = toml.parent / "run1.csv"
     res = {"rows": rows, "csv_mb": csv.stat().st_size / MB}
     for name, cmd in (
-        ("validate", [py, "-m", "tcamlab", "validate", "dynamic", str(toml), "--out", str(work / "v")]),
+        (
+            "validate",
+            [py, "-m", "tcamlab", "validate", "dynamic", str(toml), "--out", str(work / "v"), "--force"],
+        ),
         ("report", [py, "-m", "tcamlab", "report", str(toml), "--out", str(work / "r")]),
     ):
         r = run_measured(cmd)
