@@ -276,3 +276,10 @@ def test_text_lines_print_parameters_in_lab_units():
     assert "force 3.18 -> 2.03 mN" in line and "displacement 0.24 -> 0.068 mm" in line
     assert "(0% shrinkage)" in line  # never -0%
     assert "relaxation = 0.01 (95 %" in line and "] -" not in line
+
+
+def test_diagnosis_json_records_no_absolute_path(glass):
+    result, exp = glass
+    # the virtual rig wrote the experiment under pytest's tmp folder, outside the working one
+    assert exp.path.is_absolute()
+    assert result.to_dict()["experiment"]["path"] == f".../{exp.path.name}"

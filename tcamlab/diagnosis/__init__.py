@@ -106,6 +106,7 @@ from tcamlab.diagnosis.result import SCHEMA_VERSION, CandidateResult, DiagnosisR
 from tcamlab.diagnosis.verdict import MIN_FRACTION_CLOSED, decide
 from tcamlab.effects import effects_for, get_effect
 from tcamlab.errors import ConfigError
+from tcamlab.text import shown_path
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -211,7 +212,8 @@ def _experiment_info(experiment, n_runs: int) -> dict:
     return {
         "name": getattr(experiment, "name", None),
         "title": getattr(experiment, "title", None),
-        "path": str(getattr(experiment, "path", "")),
+        # as reports show paths: relative to the working folder, else .../NAME (no absolute path)
+        "path": shown_path(getattr(experiment, "path", "")) if getattr(experiment, "path", None) else "",
         "kind": experiment.kind,
         "n_runs": n_runs,
     }
