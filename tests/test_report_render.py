@@ -296,6 +296,8 @@ def test_index_html():
     assert len(headers) == 4 + 2 + 2  # fixed (experiment, kind, status, warnings) + metrics + provenance
     classes = [a.get("class") for tag, a in p.attrs if tag == "td"]
     assert {"status-pass", "status-fail", "status-error"} <= set(classes)
+    # a kind's name never wraps mid-word ("selfsensin / g" at 1280 px before)
+    assert classes.count("kind") == 3 and "table.data td.kind { white-space: nowrap; }" in out
     assert render_index_html(index) == out
 
 
