@@ -420,3 +420,18 @@ def test_calibration_report_warns_on_a_parameter_beyond_three_stated_sds():
     warnings = stated_shift_warnings(res)
     assert len(warnings) == 1  # within 3 sds, and without a stated sd: no warning
     assert "rig.thermal_mass_J_per_K (C_th) = 0.0604 J/K" in warnings[0] and "+4.0 stated sds" in warnings[0]
+
+
+def test_synthetic_banner_says_what_its_command_leaves_out_and_where_the_rest_is():
+    from types import SimpleNamespace
+
+    from tcamlab.report.validation_report import synthetic_banner
+
+    exp = SimpleNamespace(
+        synthetic={"generator": "tcamlab simulate 0.1.0", "seed": 3, "command": "tcamlab simulate static"}
+    )
+    text = synthetic_banner(exp)
+    assert text.startswith("SYNTHETIC DATA: made by tcamlab simulate 0.1.0 with seed 3")
+    assert "leaves out any withheld options (--effect, --parameter-error, --noisy-zero)" in text
+    assert "truth/NAME.truth.json" in text
+    assert synthetic_banner(SimpleNamespace(synthetic=None)) is None

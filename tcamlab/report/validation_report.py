@@ -107,6 +107,13 @@ def synthetic_banner(experiment) -> str | None:
     )
     if syn.get("command"):
         text += f" Command: {syn['command']}"
+    # the experiment file's command leaves out what a diagnosis must not see; say so, and
+    # where the rest is, without saying whether anything was left out (that would tell)
+    text += (
+        " The command leaves out any withheld options (--effect, --parameter-error,"
+        " --noisy-zero); the virtual rig keeps the full command in its truth file"
+        " (truth/NAME.truth.json), which this report does not read."
+    )
     return text
 
 
