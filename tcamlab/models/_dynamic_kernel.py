@@ -8,8 +8,9 @@ State y = (T, x, v): actuator temperature [degC], extension [m], velocity [m/s].
 
 Each equation is compiled from the Python function the rest of the package
 uses (thermal.heating_rate, static.torque_from_strain, coil.compliance_terms,
-...), so there is one implementation of each. Numba's disk cache does not
-notice edits to those modules: touch this file after changing them.
+...), once, in tcamlab.models.compiled (shared with the self-sensing observer),
+so there is one implementation of each. Numba's disk cache does not notice
+edits to those modules: touch compiled.py and this file after changing them.
 
 beta and gamma are zero in the thesis model; the effect library uses them
 for a temperature-dependent resistance and convective heat loss.
@@ -26,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from tcamlab.models import coil, dynamic, static, thermal
+from tcamlab.models import compiled
 
 # Parameter vector layout (shared with dynamic.py).
 P_MASS, P_DAMP, P_CTH, P_LAM, P_RES, P_TA, P_BETA, P_GAMMA = 0, 1, 2, 3, 4, 5, 6, 7
@@ -48,13 +49,13 @@ _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
 _E1, _E3, _E4, _E5, _E6, _E7 = (71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
 
 
-_heating = njit(cache=True)(thermal.heating_rate)  # (2.18)
-_softened = njit(cache=True)(static.softened_modulus)  # (2.13)
-_torque = njit(cache=True)(static.torque_from_strain)  # (2.9)
-_coefficients = njit(cache=True)(coil.compliance_coefficients)  # (2.11)
-_terms = njit(cache=True)(coil.compliance_terms)  # (2.11)
-_restoring = njit(cache=True)(coil.restoring_force)  # (2.15)
-_acceleration = njit(cache=True)(dynamic.acceleration)  # (2.19)
+_heating = compiled.heating_rate  # (2.18)
+_softened = compiled.softened_modulus  # (2.13)
+_torque = compiled.torque_from_strain  # (2.9)
+_coefficients = compiled.compliance_coefficients  # (2.11)
+_terms = compiled.compliance_terms  # (2.11)
+_restoring = compiled.restoring_force  # (2.15)
+_acceleration = compiled.acceleration  # (2.19)
 
 
 @njit(cache=True, fastmath=False)

@@ -12,7 +12,8 @@ interpolated bilinearly, so any combined resistance model (a Python function)
 can be used at compiled speed; its slopes come from the same table.
 
 Every physical equation is compiled from the one Python function the rest of
-tcamlab uses (coil.compliance_terms, static.torque_from_strain, ...).
+tcamlab uses (coil.compliance_terms, static.torque_from_strain, ...), through
+tcamlab.models.compiled, which the dynamic solver shares.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from tcamlab.models import coil, dynamic, static, thermal
+from tcamlab.models import compiled
 
 # Parameter vector layout.
 P_TA, P_CTH, P_LAM, P_MASS, P_DAMP, P_L, P_D0, P_RHO = 0, 1, 2, 3, 4, 5, 6, 7
@@ -35,13 +36,13 @@ NX = 5
 EPS = (1e-4, 1e-7, 1e-6, 1e-5, 1e-6)
 """Forward-difference steps of (T [K], x [m], v [m/s], F [N], theta [1/K]) for the transition Jacobian."""
 
-_heating = njit(cache=True)(thermal.heating_rate)  # (2.18)
-_softened = njit(cache=True)(static.softened_modulus)  # (2.13)
-_torque = njit(cache=True)(static.torque_from_strain)  # (2.9)
-_coefficients = njit(cache=True)(coil.compliance_coefficients)  # (2.11)
-_terms = njit(cache=True)(coil.compliance_terms)  # (2.11)
-_restoring = njit(cache=True)(coil.restoring_force)  # (2.15)
-_acceleration = njit(cache=True)(dynamic.acceleration)  # (2.19)
+_heating = compiled.heating_rate  # (2.18)
+_softened = compiled.softened_modulus  # (2.13)
+_torque = compiled.torque_from_strain  # (2.9)
+_coefficients = compiled.compliance_coefficients  # (2.11)
+_terms = compiled.compliance_terms  # (2.11)
+_restoring = compiled.restoring_force  # (2.15)
+_acceleration = compiled.acceleration  # (2.19)
 
 
 @njit(cache=True)
