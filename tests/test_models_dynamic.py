@@ -102,21 +102,28 @@ def test_bad_time_grid(tca):
 
 
 def test_kernels_compile_the_package_equations():
-    # One implementation per equation: the numba kernels wrap the very functions
-    # the numpy models and the scipy reference path call.
+    # One implementation per equation, compiled once: every numba kernel calls the
+    # wrappers in models.compiled, which wrap the very functions the numpy models
+    # and the scipy reference path call.
+    import inspect
+
     from tcamlab.models import _dynamic_kernel as DK
     from tcamlab.models import _static_kernel as SK
-    from tcamlab.models import coil, thermal
+    from tcamlab.models import coil, compiled, thermal
+    from tcamlab.selfsensing_observer import kernel as OK
 
-    assert DK._heating.py_func is thermal.heating_rate
-    assert DK._torque.py_func is static.torque_from_strain
-    assert DK._terms.py_func is coil.compliance_terms
-    assert DK._coefficients.py_func is coil.compliance_coefficients
-    assert DK._restoring.py_func is coil.restoring_force
-    assert DK._acceleration.py_func is dynamic.acceleration
-    assert SK._terms.py_func is coil.compliance_terms
-    assert SK._torque.py_func is static.torque_from_strain
-    assert SK._residual.py_func is static.pitch_residual
+    assert compiled.heating_rate.py_func is thermal.heating_rate
+    assert compiled.torque_from_strain.py_func is static.torque_from_strain
+    assert compiled.compliance_terms.py_func is coil.compliance_terms
+    assert compiled.compliance_coefficients.py_func is coil.compliance_coefficients
+    assert compiled.restoring_force.py_func is coil.restoring_force
+    assert compiled.acceleration.py_func is dynamic.acceleration
+    assert compiled.pitch_residual.py_func is static.pitch_residual
+    for mod in (DK, SK, OK):
+        src = inspect.getsource(mod)
+        assert "compiled." in src, mod.__name__
+        # no kernel wraps a package function itself (that compiled it twice)
+        assert ")(coil." not in src and ")(static." not in src and ")(thermal." not in src, mod.__name__
 
 
 def test_kernel_temperature_matches_exact_held_voltage_solution(tca):

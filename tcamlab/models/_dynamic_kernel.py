@@ -49,37 +49,30 @@ _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
 _E1, _E3, _E4, _E5, _E6, _E7 = (71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
 
 
-_heating = compiled.heating_rate  # (2.18)
-_softened = compiled.softened_modulus  # (2.13)
-_torque = compiled.torque_from_strain  # (2.9)
-_coefficients = compiled.compliance_coefficients  # (2.11)
-_terms = compiled.compliance_terms  # (2.11)
-_restoring = compiled.restoring_force  # (2.15)
-_acceleration = compiled.acceleration  # (2.19)
-
-
 @njit(cache=True, fastmath=False)
 def rhs(T, x, v, volt, p, out):
     """Right-hand side; writes (dT/dt, dx/dt, dv/dt) into ``out``; returns a status."""
     dT = T - p[P_TA]
-    out[0] = _heating(dT, volt, p[P_RES], p[P_CTH], p[P_LAM], p[P_BETA], p[P_GAMMA])
+    out[0] = compiled.heating_rate(dT, volt, p[P_RES], p[P_CTH], p[P_LAM], p[P_BETA], p[P_GAMMA])
     out[1] = v
-    g_tau = _softened(dT, p[P_GT], p[P_SLOPE])
+    g_tau = compiled.softened_modulus(dT, p[P_GT], p[P_SLOPE])
     if g_tau <= 0.0:
         return ERR_SHEAR
     r = p[P_RHO] * dT
-    tau = _torque(g_tau, p[P_PHI0], p[P_D0], p[P_L], r)
+    tau = compiled.torque_from_strain(g_tau, p[P_PHI0], p[P_D0], p[P_L], r)
     s = p[P_S0] + x / p[P_L]
     if s <= 0.0 or s >= 1.0:
         return ERR_PITCH
     # f11, f12 at the swollen diameter; E at its fabrication value, G_t too unless the
     # coil slope (effect library's G(T)) softens it.
-    g_c = _softened(dT, p[P_GT], p[P_CSLOPE])
+    g_c = compiled.softened_modulus(dT, p[P_GT], p[P_CSLOPE])
     if g_c <= 0.0:
         return ERR_SHEAR
-    a, b, c = _coefficients(p[P_D0] * (1.0 + r), p[P_L], p[P_NCOIL])
-    f11, _, f12, _ = _terms(s, a, b, c, g_c, p[P_E])
-    out[2] = _acceleration(v, _restoring(x, f11, f12, tau), p[P_MASS], p[P_DAMP], p[P_FEXT])
+    a, b, c = compiled.compliance_coefficients(p[P_D0] * (1.0 + r), p[P_L], p[P_NCOIL])
+    f11, _, f12, _ = compiled.compliance_terms(s, a, b, c, g_c, p[P_E])
+    out[2] = compiled.acceleration(
+        v, compiled.restoring_force(x, f11, f12, tau), p[P_MASS], p[P_DAMP], p[P_FEXT]
+    )
     return OK
 
 

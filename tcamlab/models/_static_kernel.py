@@ -12,18 +12,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from tcamlab.models import coil, static
+from tcamlab.models import compiled
 
 OK, NO_BRACKET, NO_CONVERGENCE = 0, 1, 2
 
-# The equations are compiled from the same Python functions the numpy path
-# calls, so there is one implementation of each. Numba's disk cache does not
-# notice edits to those modules: touch this file after changing them.
-_coefficients = njit(cache=True)(coil.compliance_coefficients)  # (2.11)
-_terms = njit(cache=True)(coil.compliance_terms)  # (2.11)
-_torque = njit(cache=True)(static.torque_from_strain)  # (2.9)
-_youngs = njit(cache=True)(static.youngs_modulus_at)
-_residual = njit(cache=True)(static.pitch_residual)  # (2.10) = (2.11)
+# The equations come compiled from tcamlab.models.compiled, which wraps the same
+# Python functions the numpy path calls, so there is one implementation of each.
+# Numba's disk cache does not notice edits to those modules: touch compiled.py
+# and this file after changing them.
 
 
 @njit(cache=True, inline="always")
@@ -33,8 +29,8 @@ def _at(a, i):
 
 @njit(cache=True)
 def _h(s, l, s0, F, tau, A, B, C, g, e):
-    f11, df11, f12, df12 = _terms(s, A, B, C, g, e)
-    h, dh = _residual(s, l, s0, F, tau, f11, df11, f12, df12)
+    f11, df11, f12, df12 = compiled.compliance_terms(s, A, B, C, g, e)
+    h, dh = compiled.pitch_residual(s, l, s0, F, tau, f11, df11, f12, df12)
     return h, dh, f11, f12
 
 
@@ -49,9 +45,9 @@ def solve(
         li = _at(l, i)
         ni = _at(ncoil, i)
         gi = _at(g_t, i)
-        tau = _torque(_at(g_tau, i), 2.0 * np.pi * _at(twists, i), d0i, li, x)
-        A, B, C = _coefficients(d0i * (1.0 + x), li, ni)
-        e = _youngs(dti, _at(e_fab, i), _at(e_slope, i))
+        tau = compiled.torque_from_strain(_at(g_tau, i), 2.0 * np.pi * _at(twists, i), d0i, li, x)
+        A, B, C = compiled.compliance_coefficients(d0i * (1.0 + x), li, ni)
+        e = compiled.youngs_modulus_at(dti, _at(e_fab, i), _at(e_slope, i))
         Fi = _at(F, i)
         s0i = _at(s0, i)
         h_lo = _h(0.0, li, s0i, Fi, tau, A, B, C, gi, e)[0]

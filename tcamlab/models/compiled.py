@@ -20,3 +20,5 @@ compliance_coefficients = njit(cache=True)(coil.compliance_coefficients)  # (2.1
 compliance_terms = njit(cache=True)(coil.compliance_terms)  # (2.11)
 restoring_force = njit(cache=True)(coil.restoring_force)  # (2.15)
 acceleration = njit(cache=True)(dynamic.acceleration)  # (2.19)
+youngs_modulus_at = njit(cache=True)(static.youngs_modulus_at)  # E(T) of the effect library
+pitch_residual = njit(cache=True)(static.pitch_residual)  # (2.10) = (2.11)

@@ -36,30 +36,22 @@ NX = 5
 EPS = (1e-4, 1e-7, 1e-6, 1e-5, 1e-6)
 """Forward-difference steps of (T [K], x [m], v [m/s], F [N], theta [1/K]) for the transition Jacobian."""
 
-_heating = compiled.heating_rate  # (2.18)
-_softened = compiled.softened_modulus  # (2.13)
-_torque = compiled.torque_from_strain  # (2.9)
-_coefficients = compiled.compliance_coefficients  # (2.11)
-_terms = compiled.compliance_terms  # (2.11)
-_restoring = compiled.restoring_force  # (2.15)
-_acceleration = compiled.acceleration  # (2.19)
-
 
 @njit(cache=True)
 def internal_force(x, temp, p):
     """F_i(x, T) of (2.15) [N]; the state is clamped into the model's domain."""
     dT = temp - p[P_TA]
-    g_tau = _softened(dT, p[P_GT], p[P_SLOPE])
+    g_tau = compiled.softened_modulus(dT, p[P_GT], p[P_SLOPE])
     floor = 0.05 * p[P_GT]
     if g_tau < floor:
         g_tau = floor
     r = p[P_RHO] * dT
-    tau = _torque(g_tau, p[P_PHI0], p[P_D0], p[P_L], r)
+    tau = compiled.torque_from_strain(g_tau, p[P_PHI0], p[P_D0], p[P_L], r)
     s = p[P_S0] + x / p[P_L]
     s = min(max(s, 1e-3), 0.999)
-    a, b, c = _coefficients(p[P_D0] * (1.0 + r), p[P_L], p[P_NCOIL])
-    f11, _, f12, _ = _terms(s, a, b, c, p[P_GT], p[P_E])
-    return _restoring(x, f11, f12, tau)
+    a, b, c = compiled.compliance_coefficients(p[P_D0] * (1.0 + r), p[P_L], p[P_NCOIL])
+    f11, _, f12, _ = compiled.compliance_terms(s, a, b, c, p[P_GT], p[P_E])
+    return compiled.restoring_force(x, f11, f12, tau)
 
 
 @njit(cache=True)
@@ -82,8 +74,8 @@ def equilibrium(temp, force, p, x_guess):
 @njit(cache=True)
 def _deriv(temp, x, v, force, power, p):
     """(dT/dt, dx/dt, dv/dt) of (2.18) and (2.19)."""
-    d_temp = _heating(temp - p[P_TA], 0.0, 1.0, p[P_CTH], p[P_LAM], 0.0, 0.0) + power / p[P_CTH]
-    return d_temp, v, _acceleration(v, internal_force(x, temp, p), p[P_MASS], p[P_DAMP], force)
+    d_temp = compiled.heating_rate(temp - p[P_TA], 0.0, 1.0, p[P_CTH], p[P_LAM], 0.0, 0.0) + power / p[P_CTH]
+    return d_temp, v, compiled.acceleration(v, internal_force(x, temp, p), p[P_MASS], p[P_DAMP], force)
 
 
 @njit(cache=True)
