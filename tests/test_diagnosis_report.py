@@ -283,3 +283,25 @@ def test_diagnosis_json_records_no_absolute_path(glass):
     # the virtual rig wrote the experiment under pytest's tmp folder, outside the working one
     assert exp.path.is_absolute()
     assert result.to_dict()["experiment"]["path"] == f".../{exp.path.name}"
+
+
+def test_diagnosis_provenance_has_tool_version_and_input_hashes(glass):
+    import hashlib
+
+    from tcamlab import __version__
+    from tcamlab.report.diagnosis_report import diagnosis_document
+
+    result, exp = glass
+    info = result.to_dict()["experiment"]
+    assert info["tool"] == f"tcamlab {__version__}"
+    roles = [e["role"] for e in info["inputs"]]
+    assert roles[0] == "experiment" and roles.count("run") == info["n_runs"]
+    for e in info["inputs"]:
+        assert not e["path"].startswith("/")
+        on_disk = (exp.path.parent / e["path"]).read_bytes()
+        assert e["sha256"] == hashlib.sha256(on_disk).hexdigest()
+    doc = diagnosis_document(result, exp)
+    assert doc.metadata["tool"] == f"tcamlab {__version__}"
+    assert doc.metadata[f"sha256 {info['inputs'][1]['path']}"] == info["inputs"][1]["sha256"]
+    # a synthetic experiment's banner says what made it and that withheld options are left out
+    assert "withheld options" in doc.synthetic_banner and "seed" in doc.synthetic_banner

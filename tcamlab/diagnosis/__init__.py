@@ -87,6 +87,8 @@ Steps
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from tcamlab.diagnosis.candidates import CI_LEVEL, fit_candidates, score_folds
 from tcamlab.diagnosis.noise import (
     GAP_LEVEL,
@@ -177,7 +179,7 @@ def _diagnose(experiment, runs, effects, n_boot: int, seed: int, workers) -> Dia
     names = [str(getattr(r, "path", i)).rsplit("/", 1)[-1] for i, r in enumerate(runs)]
     return DiagnosisResult(
         kind=experiment.kind,
-        experiment=_experiment_info(experiment, len(runs)),
+        experiment=_experiment_info(experiment, runs),
         verdict=decision.verdict,
         effect=decision.effect,
         ranking=ranking,
@@ -208,14 +210,30 @@ def _best_curve(rec: Recalibration, fit):
     return curve
 
 
-def _experiment_info(experiment, n_runs: int) -> dict:
+def _experiment_info(experiment, runs) -> dict:
+    """Name, title, shown path, kind and provenance: the tool's version and every input
+    file (experiment file, run CSVs, joined files) with its SHA-256, paths relative to
+    the experiment file's folder as the file names them (never absolute)."""
+    from tcamlab import __version__
+    from tcamlab.io import input_files, sha256_file
+    from tcamlab.validation import relative_to
+
+    path = getattr(experiment, "path", None)
+    inputs = []
+    if path:
+        inputs.append({"role": "experiment", "path": Path(path).name, "sha256": sha256_file(path)})
+        for r in (r for r in runs if getattr(r, "path", None) is not None):
+            for role, p, sha in input_files(r):
+                inputs.append({"role": role, "path": relative_to(p, Path(path).parent), "sha256": sha})
     return {
         "name": getattr(experiment, "name", None),
         "title": getattr(experiment, "title", None),
         # as reports show paths: relative to the working folder, else .../NAME (no absolute path)
-        "path": shown_path(getattr(experiment, "path", "")) if getattr(experiment, "path", None) else "",
+        "path": shown_path(path) if path else "",
         "kind": experiment.kind,
-        "n_runs": n_runs,
+        "n_runs": len(runs),
+        "tool": f"tcamlab {__version__}",
+        "inputs": inputs,
     }
 
 

@@ -9,6 +9,7 @@ from tcamlab.numbers import MISSING, fmt, fmt_column, fmt_percent, lab_unit, rms
 from .diagnosis_figures import MIN_REGIME_POINTS, forest_figure, regime_figure, residual_figure
 from .diagnosis_tests import paired_lines, paired_sentence, paired_table, paired_tests
 from .document import Document, Section, Table
+from .validation_report import synthetic_banner
 
 __all__ = ["diagnosis_section", "diagnosis_document", "verdict_text", "diagnosis_lines"]
 
@@ -255,6 +256,7 @@ def diagnosis_document(result, experiment=None) -> Document:
     title = getattr(experiment, "title", None) or result.experiment.get("title") or "Experiment"
     synthetic = getattr(experiment, "synthetic", None)
     meta = {
+        "tool": str(result.experiment.get("tool", "")),
         "kind": result.kind,
         "experiment": str(result.experiment.get("path", "")),
         "runs": str(result.experiment.get("n_runs")),
@@ -262,12 +264,14 @@ def diagnosis_document(result, experiment=None) -> Document:
         "folds": str(result.settings.get("fold_scheme")),
         "bootstrap": f"{result.settings.get('n_boot')} resamples, seed {result.settings.get('seed')}",
     }
+    for entry in result.experiment.get("inputs", []):
+        meta[f"sha256 {entry['path']}"] = entry["sha256"]
     return Document(
         title=f"Gap diagnosis: {title}",
         subtitle=result.kind,
         sections=[diagnosis_section(result)],
         metadata=meta,
-        synthetic_banner="Synthetic data (virtual rig)." if synthetic else None,
+        synthetic_banner=synthetic_banner(experiment) if synthetic else None,
     )
 
 
