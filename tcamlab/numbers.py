@@ -8,7 +8,8 @@
 - :func:`fmt_r2`: R² with 4 decimals (``0.9989``, ``-81.2065``); a value that
   4 decimals would round onto 1 (or 0) gets the decimals it needs to differ
   from it (``0.99998``), so a model short of perfect never prints as perfect.
-- :func:`fmt_percent`: whole percent by default, never ``-0%``.
+- :func:`fmt_percent`: whole percent by default, never ``-0%``; :func:`fmt_percent_range`
+  adds the decimals that keep an interval's two ends apart.
 - :func:`with_unit`: a value and its unit (``0.0123 mm``); every printed RMSE,
   MAE, max |err| and bias carries one (:func:`unit_label` of the quantity).
 
@@ -29,6 +30,7 @@ __all__ = [
     "fmt",
     "fmt_r2",
     "fmt_percent",
+    "fmt_percent_range",
     "with_unit",
     "unit_label",
     "bare_name",
@@ -145,6 +147,18 @@ def fmt_percent(fraction, decimals: int = 0) -> str:
     if special is not None:
         return special
     return _no_negative_zero(f"{100.0 * float(fraction):.{decimals}f}%")
+
+
+def fmt_percent_range(lo, hi) -> str:
+    """``lo to hi`` in percent, with the decimals (up to 2) that keep distinct ends distinct:
+    an interval of -0.15 % to -0.01 % prints as ``-0.1% to 0.0%``, never ``0% to 0%``."""
+    if _special(lo) is not None or _special(hi) is not None:
+        return f"{fmt_percent(lo)} to {fmt_percent(hi)}"
+    for d in (0, 1, 2):
+        a, b = fmt_percent(lo, d), fmt_percent(hi, d)
+        if a != b:
+            break
+    return f"{a} to {b}"
 
 
 def unit_label(quantity: str) -> str:

@@ -435,3 +435,14 @@ def test_synthetic_banner_says_what_its_command_leaves_out_and_where_the_rest_is
     assert "leaves out any withheld options (--effect, --parameter-error, --noisy-zero)" in text
     assert "truth/NAME.truth.json" in text
     assert synthetic_banner(SimpleNamespace(synthetic=None)) is None
+
+
+def test_percent_interval_keeps_distinct_ends_distinct():
+    from tcamlab.numbers import fmt_percent_range
+
+    # a null diagnosis's shrinkage interval (-0.15 % to -0.01 %) must not read "0% to 0%"
+    assert fmt_percent_range(-0.0015, -0.0001) == "-0.1% to 0.0%"
+    assert fmt_percent_range(0.48, 0.60) == "48% to 60%"
+    assert fmt_percent_range(0.1234, 0.1236) == "12.3% to 12.4%"
+    assert fmt_percent_range(0.12341, 0.12349) == "12.34% to 12.35%"
+    assert fmt_percent_range(None, 0.1) == "\u2013 to 10%"

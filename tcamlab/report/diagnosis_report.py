@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from tcamlab.numbers import MISSING, fmt, fmt_column, fmt_percent, lab_unit, rmse_unit
+from tcamlab.numbers import MISSING, fmt, fmt_column, fmt_percent, fmt_percent_range, lab_unit, rmse_unit
 
 from .diagnosis_figures import MIN_REGIME_POINTS, forest_figure, regime_figure, residual_figure
 from .diagnosis_tests import paired_lines, paired_sentence, paired_table, paired_tests
@@ -55,8 +55,8 @@ def verdict_text(result) -> str:
         text = (
             f" No single candidate explains it, but two together do: {a} and {b}. Fitted "
             f"together on the other runs and tested on the withheld one, they cut the RMSE by "
-            f"{_pct(combo['shrinkage'])} (95 % interval {_pct(combo['shrinkage_ci95'][0])} to "
-            f"{_pct(combo['shrinkage_ci95'][1])}) and close {_pct(combo['fraction_closed'])} of "
+            f"{_pct(combo['shrinkage'])} (95 % interval "
+            f"{fmt_percent_range(*combo['shrinkage_ci95'])}) and close {_pct(combo['fraction_closed'])} of "
             f"the gap above the noise floor; the pair beats either effect alone."
         )
         if result.verdict == "aliased":
@@ -69,7 +69,7 @@ def verdict_text(result) -> str:
     text = (
         f" The most likely cause is {best.effect}: {best.cause}. Fitted on the other runs and "
         f"tested on the withheld one, it cuts the RMSE by {_pct(best.shrinkage)} (95 % interval "
-        f"{_pct(best.shrinkage_ci95[0])} to {_pct(best.shrinkage_ci95[1])}) and closes "
+        f"{fmt_percent_range(*best.shrinkage_ci95)}) and closes "
         f"{_pct(best.fraction_closed)} of the gap above the noise floor."
     )
     if result.verdict == "aliased":
@@ -134,7 +134,7 @@ def _candidate_row(c, baseline, fac: float) -> list:
         _scaled(get("heldout_rmse_before"), fac),
         _scaled(get("heldout_rmse_after"), fac),
         _pct(get("shrinkage")),
-        f"{_pct(lo)} to {_pct(hi)}",
+        fmt_percent_range(lo, hi),
         _pct(get("fraction_closed")),
         _num(get("aic") - baseline["aic"], "{:.1f}"),
         _num(get("bic") - baseline["bic"], "{:.1f}"),
