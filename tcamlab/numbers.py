@@ -31,6 +31,7 @@ __all__ = [
     "fmt_r2",
     "fmt_percent",
     "fmt_percent_range",
+    "percent_decimals",
     "with_unit",
     "unit_label",
     "bare_name",
@@ -149,16 +150,21 @@ def fmt_percent(fraction, decimals: int = 0) -> str:
     return _no_negative_zero(f"{100.0 * float(fraction):.{decimals}f}%")
 
 
+def percent_decimals(lo, hi) -> int:
+    """Decimals (0 to 2) that print ``lo`` and ``hi`` as different percents, if any do."""
+    if _special(lo) is not None or _special(hi) is not None:
+        return 0
+    for d in (0, 1, 2):
+        if fmt_percent(lo, d) != fmt_percent(hi, d):
+            return d
+    return 2
+
+
 def fmt_percent_range(lo, hi) -> str:
     """``lo to hi`` in percent, with the decimals (up to 2) that keep distinct ends distinct:
     an interval of -0.15 % to -0.01 % prints as ``-0.1% to 0.0%``, never ``0% to 0%``."""
-    if _special(lo) is not None or _special(hi) is not None:
-        return f"{fmt_percent(lo)} to {fmt_percent(hi)}"
-    for d in (0, 1, 2):
-        a, b = fmt_percent(lo, d), fmt_percent(hi, d)
-        if a != b:
-            break
-    return f"{a} to {b}"
+    d = percent_decimals(lo, hi)
+    return f"{fmt_percent(lo, d)} to {fmt_percent(hi, d)}"
 
 
 def unit_label(quantity: str) -> str:

@@ -446,3 +446,7 @@ def test_percent_interval_keeps_distinct_ends_distinct():
     assert fmt_percent_range(0.1234, 0.1236) == "12.3% to 12.4%"
     assert fmt_percent_range(0.12341, 0.12349) == "12.34% to 12.35%"
     assert fmt_percent_range(None, 0.1) == "\u2013 to 10%"
+    from tcamlab.numbers import percent_decimals
+
+    # the estimate takes its interval's decimals: 0.26 % beside 0.2 % to 0.3 %, not 0 %
+    assert percent_decimals(0.002, 0.003) == 1 and percent_decimals(0.48, 0.60) == 0

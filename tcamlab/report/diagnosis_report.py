@@ -4,7 +4,16 @@ from __future__ import annotations
 
 import math
 
-from tcamlab.numbers import MISSING, fmt, fmt_column, fmt_percent, fmt_percent_range, lab_unit, rmse_unit
+from tcamlab.numbers import (
+    MISSING,
+    fmt,
+    fmt_column,
+    fmt_percent,
+    fmt_percent_range,
+    lab_unit,
+    percent_decimals,
+    rmse_unit,
+)
 
 from .diagnosis_figures import MIN_REGIME_POINTS, forest_figure, regime_figure, residual_figure
 from .diagnosis_tests import paired_lines, paired_sentence, paired_table, paired_tests
@@ -14,8 +23,8 @@ from .validation_report import synthetic_banner
 __all__ = ["diagnosis_section", "diagnosis_document", "verdict_text", "diagnosis_lines"]
 
 
-def _pct(x) -> str:
-    return MISSING if x is None or not math.isfinite(x) else fmt_percent(x)
+def _pct(x, decimals: int = 0) -> str:
+    return MISSING if x is None or not math.isfinite(x) else fmt_percent(x, decimals)
 
 
 def _num(x, fmt="{:.3g}") -> str:
@@ -55,7 +64,7 @@ def verdict_text(result) -> str:
         text = (
             f" No single candidate explains it, but two together do: {a} and {b}. Fitted "
             f"together on the other runs and tested on the withheld one, they cut the RMSE by "
-            f"{_pct(combo['shrinkage'])} (95 % interval "
+            f"{_pct(combo['shrinkage'], percent_decimals(*combo['shrinkage_ci95']))} (95 % interval "
             f"{fmt_percent_range(*combo['shrinkage_ci95'])}) and close {_pct(combo['fraction_closed'])} of "
             f"the gap above the noise floor; the pair beats either effect alone."
         )
@@ -68,7 +77,7 @@ def verdict_text(result) -> str:
         return lead + text
     text = (
         f" The most likely cause is {best.effect}: {best.cause}. Fitted on the other runs and "
-        f"tested on the withheld one, it cuts the RMSE by {_pct(best.shrinkage)} (95 % interval "
+        f"tested on the withheld one, it cuts the RMSE by {_pct(best.shrinkage, percent_decimals(*best.shrinkage_ci95))} (95 % interval "
         f"{fmt_percent_range(*best.shrinkage_ci95)}) and closes "
         f"{_pct(best.fraction_closed)} of the gap above the noise floor."
     )
@@ -133,7 +142,8 @@ def _candidate_row(c, baseline, fac: float) -> list:
         name,
         _scaled(get("heldout_rmse_before"), fac),
         _scaled(get("heldout_rmse_after"), fac),
-        _pct(get("shrinkage")),
+        # the estimate with its interval's decimals (never 0% beside 0.2% to 0.3%)
+        _pct(get("shrinkage"), percent_decimals(lo, hi)),
         fmt_percent_range(lo, hi),
         _pct(get("fraction_closed")),
         _num(get("aic") - baseline["aic"], "{:.1f}"),
