@@ -174,6 +174,10 @@ class Rig:
     tcr : float
         Temperature coefficient of the heater/sensor coating's resistance [1/K]
         (self-sensing; silver's by default).
+    heater_tcr : float
+        Temperature coefficient beta of the actuator's resistance in the voltage-step test,
+        R(T) = R (1 + beta (T - T_a)) [1/K]; 0 is the thesis's constant R (sec. 2.5.2).
+        Calibrated where the runs log ``current_A`` or ``resistance_ohm``.
     uncertainty : mapping
         Standard deviations of any of the fields above, same units.
     """
@@ -191,6 +195,7 @@ class Rig:
     sensor_offset: float = 9e-3
     segment_lengths: tuple[float, ...] = (30e-3, 30e-3)
     tcr: float = SILVER_TCR
+    heater_tcr: float = 0.0
     uncertainty: Mapping[str, float] = field(default_factory=dict)
 
     @property
@@ -232,6 +237,7 @@ RIG_KEYS: dict[str, tuple[str, float]] = {
     "sensor_offset_mm": ("sensor_offset", 1e-3),
     "segment_lengths_mm": ("segment_lengths", 1e-3),
     "tcr_per_K": ("tcr", 1.0),
+    "heater_tcr_per_K": ("heater_tcr", 1.0),
 }
 
 

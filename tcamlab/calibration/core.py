@@ -85,8 +85,13 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
     lap = (s.from_u(u[k] - Z95 * sd_u), s.from_u(u[k] + Z95 * sd_u))
     post_sd = value * sd_u if s.param.positive else sd_u * s.prior_sd
     stated_sd = s.prior_sd if s.sd_stated else None
-    post_rel = sd_u if s.param.positive else post_sd / abs(value)
-    prior_rel = float(s.sd_u) if s.param.positive else s.prior_sd / abs(s.stated)
+    if s.param.positive:
+        post_rel, prior_rel = sd_u, float(s.sd_u)
+    elif s.stated != 0:
+        post_rel, prior_rel = post_sd / abs(value), s.prior_sd / abs(s.stated)
+    else:  # stated 0 (dynamic beta): relative to the default prior sd, the parameter's scale
+        scale = float(s.param.zero_sd or s.prior_sd)
+        post_rel, prior_rel = post_sd / scale, s.prior_sd / scale
     return ParameterEstimate(
         name=s.name,
         field=s.param.field,

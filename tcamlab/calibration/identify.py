@@ -129,6 +129,8 @@ def _short_of_pinned(p) -> str:
 
 
 def _sds(p) -> str:
+    if p.stated == 0 and not p.positive:  # a percent of 0 means nothing: absolute sds
+        return f"posterior sd {p.posterior_sd:.3g} {p.unit} vs prior {p.prior_sd:.3g} {p.unit}"
     return f"posterior sd {100 * p.posterior_sd_rel:.3g}% vs prior {100 * p.prior_sd_rel:.3g}%"
 
 

@@ -142,9 +142,19 @@ class CalibrationProblem:
         The runs of each experiment.
     names : sequence of str, optional
         Parameters to calibrate (``Spec.name``); default all of the kinds'.
+    effect_params : bool
+        Include parameters that are an effect of the library (``CalibrationParam.effect``,
+        dynamic beta); the diagnosis's recalibration leaves them out.
     """
 
-    def __init__(self, experiments: Sequence, runs: Sequence[list], names: Sequence[str] | None = None):
+    def __init__(
+        self,
+        experiments: Sequence,
+        runs: Sequence[list],
+        names: Sequence[str] | None = None,
+        effect_params: bool = True,
+    ):
+        self.effect_params = effect_params
         self.experiments = list(experiments)
         self.runs = [list(r) for r in runs]
         self.kinds = [get_kind(e.kind) for e in self.experiments]
@@ -184,7 +194,10 @@ class CalibrationProblem:
         sd_stated = sd is not None and sd > 0
         in_file = p.where == "sample" or getattr(exp.rig, p.field) is not None
         key, factor = _LAB_KEYS[p.where][p.field]
-        prior_sd = float(sd) if sd_stated else p.default_sd * abs(value)
+        if sd_stated:
+            prior_sd = float(sd)
+        else:  # relative to the stated value; absolute (zero_sd) where that is 0
+            prior_sd = p.default_sd * abs(value) if value != 0 else float(p.zero_sd or p.default_sd)
         return Spec(name, p, idx, value, in_file, prior_sd, sd_stated, key, factor)
 
     def _all_specs(self) -> list[Spec]:
@@ -194,6 +207,8 @@ class CalibrationProblem:
             for p in kind.calibration:
                 if p.needs and not all(any(c in r.data for c in p.needs) for r in self.runs[i]):
                     continue  # e.g. dynamic R without a logged current or resistance
+                if p.effect is not None and not self.effect_params:
+                    continue  # the diagnosis's recalibration: the effect is a candidate
                 if p.where == "sample":
                     if p.field not in specs:
                         specs[p.field] = self._spec(p, tuple(range(len(self.experiments))), p.field)

@@ -120,7 +120,8 @@ class Recalibration:
 
     def __init__(self, problem: Problem, experiment, runs):
         self.problem = problem
-        self.cal = CalibrationProblem([experiment], [runs])
+        # parameters that are an effect (dynamic beta) stay out: the effect is its own candidate
+        self.cal = CalibrationProblem([experiment], [runs], effect_params=False)
         self.specs = self.cal.specs
         self.p = len(self.specs)
         self.lo, self.hi = self.cal.bounds()

@@ -92,6 +92,13 @@ class CalibrationParam:
         Columns of which every run must log at least one for the parameter to be calibrated
         (dynamic R: ``current`` or ``resistance``); without them it stays at its stated
         value. Empty: always calibrated.
+    zero_sd : float or None
+        Prior sd [SI] when the stated value is 0 and the file states no sd (a relative
+        default means nothing there; dynamic beta). Relative sds are then relative to it.
+    effect : str or None
+        The effect-library effect this parameter is (dynamic beta: ``resistance-temperature``).
+        The diagnosis keeps such a parameter out of its recalibration, so the effect stays a
+        candidate of its own.
     """
 
     field: str
@@ -102,6 +109,8 @@ class CalibrationParam:
     pinned_by: str
     positive: bool = True
     needs: tuple[str, ...] = ()
+    zero_sd: float | None = None
+    effect: str | None = None
 
 
 @dataclass(frozen=True)

@@ -81,7 +81,8 @@ def predict(
         heat_loss=rig.heat_loss,
         resistance=rig.resistance,
         ambient=rig.ambient,
-        resistance_tc=mods.resistance_tc,
+        # the rig's stated (or calibrated) beta plus the effect library's, if any
+        resistance_tc=rig.heater_tcr + mods.resistance_tc,
         heat_loss_tc=mods.heat_loss_tc,
         coil_shear_slope=mods.coil_shear_slope,
         method=method,
@@ -92,8 +93,8 @@ def predict(
         # Shift the output, not the held input: continuous in the delay, so fits work.
         disp = np.interp(t - mods.delay, t, disp, left=0.0)
         temp = np.interp(t - mods.delay, t, temp, left=temp[0])
-    # R(T) = R (1 + beta (T - T_a)) as in (2.18) with the effect library's beta; I = V / R(T)
-    resistance = rig.resistance * (1.0 + mods.resistance_tc * (temp - rig.ambient))
+    # R(T) = R (1 + beta (T - T_a)) as in (2.18), beta the rig's plus the effect's; I = V / R(T)
+    resistance = rig.resistance * (1.0 + (rig.heater_tcr + mods.resistance_tc) * (temp - rig.ambient))
     return {"displacement": disp, "temperature": temp, "current": v / resistance, "resistance": resistance}
 
 
@@ -476,6 +477,10 @@ RIG_FIELDS = (
 """Rig fields of the voltage-step test: shown in the report and written by the virtual rig."""
 
 
+HEATER_TCR_SD = 3.8e-3
+"""Default prior sd of beta [1/K] when the file states none: silver's TCR (the coating of
+the thesis's thread), so a coating anywhere from constant to twice silver's is within 2 sd."""
+
 CALIBRATION = (
     CalibrationParam(
         "thermal_mass",
@@ -514,6 +519,19 @@ CALIBRATION = (
         needs=("current", "resistance"),
     ),
     CalibrationParam(
+        "heater_tcr",
+        "rig",
+        "beta",
+        "1/K",
+        0.5,
+        "log the current with the voltage through the pulse (R = V/I rises with T as R (1 + beta dT)), "
+        "or the resistance",
+        positive=False,
+        needs=("current", "resistance"),
+        zero_sd=HEATER_TCR_SD,
+        effect="resistance-temperature",
+    ),
+    CalibrationParam(
         "radial_cte",
         "sample",
         "rho",
@@ -539,8 +557,12 @@ seem to fix C_th and lambda separately on the strength of the sample's stated rh
 R (at ambient) is calibrated only where every run logs ``current_A`` (R = V/I) or
 ``resistance_ohm`` (its default prior sd 5 %, an ohmmeter reading of the actuator): without
 them the heating power V^2/R is one more factor along C_th's unpinned direction, and R stays
-at its stated value. beta of R(T) is not calibrated: the rig has no field for it (it is the
-effect library's ``resistance_tc``, fitted by the diagnosis)."""
+at its stated value. beta of R(T) (``heater_tcr_per_K``, 0 in the thesis) is calibrated under
+the same condition: the current falls as the actuator heats, by beta (T - T_a), and the
+model's T(t) ties that to C_th and lambda. Its stated value is usually 0, so its default prior
+sd is absolute, :data:`HEATER_TCR_SD`. It is the effect library's ``resistance-temperature``
+effect as a parameter, so the diagnosis keeps it out of its recalibration: there the effect
+stays a candidate."""
 
 
 KIND = Kind(
@@ -561,7 +583,7 @@ KIND = Kind(
     x_column="time",
     regimes=regimes,
     shared_inputs=("voltage",),
-    report_rig_fields=RIG_FIELDS,
+    report_rig_fields=(*RIG_FIELDS, "heater_tcr"),
     figures=figures,
     extras_section=extras_section,
     preset=THESIS_TCA,
