@@ -458,3 +458,52 @@ def test_dynamic_resistance_stated_5_percent_off_is_calibrated_back_from_the_cur
     assert r.profile_95[0] <= 40.0 <= r.profile_95[1] and abs(r.value - 40.0) < 0.05
     assert r.pinned and r.stated_sd is None and r.shift_in_stated_sds is None  # default prior
     assert {q.quantity for q in cal.fit} == {"displacement", "current"}
+
+
+def test_dynamic_beta_of_r_t_is_calibrated_from_the_current_and_kept_from_the_diagnosis(tmp_path):
+    """beta of R(T) (issue 10): five virtual-rig pulses (seed 27) made with a heater whose
+    resistance rises by beta = 0.003 /K (stated in the template, left out of the written file,
+    so the file states the thesis's constant R) and a logged current (synthetic: V / R(T) along
+    the true temperature plus 1 mA normal noise, numpy seed 27). beta comes back within its
+    profile interval, narrowed over 3-fold from a prior of 0 +- 3.8e-3 /K (constrained: T
+    itself rests on C_th); without the current it is not
+    calibrated; the diagnosis's recalibration leaves it out (resistance-temperature stays a
+    candidate of its own)."""
+    import pandas as pd
+
+    from tcamlab.calibration.problem import CalibrationProblem
+    from tcamlab.diagnosis.recalibration import Recalibration
+    from tcamlab.kinds import get_kind
+    from tcamlab.kinds.dynamic import HEATER_TCR_SD
+
+    beta = 3e-3
+    template = tmp_path / "dynamic_beta.toml"
+    text = (TEMPLATES / "dynamic.toml").read_text()
+    assert text.count("[rig]\n") == 1
+    template.write_text(text.replace("[rig]\n", f"[rig]\nheater_tcr_per_K = {beta}\n"))
+    res = simulate("dynamic", template, seed=27, out_dir=tmp_path / "sim", n_runs=5)
+    path = res.experiment_path
+    exp = load_experiment(path)
+    assert exp.rig.heater_tcr == 0.0  # the written file states the thesis's constant R
+    assert "heater_tcr" not in [s.name for s in CalibrationProblem([exp], [exp.read_runs()]).specs]
+    rng = np.random.default_rng(27)
+    true_rig = exp.rig.replace(heater_tcr=beta)
+    for run in exp.read_runs():
+        frame = pd.read_csv(run.path)
+        data = pd.DataFrame({"time": frame["time_s"], "voltage": frame["voltage_V"]})
+        temp = get_kind("dynamic").predict(exp.sample, true_rig, data)["temperature"]
+        amps = frame["voltage_V"] / (40.0 * (1.0 + beta * (temp - exp.rig.ambient)))
+        frame["current_A"] = np.round(amps + rng.normal(0.0, 1e-3, len(frame)), 5)
+        frame.to_csv(run.path, index=False)
+    cal = calibrate(path)
+    b = cal.parameter("heater_tcr")
+    assert b.stated == 0.0 and b.prior_sd == pytest.approx(HEATER_TCR_SD)
+    assert b.profile_95[0] <= beta <= b.profile_95[1] and abs(b.value - beta) < 2e-4
+    # the current fixes beta (T - T_a) only; T rests on C_th, so beta is constrained, not pinned,
+    # and the report says what would pin it
+    assert b.identification == "constrained" and 3 * b.posterior_sd < b.prior_sd
+    words = [w for w in cal.identifiability if "beta (posterior sd" in w]
+    assert len(words) == 1 and "1/K vs prior 0.0038 1/K" in words[0] and "logged temperature" in words[0]
+    exp = load_experiment(path)
+    rec = Recalibration(None, exp, exp.read_runs())
+    assert "heater_tcr" not in [s.name for s in rec.specs] and "resistance" in [s.name for s in rec.specs]

@@ -524,8 +524,8 @@ CALIBRATION = (
         "beta",
         "1/K",
         0.5,
-        "log the current with the voltage through the pulse (R = V/I rises with T as R (1 + beta dT)), "
-        "or the resistance",
+        "a logged temperature during the pulse (R = V/I against T then gives beta directly), or "
+        "whatever pins C_th: the current fixes only beta (T - T_a), and the rise rests on C_th",
         positive=False,
         needs=("current", "resistance"),
         zero_sd=HEATER_TCR_SD,
@@ -559,7 +559,8 @@ R (at ambient) is calibrated only where every run logs ``current_A`` (R = V/I) o
 them the heating power V^2/R is one more factor along C_th's unpinned direction, and R stays
 at its stated value. beta of R(T) (``heater_tcr_per_K``, 0 in the thesis) is calibrated under
 the same condition: the current falls as the actuator heats, by beta (T - T_a), and the
-model's T(t) ties that to C_th and lambda. Its stated value is usually 0, so its default prior
+model's T(t) ties that to C_th and lambda, so without a logged temperature beta is only as
+certain as the temperature rise (constrained, about 17 % on the bundled pulse, not pinned). Its stated value is usually 0, so its default prior
 sd is absolute, :data:`HEATER_TCR_SD`. It is the effect library's ``resistance-temperature``
 effect as a parameter, so the diagnosis keeps it out of its recalibration: there the effect
 stays a candidate."""
