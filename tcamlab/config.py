@@ -107,10 +107,18 @@ def _sample_field(key: str):
 _SampleUncertainty = create_model(
     "_SampleUncertainty", __config__=_STRICT, **{key: (float | None, None) for key in SAMPLE_KEYS}
 )
+RUN_TO_RUN_FIELDS = ("twists", "coil_length", "coil_diameter", "fiber_diameter", "fiber_length")
+"""Sample fields a run may depart from the sample by (``[sample.run_to_run]``, relative sds)."""
+MAX_RUN_TO_RUN = 0.1
+"""Largest run-to-run relative sd accepted: beyond 10 % the runs are not one sample."""
+_RunToRun = create_model(
+    "_RunToRun", __config__=_STRICT, **{key: (float | None, None) for key in RUN_TO_RUN_FIELDS}
+)
 _SampleTable = create_model(
     "_SampleTable",
     __config__=_STRICT,
     uncertainty=(_SampleUncertainty | None, None),
+    run_to_run=(_RunToRun | None, None),
     preset=(Literal[tuple(PRESETS)] | None, None),  # type: ignore[valid-type]
     **{key: _sample_field(key) for key in SAMPLE_KEYS},
 )
@@ -202,6 +210,7 @@ _ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
     ("synthetic",): _model_keys(_Synthetic),
     ("sample",): _model_keys(_SampleTable),
     ("sample", "uncertainty"): _model_keys(_SampleUncertainty),
+    ("sample", "run_to_run"): _model_keys(_RunToRun),
     ("rig",): _model_keys(_RigTable),
     ("rig", "uncertainty"): _model_keys(_RigUncertainty),
     ("calibration",): _model_keys(_CalibrationTable),
@@ -312,6 +321,11 @@ class Experiment:
     run_joins : tuple of dict or None
         Each run's second instrument file (``{"file", "columns", "offset_s", "shown"}`` for
         :func:`tcamlab.io.read_run`'s ``join``) or None; empty when no run has one.
+    run_to_run : dict of str to float or None
+        ``[sample.run_to_run]``: the lab's run-to-run reproducibility, relative sds [-] of
+        sample fields (re-mounting a sensor changes its twists and coil length a little);
+        calibration treats each run's departure as a random effect. None: the kind's default
+        (:attr:`tcamlab.kinds.Kind.run_reproducibility`).
     """
 
     path: Path
@@ -331,6 +345,7 @@ class Experiment:
     calibration: CalibratedJoint | None = None
     run_columns: tuple[dict, ...] = ()
     run_joins: tuple[dict | None, ...] = ()
+    run_to_run: dict[str, float] | None = None
 
     @property
     def preset(self) -> str | None:
@@ -560,6 +575,7 @@ def load_experiment(
         calibration=_calibration(doc.calibration, sample, rig, shown),
         run_columns=run_columns,
         run_joins=run_joins,
+        run_to_run=_run_to_run(doc, shown),
     )
 
 
@@ -773,6 +789,7 @@ def _thresholds(doc: _ExperimentFile, shown: str) -> dict[str, float]:
 def _build_sample(doc: _ExperimentFile, shown: str) -> tuple[Sample, dict[str, str]]:
     table = doc.sample.model_dump(exclude_none=True) if doc.sample else {}
     table.pop("uncertainty", None)
+    table.pop("run_to_run", None)
     preset_name = table.pop("preset", None)
     overrides: dict[str, Any] = {}
     for key, value in table.items():
@@ -820,6 +837,22 @@ def _sample_uncertainty(doc: _ExperimentFile, shown: str) -> dict[str, float]:
                 "uncertainties are standard deviations",
             )
         out[si_name] = v * factor
+    return out
+
+
+def _run_to_run(doc: _ExperimentFile, shown: str) -> dict[str, float] | None:
+    """``[sample.run_to_run]`` (relative sds, each in [0, MAX_RUN_TO_RUN]), or None if absent."""
+    if not (doc.sample and doc.sample.run_to_run):
+        return None
+    out: dict[str, float] = {}
+    for key, value in doc.sample.run_to_run.model_dump(exclude_none=True).items():
+        v = _finite(shown, f"sample.run_to_run.{key}", value)
+        if not 0.0 <= v <= MAX_RUN_TO_RUN:
+            raise ConfigError(
+                f"{shown}: sample.run_to_run.{key} = {value!r} is not a relative sd in [0, {MAX_RUN_TO_RUN}]",
+                f"e.g. {key} = 5e-4 (0.05 % between runs); 0 treats the runs as one geometry",
+            )
+        out[key] = v
     return out
 
 

@@ -507,3 +507,37 @@ def test_dynamic_beta_of_r_t_is_calibrated_from_the_current_and_kept_from_the_di
     exp = load_experiment(path)
     rec = Recalibration(None, exp, exp.read_runs())
     assert "heater_tcr" not in [s.name for s in rec.specs] and "resistance" in [s.name for s in rec.specs]
+
+
+def test_run_to_run_reproducibility_is_a_file_key(tmp_path):
+    """[sample.run_to_run] states the lab's reproducibility (relative sds): 0 turns the per-run
+    random effect off and a larger sd shrinks each run's departure less. Bad values and
+    misspelt keys exit with a hint."""
+    from tcamlab.calibration.problem import CalibrationProblem
+    from tcamlab.errors import ConfigError
+
+    res = simulate("sensing", TEMPLATES / "sensing.toml", seed=6, out_dir=tmp_path, scatter={})
+    path = res.experiment_path
+    exp = load_experiment(path)
+    assert exp.run_to_run is None  # not stated: the kind's default (5e-4 each)
+    runs = exp.read_runs()
+    default = CalibrationProblem([exp], [runs]).run_effects
+    assert len(default) == len(runs)
+    text = path.read_text()
+    assert text.count("[sample]\n") == 1
+
+    def with_table(body: str):
+        path.write_text(text.replace("[sample]\n", "[sample.run_to_run]\n" + body + "\n[sample]\n"))
+        return load_experiment(path)
+
+    off = with_table("twists = 0\ncoil_length = 0\n")
+    assert off.run_to_run == {"twists": 0.0, "coil_length": 0.0}
+    assert CalibrationProblem([off], [runs]).run_effects == []
+    loose = with_table("twists = 5e-3\ncoil_length = 5e-3\n")
+    wide = CalibrationProblem([loose], [runs]).run_effects
+    # ten times the sd: each direction's shrink factor 1 - 1/sqrt(1 + s^2) grows
+    assert all(np.all(w[2] > d[2]) for w, d in zip(wide, default))
+    with pytest.raises(ConfigError, match=r"sample.run_to_run.twists = 0.5 is not a relative sd"):
+        with_table("twists = 0.5\n")
+    with pytest.raises(ConfigError, match="twist"):
+        with_table("twist = 1e-3\n")

@@ -320,9 +320,9 @@ class CalibrationProblem:
         """Per run with a random effect: its rows in :meth:`data_residuals`, the orthonormal
         basis U of its whitened effect columns and the shrink factors 1 - 1/sqrt(1 + s^2).
 
-        Each run's sample may depart from the shared one by ``Kind.run_reproducibility``
-        (relative sds; the virtual rig's per-run scatter of twists and coil length is such a
-        departure). Linearised at the stated values (the departures are 1e-3 or less), a run's
+        Each run's sample may depart from the shared one by the experiment's
+        ``[sample.run_to_run]`` (relative sds), else the kind's ``run_reproducibility`` (the
+        virtual rig's per-run scatter of twists and coil length is such a departure). Linearised at the stated values (the departures are 1e-3 or less), a run's
         normalised residuals carry ``G delta`` with ``delta ~ N(0, I)``; minimising
         ``|r - G delta|^2 + |delta|^2`` over ``delta`` leaves ``r^T (I + G G^T)^-1 r``, the
         squared norm of ``(I + G G^T)^-1/2 r = r - U diag(1 - 1/sqrt(1 + s^2)) U^T r``
@@ -332,7 +332,9 @@ class CalibrationProblem:
         """
         out, start = [], 0
         for i, qs in enumerate(self.quantities):
-            scatter = dict(self.kinds[i].run_reproducibility)
+            stated = getattr(self.experiments[i], "run_to_run", None)  # [sample.run_to_run]
+            scatter = dict(self.kinds[i].run_reproducibility if stated is None else stated)
+            scatter = {k: v for k, v in scatter.items() if v > 0}
             for j, run in enumerate(self.runs[i]):
                 n = len(run.data) * len(qs)
                 g = self._effect_columns(i, j, scatter) if scatter else np.zeros((n, 0))
