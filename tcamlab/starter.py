@@ -202,6 +202,13 @@ GUIDE: dict[str, Guide] = {
         "typical",
         0.0038,
     ),
+    "heater_tcr_per_K": Guide(
+        "temperature coefficient beta of the actuator's resistance, R(T) = R (1 + beta dT) [1/K]",
+        "log current_A with the voltage and run tcamlab calibrate, or an oven test of R",
+        "0 (the thesis's constant R); silver's 0.0038 for a silver-coated thread",
+        "optional",
+        0.0,
+    ),
 }
 """Experiment-file key -> :class:`Guide`."""
 
