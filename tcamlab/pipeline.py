@@ -243,13 +243,15 @@ class ReportOutcome:
 def _headline(result) -> dict[str, str]:
     """The index's headline metrics: the primary model's pooled RMSE (with unit) and R²,
     one line per quantity (the rest is in each report)."""
-    from tcamlab.numbers import bare_name, fmt_r2, unit_label, with_unit
+    from tcamlab.numbers import bare_name, fmt_r2, rmse_unit, unit_label, with_unit
 
     lines: dict[str, list[str]] = {"Quantity": [], "RMSE": [], "R²": []}
     for q, block in result.metrics[result.primary].items():
         m = block["pooled"]
         lines["Quantity"].append(bare_name(q))
-        lines["RMSE"].append(with_unit(m["rmse"], unit_label(q)))
+        # as the diagnosis prints them: a load-cell RMSE in mN, a curvature's in 1/m
+        shown, factor = rmse_unit(unit_label(q))
+        lines["RMSE"].append(with_unit(m["rmse"] * factor, shown))
         lines["R²"].append(fmt_r2(m["r2"]))
     return {k: "\n".join(v) for k, v in lines.items()}
 
