@@ -303,3 +303,26 @@ def test_full_run_estimate_from_per_case_times():
     # families without a timing of their own are costed at the kind's median (7 s)
     assert plan["seconds"]["off-library"] == pytest.approx(n["off-library"] * 7.0 / 2)
     assert plan["total_seconds"] == pytest.approx(sum(plan["seconds"].values()))
+
+
+def test_named_or_aliased_counts_honest_aliasing_but_top1_does_not():
+    from tcamlab.benchmark import _acc, named_or_aliased
+
+    base = {"case": "single", "kind": "static", "effects": {"glass-transition": 3.0}, "ranking": []}
+    named = {**base, "verdict": "attributed", "effect": "glass-transition", "aliased_with": []}
+    honest = {**base, "verdict": "miscalibrated", "effect": None, "aliased_with": ["glass-transition"]}
+    other = {
+        **base,
+        "verdict": "miscalibrated",
+        "effect": None,
+        "aliased_with": ["youngs-modulus-temperature"],
+    }
+    wrong = {
+        **base,
+        "verdict": "attributed",
+        "effect": "displacement-drift",
+        "aliased_with": ["glass-transition"],
+    }
+    assert [named_or_aliased(r) for r in (named, honest, other, wrong)] == [True, True, False, False]
+    acc = _acc([named, honest, other, wrong])
+    assert acc["top1"] == 0.25 and acc["named_or_aliased"] == 0.5
