@@ -127,6 +127,17 @@ def test_validate_from_the_file_and_by_kind(tmp_path):
     assert pub["pooled"]["interval95_of_stroke"] < 0.4
     html = (tmp_path / "a" / "selfsensing" / "report.html").read_text()
     assert "published format" in html
+    # the causal EKF is validated beside it (load logged, stated = true parameters): it fuses
+    # the thermal model with R, so its interval is a fraction of the inversion's; measured
+    # 2.0 % against 25.6 % of the 2.05 mm stroke
+    ekf = metrics["extras"]["published_format_by_estimator"]["EKF (causal)"]["pooled"]
+    assert ekf["stroke_mm"] == pytest.approx(pub["pooled"]["stroke_mm"])
+    assert (
+        ekf["interval95_of_stroke"] < 0.1
+        and ekf["interval95_of_stroke"] < pub["pooled"]["interval95_of_stroke"] / 4
+    )
+    assert abs(ekf["mean_error_of_stroke"]) < 0.02
+    assert "selfsensing_run1 (EKF (causal))" in html
 
 
 def test_calibrate_and_diagnose_run_through_the_registry(tmp_path):

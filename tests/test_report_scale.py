@@ -103,6 +103,10 @@ def test_legend_grouping_keeps_at_most_six_entries():
     many = [f"r{i} kind{i}" for i in range(12)]  # nothing groups: merged at the end
     h, out = group_legend_entries(list(range(12)), many)
     assert len(out) == LEGEND_MAX_ENTRIES and out[-1] == "7 more series" and len(h[-1]) == 7
+    # long run names keep only the ends, so the entry fits beside the axes
+    long = [f"selfsensing_run{i} {w}" for i in (1, 2, 3) for w in ("laser", "model", "EKF")]
+    _, out = group_legend_entries(list(range(9)), long)
+    assert out[0] == "laser: selfsensing_run1 … selfsensing_run3 (3 runs, colours left to right)"
 
 
 @pytest.fixture(scope="module")

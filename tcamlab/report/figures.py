@@ -384,7 +384,7 @@ def group_legend_entries(handles, labels, max_entries: int = LEGEND_MAX_ENTRIES)
     An entry's label is read as ``"RUN what"`` (first word: the run). With more
     entries than allowed, entries showing the same ``what`` become one entry whose
     handle is the tuple of theirs (drawn side by side, colours left to right) and
-    whose label names the runs (up to four; else the first and the last); entries without a ``what`` group as
+    whose label names the runs (up to four in 32 characters; else the first and the last); entries without a ``what`` group as
     runs. Groups beyond the limit are merged into one last entry.
 
     Returns
@@ -405,7 +405,9 @@ def group_legend_entries(handles, labels, max_entries: int = LEGEND_MAX_ENTRIES)
             out_l.append(members[0][2])
             continue
         runs = [m[1] for m in members]
-        span = f"{runs[0]} … {runs[-1]}" if len(runs) > 4 else ", ".join(runs)
+        listed = ", ".join(runs)
+        # a long list (many runs, or long run names) keeps only its ends, so the legend fits
+        span = f"{runs[0]} … {runs[-1]}" if len(runs) > 4 or len(listed) > 32 else listed
         out_h.append(tuple(m[0] for m in members))
         out_l.append(f"{what or 'runs'}: {span} ({len(runs)} runs, colours left to right)")
     if len(out_l) > max_entries:
