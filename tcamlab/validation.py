@@ -312,18 +312,37 @@ def _metrics(predictions, variants, quantities) -> dict:
     return out
 
 
+def _own_zeros(kind: Kind, p: RunPrediction, q: str, raw: np.ndarray, rest, primary_zero: float) -> None:
+    """Give every other variant its own nuisance zero: the zero is profiled per model, as in
+    calibration, so a variant referenced to its own rest (the self-sensing EKF, tared at rest
+    like the laser) is not charged the primary model's rest offset. The measurement keeps the
+    primary's zero; the variant's prediction moves by the difference of the two zeros."""
+    for v in kind.variants:
+        if v == kind.primary or q not in p.predicted.get(v, {}):
+            continue
+        own = estimate_zero(raw, p.predicted[v][q], rest).value
+        if np.isfinite(own):
+            p.predicted[v] = {
+                **p.predicted[v],
+                q: np.asarray(p.predicted[v][q], float) + (own - primary_zero),
+            }
+
+
 def _subtract_zeros(kind: Kind, preds: list[RunPrediction]) -> list[str]:
-    """Estimate each run's nuisance zeros with the primary model, subtract them; the notes."""
+    """Estimate each run's nuisance zeros with the primary model, subtract them (every other
+    variant is shifted to its own zero, :func:`_own_zeros`); the notes."""
     sources: dict[str, set] = {}
     for p in preds:
         rest = rest_rows(kind, p.data)
         for q in kind.nuisance_zeros:
             if q not in kind.outputs or q not in p.data:
                 continue
-            est = estimate_zero(p.data[q].to_numpy(float), p.predicted[kind.primary][q], rest)
+            raw = p.data[q].to_numpy(float)
+            est = estimate_zero(raw, p.predicted[kind.primary][q], rest)
             if not np.isfinite(est.value):
                 continue
-            p.data = p.data.assign(**{q: p.data[q].to_numpy(float) - est.value})
+            _own_zeros(kind, p, q, raw, rest, est.value)
+            p.data = p.data.assign(**{q: raw - est.value})
             p.zeros[q] = est
             sources.setdefault(q, set()).add(est.source)
     notes = []
@@ -332,6 +351,7 @@ def _subtract_zeros(kind: Kind, preds: list[RunPrediction]) -> list[str]:
         notes.append(
             f"the zero of {quantity(q).column} was estimated per run ({how}, with the {kind.primary} "
             f"model) and subtracted before the metrics; see the table of nuisance zeros"
+            + ("; each other model is scored after its own zero" if len(kind.variants) > 1 else "")
             + (
                 f" (fewer than {MIN_REST_ROWS} rows at rest: whole-run zeros make those runs' bias 0)"
                 if "whole run" in src
