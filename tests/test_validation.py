@@ -116,3 +116,28 @@ def test_zeros_are_reported_in_metrics_json_and_predictions_csv():
     e = res.predictions[0].predicted["thesis"]["force"] - res.predictions[0].data["force"].to_numpy()
     np.testing.assert_allclose(resid, e, atol=1e-15)
     assert "zero_displacement_mm" not in table  # the encoder is not zeroed on the run
+
+
+def test_every_model_is_scored_after_its_own_nuisance_zero():
+    """A second model whose estimate is referenced to its own rest (the self-sensing EKF) is not
+    charged the primary model's rest offset: the measurement keeps the primary's zero, the
+    other model's prediction moves by the difference of the two zeros."""
+    import pandas as pd
+
+    from tcamlab.kinds import get_kind
+    from tcamlab.validation import RunPrediction, _subtract_zeros
+
+    kind = get_kind("static")
+    primary, other = list(kind.variants)
+    n = 60
+    temp = np.r_[np.full(20, 25.0), np.linspace(25.0, 150.0, n - 20)]
+    truth = 1e-5 * (temp - 25.0)
+    measured = truth + 3e-4  # the laser's zero: 0.3 mm
+    data = pd.DataFrame({"time": np.arange(n, dtype=float), "temperature": temp, "displacement": measured})
+    # the primary is right; the other is right up to a 0.5 mm offset of its own reference
+    p = RunPrediction("run1", data, {primary: {"displacement": truth}, other: {"displacement": truth + 5e-4}})
+    _subtract_zeros(kind, [p])
+    assert p.zeros["displacement"].value == pytest.approx(3e-4)
+    np.testing.assert_allclose(p.data["displacement"], truth, atol=1e-15)
+    # the other model after its own zero: no error left (with the primary's it would be 0.5 mm)
+    np.testing.assert_allclose(p.predicted[other]["displacement"], truth, atol=1e-15)
