@@ -316,7 +316,8 @@ def _own_zeros(kind: Kind, p: RunPrediction, q: str, raw: np.ndarray, rest, prim
     """Give every other variant its own nuisance zero: the zero is profiled per model, as in
     calibration, so a variant referenced to its own rest (the self-sensing EKF, tared at rest
     like the laser) is not charged the primary model's rest offset. The measurement keeps the
-    primary's zero; the variant's prediction moves by the difference of the two zeros."""
+    primary's zero; the variant's prediction moves by the difference of the two zeros. Only
+    for a zero from the rows at rest: a whole-run zero would take each model's bias away."""
     for v in kind.variants:
         if v == kind.primary or q not in p.predicted.get(v, {}):
             continue
@@ -341,7 +342,8 @@ def _subtract_zeros(kind: Kind, preds: list[RunPrediction]) -> list[str]:
             est = estimate_zero(raw, p.predicted[kind.primary][q], rest)
             if not np.isfinite(est.value):
                 continue
-            _own_zeros(kind, p, q, raw, rest, est.value)
+            if "whole run" not in est.source:  # a whole-run zero would hide each model's bias
+                _own_zeros(kind, p, q, raw, rest, est.value)
             p.data = p.data.assign(**{q: raw - est.value})
             p.zeros[q] = est
             sources.setdefault(q, set()).add(est.source)
