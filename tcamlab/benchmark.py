@@ -339,6 +339,12 @@ def _program(kind: str, task: dict) -> dict:
     return {**k.benchmark_program, **{o: task[o] for o in k.program_options if o in task}}
 
 
+def _outside_domain(exc: Exception) -> bool:
+    from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
+
+    return isinstance(exc, (ModelDomainError, ConvergenceError, IntegrationError))
+
+
 def run_task(task: dict) -> dict:
     """Simulate one case in its own temp dir, diagnose it, score against the truth file.
 
@@ -356,6 +362,7 @@ def run_task(task: dict) -> dict:
     t0 = time.perf_counter()
     out = dict(task)
     out["generator"] = GENERATOR
+    stage = "setup"
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
         try:
             template = task.get("template") or (
@@ -366,14 +373,23 @@ def run_task(task: dict) -> dict:
                 extra["noise_scale"] = float(task["noise_scale"])
             lies = ("parameter_error", "noisy_zero", "uncertainty", "parameter_offsets", "offlibrary")
             extra.update({k: task[k] for k in lies if k in task})
+            stage = "simulate"  # a drawn truth the model cannot run is no diagnosis error
             sim = simulate(
                 kind, template, seed=task["seed"], out_dir=tmp, effects=dict(task["effects"]), **extra
             )
+            stage = "diagnose"
             truth = json.loads(Path(sim.truth_path).read_text())
             exp = load_experiment(sim.experiment_path)
             res = diagnose(exp, n_boot=task.get("n_boot", 500), seed=0, workers=1)
         except Exception as exc:  # a failed case is recorded, not fatal
-            out.update({"error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0})
+            out.update(
+                {
+                    "error": f"{type(exc).__name__}: {exc}",
+                    # only a truth outside the model's domain is skipped; any other failure counts
+                    "error_stage": stage if stage != "simulate" or _outside_domain(exc) else "simulate-other",
+                    "seconds": time.perf_counter() - t0,
+                }
+            )
             return out
     d = res.to_dict()
     out.update(
@@ -686,7 +702,13 @@ def _family_confusion(results: list[dict]) -> dict:
 
 
 def score(results: list[dict]) -> dict:
-    """Accuracy tables, false attributions, shrinkage, recovery, pairs, confusion, families."""
+    """Accuracy tables, false attributions, shrinkage, recovery, pairs, confusion, families.
+
+    A case whose virtual rig could not run its drawn truth (``error_stage == "simulate"``,
+    e.g. a G_t slope drawn so steep that G_t' of (2.13) turns non-positive inside the oven
+    program) is left out of every rate and listed under ``skipped``: it is not a diagnosis."""
+    skipped = [r for r in results if r.get("error_stage") == "simulate"]
+    results = [r for r in results if r.get("error_stage") != "simulate"]
     singles = [r for r in results if r["case"] == "single"]
     nulls = [r for r in results if r["case"] == "null"]
     lying = [r for r in results if r["case"] == "null-miscalibrated"]
@@ -717,6 +739,10 @@ def score(results: list[dict]) -> dict:
             if "error" in r
         ],
         "seconds_median": float(np.median([r["seconds"] for r in results])) if results else None,
+        "skipped": [
+            {"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
+            for r in skipped
+        ],
     }
 
 
@@ -1146,6 +1172,9 @@ def markdown(res: BenchmarkResult) -> str:
         lines.append("")
     if s["errors"]:
         lines += ["## Failed cases", ""] + [f"- {e['task']}: {e['error']}" for e in s["errors"]] + [""]
+    if s.get("skipped"):
+        lines += ["## Skipped cases (the virtual rig could not run the drawn truth; not scored)", ""]
+        lines += [f"- {e['task']}: {e['error']}" for e in s["skipped"]] + [""]
     return "\n".join(lines)
 
 

@@ -326,3 +326,22 @@ def test_named_or_aliased_counts_honest_aliasing_but_top1_does_not():
     assert [named_or_aliased(r) for r in (named, honest, other, wrong)] == [True, True, False, False]
     acc = _acc([named, honest, other, wrong])
     assert acc["top1"] == 0.25 and acc["named_or_aliased"] == 0.5
+
+
+def test_a_truth_the_rig_cannot_run_is_skipped_not_scored():
+    """Static calibration-only seed 7003 of the full run: G_t slope drawn 1.24 stated sds steep,
+    so G_t' of (2.13) turns non-positive below the oven's 130 K and the rig cannot simulate it.
+    It is listed as skipped and left out of the rates; an error inside the diagnosis still
+    counts as a miss."""
+    from tcamlab.benchmark import family_tasks, run_task, score
+
+    task = next(t for t in family_tasks("static", ("calibration-only",), seeds=10) if t["seed"] == 7003)
+    r = run_task({**task, "n_boot": 10})
+    assert r["error_stage"] == "simulate" and r["error"].startswith("ModelDomainError")
+    ok = {**task, "verdict": "miscalibrated", "effect": None, "aliased_with": [], "recalibrated": [],
+          "ranking": [], "seconds": 1.0, "parameter_offsets_sd": {"radial_cte": 2.0}}  # fmt: skip
+    broken = {**task, "error": "ValueError: inside the diagnosis", "error_stage": "diagnose", "seconds": 1.0}
+    s = score([r, ok, broken])
+    assert len(s["skipped"]) == 1 and s["skipped"][0]["task"]["seed"] == 7003
+    c = s["families"]["calibration-only"]
+    assert c["n"] == 2 and c["verdicts"] == {"miscalibrated": 1, "error": 1}
