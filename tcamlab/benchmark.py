@@ -70,6 +70,9 @@ __all__ = [
     "calibration_offsets",
     "stated_template",
     "true_effect",
+    "right",
+    "right_candidate",
+    "names_its_parameter",
     "plan_full_run",
 ]
 
@@ -465,6 +468,39 @@ def true_effect(r: dict) -> str:
     return next(iter(r["effects"])) if r["effects"] else "none (null)"
 
 
+def _named(r: dict) -> set[str]:
+    """The parameters a ``miscalibrated`` verdict names (SI field names)."""
+    return {n.rpartition(".")[2] for n in r.get("recalibrated") or []}
+
+
+def names_its_parameter(r: dict) -> bool:
+    """``miscalibrated`` naming a parameter whose error the true effect's term *is*
+    (:attr:`tcamlab.effects.Effect.generalises`: the sensor-to-cable distance error and the
+    calibrated d1; the sensor's ambient offset and R0). The two are one physical fact in two
+    words, and naming the parameter with its value and interval is the right diagnosis."""
+    truth = true_effect(r)
+    if "error" in r or r.get("verdict") != "miscalibrated" or truth == "none (null)":
+        return False
+    try:
+        own = set(get_effect(truth, r["kind"]).generalises)
+    except Exception:  # an unknown name (a pair, a retired effect) has no parameter of its own
+        return False
+    return bool(own & _named(r))
+
+
+def right(r: dict) -> bool:
+    """Top-1 right: the true effect named (``attributed`` or first of ``aliased``), or the
+    parameter whose error it is recalibrated (:func:`names_its_parameter`)."""
+    if "error" in r:
+        return False
+    return (r["verdict"] in CONFIDENT and r["effect"] == true_effect(r)) or names_its_parameter(r)
+
+
+def right_candidate(r: dict) -> str:
+    """The candidate behind a right diagnosis (whose shrinkage and parameters are scored)."""
+    return "recalibration" if names_its_parameter(r) else true_effect(r)
+
+
 def named_or_aliased(r: dict) -> bool:
     """The true effect named (top-1), or, under ``miscalibrated`` or ``aliased``, listed among
     what the data cannot tell apart from the verdict (``aliased_with``): an honest answer on
@@ -472,7 +508,7 @@ def named_or_aliased(r: dict) -> bool:
     if "error" in r:
         return False
     truth = true_effect(r)
-    if r["verdict"] in CONFIDENT and r["effect"] == truth:
+    if right(r):
         return True
     return r["verdict"] in ("miscalibrated", "aliased") and truth in (r.get("aliased_with") or [])
 
@@ -489,9 +525,10 @@ def _acc(rows: list[dict]) -> dict:
         if "error" in r:
             continue
         conf = r["verdict"] in CONFIDENT
-        # the named effect (the best single candidate, or the primary of a pair)
-        top1 += int(conf and r["effect"] == truth)
-        top3 += int(conf and truth in r["ranking"][:3])
+        # the named effect (the best single candidate, or the primary of a pair), or the
+        # parameter whose error the effect is
+        top1 += int(right(r))
+        top3 += int(right(r) or (conf and truth in r["ranking"][:3]))
     honest = sum(named_or_aliased(r) for r in rows)
     return {"n": n, "top1": top1 / n, "top3": top3 / n, "named_or_aliased": honest / n}
 
@@ -525,20 +562,20 @@ def _right_cases(singles: list[dict]):
     shrink, recov = [], defaultdict(list)
     by_s = defaultdict(lambda: {"shrinkage": [], "attainable": [], "fraction_closed": []})
     for r in singles:
-        truth = next(iter(r["effects"]))
-        if "error" in r or r["verdict"] not in CONFIDENT or r["effect"] != truth:
+        if not right(r):
             continue
-        shrink.append(r["shrinkage"][truth])
+        truth, cand = true_effect(r), right_candidate(r)
+        shrink.append(r["shrinkage"][cand])
         cell = by_s[str(_strength(r))]
-        cell["shrinkage"].append(r["shrinkage"][truth])
-        cell["fraction_closed"].append(r.get("fraction_closed", {}).get(truth))
+        cell["shrinkage"].append(r["shrinkage"][cand])
+        cell["fraction_closed"].append(r.get("fraction_closed", {}).get(cand))
         b4 = r.get("heldout_rmse_before_noise")
         if b4 and b4 > 1.0:
             # On withheld data no model beats the noise (RMSE/noise = 1), so a case
             # can shrink by at most 1 - 1/b4.
-            cell["attainable"].append(r["shrinkage"][truth] / (1.0 - 1.0 / b4))
+            cell["attainable"].append(r["shrinkage"][cand] / (1.0 - 1.0 / b4))
         tv = r.get("truth_values", {}).get(truth, {})
-        fv = r.get("fitted", {}).get(truth, {})
+        fv = r.get("fitted", {}).get(cand, {})
         for f, v in tv.items():
             if f in fv and isinstance(v, float) and v != 0 and fv[f] is not None:
                 recov[f"{r['kind']}/{truth}"].append(abs(fv[f] - v) / abs(v))
@@ -623,8 +660,7 @@ def _moved(r: dict) -> set[str]:
 
 
 def _named_moved(r: dict) -> bool:
-    named = {n.rpartition(".")[2] for n in r.get("recalibrated") or []}
-    return r.get("verdict") == "miscalibrated" and bool(named & _moved(r))
+    return r.get("verdict") == "miscalibrated" and bool(_named(r) & _moved(r))
 
 
 def _rate(k: int, n: int):

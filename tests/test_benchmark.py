@@ -345,3 +345,31 @@ def test_a_truth_the_rig_cannot_run_is_skipped_not_scored():
     assert len(s["skipped"]) == 1 and s["skipped"][0]["task"]["seed"] == 7003
     c = s["families"]["calibration-only"]
     assert c["n"] == 2 and c["verdicts"] == {"miscalibrated": 1, "error": 1}
+
+
+def test_miscalibrated_naming_the_parameter_an_effect_is_counts_as_right():
+    # sensor-offset-error *is* an error of the calibrated d1 (Effect.generalises): naming
+    # d1 recalibrated is the right diagnosis; naming another parameter is not
+    from tcamlab.benchmark import _acc, names_its_parameter, right, right_candidate
+
+    base = {
+        "case": "single",
+        "kind": "curvature",
+        "effects": {"sensor-offset-error": 3.0},
+        "ranking": ["recalibration", "camera-placement"],
+        "aliased_with": [],
+        "effect": None,
+        "verdict": "miscalibrated",
+    }
+    d1 = {**base, "recalibrated": ["sensor_offset"]}
+    e = {**base, "recalibrated": ["youngs_modulus"]}
+    # an effect that is no parameter's error (camera placement) is not rescued by recalibration
+    cam = {**base, "effects": {"camera-placement": 3.0}, "recalibrated": ["sensor_offset"]}
+    attributed = {**base, "verdict": "attributed", "effect": "sensor-offset-error", "recalibrated": []}
+    assert [names_its_parameter(r) for r in (d1, e, cam, attributed)] == [True, False, False, False]
+    assert [right(r) for r in (d1, e, cam, attributed)] == [True, False, False, True]
+    assert right_candidate(d1) == "recalibration" and right_candidate(attributed) == "sensor-offset-error"
+    assert _acc([d1, e, cam, attributed])["top1"] == 0.5
+    # a null case is never right by a parameter
+    null = {**base, "effects": {}, "recalibrated": ["sensor_offset"]}
+    assert not names_its_parameter(null)
