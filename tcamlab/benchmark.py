@@ -156,8 +156,13 @@ def make_tasks(
     effects=None,
     lies: bool = False,
     families=("effect-only", "null"),
+    conditions: int = 1,
 ) -> list[dict]:
     """Task dicts (case, kind, effects {name: strength}, seed).
+
+    ``conditions`` 2 makes every case a two-condition experiment (its runs alternate between
+    the stated condition and the kind's second, :data:`tcamlab.rig.CONDITIONS`: the
+    experiment each aliased verdict names); only kinds that have a second condition run.
 
     ``families`` (:data:`FAMILIES`) picks the families; the default is the
     effect-only and null cases of the earlier benchmark. ``lies`` adds, per
@@ -172,7 +177,7 @@ def make_tasks(
 
         raise ConfigError(f"unknown benchmark family {unknown[0]!r}", hint="families: " + ", ".join(FAMILIES))
     tasks = []
-    kinds = BENCHMARK_KINDS if kinds is None else kinds
+    kinds = _condition_kinds(kinds, conditions)
     strengths = (3.0,) if quick else STRENGTHS
     n_seeds = min(2, max(int(seeds), 1)) if quick else max(int(seeds), 1)
     for kind in kinds:
@@ -203,7 +208,27 @@ def make_tasks(
                         }
                     )
         tasks += family_tasks(kind, families, quick=quick, seeds=seeds, effects=effects)
-    return tasks
+    return [{**t, "conditions": conditions} for t in tasks] if conditions != 1 else tasks
+
+
+def _condition_kinds(kinds, conditions: int) -> tuple:
+    """The kinds a benchmark of ``conditions`` runs (two: those with a second condition)."""
+    from tcamlab.errors import ConfigError
+    from tcamlab.rig import CONDITIONS
+
+    if conditions not in (1, 2):
+        raise ConfigError(f"conditions must be 1 or 2, got {conditions!r}")
+    if conditions == 1:
+        return tuple(BENCHMARK_KINDS if kinds is None else kinds)
+    if kinds is None:
+        return tuple(k for k in BENCHMARK_KINDS if k in CONDITIONS)
+    lacking = [k for k in kinds if k not in CONDITIONS]
+    if lacking:
+        raise ConfigError(
+            f"the {lacking[0]} rig has no second condition",
+            hint="--conditions 2 runs " + ", ".join(f"{k} ({v})" for k, v in CONDITIONS.items()),
+        )
+    return tuple(kinds)
 
 
 def family_seeds(quick: bool, seeds: int) -> int:
@@ -374,7 +399,14 @@ def run_task(task: dict) -> dict:
             extra = _program(kind, task)
             if "noise_scale" in task:
                 extra["noise_scale"] = float(task["noise_scale"])
-            lies = ("parameter_error", "noisy_zero", "uncertainty", "parameter_offsets", "offlibrary")
+            lies = (
+                "parameter_error",
+                "noisy_zero",
+                "uncertainty",
+                "parameter_offsets",
+                "offlibrary",
+                "conditions",
+            )
             extra.update({k: task[k] for k in lies if k in task})
             stage = "simulate"  # a drawn truth the model cannot run is no diagnosis error
             sim = simulate(
@@ -873,6 +905,7 @@ def run_benchmark(
     tasks=None,
     lies: bool = False,
     families=None,
+    conditions: int = 1,
 ) -> BenchmarkResult:
     """Run the withheld-effect benchmark and write benchmark.json, benchmark.md and a report.
 
@@ -898,13 +931,21 @@ def run_benchmark(
         ``null_miscalibrated``.
     families : sequence of str, optional
         The families to run (:data:`FAMILIES`); default all of them.
+    conditions : {1, 2}
+        2: two-condition experiments (:func:`make_tasks`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if tasks is None:
         families = FAMILIES if families is None else tuple(families)
         tasks = make_tasks(
-            quick=quick, seeds=seeds, kinds=kinds, effects=effects, lies=lies, families=families
+            quick=quick,
+            seeds=seeds,
+            kinds=kinds,
+            effects=effects,
+            lies=lies,
+            families=families,
+            conditions=conditions,
         )
     t0 = time.perf_counter()
     results = execute_tasks(tasks, scheduler, workers)
@@ -919,6 +960,7 @@ def run_benchmark(
         "strengths": [3.0] if quick else list(STRENGTHS),
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
         **({"lies": True} if lies else {}),
+        "conditions": max((int(t.get("conditions", 1)) for t in tasks), default=1),
         "families": list(families)
         if families is not None
         else sorted({CASE_FAMILY[t["case"]] for t in tasks}),
@@ -1154,6 +1196,21 @@ def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]
     return tabs
 
 
+def _design_lines(settings: dict) -> list[str]:
+    """The experiment design of a two-condition run, in words (nothing for one condition)."""
+    if int(settings.get("conditions", 1)) < 2:
+        return []
+    from tcamlab.rig import CONDITIONS
+
+    return [
+        "Design: **two conditions**. Each experiment's runs alternate between the stated "
+        "condition and a second one ("
+        + "; ".join(f"{k}: {v}" for k, v in CONDITIONS.items())
+        + "), the experiment an aliased verdict names.",
+        "",
+    ]
+
+
 def markdown(res: BenchmarkResult) -> str:
     """Markdown tables of a benchmark, ready to paste into a README."""
     s = res.scores
@@ -1165,6 +1222,7 @@ def markdown(res: BenchmarkResult) -> str:
         f"wall time {res.settings.get('wall_seconds', 0):.0f} s; median "
         f"{_fmt(s['seconds_median'])} s per case.",
         "",
+        *_design_lines(res.settings),
         f"Median held-out RMSE shrinkage where the attribution is right: "
         f"{_fmt(s['median_shrinkage_when_right'], True)} ({s['n_right']} cases); median "
         f"fraction of the gap above the noise floor closed: "

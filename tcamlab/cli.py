@@ -573,6 +573,13 @@ def simulate(
     noisy_zero: bool = typer.Option(
         False, "--noisy-zero", help="Zero each run on one noisy reading instead of the averaged tare."
     ),
+    conditions: int = typer.Option(
+        1,
+        "--conditions",
+        metavar="[1|2]",
+        help="2: alternate the runs between the stated condition and a second one "
+        "(static: 1.5 x the load, logged as load_N; dynamic: 0.8 x the voltage).",
+    ),
     force: bool = typer.Option(
         False, "--force", help="Replace files that exist (default: refuse and write nothing)."
     ),
@@ -602,6 +609,7 @@ def simulate(
         oven=oven,
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
+        conditions=conditions,
         force=force,
     )
     typer.echo(f"wrote {res.experiment_path} and {len(res.run_paths)} runs")
@@ -825,6 +833,13 @@ def benchmark_diagnose(
         help="Only this family (repeatable): effect-only, null, calibration-only, realistic, "
         "off-library, null-noisy-zero. Default: all.",
     ),
+    conditions: int = typer.Option(
+        1,
+        "--conditions",
+        metavar="[1|2]",
+        help="2: two-condition experiments (static: a second load; dynamic: a second voltage); "
+        "only those kinds run.",
+    ),
 ):
     """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
 
@@ -846,6 +861,7 @@ def benchmark_diagnose(
         seeds=seeds,
         lies=lies,
         families=family or None,
+        conditions=conditions,
     )
     _print_scores(res.scores)
     plan = res.settings.get("full_run_estimate") or {}

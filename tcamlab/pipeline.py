@@ -590,6 +590,7 @@ def simulate_experiment(
     oven: str = "heating",
     parameter_error: float = 0.0,
     noisy_zero: bool = False,
+    conditions: int = 1,
     force: bool = False,
 ):
     """Virtual rig: write ``out_dir/{experiments,raw,truth}/`` for one simulated experiment.
@@ -601,7 +602,9 @@ def simulate_experiment(
     ``scatter`` are dicts or ``NAME=NUMBER`` strings (the CLI's repeated
     options): effect strengths in noise RMS, relative scatter of Sample/Rig
     fields. ``parameter_error`` and ``noisy_zero`` make the rig lie like a
-    real lab (:func:`tcamlab.rig.simulate`). Returns :class:`tcamlab.rig.SimulationResult`.
+    real lab (:func:`tcamlab.rig.simulate`); ``conditions`` 2 alternates the runs between
+    the stated condition and the kind's second (:data:`tcamlab.rig.CONDITIONS`). Returns
+    :class:`tcamlab.rig.SimulationResult`.
     """
     from tcamlab import rig
     from tcamlab.templates import resolve_template
@@ -623,6 +626,7 @@ def simulate_experiment(
         effects=effects,
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
+        conditions=conditions,
     )
     template = resolve_template(experiment)
     _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force)
@@ -640,6 +644,7 @@ def simulate_experiment(
         command=command,
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
+        conditions=conditions,
     )
 
 
@@ -718,11 +723,15 @@ def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, **options):
 
     ``kinds`` (default :data:`tcamlab.benchmark.BENCHMARK_KINDS`) are checked first, so a typo
     fails before minutes of simulation; ``options`` are ``quick``, ``scheduler``, ``workers``,
-    ``seeds``, ``lies``.
+    ``seeds``, ``lies``, ``families``, ``conditions``.
     """
     from tcamlab.benchmark import BENCHMARK_KINDS, run_benchmark
+    from tcamlab.rig import CONDITIONS
 
-    kinds = tuple(kinds) if kinds else BENCHMARK_KINDS
+    default = BENCHMARK_KINDS
+    if options.get("conditions", 1) == 2:  # the kinds that have a second condition
+        default = tuple(k for k in BENCHMARK_KINDS if k in CONDITIONS)
+    kinds = tuple(kinds) if kinds else default
     for k in kinds:
         _check_kind(k, "--kind")
     _check_effects(effects or (), kinds)

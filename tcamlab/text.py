@@ -97,6 +97,7 @@ def simulate_command(
     effects: Mapping[str, float] | None = None,
     parameter_error: float = 0.0,
     noisy_zero: bool = False,
+    conditions: int = 1,
 ) -> str:
     """The simulate command line recorded in experiment and truth files (defaults left out)."""
     options = [
@@ -107,6 +108,7 @@ def simulate_command(
         ("--name", name),
         ("--noise-scale", None if noise_scale == 1.0 else repr(float(noise_scale))),
         ("--oven", None if oven == "heating" else oven),
+        ("--conditions", None if conditions == 1 else int(conditions)),
         ("--parameter-error", _number(parameter_error) if parameter_error else None),
         ("--noisy-zero", bool(noisy_zero)),
     ]

@@ -373,3 +373,14 @@ def test_miscalibrated_naming_the_parameter_an_effect_is_counts_as_right():
     # a null case is never right by a parameter
     null = {**base, "effects": {}, "recalibrated": ["sensor_offset"]}
     assert not names_its_parameter(null)
+
+
+def test_two_condition_tasks_run_only_the_kinds_that_have_a_second_condition():
+    from tcamlab.errors import ConfigError
+
+    tasks = benchmark.make_tasks(quick=True, conditions=2, families=("effect-only", "calibration-only"))
+    assert {t["kind"] for t in tasks} == {"static", "dynamic"}
+    assert all(t["conditions"] == 2 for t in tasks)
+    assert all("conditions" not in t for t in benchmark.make_tasks(quick=True))
+    with pytest.raises(ConfigError, match="no second condition"):
+        benchmark.make_tasks(quick=True, conditions=2, kinds=("sensing",))

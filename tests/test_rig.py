@@ -433,3 +433,51 @@ def test_effects_that_cannot_act_together_are_a_config_error(tmp_path):
             out_dir=tmp_path,
             effects={"displacement-drift+displacement-drift": 1.0},
         )
+
+
+# --- two-condition experiments ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["static", "dynamic"])
+def test_two_conditions_alternate_and_the_model_still_fits_within_noise(tmp_path, kind):
+    from tcamlab.kinds.dynamic import SECOND_VOLTAGE_FACTOR
+    from tcamlab.kinds.static import SECOND_LOAD_FACTOR
+
+    res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=3, out_dir=tmp_path, conditions=2, n_runs=3)
+    exp = load_experiment(res.experiment_path)
+    runs = exp.read_runs()
+    if kind == "static":
+        loads = [float(r.data["load"].iloc[0]) for r in runs]
+        expected = [exp.rig.force, exp.rig.force * SECOND_LOAD_FACTOR, exp.rig.force]
+        assert loads == pytest.approx(expected, rel=1e-5)
+        assert "load_N" in Path(res.run_paths[1]).read_text().splitlines()[0]
+    else:
+        peaks = [float(r.data["voltage"].max()) for r in runs]
+        assert peaks == pytest.approx(
+            [exp.rig.voltage, exp.rig.voltage * SECOND_VOLTAGE_FACTOR, exp.rig.voltage]
+        )
+    # the thesis model, given each run's logged condition, fits every run to within noise
+    sd = rig.noise_sd(kind, exp.sample, true_rig(kind, exp))
+    for q, r in residuals(kind, exp).items():
+        assert 0.7 < math.sqrt(np.mean(r**2)) / sd[q] < 1.5, q
+    assert "--conditions 2" in json.loads(Path(res.truth_path).read_text())["command"]
+
+
+def test_a_static_run_logged_at_the_rig_load_predicts_as_the_rig_load():
+    import pandas as pd
+
+    exp = template("static")
+    frame = pd.DataFrame({"temperature": np.linspace(25.0, 120.0, 12)})
+    base = predict("static", exp.sample, exp.rig, frame)["displacement"]
+    same = predict("static", exp.sample, exp.rig, frame.assign(load=exp.rig.force))["displacement"]
+    heavier = predict("static", exp.sample, exp.rig, frame.assign(load=2 * exp.rig.force))["displacement"]
+    np.testing.assert_allclose(same, base, rtol=0, atol=1e-15)
+    # a heavier load changes the contraction with temperature (f11 F of (2.9) scales with it)
+    assert np.max(np.abs(heavier - base)) > 1e-6
+
+
+def test_a_kind_without_a_second_condition_refuses_two(tmp_path):
+    with pytest.raises(ConfigError, match="no second condition"):
+        rig.simulate("curvature", TEMPLATES / "curvature.toml", seed=1, out_dir=tmp_path, conditions=2)
+    with pytest.raises(ConfigError, match="1 or 2"):
+        rig.simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path, conditions=3)

@@ -105,7 +105,7 @@ def between_run_spread(problem: Problem, base_res) -> dict:
     n = {len(d) for d in frames}
     if len(n) != 1:
         return {"available": False, "reason": "runs differ in length"}
-    for c in problem.k.shared_inputs:
+    for c in (c for c in problem.k.shared_inputs if all(c in d for d in frames)):
         X = np.vstack([d[c].to_numpy(float) for d in frames])
         span = float(np.ptp(X)) or 1.0
         if np.max(np.abs(X - X.mean(axis=0))) > 0.02 * span:

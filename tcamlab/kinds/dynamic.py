@@ -403,7 +403,14 @@ def _fmt_cov(x) -> str:
 # --- virtual rig ---------------------------------------------------------------------------
 
 
-def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+SECOND_VOLTAGE_FACTOR = 0.8
+"""The second condition of a two-condition experiment (:data:`tcamlab.kinds.CONDITIONS`): the
+step at 0.8 x the stated voltage (0.64 x the power). A temperature rise that scales with V^2
+tells a resistance or heat loss that changes with temperature, or a coil that softens with
+it, from a constant C_th, lambda or G_t slope set wrong."""
+
+
+def protocol(rig: Rig, rng: np.random.Generator, *, condition: int | None = None) -> pd.DataFrame:
     """The exact voltage step of one run.
 
     Parameters
@@ -412,6 +419,8 @@ def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
         ``voltage`` [V] and ``pulse`` [s] of the step.
     rng : numpy.random.Generator
         Draws the timing jitter of each sample (:data:`TIMING_JITTER_PROB`).
+    condition : {None, 0, 1}
+        1: the step at :data:`SECOND_VOLTAGE_FACTOR` times the stated voltage.
 
     Returns
     -------
@@ -427,7 +436,8 @@ def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
     nominal = np.arange(n) / DYNAMIC_RATE_HZ
     # The pulse is on the nominal grid; the 1e-9 s keeps float steps off its edges.
     on = (nominal >= PULSE_START_S - 1e-9) & (nominal < PULSE_START_S + rig.pulse - 1e-9)
-    volt = np.where(on, round(float(rig.voltage), 3), 0.0)
+    level = float(rig.voltage) * (SECOND_VOLTAGE_FACTOR if condition else 1.0)
+    volt = np.where(on, round(level, 3), 0.0)
     return pd.DataFrame({"time": ms / 1000.0, "voltage": volt})
 
 
@@ -601,7 +611,7 @@ KIND = Kind(
     # C_th, lambda and b: the template states the thesis's sds
     benchmark_uncertainty={},
     benchmark_pairs=(("response-delay", "convective-heat-loss"),),
-    program_options=(),
+    program_options=("condition",),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,

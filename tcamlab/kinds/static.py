@@ -52,7 +52,8 @@ def predict(
     sample, rig :
         Sample and rig (load, ambient = reference temperature) [SI].
     data : DataFrame
-        ``temperature`` [degC], optional ``time`` [s].
+        ``temperature`` [degC], optional ``time`` [s] and ``load`` [N] (the hanging
+        weight of each row, logged where runs are made at several loads; else the rig's).
     mods : Mods
         Effect terms (shear_slope_extra, coil_shear_slope, youngs_modulus_slope, glass_*, lag_tau,
         drift).
@@ -74,9 +75,10 @@ def predict(
         strain = dT + mods.glass_gain * above
         safe = np.where(np.abs(dT) > 1e-12, dT, 1.0)
         kw["radial_cte"] = np.where(np.abs(dT) > 1e-12, sample.radial_cte * strain / safe, sample.radial_cte)
+    force = data["load"].to_numpy(float) if "load" in data else rig.force
     delta = _static.displacement(
         dT,
-        rig.force,
+        force,
         youngs_modulus_slope=mods.youngs_modulus_slope,
         coil_shear_slope=mods.coil_shear_slope,
         **kw,
@@ -144,23 +146,35 @@ def figures(result) -> list[Figure]:
 # --- virtual rig ---------------------------------------------------------------------------
 
 
-def protocol(rig: Rig, rng: np.random.Generator, *, oven: str = "heating") -> pd.DataFrame:
+SECOND_LOAD_FACTOR = 1.5
+"""The second condition of a two-condition experiment (:data:`tcamlab.kinds.CONDITIONS`): the
+oven program at 1.5 x the stated load, logged as ``load_N``. The coil's compliance terms
+(f11 F) scale with the load and the torque terms do not, so G(T) of the coil, E(T) and the
+calibrated rho and G_t slope act differently at the two loads (thesis 2.9-2.13)."""
+
+
+def protocol(
+    rig: Rig, rng: np.random.Generator, *, oven: str = "heating", condition: int | None = None
+) -> pd.DataFrame:
     """The exact oven program of one run.
 
     Parameters
     ----------
     rig : Rig
-        Unused (the oven program does not depend on the rig).
+        ``load`` [kg]: logged per row (``load`` [N]) when ``condition`` is given.
     rng : numpy.random.Generator
         Draws the regulation error of each step, N(0, :data:`OVEN_REGULATION_SD_C`).
     oven : {"heating", "heat-cool"}
         Oven program (:data:`OVEN_PROGRAMS`).
+    condition : {None, 0, 1}
+        None: the stated load, not logged. 0 or 1: the stated load or
+        :data:`SECOND_LOAD_FACTOR` times it, logged.
 
     Returns
     -------
     pandas.DataFrame
         ``time`` [s] (one reading per dwell), ``temperature`` [degC] (the
-        actual oven temperature: set point + regulation error).
+        actual oven temperature: set point + regulation error), ``load`` [N] with a condition.
     """
     steps = np.asarray(OVEN_STEPS_C)
     if oven == "heat-cool":
@@ -168,11 +182,15 @@ def protocol(rig: Rig, rng: np.random.Generator, *, oven: str = "heating") -> pd
     elif oven != "heating":
         raise ConfigError(f"unknown oven program {oven!r}", hint="one of " + ", ".join(OVEN_PROGRAMS))
     temp = steps + rng.normal(0.0, OVEN_REGULATION_SD_C, steps.size)
-    return pd.DataFrame({"time": np.arange(steps.size) * OVEN_DWELL_S, "temperature": temp})
+    out = pd.DataFrame({"time": np.arange(steps.size) * OVEN_DWELL_S, "temperature": temp})
+    if condition is not None:
+        out["load"] = rig.force * (SECOND_LOAD_FACTOR if condition else 1.0)
+    return out
 
 
 def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
-    """The model's exact inputs: the oven program itself (``time`` [s], ``temperature`` [degC])."""
+    """The model's exact inputs: the oven program itself (``time`` [s], ``temperature`` [degC],
+    ``load`` [N] of a two-condition run)."""
     return proto.copy()
 
 
@@ -199,6 +217,8 @@ def measure(
         np.asarray(outputs["displacement"], float), rng, noise_scale, noisy_zero=noisy_zero
     )
     out = pd.DataFrame({"time": inputs["time"].to_numpy(float), "temperature": temp, "displacement": disp})
+    if "load" in inputs:  # a known hanging weight: logged exactly
+        out.insert(2, "load", inputs["load"].to_numpy(float))
     out.attrs["zero_error"] = {"displacement": zero}
     return out
 
@@ -238,7 +258,7 @@ KIND = Kind(
     description="static oven test (thesis section 2.5.1): displacement against temperature, "
     "constant-G model (2.12) and G(T) model (2.13)",
     required_columns=("temperature_C", "displacement_mm"),
-    optional_columns=("time_s",),
+    optional_columns=("time_s", "load_N"),
     min_rows=3,
     inputs=("temperature",),
     outputs=("displacement",),
@@ -250,13 +270,13 @@ KIND = Kind(
     validation_extras=no_extras,
     x_column="temperature",
     regimes=regimes,
-    shared_inputs=("temperature",),
+    shared_inputs=("temperature", "load"),
     report_rig_fields=("load", "ambient"),
     figures=figures,
     extras_section=no_section,
     preset=THESIS_TCA,
-    logged_columns=("time", "temperature", "displacement"),
-    decimals={"time_s": 0, "temperature_C": 1, "displacement_mm": 3},
+    logged_columns=("time", "temperature", "load", "displacement"),
+    decimals={"time_s": 0, "temperature_C": 1, "load_N": 6, "displacement_mm": 3},
     written_rig_fields=("load", "ambient"),
     hidden_rig_fields=(),
     default_runs=3,
@@ -271,7 +291,7 @@ KIND = Kind(
         ("glass-transition", "displacement-drift"),
         ("oven-thermal-lag", "youngs-modulus-temperature"),
     ),
-    program_options=("oven",),
+    program_options=("oven", "condition"),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,

@@ -170,6 +170,7 @@ from tcamlab.rig.writers import GENERATOR, SYNTHETIC_NOTE, experiment_doc, forma
 from tcamlab.text import public_command, simulate_command
 
 __all__ = [
+    "CONDITIONS",
     "SimulationResult",
     "simulate",
     "noise_sd",
@@ -242,6 +243,7 @@ class _Plan:
     name: str
     out: Path
     program: dict[str, Any]
+    conditions: int
     command: str
     true_sample: Sample
     true_rig: Rig
@@ -277,6 +279,7 @@ def simulate(
     uncertainty: Mapping[str, Any] | None = None,
     noisy_zero: bool = False,
     offlibrary: Mapping[str, float] | None = None,
+    conditions: int = 1,
 ) -> SimulationResult:
     """Simulate an experiment of one rig kind and write it like a lab would.
 
@@ -319,6 +322,10 @@ def simulate(
         Zero each run on one noisy reading, not the averaged tare; zero errors go to the truth.
     offlibrary : mapping, optional
         {form: strength} of :mod:`tcamlab.rig.offlibrary`, applied after the effects (truth: ``offlibrary``).
+    conditions : {1, 2}
+        2: runs alternate between the stated condition and the kind's second one (run 1, 3, ...
+        the stated; static: a second load, dynamic: a second voltage; :data:`CONDITIONS`), the
+        experiment that tells a parameter error from an effect that acts differently there.
 
     Returns
     -------
@@ -327,7 +334,19 @@ def simulate(
     """
     lies = _lies(parameter_error, parameter_offsets, uncertainty, noisy_zero)
     plan = _plan(
-        kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven, lies
+        kind,
+        template,
+        seed,
+        out_dir,
+        effects,
+        n_runs,
+        scatter,
+        noise_scale,
+        name,
+        command,
+        oven,
+        lies,
+        conditions,
     )
     runs = _draw_runs(plan)
     sd = _strength_floor(plan)
@@ -354,11 +373,35 @@ def _lies(parameter_error, parameter_offsets, uncertainty, noisy_zero) -> dict[s
     }
 
 
+CONDITIONS = {"static": "a second load (1.5 x, logged as load_N)", "dynamic": "a second voltage (0.8 x)"}
+"""The second condition of each kind that has one (``simulate(conditions=2)``)."""
+
+
 def _plan(
-    kind, template, seed, out_dir, effects, n_runs, scatter, noise_scale, name, command, oven, lies
+    kind,
+    template,
+    seed,
+    out_dir,
+    effects,
+    n_runs,
+    scatter,
+    noise_scale,
+    name,
+    command,
+    oven,
+    lies,
+    conditions=1,
 ) -> _Plan:
     """Check the arguments of :func:`simulate` and settle its defaults."""
     get_kind(kind)
+    if conditions not in (1, 2):
+        raise ConfigError(f"conditions must be 1 or 2, got {conditions!r}")
+    if conditions == 2 and kind not in CONDITIONS:
+        raise ConfigError(
+            f"the {kind} rig has no second condition",
+            hint="conditions = 1, or a kind with one: "
+            + "; ".join(f"{k}: {v}" for k, v in CONDITIONS.items()),
+        )
     if isinstance(template, tconfig.Experiment):
         exp, template_arg = template, template.path
     else:
@@ -388,6 +431,7 @@ def _plan(
             effects=strengths,
             parameter_error=lies["parameter_error"],
             noisy_zero=lies["noisy_zero"],
+            conditions=conditions,
             **program,
         )
     true_sample, true_rig, true_parameters = _true_parameters(kind, exp, int(seed), lies)
@@ -402,6 +446,7 @@ def _plan(
         name=name,
         out=Path(out_dir),
         program=program,
+        conditions=int(conditions),
         command=command,
         true_sample=true_sample,
         true_rig=true_rig,
@@ -431,7 +476,8 @@ def _draw_runs(plan: _Plan) -> list[_Run]:
     """
     rngs = [np.random.default_rng([plan.seed, k]) for k in range(plan.n_runs)]
     # The program is the lab's: commanded from the stated rig.
-    protos = [protocol(plan.kind, plan.exp.rig, rng, **plan.program) for rng in rngs]
+    conds = [{"condition": k % plan.conditions} if plan.conditions > 1 else {} for k in range(plan.n_runs)]
+    protos = [protocol(plan.kind, plan.exp.rig, rng, **plan.program, **c) for rng, c in zip(rngs, conds)]
     trues = [scattered(plan.kind, plan.true_sample, plan.true_rig, plan.scatter, rng) for rng in rngs]
     return [_Run(rng, p, s, r) for rng, p, (s, r) in zip(rngs, protos, trues)]
 

@@ -60,12 +60,13 @@ def format_csv(kind: str, logged: pd.DataFrame) -> str:
     Parameters
     ----------
     kind : str
-        Rig kind (:attr:`tcamlab.kinds.Kind.logged_columns`, ``decimals``).
+        Rig kind (:attr:`tcamlab.kinds.Kind.logged_columns` present in ``logged``, ``decimals``).
     logged : pandas.DataFrame
         The logged columns [SI, internal names].
     """
     k = get_kind(kind)
-    canon = tio.internal_to_canonical(logged[list(k.logged_columns)])
+    # optional logged columns (a two-condition run's load) are written where the run has them
+    canon = tio.internal_to_canonical(logged[[c for c in k.logged_columns if c in logged]])
     cols = []
     for name in canon.columns:
         dec = k.decimals[name]
