@@ -11,7 +11,9 @@ so there is one implementation of each physical term.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -177,6 +179,11 @@ class Effect:
         error this effect's term *is* (e.g. a sensor-to-cable distance error and the
         calibrated d1): the diagnosis holds them at their stated values while it fits
         the effect, so the two are not fitted as one degenerate direction.
+    as_parameter : callable or None
+        ``as_parameter(stated, value, rig) -> true value`` of the (one) generalised
+        parameter when the effect's parameter is ``value`` [SI]: when such an effect explains
+        the gap, the diagnosis reports that parameter as ``miscalibrated`` (it is a wrong
+        parameter, not missing physics) with this value.
     """
 
     name: str
@@ -187,6 +194,7 @@ class Effect:
     separate_by: str
     fixed: dict = field(default_factory=dict)
     generalises: tuple[str, ...] = ()
+    as_parameter: Callable[[float, float, Any], float] | None = None
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -205,10 +213,31 @@ class Effect:
         return base.replace(**changes)
 
 
-def _e(name, kind, params, cause, source, separate_by, fixed=None, generalises=()):
+def _e(name, kind, params, cause, source, separate_by, fixed=None, generalises=(), as_parameter=None):
     return Effect(
-        name, kind, tuple(params), cause, source, separate_by, dict(fixed or {}), tuple(generalises)
+        name,
+        kind,
+        tuple(params),
+        cause,
+        source,
+        separate_by,
+        dict(fixed or {}),
+        tuple(generalises),
+        as_parameter,
     )
+
+
+def _offset_added(stated: float, value: float, rig) -> float:
+    """d1 of a sensor sitting ``value`` [m] further from the cable than stated."""
+    return stated + value
+
+
+def _r0_warmed(stated: float, value: float, rig) -> float:
+    """R0 of a silver sensor ``value`` [K] warmer than when R0 was measured (the sensing
+    model's silver TCR: R read / (1 + TCR dT) against R0 is R read against R0 (1 + TCR dT))."""
+    from tcamlab.params import SILVER_TCR
+
+    return stated * (1.0 + SILVER_TCR * value)
 
 
 EFFECTS: dict[tuple[str, str], Effect] = {
@@ -331,6 +360,7 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             "measure R0 right before the run, or log temperature",
             None,
             ("initial_resistance",),
+            _r0_warmed,
         ),
         _e(
             "stiffening-spring",
@@ -367,6 +397,7 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             "section the robot and measure d1, or bend it to a known curvature",
             None,
             ("sensor_offset",),
+            _offset_added,
         ),
         # -- self-sensing powered run (h-ssmodel) --------------------------------------
         _e(

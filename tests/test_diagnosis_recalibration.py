@@ -254,3 +254,51 @@ def test_an_effect_that_is_a_calibrated_parameter_is_fitted_with_it_held(tmp_pat
     lo, hi = c.parameters["offset_error"]["ci95"]
     assert 0 < lo <= true <= hi, (lo, true, hi)
     assert c.fraction_closed > 0.8
+
+
+def test_an_effect_that_is_a_parameter_error_is_reported_as_that_parameter_miscalibrated(tmp_path):
+    # d1 stated 9 mm, truly 3 stated sds (0.9 mm) closer: recalibration under the 0.3 mm prior
+    # stops short, the sensor-offset-error effect (d1's own error) explains the gap, and the
+    # verdict names d1 miscalibrated, with the effect's value as d1, not physics
+    exp = _simulate(
+        tmp_path,
+        "curvature",
+        21,
+        parameter_offsets={"sensor_offset": -3.0},
+        uncertainty={"sensor_offset": 0.3e-3, "youngs_modulus": 0.345e9},
+    )
+    res = diagnose(exp, n_boot=200)
+    d = res.to_dict()
+    assert d["verdict"] in ("miscalibrated", "none"), d["reason"]
+    if d["verdict"] == "miscalibrated":
+        assert "sensor_offset" in d["recalibration"]["named"]
+        assert d["effect"] is None
+        p = d["recalibration"]["parameters"]["sensor_offset"]
+        assert p["value"] < p["stated"]
+
+
+def test_parameter_entry_converts_the_effect_value_to_the_parameter():
+    from types import SimpleNamespace
+
+    from tcamlab.diagnosis.verdict import parameter_entry
+    from tcamlab.effects import get_effect
+    from tcamlab.params import SILVER_TCR
+
+    spec = SimpleNamespace(
+        name="initial_resistance",
+        param=SimpleNamespace(field="initial_resistance"),
+        u0=float(np.log(10.0)),
+        sd_u=0.05,
+        to_u=lambda v: float(np.log(v)),
+    )
+    c = SimpleNamespace(
+        recalibrated={
+            "initial_resistance": {"symbol": "R0", "stated": 10.0, "stated_sd": 0.5, "unit": "ohm"}
+        },
+        parameters={"temperature_offset": {"value": 2.0, "ci95": [1.0, 3.0]}},
+    )
+    e = parameter_entry(get_effect("ambient-temperature", "sensing"), c, SimpleNamespace(specs=[spec]), None)
+    assert e["value"] == pytest.approx(10.0 * (1 + 2.0 * SILVER_TCR))
+    assert e["ci95"] == pytest.approx([10.0 * (1 + SILVER_TCR), 10.0 * (1 + 3.0 * SILVER_TCR)])
+    assert e["shift_in_stated_sds"] == pytest.approx(10.0 * 2.0 * SILVER_TCR / 0.5)
+    assert e["via_effect"] == "ambient-temperature"

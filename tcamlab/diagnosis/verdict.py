@@ -32,6 +32,8 @@ __all__ = [
     "stands_in",
     "pair_verdict",
     "pct",
+    "parameter_entry",
+    "as_miscalibration",
 ]
 
 
@@ -387,7 +389,64 @@ def decide(
     separate = _separate_by(ranking, v, effect, aliased)
     best_fit = fits.get(best.effect) if best is not None else None
     recalibration = _recalibration_summary(ranking, v, aliased)
+    own = _parameter_effect(v, effect, combination, effects)
+    if own is not None:
+        v, reason, recalibration = as_miscalibration(own, best, rec, problem.rig, reason)
+        effect = None
     return Decision(v, effect, aliased, reason, combination, best, best_fit, separate, recalibration)
+
+
+def _parameter_effect(v: str, effect, combination, effects):
+    """The named single effect when its term is a calibrated parameter's error
+    (:attr:`tcamlab.effects.Effect.as_parameter`), else None."""
+    if v not in ("attributed", "aliased") or combination is not None or effect is None:
+        return None
+    e = next((x for x in effects if x.name == effect), None)
+    ok = e is not None and e.as_parameter is not None and len(e.generalises) == 1 and len(e.params) == 1
+    return e if ok else None
+
+
+def parameter_entry(effect, c: CandidateResult, rec, rig) -> dict:
+    """The generalised parameter as the effect's fit puts it: value, interval and shifts [SI]."""
+    name = effect.generalises[0]
+    spec = next(s for s in rec.specs if s.param.field == name)
+    base = dict(c.recalibrated[spec.name])
+    fitted = c.parameters[effect.params[0].field]
+    value = float(effect.as_parameter(base["stated"], fitted["value"], rig))
+    lo, hi = sorted(float(effect.as_parameter(base["stated"], x, rig)) for x in fitted["ci95"])
+    sd = base.get("stated_sd")
+    base.update(
+        value=value,
+        ci95=[lo, hi],
+        shift_in_stated_sds=(value - base["stated"]) / sd if sd else None,
+        shift_in_prior_sds=float((spec.to_u(value) - spec.u0) / spec.sd_u),
+        via_effect=effect.name,
+    )
+    return base
+
+
+def as_miscalibration(effect, c: CandidateResult, rec, rig, reason: str):
+    """(``miscalibrated``, reason, recalibration summary) for an effect whose term is a calibrated
+    parameter's error: the gap is that parameter, off by more than recalibration under its
+    stated uncertainty moves it, not missing physics."""
+    name = next(s.name for s in rec.specs if s.param.field == effect.generalises[0])
+    entry = parameter_entry(effect, c, rec, rig)
+    words = (
+        f"the gap is a wrong {entry['symbol']}, not missing physics: {effect.name} is an error "
+        f"of the calibrated {name} itself, and fitted as one it puts "
+        f"{describe_parameter(name, entry)}, further than recalibration under the stated "
+        f"uncertainty moves it; {reason}"
+    )
+    summary = {
+        "parameters": {**(c.recalibrated or {}), name: entry},
+        "named": [name],
+        "plausible": c.recalibration_plausible,
+        "fraction_closed": c.fraction_closed,
+        "shrinkage": c.shrinkage,
+        "shrinkage_ci95": c.shrinkage_ci95,
+        "via_effect": effect.name,
+    }
+    return "miscalibrated", words, summary
 
 
 def _separate_by(ranking, v: str, effect, aliased) -> dict:
