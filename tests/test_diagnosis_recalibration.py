@@ -260,21 +260,62 @@ def test_an_effect_that_is_a_parameter_error_is_reported_as_that_parameter_misca
     # d1 stated 9 mm, truly 3 stated sds (0.9 mm) closer: recalibration under the 0.3 mm prior
     # stops short, the sensor-offset-error effect (d1's own error) explains the gap, and the
     # verdict names d1 miscalibrated, with the effect's value as d1, not physics
-    exp = _simulate(
-        tmp_path,
+    from tcamlab.benchmark import stated_template
+
+    sim = rig.simulate(
         "curvature",
-        21,
+        stated_template("curvature"),
+        seed=31,
+        out_dir=tmp_path,
         parameter_offsets={"sensor_offset": -3.0},
-        uncertainty={"sensor_offset": 0.3e-3, "youngs_modulus": 0.345e9},
     )
-    res = diagnose(exp, n_boot=200)
-    d = res.to_dict()
-    assert d["verdict"] in ("miscalibrated", "none"), d["reason"]
-    if d["verdict"] == "miscalibrated":
-        assert "sensor_offset" in d["recalibration"]["named"]
-        assert d["effect"] is None
-        p = d["recalibration"]["parameters"]["sensor_offset"]
-        assert p["value"] < p["stated"]
+    d = diagnose(load_experiment(sim.experiment_path), n_boot=200).to_dict()
+    assert d["verdict"] == "miscalibrated", d["reason"]
+    assert d["effect"] is None and "sensor_offset" in d["recalibration"]["named"]
+    p = d["recalibration"]["parameters"]["sensor_offset"]
+    assert p["value"] < p["stated"]
+
+
+def test_as_miscalibration_words_and_summary():
+    from types import SimpleNamespace
+
+    from tcamlab.diagnosis.verdict import as_miscalibration
+    from tcamlab.effects import get_effect
+
+    spec = SimpleNamespace(
+        name="sensor_offset",
+        param=SimpleNamespace(field="sensor_offset"),
+        u0=float(np.log(9e-3)),
+        sd_u=0.3 / 9,
+        to_u=lambda v: float(np.log(v)),
+    )
+    entry = {
+        "symbol": "d1",
+        "stated": 9e-3,
+        "stated_sd": 0.3e-3,
+        "unit": "m",
+        "value": 9e-3,
+        "ci95": [9e-3, 9e-3],
+    }
+    c = SimpleNamespace(
+        recalibrated={"sensor_offset": entry, "youngs_modulus": {"symbol": "E"}},
+        parameters={"offset_error": {"value": -0.9e-3, "ci95": [-1.2e-3, -0.6e-3]}},
+        recalibration_plausible=True,
+        fraction_closed=0.99,
+        shrinkage=0.8,
+        shrinkage_ci95=[0.7, 0.85],
+    )
+    effect = get_effect("sensor-offset-error", "curvature")
+    v, words, summary = as_miscalibration(effect, c, SimpleNamespace(specs=[spec]), None, "it closes 99 %")
+    assert v == "miscalibrated" and summary["named"] == ["sensor_offset"]
+    p = summary["parameters"]["sensor_offset"]
+    assert p["value"] == pytest.approx(8.1e-3) and p["ci95"] == pytest.approx([7.8e-3, 8.4e-3])
+    assert p["shift_in_stated_sds"] == pytest.approx(-3.0)
+    assert (
+        summary["via_effect"] == "sensor-offset-error"
+        and "E" == summary["parameters"]["youngs_modulus"]["symbol"]
+    )
+    assert "not missing physics" in words and words.endswith("it closes 99 %")
 
 
 def test_parameter_entry_converts_the_effect_value_to_the_parameter():
