@@ -433,6 +433,13 @@ def run_task(task: dict) -> dict:
             "effect": d["effect"],
             "aliased_with": d["aliased_with"],
             "recalibrated": (d.get("recalibration") or {}).get("named", []),
+            "recalibrated_aliases": sorted(
+                {
+                    a
+                    for v in ((d.get("recalibration") or {}).get("aliased_parameters") or {}).values()
+                    for a in v
+                }
+            ),
             "ranking": [c["effect"] for c in d["ranking"]],
             "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
             "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
@@ -695,6 +702,13 @@ def _named_moved(r: dict) -> bool:
     return r.get("verdict") == "miscalibrated" and bool(_named(r) & _moved(r))
 
 
+def _named_or_partner_moved(r: dict) -> bool:
+    """``miscalibrated`` naming a moved parameter, or one the verdict says the data fix only
+    together with a named one (``aliased_parameters``)."""
+    partners = {n.rpartition(".")[2] for n in r.get("recalibrated_aliases") or []}
+    return r.get("verdict") == "miscalibrated" and bool((_named(r) | partners) & _moved(r))
+
+
 def _rate(k: int, n: int):
     return k / n if n else None
 
@@ -706,6 +720,7 @@ def _calibration_only(rows: list[dict]) -> dict:
     attributed = sum(r["verdict"] == "attributed" for r in ok)
     confident = sum(r["verdict"] in CONFIDENT for r in ok)
     named = sum(_named_moved(r) for r in ok)
+    with_partners = sum(_named_or_partner_moved(r) for r in ok)
     return {
         "n": len(rows),
         "attributed": attributed,
@@ -713,6 +728,7 @@ def _calibration_only(rows: list[dict]) -> dict:
         "attributed_or_aliased_rate": _rate(confident, len(rows)),
         "miscalibrated_naming_a_moved_parameter": named,
         "miscalibrated_right_rate": _rate(named, len(rows)),
+        "miscalibrated_right_or_partner_rate": _rate(with_partners, len(rows)),
         "verdicts": dict(Counter(r.get("verdict", "error") for r in rows)),
     }
 
@@ -1150,6 +1166,16 @@ def _family_rows(fams: dict) -> list[list[str]]:
                 ">= 80%",
             ]
         )
+        if c.get("miscalibrated_right_or_partner_rate") is not None:
+            rows.append(
+                [
+                    "calibration-only",
+                    "miscalibrated naming a moved parameter or its named partner (r >= 0.9)",
+                    str(c["n"]),
+                    _fmt(c["miscalibrated_right_or_partner_rate"], True),
+                    "-",
+                ]
+            )
     for fam in ("null", "null-noisy-zero"):
         if fam in fams:
             c = fams[fam]

@@ -384,3 +384,20 @@ def test_two_condition_tasks_run_only_the_kinds_that_have_a_second_condition():
     assert all("conditions" not in t for t in benchmark.make_tasks(quick=True))
     with pytest.raises(ConfigError, match="no second condition"):
         benchmark.make_tasks(quick=True, conditions=2, kinds=("sensing",))
+
+
+def test_calibration_only_counts_a_named_partner_apart_from_the_strict_figure():
+    base = {"case": "calibration-only", "kind": "curvature", "effects": {}, "verdict": "miscalibrated"}
+    moved = {"parameter_offsets_sd": {"youngs_modulus": -2.8, "sensor_offset": 0.0}}
+    strict = {**base, **moved, "recalibrated": ["youngs_modulus"], "recalibrated_aliases": []}
+    partner = {
+        **base,
+        **moved,
+        "recalibrated": ["spring_constant"],
+        "recalibrated_aliases": ["youngs_modulus"],
+    }
+    other = {**base, **moved, "recalibrated": ["spring_constant"], "recalibrated_aliases": []}
+    c = benchmark._calibration_only([strict, partner, other])
+    assert c["miscalibrated_naming_a_moved_parameter"] == 1
+    assert c["miscalibrated_right_rate"] == pytest.approx(1 / 3)
+    assert c["miscalibrated_right_or_partner_rate"] == pytest.approx(2 / 3)

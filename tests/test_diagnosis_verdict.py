@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from tcamlab.diagnosis.result import CandidateResult
 from tcamlab.diagnosis.verdict import MIN_FRACTION_CLOSED, verdict
@@ -57,3 +58,34 @@ def test_two_qualifying_candidates_that_fit_alike_are_aliased():
     folds, idx, bn = _boot({"a": 100.0, "b": 100.0})
     res = verdict([_cand("a", 0.8, 0.1), _cand("b", 0.8, 0.1)], True, folds, idx, bn, 2.0, 1.3)
     assert res[:3] == ("aliased", "a", ["b"])
+
+
+def test_parameters_the_data_fix_only_together_are_named_together():
+    import numpy as np
+
+    from tcamlab.diagnosis.recalibration import ALIAS_CORRELATION, correlations
+    from tcamlab.diagnosis.verdict import aliased_parameters, describe_parameter
+
+    cov = np.array([[4.0, -1.9, 0.0], [-1.9, 1.0, 0.0], [0.0, 0.0, 0.0]])
+    r = correlations(cov)
+    assert r[0, 1] == pytest.approx(-0.95) and r[0, 2] == 0.0 and r[2, 2] == 0.0
+    assert abs(r[0, 1]) >= ALIAS_CORRELATION
+    params = {
+        "spring_constant": {
+            "symbol": "S",
+            "value": 19.0,
+            "ci95": [17.0, 21.0],
+            "unit": "N/m",
+            "stated": 14.1,
+            "shift_in_stated_sds": None,
+            "shift_in_prior_sds": 0.7,
+            "aliased_with": {"youngs_modulus": -0.95},
+        },
+        "youngs_modulus": {"aliased_with": {"spring_constant": -0.95}},
+        "sensor_offset": {"aliased_with": {}},
+    }
+    assert aliased_parameters(params, ["spring_constant", "sensor_offset"]) == {
+        "spring_constant": ["youngs_modulus"]
+    }
+    words = describe_parameter("spring_constant", params["spring_constant"])
+    assert "only together with youngs_modulus: r = -0.95" in words

@@ -31,6 +31,8 @@ from tcamlab.effects import Effect, Mods
 __all__ = [
     "RECALIBRATION",
     "PLAUSIBLE_LEVEL",
+    "ALIAS_CORRELATION",
+    "correlations",
     "JointFit",
     "Recalibration",
     "effect_box",
@@ -54,6 +56,21 @@ PIN_WEIGHT = 1.0e3
 is held at its stated value in that effect's fit by a prior row this many times its prior's
 weight: the effect's term is that parameter's error, and fitting both would leave one
 direction to two parameters (a singular Jacobian, and a fit that stalls)."""
+
+
+ALIAS_CORRELATION = 0.9
+"""Two recalibrated parameters whose posterior correlation is at least this in magnitude are
+named together: the data fix mainly a combination of them (the curvature rig's E and S both set
+the sensor's stiffness), so a shift of one may be an error of the other."""
+
+
+def correlations(cov: np.ndarray) -> np.ndarray:
+    """The correlation matrix of a covariance (0 where a variance is not positive or finite)."""
+    cov = np.asarray(cov, float)
+    d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = cov / np.outer(d, d)
+    return np.where(np.isfinite(r), r, 0.0)
 
 
 MAX_NFEV_FULL = 80
@@ -256,8 +273,11 @@ class Recalibration:
             return np.full((k, k), np.nan)
 
     def parameters(self, fit: JointFit, cov: np.ndarray, z: float) -> dict:
-        """Each recalibrated parameter: value, interval, stated value and shift in stated sds [SI]."""
+        """Each recalibrated parameter: value, interval, stated value and shift in stated sds [SI],
+        and the parameters the data cannot tell it from (posterior correlation at least
+        :data:`ALIAS_CORRELATION` in magnitude, with the correlation)."""
         out = {}
+        corr = correlations(cov[: self.p, : self.p])
         for m, s in enumerate(self.specs):
             sd_u = math.sqrt(max(cov[m, m], 0.0)) if np.isfinite(cov[m, m]) else float("nan")
             value = s.from_u(float(fit.u[m]))
@@ -273,5 +293,10 @@ class Recalibration:
                 "shift_in_stated_sds": (value - s.stated) / sd if sd else None,
                 "shift_in_prior_sds": float((fit.u[m] - s.u0) / s.sd_u),
                 "pinned_by": s.param.pinned_by,
+                "aliased_with": {
+                    o.name: float(corr[m, j])
+                    for j, o in enumerate(self.specs)
+                    if j != m and abs(corr[m, j]) >= ALIAS_CORRELATION
+                },
             }
         return out

@@ -29,6 +29,7 @@ __all__ = [
     "beats",
     "named_parameters",
     "describe_parameter",
+    "aliased_parameters",
     "stands_in",
     "pair_verdict",
     "pct",
@@ -166,10 +167,24 @@ def describe_parameter(name: str, p: dict) -> str:
     shift = p["shift_in_stated_sds"]
     sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
     lo, hi = p["ci95"]
+    partners = p.get("aliased_with") or {}
+    alias = (
+        " (these data fix it only together with "
+        + ", ".join(f"{o}: r = {r:+.2f}" for o, r in partners.items())
+        + ")"
+        if partners
+        else ""
+    )
     return (
         f"{p['symbol']} ({name}) {p['value']:.4g} {p['unit']} (95 % {lo:.4g} to {hi:.4g}), "
-        f"stated {p['stated']:.4g}: {sds}"
+        f"stated {p['stated']:.4g}: {sds}{alias}"
     )
+
+
+def aliased_parameters(params: dict, named) -> dict:
+    """{named parameter: [parameters the data cannot tell it from]} (posterior correlation,
+    :data:`~tcamlab.diagnosis.recalibration.ALIAS_CORRELATION`)."""
+    return {n: sorted(params[n].get("aliased_with") or {}) for n in named if params[n].get("aliased_with")}
 
 
 def _covers(p: dict) -> bool:
@@ -342,9 +357,11 @@ def _recalibration_summary(ranking, verdict_name: str, aliased) -> dict | None:
     recal = next((c for c in ranking if c.effect == RECALIBRATION), None)
     if recal is None or not (verdict_name == "miscalibrated" or RECALIBRATION in aliased):
         return None
+    named = named_parameters(recal)
     return {
         "parameters": recal.recalibrated,
-        "named": named_parameters(recal),
+        "named": named,
+        "aliased_parameters": aliased_parameters(recal.recalibrated, named),
         "plausible": recal.recalibration_plausible,
         "fraction_closed": recal.fraction_closed,
         "shrinkage": recal.shrinkage,
@@ -440,6 +457,7 @@ def as_miscalibration(effect, c: CandidateResult, rec, rig, reason: str):
     summary = {
         "parameters": {**(c.recalibrated or {}), name: entry},
         "named": [name],
+        "aliased_parameters": {},
         "plausible": c.recalibration_plausible,
         "fraction_closed": c.fraction_closed,
         "shrinkage": c.shrinkage,
