@@ -426,38 +426,32 @@ def run_task(task: dict) -> dict:
                 }
             )
             return out
-    d = res.to_dict()
-    out.update(
-        {
-            "verdict": d["verdict"],
-            "effect": d["effect"],
-            "aliased_with": d["aliased_with"],
-            "recalibrated": (d.get("recalibration") or {}).get("named", []),
-            "recalibrated_aliases": sorted(
-                {
-                    a
-                    for v in ((d.get("recalibration") or {}).get("aliased_parameters") or {}).values()
-                    for a in v
-                }
-            ),
-            "ranking": [c["effect"] for c in d["ranking"]],
-            "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
-            "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
-            "gap_rmse_over_noise": d["gap"]["rmse_over_noise"],
-            "gap_limit": d["gap"]["limit"],
-            "heldout_rmse_before_noise": (
-                d["ranking"][0]["heldout_rmse_before_noise"] if d["ranking"] else None
-            ),
-            "fitted": {
-                c["effect"]: {k: v["value"] for k, v in c["parameters"].items()} for c in d["ranking"]
-            },
-            "truth_values": _truth_values(truth, kind, task["effects"]),
-            **_lies_values(truth),
-            **({"offlibrary_truth": truth["offlibrary"]} if "offlibrary" in truth else {}),
-            "seconds": time.perf_counter() - t0,
-        }
-    )
+    out.update(_digest(res.to_dict(), truth, kind, task))
+    out["seconds"] = time.perf_counter() - t0
     return out
+
+
+def _digest(d: dict, truth: dict, kind: str, task: dict) -> dict:
+    """What the scores need of a diagnosis (``d``: ``DiagnosisResult.to_dict()``) and its truth."""
+    return {
+        "verdict": d["verdict"],
+        "effect": d["effect"],
+        "aliased_with": d["aliased_with"],
+        "recalibrated": (d.get("recalibration") or {}).get("named", []),
+        "recalibrated_aliases": sorted(
+            {a for v in ((d.get("recalibration") or {}).get("aliased_parameters") or {}).values() for a in v}
+        ),
+        "ranking": [c["effect"] for c in d["ranking"]],
+        "shrinkage": {c["effect"]: c["shrinkage"] for c in d["ranking"]},
+        "fraction_closed": {c["effect"]: c["fraction_closed"] for c in d["ranking"]},
+        "gap_rmse_over_noise": d["gap"]["rmse_over_noise"],
+        "gap_limit": d["gap"]["limit"],
+        "heldout_rmse_before_noise": (d["ranking"][0]["heldout_rmse_before_noise"] if d["ranking"] else None),
+        "fitted": {c["effect"]: {k: v["value"] for k, v in c["parameters"].items()} for c in d["ranking"]},
+        "truth_values": _truth_values(truth, kind, task["effects"]),
+        **_lies_values(truth),
+        **({"offlibrary_truth": truth["offlibrary"]} if "offlibrary" in truth else {}),
+    }
 
 
 def _lies_values(truth: dict) -> dict:
