@@ -25,3 +25,17 @@ def test_rescoring_the_stored_full_run_gives_the_tables_readme_cites(tmp_path, m
             ROOT / "bench" / "results" / "benchmark_diagnose_full_2026-11-24_rescored_session12.md"
         ).read_text()
     )
+
+
+def test_analysis_of_the_stored_run_shows_the_curvature_gap_is_whole_and_the_zeroed_kinds_smaller(capsys):
+    mod = runpy.run_path(str(ROOT / "bench" / "analyse_benchmark.py"))
+    results = mod["load"](str(ROOT / "bench" / "results" / "benchmark_diagnose_full_2026-11-24.json.gz"))
+    gaps = mod["baseline_gaps"](results)
+    import numpy as np
+
+    # curvature has no profiled zero: its baseline sees the whole 10x gap (sqrt(101) = 10.05)
+    assert 9.0 < np.median(gaps[("curvature", 10.0)]) < 10.5
+    # static's per-run zero removes the effect's mean: about 6, not 10
+    assert np.median(gaps[("static", 10.0)]) < 7.0
+    ratios = mod["recalibration_ratios"](results)
+    assert abs(np.median(ratios[("single", 3.0)]) - 1.0) < 0.01
