@@ -305,3 +305,33 @@ def test_diagnosis_provenance_has_tool_version_and_input_hashes(glass):
     assert doc.metadata[f"sha256 {info['inputs'][1]['path']}"] == info["inputs"][1]["sha256"]
     # a synthetic experiment's banner says what made it and that withheld options are left out
     assert "withheld options" in doc.synthetic_banner and "seed" in doc.synthetic_banner
+
+
+def test_verdict_text_of_a_parameter_found_as_its_own_error():
+    from tcamlab.report.diagnosis_report import verdict_text
+
+    entry = {
+        "symbol": "d1",
+        "value": 8.1e-3,
+        "ci95": [7.8e-3, 8.4e-3],
+        "unit": "m",
+        "stated": 9e-3,
+        "shift_in_stated_sds": -3.0,
+        "shift_in_prior_sds": -3.0,
+    }
+    result = SimpleNamespace(
+        gap={"rmse_over_noise": 3.2, "limit": 1.2, "level": 0.99},
+        verdict="miscalibrated",
+        ranking=[],
+        effect=None,
+        recalibration={
+            "named": ["sensor_offset"],
+            "parameters": {"sensor_offset": entry},
+            "fraction_closed": 0.99,
+            "via_effect": "sensor-offset-error",
+        },
+    )
+    text = verdict_text(result)
+    assert "a wrong parameter, not missing physics" in text
+    assert "(sensor-offset-error)" in text and "-3.0 stated sds" in text
+    assert "does not move it that far" in text
