@@ -448,6 +448,8 @@ def as_miscalibration(effect, c: CandidateResult, rec, rig, reason: str):
     stated uncertainty moves it, not missing physics."""
     name = next(s.name for s in rec.specs if s.param.field == effect.generalises[0])
     entry = parameter_entry(effect, c, rec, rig)
+    # the ranking, not a comparison of effects, is what matters once it is a parameter
+    reason = reason.replace(", and every other candidate is clearly worse", "")
     words = (
         f"the gap is a wrong {entry['symbol']}, not missing physics: {effect.name} is an error "
         f"of the calibrated {name} itself, and fitted as one it puts "

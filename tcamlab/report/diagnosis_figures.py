@@ -46,7 +46,8 @@ def best_name(result) -> str | None:
     if combo is not None:
         return " + ".join(combo["effects"])
     if result.verdict == "miscalibrated":
-        return "recalibration"
+        via = (getattr(result, "recalibration", None) or {}).get("via_effect")
+        return f"{via} (the parameter's own error)" if via else "recalibration"
     if result.effect is not None and result.verdict != "unexplained":
         return result.effect
     return result.ranking[0].effect if result.ranking else None
@@ -163,7 +164,8 @@ def residual_figure(result, q: str) -> Figure | None:
             if after
             else ""
         )
-        + "; each run's zero profiled out; grey band ±1 noise sd."
+        + ("; each run's zero profiled out" if q in result.gap.get("nuisance_zeros", ()) else "")
+        + "; grey band ±1 noise sd."
     )
     return Figure(fig, caption, alt=caption)
 
