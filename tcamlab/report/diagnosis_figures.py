@@ -53,6 +53,12 @@ def best_name(result) -> str | None:
     return result.ranking[0].effect if result.ranking else None
 
 
+def _zeroed(result) -> tuple:
+    """The quantities whose per-run zero the diagnosis profiled out."""
+    gap = getattr(result, "gap", None)
+    return tuple(gap.get("nuisance_zeros", ())) if gap is not None else ()
+
+
 def _x(result, run: dict):
     """The physical input a run's residuals are drawn against, and its label."""
     if result.kind == "sensing" and "force" in run["measured"]:
@@ -164,7 +170,7 @@ def residual_figure(result, q: str) -> Figure | None:
             if after
             else ""
         )
-        + ("; each run's zero profiled out" if q in result.gap.get("nuisance_zeros", ()) else "")
+        + ("; each run's zero profiled out" if q in _zeroed(result) else "")
         + "; grey band ±1 noise sd."
     )
     return Figure(fig, caption, alt=caption)
