@@ -453,3 +453,12 @@ def test_percent_interval_keeps_distinct_ends_distinct():
 
     # the estimate takes its interval's decimals: 0.26 % beside 0.2 % to 0.3 %, not 0 %
     assert percent_decimals(0.002, 0.003) == 1 and percent_decimals(0.48, 0.60) == 0
+
+
+def test_a_bias_that_is_rounding_of_a_whole_run_zero_shows_as_zero():
+    from tcamlab.report.validation_report import _shown
+
+    assert _shown({"rmse": 0.0114, "bias": -1.823e-17}, "bias") == 0.0
+    # a real bias stays, however small against the RMSE threshold of 1e-9
+    assert _shown({"rmse": 0.0114, "bias": -2.0e-6}, "bias") == -2.0e-6
+    assert _shown({"rmse": 0.0114, "bias": 1e-20}, "rmse") == 0.0114

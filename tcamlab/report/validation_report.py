@@ -117,6 +117,15 @@ def synthetic_banner(experiment) -> str | None:
     return text
 
 
+def _shown(m: dict, key: str):
+    """A metric as the table shows it: a bias below 1e-9 of the RMSE is rounding (a whole-run
+    zero makes the bias 0 by construction), shown as 0, not as -1.8e-17."""
+    v = m[key]
+    if key == "bias" and v is not None and abs(v) <= 1e-9 * abs(m.get("rmse") or 0.0):
+        return 0.0
+    return v
+
+
 def _metrics_table(result) -> Table:
     rows = []
     for variant in result.variants:
@@ -127,7 +136,7 @@ def _metrics_table(result) -> Table:
                         variant + (" (primary)" if variant == result.primary else ""),
                         _quantity_label(q),
                         run,
-                        *(fmt_r2(m[k]) if k == "r2" else m[k] for k in METRIC_NAMES),
+                        *(fmt_r2(m[k]) if k == "r2" else _shown(m, k) for k in METRIC_NAMES),
                         m["n"],
                     ]
                 )
