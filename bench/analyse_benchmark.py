@@ -10,7 +10,7 @@
    the shrinkage target assumes. A strength is the RMS of the raw effect (``rig.strength``);
    the per-run zero the diagnosis profiles out (``Kind.nuisance_zeros``) removes its mean.
 
-    python bench/analyse_benchmark.py bench/results/benchmark_diagnose_full_2026-11-24.json.gz
+    python bench/analyse_benchmark.py bench/reference/benchmark_diagnose_full_2026-11-24.json.gz
 """
 
 from __future__ import annotations

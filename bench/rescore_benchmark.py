@@ -1,10 +1,10 @@
 """Score a stored diagnosis-benchmark run again with the current ``tcamlab.benchmark.score``.
 
-The raw results of a run (``benchmark.json``, gzipped in ``bench/results``) keep every case's
+The raw results of a run (``benchmark.json``, gzipped in ``bench/reference``) keep every case's
 verdict, ranking and per-candidate shrinkage, so a change of the scoring rules (not of the
 diagnosis) can be applied to a run that took 45 minutes without running it again.
 
-    python bench/rescore_benchmark.py bench/results/benchmark_diagnose_full_2026-11-24.json.gz OUT.md
+    python bench/rescore_benchmark.py bench/reference/benchmark_diagnose_full_2026-11-24.json.gz OUT.md
 
 Four static calibration-only cases of the 2026-11-24 full run (seeds 7003, 7005, 7006, 7008)
 failed in the virtual rig, not in the diagnosis (G_t' of (2.13) non-positive inside the oven

@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_rescoring_the_stored_full_run_gives_the_tables_readme_cites(tmp_path, monkeypatch):
     out = tmp_path / "rescored.md"
-    src = ROOT / "bench" / "results" / "benchmark_diagnose_full_2026-11-24.json.gz"
+    src = ROOT / "bench" / "reference" / "benchmark_diagnose_full_2026-11-24.json.gz"
     monkeypatch.setattr(sys, "argv", ["rescore_benchmark.py", str(src), str(out)])
     runpy.run_path(str(ROOT / "bench" / "rescore_benchmark.py"), run_name="__main__")
     text = out.read_text()
@@ -22,14 +22,14 @@ def test_rescoring_the_stored_full_run_gives_the_tables_readme_cites(tmp_path, m
     assert (
         text
         == (
-            ROOT / "bench" / "results" / "benchmark_diagnose_full_2026-11-24_rescored_session12.md"
+            ROOT / "bench" / "reference" / "benchmark_diagnose_full_2026-11-24_rescored_session12.md"
         ).read_text()
     )
 
 
 def test_analysis_of_the_stored_run_shows_the_curvature_gap_is_whole_and_the_zeroed_kinds_smaller(capsys):
     mod = runpy.run_path(str(ROOT / "bench" / "analyse_benchmark.py"))
-    results = mod["load"](str(ROOT / "bench" / "results" / "benchmark_diagnose_full_2026-11-24.json.gz"))
+    results = mod["load"](str(ROOT / "bench" / "reference" / "benchmark_diagnose_full_2026-11-24.json.gz"))
     gaps = mod["baseline_gaps"](results)
     import numpy as np
 
