@@ -70,7 +70,8 @@ def test_columns_inputs_outputs_agree(name):
     assert set(kind.inputs) <= internal | optional
     assert not set(kind.inputs) & set(kind.outputs)
     assert set(kind.tension_outputs) <= set(kind.outputs)
-    assert set(kind.shared_inputs) <= set(kind.inputs)
+    # an operating point may also be set by an optional logged column (a static run's load)
+    assert set(kind.shared_inputs) <= set(kind.inputs) | optional
     assert set(kind.noisy_inputs) <= set(kind.inputs)
     assert kind.x_column in internal | optional
     # the virtual rig writes every required column, with a precision for each
@@ -177,20 +178,28 @@ def test_virtual_rig_parts_agree_with_the_logged_columns(name):
     rig = kind.preset.build_rig().replace(**kind.simulation_rig_defaults)
     assert set(kind.simulation_rig_defaults) <= {f.name for f in dataclasses.fields(rig)}
     assert set(kind.program_options) <= set(inspect.signature(kind.protocol).parameters)
-    proto = kind.protocol(rig, np.random.default_rng(0))
-    inputs = kind.exact_inputs(sample, rig, proto, Mods())
-    assert set(kind.inputs) <= set(inputs.columns)
-    outputs = kind.predict(sample, rig, inputs, **kind.run_options(sample, rig, inputs).options)
-    logged = kind.measure(inputs, outputs, np.random.default_rng(1), 1.0)
-    assert tuple(logged.columns) == kind.logged_columns
-    assert len(logged) == len(proto)
     sd = kind.instrument_sd(1.0)
     assert set(sd) == set(kind.logged_columns) and all(v >= 0 for v in sd.values())
-    # exact chains only: zero noise leaves a noise-free logged column equal to the exact value
-    quiet = kind.measure(inputs, outputs, np.random.default_rng(1), 0.0)
-    for c, v in sd.items():
-        if v == 0:
-            assert np.array_equal(quiet[c].to_numpy(), inputs[c].to_numpy(float)), c
+    required = {tio.VARIABLE_MAP[c][0] for c in kind.required_columns}
+    # the stated condition, and the second one where the kind has it (static: a logged load)
+    conditions = [{}] + ([{"condition": 1}] if "condition" in kind.program_options else [])
+    for cond in conditions:
+        proto = kind.protocol(rig, np.random.default_rng(0), **cond)
+        inputs = kind.exact_inputs(sample, rig, proto, Mods())
+        assert set(kind.inputs) <= set(inputs.columns)
+        outputs = kind.predict(sample, rig, inputs, **kind.run_options(sample, rig, inputs).options)
+        logged = kind.measure(inputs, outputs, np.random.default_rng(1), 1.0)
+        # the kind's logged columns in file order; an optional one only where the run has it
+        assert tuple(logged.columns) == tuple(c for c in kind.logged_columns if c in logged.columns)
+        assert required <= set(logged.columns)
+        assert len(logged) == len(proto)
+        # exact chains only: zero noise leaves a noise-free logged column equal to the exact value
+        quiet = kind.measure(inputs, outputs, np.random.default_rng(1), 0.0)
+        for c, v in sd.items():
+            if v == 0 and c in quiet:
+                assert np.array_equal(quiet[c].to_numpy(), inputs[c].to_numpy(float)), c
+    if kind.name == "static":
+        assert "load" in logged.columns  # the second condition logs its load
 
 
 @pytest.mark.parametrize("name", KIND_NAMES)

@@ -195,10 +195,12 @@ def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_
 
 
 def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
-    """Sd of each logged column's chain [SI]: time exact, thermometer, laser."""
+    """Sd of each logged column's chain [SI]: time exact, thermometer, load (a known weight:
+    exact), laser."""
     return {
         "time": 0.0,
         "temperature": instruments.thermometer_sd(noise_scale),
+        "load": 0.0,
         "displacement": instruments.laser_sd(noise_scale),
     }
 
