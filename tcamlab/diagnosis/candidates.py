@@ -101,7 +101,7 @@ def _candidate_job(job):
         held_z = _held_resid(rec, eff, fit, held) if fit is not None else None
         if held_z is None or any(np.any(z == FAIL_RESIDUAL) for z in held_z):
             # blocks of one run, or a step out of the model's domain: refit on the training rows
-            fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD)
+            fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD, defined_on=held)
             held_z = _held_resid(rec, eff, fit, held)
         fold_vals.append(_fold_values(rec, eff, fit))
         for (_, m), za in zip(held, held_z):
