@@ -401,3 +401,38 @@ def test_calibration_only_counts_a_named_partner_apart_from_the_strict_figure():
     assert c["miscalibrated_naming_a_moved_parameter"] == 1
     assert c["miscalibrated_right_rate"] == pytest.approx(1 / 3)
     assert c["miscalibrated_right_or_partner_rate"] == pytest.approx(2 / 3)
+
+
+def test_top1_where_the_effect_beats_recalibration_on_withheld_runs():
+    from tcamlab.benchmark import SEPARABLE_RATIO, _acc, _family_rows, separable
+
+    base = {"case": "single", "kind": "static", "effects": {"glass-transition": 3.0}, "ranking": []}
+
+    def case(verdict, effect, recal, true):
+        return {
+            **base,
+            "verdict": verdict,
+            "effect": effect,
+            "aliased_with": [],
+            "shrinkage": {"recalibration": recal, "glass-transition": true},
+        }
+
+    # held-out RMSE ratio recalibration / true effect: 0.5 / 0.4 = 1.25 (separable), 1.0 (not)
+    won_right = case("attributed", "glass-transition", 0.5, 0.6)
+    won_missed = case("miscalibrated", None, 0.5, 0.6)
+    tied = case("miscalibrated", None, 0.6, 0.6)
+    just_under = case("miscalibrated", None, 1.0 - 0.4 * (SEPARABLE_RATIO - 0.001), 0.6)
+    failed = {**won_right, "error": "ConvergenceError: x"}
+    assert [separable(r) for r in (won_right, won_missed, tied, just_under, failed)] == [
+        True,
+        True,
+        False,
+        False,
+        False,
+    ]
+    acc = _acc([won_right, won_missed, tied, just_under])
+    assert acc["separable_n"] == 2 and acc["separable_top1"] == 0.5
+    assert acc["top1"] == 0.25
+    rows = _family_rows({"effect-only": {"3.0": acc}, "off-library": {"10.0": acc}})
+    sep = [r for r in rows if "beats recalibration" in r[1]]
+    assert sep[0][2:] == ["2", "0.5", "(proposed) >= 0.9"] and sep[1][-1] == "(proposed) >= 0.8"
