@@ -363,6 +363,47 @@ def test_fold_refits_stay_defined_on_the_withheld_runs_inputs(tmp_path, seed):
     )
     recal = next(c for c in res.ranking if c.effect == RECALIBRATION)
     assert recal.fraction_closed > 0.9
+    if res.verdict == "miscalibrated" and "shear_modulus_slope" in res.recalibration["named"]:
+        # held where G_t' reaches zero at the hottest reading: flagged, its interval not offered
+        slope = res.recalibration["parameters"]["shear_modulus_slope"]
+        assert slope["at_domain_edge"] is True
+        assert "edge of the model's domain" in res.reason
+        from tcamlab.report.diagnosis_report import _miscalibrated_text
+
+        assert "no posterior interval" in _miscalibrated_text(res.recalibration)
+
+
+def test_a_parameter_well_inside_the_domain_is_not_at_its_edge_and_one_at_the_limit_is(tmp_path):
+    from tcamlab.diagnosis.noise import baseline_fit, estimate_noise
+    from tcamlab.diagnosis.problem import Problem
+    from tcamlab.diagnosis.recalibration import EDGE_STEP, Recalibration
+    from tcamlab.effects import Mods
+
+    exp = _simulate(tmp_path, "static", 3, oven="heat-cool")
+    runs = exp.read_runs()
+    problem = Problem(exp, runs)
+    estimate_noise(problem, baseline_fit(problem))
+    rec = Recalibration(problem, exp, runs)
+    assert not any(rec.at_domain_edge(rec.cal.u0, m) for m in range(rec.p))
+    # bisect the G_t slope to the last value where G_t' > 0 at the hottest reading
+    m = next(m for m, s in enumerate(rec.specs) if s.name == "shear_modulus_slope")
+    inside, out = 0.0, 20.0
+    u = np.array(rec.cal.u0, float)
+
+    def at(step):
+        x = u.copy()
+        x[m] += step * rec.cal.sd_u[m]
+        return x
+
+    assert any(rec.outside(i, at(out), Mods()) for i in range(len(runs)))
+    while out - inside > EDGE_STEP / 4:
+        mid = 0.5 * (inside + out)
+        if any(rec.outside(i, at(mid), Mods()) for i in range(len(runs))):
+            out = mid
+        else:
+            inside = mid
+    assert rec.at_domain_edge(at(inside), m)
+    assert not rec.at_domain_edge(at(inside - 10 * EDGE_STEP), m)
 
 
 def test_a_fit_told_to_stay_defined_on_a_run_never_leaves_its_domain(tmp_path):

@@ -35,6 +35,7 @@ __all__ = [
     "pct",
     "parameter_entry",
     "as_miscalibration",
+    "mark_domain_edges",
 ]
 
 
@@ -406,6 +407,7 @@ def decide(
     separate = _separate_by(ranking, v, effect, aliased)
     best_fit = fits.get(best.effect) if best is not None else None
     recalibration = _recalibration_summary(ranking, v, aliased)
+    reason += mark_domain_edges(recalibration, rec, fits)
     own = _parameter_effect(v, effect, combination, effects)
     if own is not None:
         v, reason, recalibration = as_miscalibration(own, best, rec, problem.rig, reason)
@@ -467,6 +469,28 @@ def as_miscalibration(effect, c: CandidateResult, rec, rig, reason: str):
         "via_effect": effect.name,
     }
     return "miscalibrated", words, summary
+
+
+def mark_domain_edges(summary: dict | None, rec, fits) -> str:
+    """Flag each named recalibrated parameter that sits at the model's domain edge
+    (``at_domain_edge`` in ``summary["parameters"]``); the words the reason adds, or ''."""
+    fit = fits.get(RECALIBRATION)
+    if summary is None or summary.get("via_effect") or fit is None or fit.joint is None:
+        return ""
+    index = {s.name: m for m, s in enumerate(rec.specs)}
+    edges = [n for n in summary["named"] if rec.at_domain_edge(fit.joint.u, index[n])]
+    for n in edges:
+        summary["parameters"][n] = {**summary["parameters"][n], "at_domain_edge": True}
+    if not edges:
+        return ""
+    symbols = ", ".join(summary["parameters"][n]["symbol"] for n in edges)
+    one = len(edges) == 1
+    return (
+        f"; {symbols} {'sits' if one else 'sit'} at the edge of the model's domain on these runs (a "
+        f"step beyond, the model has no solution), so {'its interval is' if one else 'their intervals are'} "
+        "not a posterior interval: the recalibration holds the model at a limit, which an effect "
+        "may explain better"
+    )
 
 
 def _separate_by(ranking, v: str, effect, aliased) -> dict:

@@ -105,9 +105,14 @@ def _miscalibrated_text(rec: dict) -> str:
         shift = p["shift_in_stated_sds"]
         sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
         unit, fac = _parameter_unit(name, p["unit"])
+        interval = (
+            "at the edge of the model's domain on these runs, so no posterior interval"
+            if p.get("at_domain_edge")
+            else f"95 % interval {fmt(p['ci95'][0] * fac)} to {fmt(p['ci95'][1] * fac)}"
+        )
         parts.append(
-            f"{p['symbol']} = {fmt(p['value'] * fac)} {unit} (95 % interval {fmt(p['ci95'][0] * fac)} "
-            f"to {fmt(p['ci95'][1] * fac)}; stated {fmt(p['stated'] * fac)}, {sds})"
+            f"{p['symbol']} = {fmt(p['value'] * fac)} {unit} ({interval}; stated "
+            f"{fmt(p['stated'] * fac)}, {sds})"
         )
     if rec.get("via_effect"):
         # the parameter's own error, fitted as an effect (no prior), explained the gap
