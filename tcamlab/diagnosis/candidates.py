@@ -5,7 +5,9 @@ Folds hold out one run each (a single run: contiguous blocks). The baseline
 shrinkage and the share of the gap it closes compare like with like; a
 bootstrap over folds gives their intervals. Each candidate is fitted on all
 rows, then on each fold's training runs by one Gauss-Newton step from that
-fit (:meth:`~tcamlab.diagnosis.recalibration.Recalibration.refit_without`).
+fit (:meth:`~tcamlab.diagnosis.recalibration.Recalibration.refit_without`). A fold
+refitted in full (single-run blocks, or a step out of the domain) must keep the model
+defined on the withheld run's inputs.
 """
 
 from __future__ import annotations
