@@ -69,6 +69,7 @@ __all__ = [
     "family_scores",
     "calibration_offsets",
     "stated_template",
+    "stated_uncertainty",
     "true_effect",
     "right",
     "right_candidate",
@@ -160,8 +161,13 @@ def make_tasks(
     lies: bool = False,
     families=("effect-only", "null"),
     conditions: int = 1,
+    templates=None,
 ) -> list[dict]:
     """Task dicts (case, kind, effects {name: strength}, seed).
+
+    ``templates`` ({kind: experiment file}) benchmarks another sample or rig: that kind's
+    cases simulate from the file's sample, rig and protocol instead of the bundled template,
+    and the lying families state the same relative uncertainty (:func:`stated_uncertainty`).
 
     ``conditions`` 2 makes every case a two-condition experiment (its runs alternate between
     the stated condition and the kind's second, :data:`tcamlab.rig.CONDITIONS`: the
@@ -210,7 +216,11 @@ def make_tasks(
                             "seed": 9000 + seed,
                         }
                     )
-        tasks += family_tasks(kind, families, quick=quick, seeds=seeds, effects=effects)
+        template = (templates or {}).get(kind)
+        tasks += family_tasks(kind, families, quick=quick, seeds=seeds, effects=effects, template=template)
+    tasks = [
+        {**t, "template": str(templates[t["kind"]])} if t["kind"] in (templates or {}) else t for t in tasks
+    ]
     return [{**t, "conditions": conditions} for t in tasks] if conditions != 1 else tasks
 
 
@@ -241,7 +251,9 @@ def family_seeds(quick: bool, seeds: int) -> int:
     return 1 if quick else max(1, math.ceil(int(seeds) / 5))
 
 
-def family_tasks(kind: str, families, *, quick: bool = False, seeds: int = 10, effects=None) -> list[dict]:
+def family_tasks(
+    kind: str, families, *, quick: bool = False, seeds: int = 10, effects=None, template=None
+) -> list[dict]:
     """The lying families' tasks of one kind.
 
     - ``calibration-only``: no effect; one or two stated parameters exactly 1-3
@@ -251,15 +263,16 @@ def family_tasks(kind: str, families, *, quick: bool = False, seeds: int = 10, e
     - ``off-library``: each form of :mod:`tcamlab.rig.offlibrary` at 3x and 10x.
     - ``null-noisy-zero``: no effect, noisy zeros; ``seeds`` cases.
 
-    Every case states :data:`STATED_UNCERTAINTY`. The quick run has one case of each
-    family per kind (the first effect or form, at 3x).
+    Every case states :data:`STATED_UNCERTAINTY` (scaled to ``template``'s values when given:
+    :func:`stated_uncertainty`). The quick run has one case of each family per kind (the
+    first effect or form, at 3x).
     """
     from tcamlab.rig.offlibrary import forms_for
 
     n = family_seeds(quick, seeds)
     n_null = 1 if quick else max(int(seeds), 1)
     strengths = (3.0,) if quick else FAMILY_STRENGTHS
-    stated = {"stated": STATED_UNCERTAINTY[kind]}
+    stated = {"stated": stated_uncertainty(kind, template)}
     names = [e.name for e in effects_for(kind) if effects is None or e.name in effects]
     forms = [f for f in forms_for(kind) if effects is None or f.nearest in effects]
     if quick:
@@ -270,7 +283,7 @@ def family_tasks(kind: str, families, *, quick: bool = False, seeds: int = 10, e
         if fam == "calibration-only":
             for i in range(n_null):
                 seed = base + i
-                offsets = calibration_offsets(kind, seed)
+                offsets = calibration_offsets(kind, seed, template)
                 out.append(
                     {
                         "case": fam,
@@ -319,24 +332,51 @@ def family_tasks(kind: str, families, *, quick: bool = False, seeds: int = 10, e
     return out
 
 
-def stated_template(kind: str):
-    """The kind's template experiment with :data:`STATED_UNCERTAINTY` stated in it."""
+def stated_uncertainty(kind: str, template=None) -> dict[str, dict[str, float]]:
+    """The lying families' stated sds [SI] (:data:`STATED_UNCERTAINTY`) for ``template``
+    (an experiment file of the kind; default the bundled one): the same *relative* sds of
+    that sample's and rig's values, so another sample is benchmarked under the same stated
+    uncertainty (rho 10 %, E 5-10 %, ...)."""
+    st = STATED_UNCERTAINTY[kind]
+    if template is None:
+        return st
+    from tcamlab.config import load_experiment
+
+    ref = load_experiment(template_path(kind), require_runs=False)
+    exp = load_experiment(template, require_runs=False)
+    out = {}
+    for table in ("rig", "sample"):
+        a, b = getattr(ref, table), getattr(exp, table)
+        out[table] = {f: sd * _ratio(getattr(b, f), getattr(a, f)) for f, sd in st[table].items()}
+    return out
+
+
+def _ratio(value, reference) -> float:
+    """|value / reference|, 1 where either is unset or zero (the sd then stays absolute)."""
+    if value is None or reference is None or not reference or not value:
+        return 1.0
+    return abs(float(value) / float(reference))
+
+
+def stated_template(kind: str, template=None):
+    """The kind's template experiment (or ``template``'s) with the lying families' stated sds
+    (:func:`stated_uncertainty`) in it."""
     import dataclasses
 
     from tcamlab.config import load_experiment
 
-    exp = load_experiment(template_path(kind), require_runs=False)
-    st = STATED_UNCERTAINTY[kind]
+    exp = load_experiment(template or template_path(kind), require_runs=False)
+    st = stated_uncertainty(kind, template)
     rig = exp.rig.replace(uncertainty={**exp.rig.uncertainty, **st["rig"]})
     return dataclasses.replace(exp, rig=rig, sample_uncertainty={**exp.sample_uncertainty, **st["sample"]})
 
 
-def calibration_offsets(kind: str, seed: int) -> dict[str, float]:
+def calibration_offsets(kind: str, seed: int, template=None) -> dict[str, float]:
     """{field: offset in stated sds} of a calibration-only case: one or two of the stated
     parameters, |offset| uniform in :data:`CALIBRATION_OFFSET_SD`, random sign (up where
     down would leave a positive parameter under :data:`MIN_POSITIVE_SHARE` of its value)."""
-    exp = stated_template(kind)
-    st = STATED_UNCERTAINTY[kind]
+    exp = stated_template(kind, template)
+    st = stated_uncertainty(kind, template)
     fields = sorted(st["rig"]) + sorted(st["sample"])
     rng = np.random.default_rng([int(seed), 0xCA1])
     k = int(rng.integers(1, min(2, len(fields)) + 1))
@@ -396,9 +436,10 @@ def run_task(task: dict) -> dict:
     stage = "setup"
     with tempfile.TemporaryDirectory(prefix="tcam-bench-") as tmp:
         try:
-            template = task.get("template") or (
-                stated_template(kind) if "stated" in task else template_path(kind)
-            )
+            if "stated" in task:
+                template = stated_template(kind, task.get("template"))
+            else:
+                template = task.get("template") or template_path(kind)
             extra = _program(kind, task)
             if "noise_scale" in task:
                 extra["noise_scale"] = float(task["noise_scale"])
@@ -944,6 +985,7 @@ def run_benchmark(
     lies: bool = False,
     families=None,
     conditions: int = 1,
+    templates=None,
 ) -> BenchmarkResult:
     """Run the withheld-effect benchmark and write benchmark.json, benchmark.md and a report.
 
@@ -971,6 +1013,9 @@ def run_benchmark(
         The families to run (:data:`FAMILIES`); default all of them.
     conditions : {1, 2}
         2: two-condition experiments (:func:`make_tasks`).
+    templates : dict, optional
+        {kind: experiment file}: benchmark that sample and rig instead of the bundled
+        template's (:func:`make_tasks`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -984,6 +1029,7 @@ def run_benchmark(
             lies=lies,
             families=families,
             conditions=conditions,
+            templates=templates,
         )
     t0 = time.perf_counter()
     results = execute_tasks(tasks, scheduler, workers)
@@ -999,6 +1045,7 @@ def run_benchmark(
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
         **({"lies": True} if lies else {}),
         "conditions": max((int(t.get("conditions", 1)) for t in tasks), default=1),
+        **({"templates": {k: str(v) for k, v in templates.items()}} if templates else {}),
         "families": list(families)
         if families is not None
         else sorted({CASE_FAMILY[t["case"]] for t in tasks}),

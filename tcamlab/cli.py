@@ -840,6 +840,13 @@ def benchmark_diagnose(
         help="2: two-condition experiments (static: a second load; dynamic: a second voltage); "
         "only those kinds run.",
     ),
+    template: list[Path] | None = typer.Option(
+        None,
+        "--template",
+        metavar="FILE",
+        help="Benchmark this experiment file's sample and rig instead of its kind's bundled "
+        "template (repeatable, one per kind; default kinds: theirs).",
+    ),
 ):
     """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
 
@@ -862,6 +869,7 @@ def benchmark_diagnose(
         lies=lies,
         families=family or None,
         conditions=conditions,
+        templates=template or None,
     )
     _print_scores(res.scores)
     plan = res.settings.get("full_run_estimate") or {}

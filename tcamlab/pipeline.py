@@ -718,24 +718,52 @@ def _write_diagnosis(result, experiment: Experiment, folder) -> list[Path]:
 # -- benchmark and effects ----------------------------------------------------------------
 
 
-def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, **options):
+def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, templates=None, **options):
     """Withheld-effect benchmark of the diagnosis (:func:`tcamlab.benchmark.run_benchmark`).
 
-    ``kinds`` (default :data:`tcamlab.benchmark.BENCHMARK_KINDS`) are checked first, so a typo
-    fails before minutes of simulation; ``options`` are ``quick``, ``scheduler``, ``workers``,
-    ``seeds``, ``lies``, ``families``, ``conditions``.
+    ``kinds`` (default :data:`tcamlab.benchmark.BENCHMARK_KINDS`, or the kinds of
+    ``templates``) are checked first, so a typo fails before minutes of simulation;
+    ``templates`` are experiment files whose sample and rig replace their kind's bundled
+    template (one per kind); ``options`` are ``quick``, ``scheduler``, ``workers``, ``seeds``,
+    ``lies``, ``families``, ``conditions``.
     """
     from tcamlab.benchmark import BENCHMARK_KINDS, run_benchmark
     from tcamlab.rig import CONDITIONS
 
-    default = BENCHMARK_KINDS
+    by_kind = _benchmark_templates(templates or ())
+    default = tuple(by_kind) or BENCHMARK_KINDS
     if options.get("conditions", 1) == 2:  # the kinds that have a second condition
-        default = tuple(k for k in BENCHMARK_KINDS if k in CONDITIONS)
+        default = tuple(k for k in default if k in CONDITIONS)
     kinds = tuple(kinds) if kinds else default
     for k in kinds:
         _check_kind(k, "--kind")
     _check_effects(effects or (), kinds)
-    return run_benchmark(out_dir, kinds=kinds, effects=list(effects) if effects else None, **options)
+    return run_benchmark(
+        out_dir, kinds=kinds, effects=list(effects) if effects else None, templates=by_kind or None, **options
+    )
+
+
+def _benchmark_templates(paths) -> dict:
+    """{kind: resolved path} of the ``--template`` files: readable experiment files of a
+    benchmarked kind, one per kind."""
+    from tcamlab.benchmark import BENCHMARK_KINDS
+    from tcamlab.config import load_experiment
+
+    out = {}
+    for path in paths:
+        exp = load_experiment(path, require_runs=False)
+        if exp.kind not in BENCHMARK_KINDS:
+            raise ConfigError(
+                f"{path}: kind {exp.kind!r} has no diagnosis benchmark",
+                hint="--template takes an experiment file of kind " + ", ".join(BENCHMARK_KINDS),
+            )
+        if exp.kind in out:
+            raise ConfigError(
+                f"{path}: a second --template of kind {exp.kind!r} (the first: {out[exp.kind]})",
+                hint="give one --template per kind",
+            )
+        out[exp.kind] = Path(path).resolve()
+    return out
 
 
 def _check_effects(effects, kinds) -> None:

@@ -436,3 +436,51 @@ def test_top1_where_the_effect_beats_recalibration_on_withheld_runs():
     rows = _family_rows({"effect-only": {"3.0": acc}, "off-library": {"10.0": acc}})
     sep = [r for r in rows if "beats recalibration" in r[1]]
     assert sep[0][2:] == ["2", "0.5", "(proposed) >= 0.9"] and sep[1][-1] == "(proposed) >= 0.8"
+
+
+def _another(kind):
+    from pathlib import Path
+
+    return Path(__file__).resolve().parents[1] / "bench" / "templates" / f"another_tca_{kind}.toml"
+
+
+def test_another_sample_is_benchmarked_under_the_same_relative_stated_uncertainty():
+    from tcamlab.benchmark import STATED_UNCERTAINTY, stated_template, stated_uncertainty
+
+    assert stated_uncertainty("dynamic") is STATED_UNCERTAINTY["dynamic"]
+    st = stated_uncertainty("static", _another("static"))
+    # rho 7.0e-5 (bundled 8.1e-5, sd 8.1e-6), E 3.0 GPa (3.45, sd 0.1725), slope 0.9 MPa/K (1.11, 0.222)
+    assert st["sample"]["radial_cte"] == pytest.approx(7.0e-6)
+    assert st["sample"]["youngs_modulus"] == pytest.approx(0.15e9)
+    assert st["sample"]["shear_modulus_slope"] == pytest.approx(0.18e6)
+    dyn = stated_uncertainty("dynamic", _another("dynamic"))
+    assert dyn["rig"]["thermal_mass"] == pytest.approx(0.00845 * 0.034 / 0.0266)
+    exp = stated_template("dynamic", _another("dynamic"))
+    assert exp.rig.thermal_mass == pytest.approx(0.034)
+    assert exp.rig.uncertainty["thermal_mass"] == pytest.approx(dyn["rig"]["thermal_mass"])
+
+
+def test_template_tasks_carry_their_file_and_other_kinds_keep_the_bundled_one():
+    tasks = make_tasks(
+        quick=True,
+        seeds=1,
+        kinds=("static", "sensing"),
+        families=("null", "calibration-only"),
+        templates={"static": _another("static")},
+    )
+    static = [t for t in tasks if t["kind"] == "static"]
+    assert static and all(t["template"] == str(_another("static")) for t in static)
+    assert all("template" not in t for t in tasks if t["kind"] == "sensing")
+    cal = next(t for t in static if t["case"] == "calibration-only")
+    assert cal["stated"]["sample"]["youngs_modulus"] == pytest.approx(0.15e9)
+
+
+def test_template_option_errors_name_the_file(tmp_path):
+    from tcamlab.errors import ConfigError
+    from tcamlab.pipeline import benchmark_diagnosis
+    from tcamlab.templates import template_path
+
+    with pytest.raises(ConfigError, match="second --template of kind 'static'"):
+        benchmark_diagnosis(tmp_path, templates=[_another("static"), template_path("static")])
+    with pytest.raises(ConfigError, match="selfsensing.toml: kind 'selfsensing' has no diagnosis benchmark"):
+        benchmark_diagnosis(tmp_path, templates=[template_path("selfsensing")])
