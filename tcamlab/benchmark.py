@@ -1296,12 +1296,19 @@ def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]
 
 
 def _design_lines(settings: dict) -> list[str]:
-    """The experiment design of a two-condition run, in words (nothing for one condition)."""
+    """The experiment design in words: the templates other than the bundled ones, and two
+    conditions (nothing for the bundled templates on one condition)."""
+    out = [
+        f"Sample and rig of the {kind} cases: **{Path(path).name}** (`--template`), under the "
+        "bundled stated uncertainties scaled to its values."
+        for kind, path in (settings.get("templates") or {}).items()
+    ]
+    out += [""] if out else []
     if int(settings.get("conditions", 1)) < 2:
-        return []
+        return out
     from tcamlab.rig import CONDITIONS
 
-    return [
+    return out + [
         "Design: **two conditions**. Each experiment's runs alternate between the stated "
         "condition and a second one ("
         + "; ".join(f"{k}: {v}" for k, v in CONDITIONS.items())

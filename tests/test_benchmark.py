@@ -484,3 +484,11 @@ def test_template_option_errors_name_the_file(tmp_path):
         benchmark_diagnosis(tmp_path, templates=[_another("static"), template_path("static")])
     with pytest.raises(ConfigError, match="selfsensing.toml: kind 'selfsensing' has no diagnosis benchmark"):
         benchmark_diagnosis(tmp_path, templates=[template_path("selfsensing")])
+
+
+def test_the_report_says_which_template_a_kind_was_benchmarked_on():
+    from tcamlab.benchmark import _design_lines
+
+    lines = _design_lines({"templates": {"static": str(_another("static"))}, "conditions": 1})
+    assert lines[0].startswith("Sample and rig of the static cases: **another_tca_static.toml**")
+    assert _design_lines({"conditions": 1}) == []
