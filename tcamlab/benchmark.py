@@ -1392,6 +1392,8 @@ def report_document(res: BenchmarkResult):
                 f"(fraction of the gap above noise closed: "
                 f"{_fmt(s.get('median_fraction_closed_when_right'), True)}); "
                 f"null false-attribution rate: {_fmt(s['null']['rate'], True)}.",
+                # which sample and design (markdown emphasis dropped: the report sets plain text)
+                *(x.replace("**", "").replace("`", "") for x in _design_lines(res.settings) if x),
             ],
         )
     ]

@@ -492,3 +492,16 @@ def test_the_report_says_which_template_a_kind_was_benchmarked_on():
     lines = _design_lines({"templates": {"static": str(_another("static"))}, "conditions": 1})
     assert lines[0].startswith("Sample and rig of the static cases: **another_tca_static.toml**")
     assert _design_lines({"conditions": 1}) == []
+
+
+def test_the_benchmark_report_names_the_template_in_its_summary():
+    from tcamlab.benchmark import BenchmarkResult, report_document, score
+
+    res = BenchmarkResult(
+        scores=score([]),
+        results=[],
+        settings={"templates": {"dynamic": str(_another("dynamic"))}, "conditions": 2, "n_tasks": 0},
+    )
+    summary = report_document(res).sections[0].paragraphs
+    assert any(p.startswith("Sample and rig of the dynamic cases: another_tca_dynamic.toml") for p in summary)
+    assert any(p.startswith("Design: two conditions.") for p in summary)
