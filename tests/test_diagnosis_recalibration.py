@@ -367,6 +367,8 @@ def test_fold_refits_stay_defined_on_the_withheld_runs_inputs(tmp_path, seed):
         # held where G_t' reaches zero at the hottest reading: flagged, its interval not offered
         slope = res.recalibration["parameters"]["shear_modulus_slope"]
         assert slope["at_domain_edge"] is True
+        # the flag is the verdict's; the ranking's recalibration entry is left as fitted
+        assert "at_domain_edge" not in recal.recalibrated["shear_modulus_slope"]
         assert "edge of the model's domain" in res.reason
         from tcamlab.report.diagnosis_report import _miscalibrated_text
 

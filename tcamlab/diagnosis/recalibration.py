@@ -174,7 +174,7 @@ class Recalibration:
             return FAIL_RESIDUAL
         return 0.0
 
-    def at_domain_edge(self, u: np.ndarray, m: int, mods: Mods = Mods()) -> bool:
+    def at_domain_edge(self, u: np.ndarray, m: int) -> bool:
         """Whether parameter m sits at the edge of the model's domain on these runs' inputs:
         a step of :data:`EDGE_STEP` prior sds either way leaves it for some run.
 
@@ -185,7 +185,7 @@ class Recalibration:
         for sgn in (1.0, -1.0):
             x = np.array(u, float)
             x[m] += sgn * EDGE_STEP * self.cal.sd_u[m]
-            if any(self.outside(i, x, mods) for i in range(len(self.problem.frames))):
+            if any(self.outside(i, x, Mods()) for i in range(len(self.problem.frames))):
                 return True
         return False
 

@@ -479,10 +479,12 @@ def mark_domain_edges(summary: dict | None, rec, fits) -> str:
         return ""
     index = {s.name: m for m, s in enumerate(rec.specs)}
     edges = [n for n in summary["named"] if rec.at_domain_edge(fit.joint.u, index[n])]
-    for n in edges:
-        summary["parameters"][n] = {**summary["parameters"][n], "at_domain_edge": True}
     if not edges:
         return ""
+    # a new mapping: the ranking's recalibration entry shares the old one
+    summary["parameters"] = {
+        n: {**p, "at_domain_edge": True} if n in edges else p for n, p in summary["parameters"].items()
+    }
     symbols = ", ".join(summary["parameters"][n]["symbol"] for n in edges)
     one = len(edges) == 1
     return (
