@@ -416,6 +416,29 @@ def _outside_domain(exc: Exception) -> bool:
     return isinstance(exc, (ModelDomainError, ConvergenceError, IntegrationError))
 
 
+def _simulate_case(kind: str, template, task: dict, tmp: str, extra: dict):
+    """Simulate one case: ``(SimulationResult, flipped offsets or None)``.
+
+    A calibration-only draw whose truth the model cannot run on the rig's protocol
+    (static: a G(T) slope 1.2 stated sds up puts G_t' of (2.13) <= 0 below the oven's
+    130 K rise) is a muscle that does not exist, so it is drawn on the other side of the
+    stated value, as :data:`MIN_POSITIVE_SHARE` does for parameters near zero.
+    """
+    from tcamlab.errors import ModelDomainError
+    from tcamlab.rig import simulate
+
+    def run(lies):
+        return simulate(kind, template, seed=task["seed"], out_dir=tmp, effects=dict(task["effects"]), **lies)
+
+    try:
+        return run(extra), None
+    except ModelDomainError:
+        if not task.get("parameter_offsets"):
+            raise
+    flipped = {k: -float(v) for k, v in task["parameter_offsets"].items()}
+    return run({**extra, "parameter_offsets": flipped}), flipped
+
+
 def run_task(task: dict) -> dict:
     """Simulate one case in its own temp dir, diagnose it, score against the truth file.
 
@@ -427,7 +450,6 @@ def run_task(task: dict) -> dict:
     """
     from tcamlab.config import load_experiment
     from tcamlab.diagnosis import diagnose
-    from tcamlab.rig import simulate
 
     kind = task["kind"]
     t0 = time.perf_counter()
@@ -453,9 +475,9 @@ def run_task(task: dict) -> dict:
             )
             extra.update({k: task[k] for k in lies if k in task})
             stage = "simulate"  # a drawn truth the model cannot run is no diagnosis error
-            sim = simulate(
-                kind, template, seed=task["seed"], out_dir=tmp, effects=dict(task["effects"]), **extra
-            )
+            sim, flipped = _simulate_case(kind, template, task, tmp, extra)
+            if flipped:
+                out["parameter_offsets"], out["offsets_flipped"] = flipped, True
             stage = "diagnose"
             truth = json.loads(Path(sim.truth_path).read_text())
             exp = load_experiment(sim.experiment_path)

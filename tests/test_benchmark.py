@@ -186,6 +186,24 @@ def test_calibration_only_case_is_really_off_and_states_its_uncertainty(tmp_path
     assert {k: exp.rig.uncertainty[k] for k in st["rig"]} == pytest.approx(st["rig"])
 
 
+def test_calibration_only_truth_outside_the_model_is_drawn_on_the_other_side():
+    # G(T) slope 1.24 stated sds up makes G_t' of (2.13) <= 0 inside the oven's 130 K rise
+    task = {
+        "case": "calibration-only",
+        "kind": "static",
+        "effects": {},
+        "seed": 7003,
+        "parameter_offsets": {"shear_modulus_slope": 1.24},
+        "stated": benchmark.stated_uncertainty("static"),
+        "n_boot": 50,
+    }
+    r = benchmark.run_task(task)
+    assert "error" not in r, r.get("error")
+    assert r["offsets_flipped"] is True
+    assert r["parameter_offsets"] == {"shear_modulus_slope": -1.24}
+    assert r["parameter_offsets_sd"]["shear_modulus_slope"] == pytest.approx(-1.24, rel=1e-9)
+
+
 def test_null_noisy_zero_case_has_noisy_zeros(tmp_path):
     from tcamlab.rig import simulate
 
