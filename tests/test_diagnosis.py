@@ -52,6 +52,19 @@ def test_withheld_effect_is_attributed(tmp_path, kind, effect, seed):
     assert best.fraction_closed > 0.5
 
 
+def test_slack_cannot_shrink_the_noise_of_a_sensing_null(tmp_path):
+    # Ramped in over the noisy inverted elongation, a negative slack (-0.26 mm) pulled the
+    # rows at rest towards zero and beat recalibration on every withheld run of a null by
+    # 1 % of MSE; slack is >= 0, and with it the null gives initial slack nothing.
+    exp = _simulate(tmp_path, "sensing", {}, 1001)
+    res = diagnose(exp, effects=["initial-slack"], n_boot=100)
+    by = {c.effect: c for c in res.ranking}
+    assert by["initial-slack"].parameters["slack"]["value"] >= 0.0
+    recal = by[diagnosis.RECALIBRATION].heldout_rmse_after
+    assert by["initial-slack"].heldout_rmse_after >= recal * (1 - 1e-4)
+    assert res.verdict == "none"
+
+
 def test_two_effects_at_once_are_both_named(tmp_path):
     # Camera placement and axial compression at 5x each. Alone (stated parameters)
     # neither closes half of the gap; fitted with the recalibrated parameters (d1, S, R0
