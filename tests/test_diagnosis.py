@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import math
 import os
 import subprocess
 import sys
@@ -62,6 +63,31 @@ def test_slack_cannot_shrink_the_noise_of_a_sensing_null(tmp_path):
     assert by["initial-slack"].parameters["slack"]["value"] >= 0.0
     recal = by[diagnosis.RECALIBRATION].heldout_rmse_after
     assert by["initial-slack"].heldout_rmse_after >= recal * (1 - 1e-4)
+    assert res.verdict == "none"
+
+
+def _quiet_null(tmp_path, kind, seed, **kw):
+    sim = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=seed, out_dir=tmp_path, noise_scale=0.2, **kw)
+    return load_experiment(sim.experiment_path)
+
+
+def test_a_quiet_laser_on_a_coarse_adc_is_no_gap(tmp_path):
+    # A fifth of the rig's noise (1 um) under the 10-bit ADC's 9.8 um step: the residuals
+    # of a perfect model are 3.0 um, their second differences 2.4 um. Counting the hidden
+    # quantisation error, the null is `none` (it was `unexplained` at 1.23 x the floor).
+    res = diagnose(_quiet_null(tmp_path, "dynamic", 1001, scatter={}), n_boot=100)
+    noise = res.noise_floor.by_quantity["displacement"]
+    assert noise.quantisation_step == pytest.approx(1e3 * 10e-3 / 1023, rel=0.01)  # mm
+    assert noise.sigma == pytest.approx(math.sqrt(0.001**2 + noise.quantisation_step**2 / 12), rel=0.08)
+    assert res.verdict == "none"
+
+
+def test_a_remounted_sensor_is_no_gap(tmp_path):
+    # Each pull re-mounts the sensor (twists and coil length 0.05 % a run, the kind's
+    # run_reproducibility): with a quiet load cell every sensing null was `unexplained`.
+    res = diagnose(_quiet_null(tmp_path, "sensing", 1003), n_boot=100)
+    assert res.gap.run_to_run == {"twists": 5e-4, "coil_length": 5e-4}
+    assert res.gap.rmse_over_noise < res.gap.limit
     assert res.verdict == "none"
 
 

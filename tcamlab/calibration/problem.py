@@ -19,7 +19,7 @@ import numpy as np
 from scipy import optimize
 
 from tcamlab.errors import InputError, TcamlabError
-from tcamlab.kinds import CalibrationParam, get_kind
+from tcamlab.kinds import CalibrationParam, get_kind, run_scatter
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 from tcamlab.text import did_you_mean
 
@@ -332,9 +332,7 @@ class CalibrationProblem:
         """
         out, start = [], 0
         for i, qs in enumerate(self.quantities):
-            stated = getattr(self.experiments[i], "run_to_run", None)  # [sample.run_to_run]
-            scatter = dict(self.kinds[i].run_reproducibility if stated is None else stated)
-            scatter = {k: v for k, v in scatter.items() if v > 0}
+            scatter = run_scatter(self.experiments[i])
             for j, run in enumerate(self.runs[i]):
                 n = len(run.data) * len(qs)
                 g = self._effect_columns(i, j, scatter) if scatter else np.zeros((n, 0))

@@ -20,7 +20,7 @@ from scipy import optimize
 
 from tcamlab.effects import Effect, Mods
 from tcamlab.errors import ConfigError, TcamlabError
-from tcamlab.kinds import get_kind, predict
+from tcamlab.kinds import get_kind, predict, run_scatter
 
 __all__ = [
     "serial_kernels",
@@ -102,6 +102,8 @@ class Problem:
         # instrument's noise: it is a per-run nuisance, profiled out as in calibration.
         self.zeroed = tuple(q for q in self.quantities if q in self.k.nuisance_zeros)
         self.spring_nuisance = self.k.needs_training and self.rig.spring_constant is None
+        # how far a run's sample may depart from the shared one (re-mounting a sensor)
+        self.run_to_run = run_scatter(experiment)
 
     # options -------------------------------------------------------------
     def _run_options(self, i: int) -> dict:
@@ -124,10 +126,12 @@ class Problem:
         return opts
 
     # evaluation ----------------------------------------------------------
-    def predict(self, i: int, mods: Mods, spring: float | None) -> dict[str, np.ndarray]:
+    def predict(self, i: int, mods: Mods, spring: float | None, sample=None) -> dict[str, np.ndarray]:
+        """Predictions [SI] of run i (with ``sample`` in place of the experiment's, if given)."""
+        sample = self.sample if sample is None else sample
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out = predict(self.kind, self.sample, self.rig, self.frames[i], mods, **self.options(i, spring))
+            out = predict(self.kind, sample, self.rig, self.frames[i], mods, **self.options(i, spring))
         for q in self.quantities:
             if not np.all(np.isfinite(out[q])):
                 raise ArithmeticError("non-finite prediction")

@@ -65,11 +65,14 @@ class QuantityNoise(Record):
     unit: str
     """That display unit."""
     per_run: list
-    """Second-difference sd of each run [display unit]."""
+    """Second-difference sd of each run, with the quantisation error it cannot see
+    (:func:`tcamlab.quantisation.unseen_variance`) [display unit]."""
     dof: float
     """Effective degrees of freedom of ``sigma**2`` [-]."""
     method: str
     """How it was estimated."""
+    quantisation_step: float | None = None
+    """The logged column's quantisation step [display unit], None if it has none."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +131,9 @@ class Gap(Record):
     """``rmse_over_noise > limit``."""
     rule: str
     """The test, in words."""
+    run_to_run: dict = field(default_factory=dict)
+    """{sample field: relative sd} of each run's departure from the shared sample, profiled
+    out of every run before the test (:func:`tcamlab.kinds.run_scatter`)."""
 
 
 @dataclass(frozen=True, eq=False)

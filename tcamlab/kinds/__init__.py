@@ -47,6 +47,7 @@ __all__ = [
     "no_section",
     "rest_rows",
     "stated_source",
+    "run_scatter",
 ]
 
 
@@ -323,6 +324,15 @@ the name of its module in this package, which defines ``KIND``. Registering a ne
 kind is adding its module and its name here."""
 
 _LOADED: dict[str, Kind] = {}
+
+
+def run_scatter(experiment) -> dict[str, float]:
+    """{sample field: relative sd} a run may depart from the shared sample by: the file's
+    ``[sample.run_to_run]``, else the kind's :attr:`Kind.run_reproducibility` (zeros dropped).
+    Calibration and the diagnosis's gap test profile these departures out of each run."""
+    stated = getattr(experiment, "run_to_run", None)
+    scatter = get_kind(experiment.kind).run_reproducibility if stated is None else stated
+    return {k: float(v) for k, v in dict(scatter).items() if v > 0}
 
 
 def get_kind(name: str) -> Kind:
