@@ -17,11 +17,12 @@ parameters are drawn within their stated uncertainty (parameter error F =
 scored apart (``null_miscalibrated``): every confident verdict on them is a
 false attribution, physics blamed for a wrong parameter or zero.
 
-Four more families (:data:`FAMILIES`, :func:`family_tasks`) keep the benchmark from being
+Five more families (:data:`FAMILIES`, :func:`family_tasks`) keep the benchmark from being
 the diagnosis's mirror: ``calibration-only`` (no effect, stated parameters 1-3 stated sds
 off), ``realistic`` (an effect, parameters drawn within their stated sds, noisy zeros),
 ``off-library`` (each effect in a form outside the library, :mod:`tcamlab.rig.offlibrary`,
-which the diagnosis never imports) and ``null-noisy-zero``; their files state
+which the diagnosis never imports), ``null-noisy-zero`` and ``null-quiet`` (the same with a
+fifth of the instruments' noise); their files state
 :data:`STATED_UNCERTAINTY`. :func:`family_scores` scores each against its target and
 :func:`plan_full_run` costs the full run from a run's per-case times.
 
@@ -104,7 +105,15 @@ diagnosis is not a target (issue 14); pass ``kinds`` to include it."""
 # ---------------------------------------------------------------------------
 
 
-FAMILIES = ("effect-only", "null", "calibration-only", "realistic", "off-library", "null-noisy-zero")
+FAMILIES = (
+    "effect-only",
+    "null",
+    "calibration-only",
+    "realistic",
+    "off-library",
+    "null-noisy-zero",
+    "null-quiet",
+)
 """Families of cases: the effect-only cases (singles and, in the full run, pairs), the
 null cases, and the families of a lab that lies (:func:`family_tasks`)."""
 
@@ -117,17 +126,31 @@ CASE_FAMILY = {
     "realistic": "realistic",
     "off-library": "off-library",
     "null-noisy-zero": "null-noisy-zero",
+    "null-quiet": "null-quiet",
 }
 """The family of each task ``case``."""
 
 FAMILY_STRENGTHS = (3.0, 10.0)
 """Strengths of the realistic and out-of-library families (their targets are at 3x and 10x)."""
 
-FAMILY_SEEDS = {"calibration-only": 7000, "realistic": 8000, "off-library": 8500, "null-noisy-zero": 5500}
+FAMILY_SEEDS = {
+    "calibration-only": 7000,
+    "realistic": 8000,
+    "off-library": 8500,
+    "null-noisy-zero": 5500,
+    "null-quiet": 5600,
+}
 """First seed of each lying family."""
 
 CALIBRATION_OFFSET_SD = (1.0, 3.0)
 """|offset| of a calibration-only case's perturbed parameters, in stated sds (uniform)."""
+
+QUIET_NOISE_SCALE = 0.2
+"""Instrument noise of the ``null-quiet`` family, in multiples of the rig's (quantisation
+steps unchanged): the 10-bit laser ADC's 9.8 um step then carries 1 um of noise."""
+
+NULL_FAMILIES = ("null", "null-noisy-zero", "null-quiet")
+"""Families without an effect, scored by false attributions and ``none``."""
 
 MIN_POSITIVE_SHARE = 0.3
 """A positive parameter is moved down only while it keeps this share of its stated value
@@ -262,6 +285,9 @@ def family_tasks(
       stated sds (F = 1) and noisy zeros.
     - ``off-library``: each form of :mod:`tcamlab.rig.offlibrary` at 3x and 10x.
     - ``null-noisy-zero``: no effect, noisy zeros; ``seeds`` cases.
+    - ``null-quiet``: as ``null-noisy-zero`` with a fifth of the instruments' noise
+      (:data:`QUIET_NOISE_SCALE`; their quantisation steps stay): quiet instruments on
+      coarse converters, the re-mounting scatter above the noise.
 
     Every case states :data:`STATED_UNCERTAINTY` (scaled to ``template``'s values when given:
     :func:`stated_uncertainty`). The quick run has one case of each family per kind (the
@@ -278,58 +304,37 @@ def family_tasks(
     if quick:
         names, forms = names[:1], forms[:1]
     out = []
-    for fam in families:
-        base = FAMILY_SEEDS.get(fam)
+    for fam in (f for f in families if f in FAMILY_SEEDS):  # effect-only and null: make_tasks
+        case = {"case": fam, "kind": kind, "effects": {}, **stated}
+        seeds_of = [FAMILY_SEEDS[fam] + i for i in range(n_null if fam in _NULL_LIKE else n)]
         if fam == "calibration-only":
-            for i in range(n_null):
-                seed = base + i
-                offsets = calibration_offsets(kind, seed, template)
-                out.append(
-                    {
-                        "case": fam,
-                        "kind": kind,
-                        "effects": {},
-                        "seed": seed,
-                        "parameter_offsets": offsets,
-                        **stated,
-                    }
-                )
-        elif fam == "null-noisy-zero":
             out += [
-                {"case": fam, "kind": kind, "effects": {}, "seed": base + i, "noisy_zero": True, **stated}
-                for i in range(n_null)
+                {**case, "seed": s, "parameter_offsets": calibration_offsets(kind, s, template)}
+                for s in seeds_of
             ]
+        elif fam in ("null-noisy-zero", "null-quiet"):
+            quiet = {"noise_scale": QUIET_NOISE_SCALE} if fam == "null-quiet" else {}
+            out += [{**case, "seed": s, "noisy_zero": True, **quiet} for s in seeds_of]
         elif fam == "realistic":
+            lies = {"parameter_error": 1.0, "noisy_zero": True}
             out += [
-                {
-                    "case": fam,
-                    "kind": kind,
-                    "effects": {e: s},
-                    "seed": base + i,
-                    "parameter_error": 1.0,
-                    "noisy_zero": True,
-                    **stated,
-                }
+                {**case, "effects": {e: st}, "seed": s, **lies}
                 for e in names
-                for s in strengths
-                for i in range(n)
+                for st in strengths
+                for s in seeds_of
             ]
         elif fam == "off-library":
             out += [
-                {
-                    "case": fam,
-                    "kind": kind,
-                    "effects": {},
-                    "offlibrary": {f.name: s},
-                    "nearest": f.nearest,
-                    "seed": base + i,
-                    **stated,
-                }
+                {**case, "offlibrary": {f.name: st}, "nearest": f.nearest, "seed": s}
                 for f in forms
-                for s in strengths
-                for i in range(n)
+                for st in strengths
+                for s in seeds_of
             ]
     return out
+
+
+_NULL_LIKE = ("calibration-only", "null-noisy-zero", "null-quiet")
+"""Families of one case per seed (the others: one per effect or form, strength and seed)."""
 
 
 def stated_uncertainty(kind: str, template=None) -> dict[str, dict[str, float]]:
@@ -853,7 +858,7 @@ def family_scores(results: list[dict]) -> dict:
             }
     if by.get("calibration-only"):
         out["calibration-only"] = _calibration_only(by["calibration-only"])
-    for fam in ("null", "null-noisy-zero"):
+    for fam in NULL_FAMILIES:
         rows = [r for r in by.get(fam, []) if r["case"] != "null-miscalibrated"]
         if rows:
             out[fam] = _noisy_nulls(rows)
@@ -863,7 +868,7 @@ def family_scores(results: list[dict]) -> dict:
 def _family_confusion(results: list[dict]) -> dict:
     """{family: {kind: {truth: {diagnosis: n}}}} of the lying families."""
     out = {}
-    for fam in ("calibration-only", "realistic", "off-library", "null-noisy-zero"):
+    for fam in ("calibration-only", "realistic", "off-library", "null-noisy-zero", "null-quiet"):
         rows = [r for r in results if r["case"] == fam]
         if rows:
             out[fam] = _confusion(rows)
@@ -1271,7 +1276,7 @@ def _family_rows(fams: dict) -> list[list[str]]:
     for key, figure, target in _CALIBRATION_ROWS if c else ():
         if c.get(key) is not None:
             rows.append(["calibration-only", figure, str(c["n"]), _fmt(c[key], True), target])
-    for fam in ("null", "null-noisy-zero"):
+    for fam in NULL_FAMILIES:
         if fam in fams:
             c = fams[fam]
             rows.append([fam, "false attribution", str(c["n"]), _fmt(c["false_rate"], True), "<= 5%"])

@@ -792,9 +792,10 @@ def _print_scores(sc: dict) -> None:
                 f"calibration-only: attributed {f['attributed']} of {f['n']}, miscalibrated naming a moved "
                 f"parameter {f['miscalibrated_naming_a_moved_parameter']} of {f['n']}"
             )
-        elif fam == "null-noisy-zero":
+        elif fam in ("null-noisy-zero", "null-quiet"):
+            what = "noisy zeros" if fam == "null-noisy-zero" else "noisy zeros, quiet instruments"
             typer.echo(
-                f"null, noisy zeros: {f['false_attributions']} false attributions, {f['none']} none, of {f['n']}"
+                f"null, {what}: {f['false_attributions']} false attributions, {f['none']} none, of {f['n']}"
             )
     if sc.get("median_shrinkage_when_right") is not None:
         typer.echo(f"median held-out shrinkage when right: {100 * sc['median_shrinkage_when_right']:.0f}%")
@@ -831,7 +832,7 @@ def benchmark_diagnose(
         "--family",
         metavar="FAMILY",
         help="Only this family (repeatable): effect-only, null, calibration-only, realistic, "
-        "off-library, null-noisy-zero. Default: all.",
+        "off-library, null-noisy-zero, null-quiet. Default: all.",
     ),
     conditions: int = typer.Option(
         1,

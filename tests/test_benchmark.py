@@ -136,13 +136,16 @@ def test_scoring_rules():
 
 def test_family_task_lists():
     quick = make_tasks(quick=True, families=benchmark.FAMILIES)
-    for fam in ("calibration-only", "realistic", "off-library", "null-noisy-zero"):
+    for fam in ("calibration-only", "realistic", "off-library", "null-noisy-zero", "null-quiet"):
         cases = [t for t in quick if t["case"] == fam]
         assert {t["kind"] for t in cases} == set(benchmark.BENCHMARK_KINDS), fam
         assert all(t["stated"] == benchmark.STATED_UNCERTAINTY[t["kind"]] for t in cases)
     realistic = [t for t in quick if t["case"] == "realistic"]
     assert all(t["parameter_error"] == 1.0 and t["noisy_zero"] and t["effects"] for t in realistic)
     assert all(t["noisy_zero"] and not t["effects"] for t in quick if t["case"] == "null-noisy-zero")
+    quiet = [t for t in quick if t["case"] == "null-quiet"]
+    assert all(t["noisy_zero"] and not t["effects"] and t["noise_scale"] == 0.2 for t in quiet)
+    assert not any("noise_scale" in t for t in quick if t["case"] == "null-noisy-zero")
     full = make_tasks(seeds=10, families=("realistic", "off-library"))
     assert {next(iter(t["offlibrary"].values())) for t in full if t["case"] == "off-library"} == {3.0, 10.0}
     assert len({t["nearest"] for t in full if t["case"] == "off-library"}) == 14
@@ -346,13 +349,18 @@ def test_named_or_aliased_counts_honest_aliasing_but_top1_does_not():
     assert acc["top1"] == 0.25 and acc["named_or_aliased"] == 0.5
 
 
-def test_a_truth_the_rig_cannot_run_is_skipped_not_scored():
-    """Static calibration-only seed 7003 of the full run: G_t slope drawn 1.24 stated sds steep,
-    so G_t' of (2.13) turns non-positive below the oven's 130 K and the rig cannot simulate it.
-    It is listed as skipped and left out of the rates; an error inside the diagnosis still
-    counts as a miss."""
+def test_a_truth_the_rig_cannot_run_is_skipped_not_scored(monkeypatch):
+    """A drawn truth the rig cannot simulate on either side of the stated value (the model has
+    no solution) is listed as skipped and left out of the rates; an error inside the
+    diagnosis still counts as a miss."""
+    import tcamlab.rig
     from tcamlab.benchmark import family_tasks, run_task, score
+    from tcamlab.errors import ModelDomainError
 
+    def no_solution(*a, **k):
+        raise ModelDomainError("temperature rise 130.3 K makes the shear modulus G_t' non-positive")
+
+    monkeypatch.setattr(tcamlab.rig, "simulate", no_solution)
     task = next(t for t in family_tasks("static", ("calibration-only",), seeds=10) if t["seed"] == 7003)
     r = run_task({**task, "n_boot": 10})
     assert r["error_stage"] == "simulate" and r["error"].startswith("ModelDomainError")
