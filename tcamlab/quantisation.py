@@ -46,6 +46,13 @@ MIN_CHANGES = 20
 MIN_STEP_QUANTILE = 0.05
 """The first guess of the step is this quantile of the nonzero row-to-row changes."""
 
+MAX_HIDDEN_TO_SEEN = 3.0
+"""Largest hidden quantisation sd believed, in multiples of the sd second differences see.
+A reading that coarse and that quiet would show its staircase plainly; beyond it the lattice
+is the protocol's (the pull test's encoder under a parameter error: predictions off the
+lattice by an elongation-dependent amount pass the phase test, and a 1 mm "step" made the
+displacement floor 0.29 mm against 0.06 mm seen). The laser at a fifth of its noise: 1.2."""
+
 MAX_PHASE_CONCENTRATION = 0.5
 """Largest phase concentration of the predictions on a quantiser's step (:func:`unseen_variance`)."""
 
@@ -135,7 +142,8 @@ def unseen_variance(x, predicted, seen_var: float) -> tuple[float, float | None]
     positions sit on that lattice. A quantiser reads a quantity that sweeps through its
     steps, so the model's ``predicted`` values on the slow rows must spread over the step
     (:func:`phase_concentration` at most :data:`MAX_PHASE_CONCENTRATION`; the voltage-step
-    rig's laser: 0.07, the pull test's encoder: 0.79-0.995).
+    rig's laser: 0.07, the pull test's encoder: 0.79-0.995), and the hidden part may not
+    exceed :data:`MAX_HIDDEN_TO_SEEN` times what second differences see (in sd).
 
     Parameters
     ----------
@@ -155,4 +163,7 @@ def unseen_variance(x, predicted, seen_var: float) -> tuple[float, float | None]
     if phase_concentration(np.asarray(predicted, float)[slow], step) > MAX_PHASE_CONCENTRATION:
         return 0.0, None
     sigma = white_sigma(seen_var, step)
-    return float(np.mean(slow)) * hidden_variance(sigma, step), step
+    hidden = float(np.mean(slow)) * hidden_variance(sigma, step)
+    if hidden > MAX_HIDDEN_TO_SEEN**2 * seen_var:
+        return 0.0, None
+    return hidden, step
