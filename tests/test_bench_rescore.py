@@ -39,3 +39,43 @@ def test_analysis_of_the_stored_run_shows_the_curvature_gap_is_whole_and_the_zer
     assert np.median(gaps[("static", 10.0)]) < 7.0
     ratios = mod["recalibration_ratios"](results)
     assert abs(np.median(ratios[("single", 3.0)]) - 1.0) < 0.01
+
+
+def test_a_partial_rerun_replaces_the_same_tasks_and_keeps_the_rest():
+    mod = runpy.run_path(str(ROOT / "bench" / "merge_benchmark_runs.py"))
+
+    def case(kind, seed, verdict, **kw):
+        return {
+            "case": "single",
+            "kind": kind,
+            "effects": {"hysteresis": 3.0},
+            "seed": seed,
+            "verdict": verdict,
+            **kw,
+        }
+
+    full = {
+        "results": [
+            case("sensing", 1000, "none"),
+            case("static", 1000, "none"),
+            case("sensing", 1001, "none"),
+        ],
+        "settings": {"seeds": 10},
+    }
+    part = {
+        "results": [case("sensing", 1000, "attributed"), case("sensing", 1002, "aliased")],
+        "settings": {"x": 1},
+    }
+    merged = mod["merge"](full, [part])
+    got = {(r["kind"], r["seed"]): r["verdict"] for r in merged["results"]}
+    assert got == {
+        ("sensing", 1000): "attributed",
+        ("static", 1000): "none",
+        ("sensing", 1001): "none",
+        ("sensing", 1002): "aliased",
+    }
+    # a quiet null is not the same task as a loud one with the same seed
+    assert mod["task_key"](case("dynamic", 1, "none", noise_scale=0.2)) != mod["task_key"](
+        case("dynamic", 1, "none")
+    )
+    assert merged["settings"]["merged_from"] == [{"seeds": 10}, {"x": 1}]
