@@ -222,12 +222,13 @@ def _noise_table(result) -> Table:
                 q,
                 unit,
                 _scaled(v["sigma"], fac),
+                _scaled(v.get("quantisation_step"), fac),
                 _scaled(btw.get("sd"), fac),
                 _scaled(result.baseline["by_quantity"][q]["rmse"], fac),
             ]
         )
     return Table(
-        ["quantity", "unit", "noise floor (2nd difference)", "between-run sd", "baseline RMSE"],
+        ["quantity", "unit", "noise floor", "quantisation step", "between-run sd", "baseline RMSE"],
         rows,
         caption="Noise floor estimated from the data",
     )
@@ -267,8 +268,9 @@ def diagnosis_section(result) -> Section:
         paragraphs=[
             verdict_text(result),
             "Method: residual = measured - thesis model; noise floor from second differences "
-            "of the residuals; each candidate effect fitted on all runs but one and scored on "
-            "the withheld run; intervals from a bootstrap over withheld runs.",
+            "of the residuals, plus the quantisation error they cannot see where a reading moves "
+            "by less than its step between rows; each candidate effect fitted on all runs but one "
+            "and scored on the withheld run; intervals from a bootstrap over withheld runs.",
         ],
         tables=tables,
         figures=_figures(result),
