@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from tcamlab.calibration.problem import EFFECT_STEP
 from tcamlab.diagnosis.problem import MODEL_ERRORS, Problem, fit_effect
 from tcamlab.diagnosis.result import Baseline, Gap, NoiseFloor, QuantityNoise
 from tcamlab.effects import Mods
@@ -58,11 +59,6 @@ estimate has 2 (n - 2) 36 / 140 = (36/70) (n - 2) degrees of freedom."""
 
 MEDIAN_EFFICIENCY = 2.0 / math.pi
 """Asymptotic efficiency of a median relative to a mean (pooling over runs)."""
-
-
-RUN_EFFECT_STEP = 1e-4
-"""Relative step of a sample field for a run's departure columns (departures are about
-5e-4 of the value: the model is linear over them)."""
 
 
 POOL_CONSISTENCY_LEVEL = 0.99
@@ -294,7 +290,7 @@ def run_effect_columns(problem: Problem, baseline: BaselineFit, i: int) -> np.nd
     cols = []
     for fld, rel in sorted(problem.run_to_run.items()):
         pred = None
-        for step in (RUN_EFFECT_STEP, -RUN_EFFECT_STEP):  # the inner side at the domain's edge
+        for step in (EFFECT_STEP, -EFFECT_STEP):  # the inner side at the domain's edge
             moved = problem.sample.replace(**{fld: getattr(problem.sample, fld) * (1.0 + step)})
             try:
                 pred = problem.predict(i, baseline.mods, baseline.spring, sample=moved)
