@@ -86,7 +86,7 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
     post_sd = value * sd_u if s.param.positive else sd_u * s.prior_sd
     stated_sd = s.prior_sd if s.sd_stated else None
     if s.param.positive:
-        post_rel, prior_rel = sd_u, float(s.sd_u)
+        post_rel, prior_rel = sd_u, float(s.stated_sd_u)
     elif s.stated != 0:
         post_rel, prior_rel = post_sd / abs(value), s.prior_sd / abs(s.stated)
     else:  # stated 0 (dynamic beta): relative to the default prior sd, the parameter's scale
@@ -144,7 +144,7 @@ def _rms(x: np.ndarray, sigma: float) -> float:
 
 
 def _quality(problem, u: np.ndarray) -> list[FitQuality]:
-    before = problem.raw_residuals(problem.u0) or []
+    before = problem.raw_residuals(problem.stated_u0) or []
     after = problem.raw_residuals(u) or []
     out = []
     for i, qs in enumerate(problem.quantities):
@@ -169,7 +169,7 @@ def _curves(problem, u: np.ndarray) -> list[RunCurves]:
     for i, exp in enumerate(problem.experiments):
         kind = problem.kinds[i]
         for j, run in enumerate(problem.runs[i]):
-            before, after = problem.predict_run(i, j, problem.u0), problem.predict_run(i, j, u)
+            before, after = problem.predict_run(i, j, problem.stated_u0), problem.predict_run(i, j, u)
             qs = problem.quantities[i]
             measured = {q: problem.measured(i, j, q) for q in qs}
             zero = {q: float(np.mean(measured[q] - after[q])) for q in qs if problem.is_zeroed(i, q)}
@@ -249,7 +249,7 @@ def calibrate(
         quality = _quality(problem, fit.u)
         curves = _curves(problem, fit.u)
     names = [s.name for s in problem.specs]
-    dirs = directions(names, problem.sd_u, cov)
+    dirs = directions(names, problem.stated_sd_u, cov)
     sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     return CalibrationResult(
         experiments=[str(e.path) for e in exps],

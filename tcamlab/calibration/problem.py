@@ -19,7 +19,7 @@ import numpy as np
 from scipy import optimize
 
 from tcamlab.errors import InputError, TcamlabError
-from tcamlab.kinds import CalibrationParam, get_kind, run_scatter
+from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 from tcamlab.text import did_you_mean
 
@@ -80,6 +80,9 @@ class Spec:
         Key of the experiment file (lab units), e.g. ``thermal_mass_J_per_K``.
     factor : float
         SI per lab unit of ``key``.
+    reading : (float, float) or None
+        The parameter as the logs read it directly, mean and sd [SI]
+        (:attr:`~tcamlab.kinds.CalibrationParam.read_at_rest`), or None.
     """
 
     name: str
@@ -91,16 +94,43 @@ class Spec:
     sd_stated: bool
     key: str
     factor: float
+    reading: tuple[float, float] | None = None
 
     @property
-    def u0(self) -> float:
-        """Prior centre in fitted coordinates."""
+    def stated_u0(self) -> float:
+        """Centre of the stated prior in fitted coordinates."""
         return self.to_u(self.stated)
 
     @property
-    def sd_u(self) -> float:
-        """Prior sd in fitted coordinates (sd / value for a positive parameter)."""
+    def stated_sd_u(self) -> float:
+        """Sd of the stated prior in fitted coordinates (sd / value for a positive parameter)."""
         return self.prior_sd / abs(self.stated) if self.param.positive else 1.0
+
+    def _reading_u(self) -> tuple[float, float] | None:
+        if self.reading is None:
+            return None
+        mean, sd = self.reading
+        if self.param.positive:
+            return (math.log(mean), sd / mean) if mean > 0 else None
+        return mean / self.prior_sd, sd / self.prior_sd
+
+    @property
+    def u0(self) -> float:
+        """Prior centre in fitted coordinates: the stated prior times the reading, if any
+        (precision-weighted, in the fitted coordinates where both are Gaussian)."""
+        r = self._reading_u()
+        if r is None:
+            return self.stated_u0
+        w0, w1 = self.stated_sd_u**-2, r[1] ** -2
+        return (w0 * self.stated_u0 + w1 * r[0]) / (w0 + w1)
+
+    @property
+    def sd_u(self) -> float:
+        """Prior sd in fitted coordinates, the reading multiplied in."""
+        r = self._reading_u()
+        if r is None:
+            return self.stated_sd_u
+        return (self.stated_sd_u**-2 + r[1] ** -2) ** -0.5
 
     def to_u(self, value: float) -> float:
         """Fitted coordinate of a value [SI]."""
@@ -164,6 +194,9 @@ class CalibrationProblem:
         self.specs = self._select(specs, names)
         self.u0 = np.array([s.u0 for s in self.specs])
         self.sd_u = np.array([s.sd_u for s in self.specs])
+        # the stated values and sds alone, without the readings at rest: what reports compare to
+        self.stated_u0 = np.array([s.stated_u0 for s in self.specs])
+        self.stated_sd_u = np.array([s.stated_sd_u for s in self.specs])
         self._measured: dict[tuple[int, int, str], np.ndarray] = {}
         self._reach = [
             np.array([k for k, s in enumerate(self.specs) if i in s.experiments], int)
@@ -198,7 +231,11 @@ class CalibrationProblem:
             prior_sd = float(sd)
         else:  # relative to the stated value; absolute (zero_sd) where that is 0
             prior_sd = p.default_sd * abs(value) if value != 0 else float(p.zero_sd or p.default_sd)
-        return Spec(name, p, idx, value, in_file, prior_sd, sd_stated, key, factor)
+        reading = None
+        if p.read_at_rest:
+            logs = [r.data for i in idx for r in self.runs[i]]
+            reading = rest_reading(self.kinds[idx[0]], logs, p.read_at_rest)
+        return Spec(name, p, idx, value, in_file, prior_sd, sd_stated, key, factor, reading)
 
     def _all_specs(self) -> list[Spec]:
         specs: dict[str, Spec] = {}

@@ -22,6 +22,7 @@ selfsensing  time, voltage, current        displacement (temperature)
 from __future__ import annotations
 
 import importlib
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -46,6 +47,7 @@ __all__ = [
     "no_extras",
     "no_section",
     "rest_rows",
+    "rest_reading",
     "stated_source",
     "run_scatter",
 ]
@@ -100,6 +102,12 @@ class CalibrationParam:
         The effect-library effect this parameter is (dynamic beta: ``resistance-temperature``).
         The diagnosis keeps such a parameter out of its recalibration, so the effect stays a
         candidate of its own.
+    read_at_rest : tuple of str
+        Logged columns that read the parameter itself in a run's rows at rest
+        (:func:`rest_reading`): the curvature rig's ohmmeters read R0 while the cable is
+        slack, because the model's straight body has its sensors at rest length. Their
+        mean is a measurement of the parameter, which calibration multiplies into its
+        prior (:class:`tcamlab.calibration.problem.Spec`). Empty: none.
     """
 
     field: str
@@ -112,6 +120,7 @@ class CalibrationParam:
     needs: tuple[str, ...] = ()
     zero_sd: float | None = None
     effect: str | None = None
+    read_at_rest: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -307,6 +316,46 @@ def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
         if moved.size:
             first_move = min(first_move, int(moved[0]))
     return np.arange(max(first_move, 1))
+
+
+def rest_reading(kind: Kind, runs, columns) -> tuple[float, float] | None:
+    """Mean of ``columns`` over every run's rows at rest (:func:`rest_rows`) and its sd [their unit].
+
+    The sd of the mean counts runs, not rows: readings at rest vary from run to run
+    (temperature, a re-mounted sensor) more than within a run, so the spread of all
+    readings over the square root of the number of runs. A spread below the columns'
+    logging step (identical readings) is taken as the step over sqrt(12). None with
+    fewer than two readings or a missing column.
+
+    Parameters
+    ----------
+    kind : Kind
+    runs : sequence of DataFrame
+        The runs' logs [SI].
+    columns : sequence of str
+        Internal column names (e.g. ``("r1", "r2")``).
+    """
+    import numpy as np
+
+    from tcamlab.quantisation import logging_step
+
+    values, steps = [], []
+    for data in runs:
+        if not all(c in data for c in columns):
+            return None
+        rows = rest_rows(kind, data)
+        for c in columns:
+            x = data[c].to_numpy(float)
+            values.append(x[rows])
+            steps.append(logging_step(x) or 0.0)
+    x = np.concatenate(values) if values else np.array([])
+    x = x[np.isfinite(x)]
+    if x.size < 2:
+        return None
+    sd = max(float(np.std(x, ddof=1)), max(steps) / math.sqrt(12.0))
+    if not sd > 0:
+        return None
+    return float(np.mean(x)), sd / math.sqrt(len(runs))
 
 
 def stated_source(provenance, name: str) -> str:
