@@ -541,3 +541,40 @@ def test_run_to_run_reproducibility_is_a_file_key(tmp_path):
         with_table("twists = 0.5\n")
     with pytest.raises(ConfigError, match="twist"):
         with_table("twist = 1e-3\n")
+
+
+def test_a_reading_at_rest_is_multiplied_into_the_prior():
+    from tcamlab.calibration.problem import Spec
+    from tcamlab.kinds import get_kind
+
+    p = next(q for q in get_kind("curvature").calibration if q.field == "initial_resistance")
+    plain = Spec("initial_resistance", p, (0,), 10.0, True, 0.5, False, "initial_resistance_ohm", 1.0)
+    read = Spec(
+        "initial_resistance", p, (0,), 10.0, True, 0.5, False, "initial_resistance_ohm", 1.0, (10.1, 0.01)
+    )
+    assert plain.u0 == plain.stated_u0 == pytest.approx(np.log(10.0))
+    # log space: stated sd 0.05, reading sd 0.01 / 10.1; precision-weighted
+    w0, w1 = 0.05**-2, (0.01 / 10.1) ** -2
+    assert read.u0 == pytest.approx((w0 * np.log(10.0) + w1 * np.log(10.1)) / (w0 + w1))
+    assert read.sd_u == pytest.approx((w0 + w1) ** -0.5)
+    assert read.stated_u0 == plain.u0 and read.stated_sd_u == plain.sd_u
+
+
+def test_curvature_r0_stated_off_is_calibrated_to_the_rows_at_rest(tmp_path):
+    """True R0 1 % above the stated 10 ohm: the ohmmeters at zero cable read it, so the
+    calibrated R0 is within a few milliohm of the truth (the 5 % default prior alone would
+    leave it to the curvatures) and pinned."""
+    res = simulate(
+        "curvature",
+        TEMPLATES / "curvature.toml",
+        seed=5,
+        out_dir=tmp_path,
+        uncertainty={"initial_resistance": 0.01},
+        parameter_offsets={"initial_resistance": 10.0},
+    )
+    truth = _truth(res)
+    assert truth["initial_resistance"] == pytest.approx(10.1)
+    r0 = calibrate(res.experiment_path).parameter("initial_resistance")
+    assert r0.value == pytest.approx(10.1, abs=0.005)
+    assert r0.profile_95[0] <= 10.1 <= r0.profile_95[1]
+    assert r0.pinned and r0.posterior_sd_rel < 5e-4

@@ -53,6 +53,19 @@ def test_withheld_effect_is_attributed(tmp_path, kind, effect, seed):
     assert best.fraction_closed > 0.5
 
 
+@pytest.mark.parametrize("effect, strength", [("axial-compression", 3.0), ("camera-placement", 10.0)])
+def test_curvature_rows_at_rest_tell_compression_from_camera_placement(tmp_path, effect, strength):
+    # With R0 left to its 5 % prior, a camera offset plus R0 0.3-0.8 % off fitted an axially
+    # compressed body and the reverse (both within noise on the withheld runs): each came out
+    # `aliased` with the other named first. The ohmmeters read R0 at zero cable, where a
+    # compression changes nothing and a camera offset is already there.
+    exp = _simulate(tmp_path, "curvature", {effect: strength}, 1003)
+    res = diagnose(exp, n_boot=300)
+    assert res.verdict == "attributed", res.reason
+    assert res.effect == effect
+    assert not res.aliased_with
+
+
 def test_slack_cannot_shrink_the_noise_of_a_sensing_null(tmp_path):
     # Ramped in over the noisy inverted elongation, a negative slack (-0.26 mm) pulled the
     # rows at rest towards zero and beat recalibration on every withheld run of a null by

@@ -213,3 +213,41 @@ def test_calibration_parameters_name_real_fields(name):
         assert p.field in fields[p.where], f"{name}: {p.field} is not a {p.where} field"
         assert p.default_sd > 0 and p.symbol and p.unit and p.pinned_by
     assert set(kind.nuisance_zeros) <= set(kind.outputs)
+
+
+def test_rest_reading_is_the_mean_at_rest_with_its_run_to_run_sd():
+    kind = kinds.get_kind("curvature")
+    runs = [
+        pd.DataFrame(
+            {"cable": [0.0, 0.0, 1e-3, 2e-3], "r1": [10.0, 10.02, 20.0, 30.0], "r2": [10.04, 10.02, 30, 40]}
+        ),
+        pd.DataFrame({"cable": [0.0, 1e-3, 2e-3], "r1": [9.98, 21.0, 32.0], "r2": [10.0, 21.5, 32.5]}),
+    ]
+    mean, sd = kinds.rest_reading(kind, runs, ("r1", "r2"))
+    at_rest = np.array([10.0, 10.02, 10.04, 10.02, 9.98, 10.0])  # rows before the cable moves
+    assert mean == pytest.approx(at_rest.mean())
+    # spread of all readings over sqrt(runs), not sqrt(readings)
+    assert sd == pytest.approx(np.std(at_rest, ddof=1) / np.sqrt(2))
+    assert kinds.rest_reading(kind, runs[1:], ("r1",)) is None  # one reading: no spread
+    assert kinds.rest_reading(kind, runs, ("r3",)) is None
+
+
+def test_identical_readings_at_rest_keep_the_logging_step_as_their_spread():
+    kind = kinds.get_kind("curvature")
+    steps = np.random.default_rng(0).integers(1, 4, 39)
+    ramp = 10.0 + 0.001 * np.r_[0, np.cumsum(steps)]  # a 3-decimal log: step 0.001 ohm
+    runs = [pd.DataFrame({"cable": np.arange(40) * 1e-4, "r1": ramp}) for _ in range(3)]
+    mean, sd = kinds.rest_reading(kind, runs, ("r1",))
+    assert mean == pytest.approx(10.0)
+    assert sd == pytest.approx(0.001 / np.sqrt(12) / np.sqrt(3), rel=1e-3)
+
+
+def test_only_the_curvature_r0_is_read_at_rest():
+    # the straight body at zero cable has its sensors at rest length: the ohmmeters read R0
+    read = {
+        (n, p.field): p.read_at_rest
+        for n in KIND_NAMES
+        for p in kinds.get_kind(n).calibration
+        if p.read_at_rest
+    }
+    assert read == {("curvature", "initial_resistance"): ("r1", "r2")}
