@@ -578,3 +578,14 @@ def test_curvature_r0_stated_off_is_calibrated_to_the_rows_at_rest(tmp_path):
     assert r0.value == pytest.approx(10.1, abs=0.005)
     assert r0.profile_95[0] <= 10.1 <= r0.profile_95[1]
     assert r0.pinned and r0.posterior_sd_rel < 5e-4
+
+
+def test_profiling_random_effects_leaves_the_marginal_chi_square():
+    from tcamlab.calibration.problem import profile_random_effects, random_effect_basis
+
+    rng = np.random.default_rng(3)
+    g, r = rng.normal(size=(20, 2)) * [3.0, 0.2], rng.normal(size=20)
+    z = profile_random_effects(r, *random_effect_basis(g))
+    assert z.shape == r.shape
+    assert z @ z == pytest.approx(r @ np.linalg.solve(np.eye(20) + g @ g.T, r), rel=1e-10)
+    assert np.allclose(profile_random_effects(r, *random_effect_basis(np.zeros((20, 1)))), r)

@@ -23,7 +23,14 @@ from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 from tcamlab.text import did_you_mean
 
-__all__ = ["Spec", "CalibrationProblem", "FAIL_RESIDUAL", "FD_STEP"]
+__all__ = [
+    "Spec",
+    "CalibrationProblem",
+    "FAIL_RESIDUAL",
+    "FD_STEP",
+    "random_effect_basis",
+    "profile_random_effects",
+]
 
 FAIL_RESIDUAL = 1.0e3
 """Normalised residual of every point when the model fails (outside its domain)."""
@@ -139,6 +146,21 @@ class Spec:
     def from_u(self, u: float) -> float:
         """Value [SI] of a fitted coordinate."""
         return math.exp(u) if self.param.positive else u * self.prior_sd
+
+
+def random_effect_basis(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(U, 1 - 1/sqrt(1 + s^2))`` of random-effect columns ``G = U S V^T`` (normalised
+    residual per prior sd of each effect): what :func:`profile_random_effects` needs."""
+    u_mat, sv, _ = np.linalg.svd(g, full_matrices=False)
+    return u_mat, 1.0 - 1.0 / np.sqrt(1.0 + sv**2)
+
+
+def profile_random_effects(r: np.ndarray, u_mat: np.ndarray, shrink: np.ndarray) -> np.ndarray:
+    """Normalised residuals ``r`` with random effects ``delta ~ N(0, I)`` of columns
+    ``G = U S V^T`` profiled out exactly: minimising ``|r - G delta|^2 + |delta|^2`` over
+    ``delta`` leaves ``r^T (I + G G^T)^-1 r``, the squared norm of
+    ``(I + G G^T)^-1/2 r = r - U diag(1 - 1/sqrt(1 + s^2)) U^T r`` (same length as ``r``)."""
+    return r - u_mat @ (shrink * (u_mat.T @ r))
 
 
 def _unstated_start(kind, exp, runs, fld: str) -> float:
@@ -359,13 +381,11 @@ class CalibrationProblem:
 
         Each run's sample may depart from the shared one by the experiment's
         ``[sample.run_to_run]`` (relative sds), else the kind's ``run_reproducibility`` (the
-        virtual rig's per-run scatter of twists and coil length is such a departure). Linearised at the stated values (the departures are 1e-3 or less), a run's
-        normalised residuals carry ``G delta`` with ``delta ~ N(0, I)``; minimising
-        ``|r - G delta|^2 + |delta|^2`` over ``delta`` leaves ``r^T (I + G G^T)^-1 r``, the
-        squared norm of ``(I + G G^T)^-1/2 r = r - U diag(1 - 1/sqrt(1 + s^2)) U^T r``
-        (G = U S V^T): the random effects are profiled out exactly, like the zeros, and the
-        residual vector keeps its length. G's columns are taken after the zeros are projected
-        out (a flat-prior zero absorbs any constant part first).
+        virtual rig's per-run scatter of twists and coil length is such a departure).
+        Linearised at the stated values (the departures are 1e-3 or less), a run's
+        normalised residuals carry ``G delta`` with ``delta ~ N(0, I)``, profiled out exactly
+        like the zeros (:func:`profile_random_effects`). G's columns are taken after the
+        zeros are projected out (a flat-prior zero absorbs any constant part first).
         """
         out, start = [], 0
         for i, qs in enumerate(self.quantities):
@@ -374,8 +394,7 @@ class CalibrationProblem:
                 n = len(run.data) * len(qs)
                 g = self._effect_columns(i, j, scatter) if scatter else np.zeros((n, 0))
                 if g.shape[1]:
-                    u_mat, sv, _ = np.linalg.svd(g, full_matrices=False)
-                    out.append((slice(start, start + n), u_mat, 1.0 - 1.0 / np.sqrt(1.0 + sv**2)))
+                    out.append((slice(start, start + n), *random_effect_basis(g)))
                 start += n
         return out
 
@@ -523,7 +542,7 @@ class CalibrationProblem:
         out = np.concatenate(parts)
         # per-run random effects profiled out (see _run_effects)
         for rows, u_mat, shrink in self.run_effects:
-            out[rows] -= u_mat @ (shrink * (u_mat.T @ out[rows]))
+            out[rows] = profile_random_effects(out[rows], u_mat, shrink)
         return out
 
     def failed(self, chi2: float) -> bool:

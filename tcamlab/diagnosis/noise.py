@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from tcamlab.calibration.problem import EFFECT_STEP
+from tcamlab.calibration.problem import EFFECT_STEP, profile_random_effects, random_effect_basis
 from tcamlab.diagnosis.problem import MODEL_ERRORS, Problem, fit_effect
 from tcamlab.diagnosis.result import Baseline, Gap, NoiseFloor, QuantityNoise
 from tcamlab.effects import Mods
@@ -310,10 +310,9 @@ def run_effect_columns(problem: Problem, baseline: BaselineFit, i: int) -> np.nd
 def profile_run_effects(problem: Problem, baseline: BaselineFit, i: int, z: np.ndarray) -> np.ndarray:
     """Run i's normalised residuals with its departures from the shared sample profiled out.
 
-    As in calibration (:class:`tcamlab.calibration.problem.CalibrationProblem`), a run's
-    residuals carry ``G delta`` with ``delta ~ N(0, I)``; minimising over ``delta`` leaves
-    ``z' z'`` with ``z' = z - U diag(1 - 1/sqrt(1 + s^2)) U' z`` (G = U S V'), which without a
-    gap is chi-square with as many degrees of freedom as before. A sensor re-mounted between
+    As in calibration (:func:`tcamlab.calibration.problem.profile_random_effects`), a run's
+    residuals carry ``G delta`` with ``delta ~ N(0, I)``, profiled out; without a gap the
+    result is chi-square with as many degrees of freedom as before. A sensor re-mounted between
     pulls (0.05 % of twists and coil length) misses one shared geometry by more than a quiet
     load cell's noise: a fifth of the rig's noise made every sensing null `unexplained`.
     """
@@ -322,8 +321,7 @@ def profile_run_effects(problem: Problem, baseline: BaselineFit, i: int, z: np.n
     g = run_effect_columns(problem, baseline, i)
     if g.shape[0] != z.size or not g.size:
         return z
-    u, sv, _ = np.linalg.svd(g, full_matrices=False)
-    return z - u @ ((1.0 - 1.0 / np.sqrt(1.0 + sv**2)) * (u.T @ z))
+    return profile_random_effects(z, *random_effect_basis(g))
 
 
 def check_gap(
