@@ -429,3 +429,26 @@ def test_a_fit_told_to_stay_defined_on_a_run_never_leaves_its_domain(tmp_path):
         walled = rec.fit(None, train, [full.x], box, 200, defined_on=[h])
         assert rec.outside(i, walled.u, Mods()) == 0.0
         assert walled.n == sum(int(m.sum()) for _, m in train) * len(problem.quantities)
+
+
+def test_a_clear_but_immaterial_shift_is_not_named():
+    # the curvature rig's R0, pinned by the readings at rest to 1 mOhm, moved 1 mOhm (0.0002
+    # of its 5 % prior sd) while d1, known to 20 %, moved 4.6 % inside a wide interval
+    params = {
+        "sensor_offset": {
+            "value": 9.41e-3,
+            "ci95": [8.0e-3, 11.0e-3],
+            "stated": 9.0e-3,
+            "shift_in_prior_sds": 0.23,
+        },
+        "initial_resistance": {
+            "value": 9.999,
+            "ci95": [9.998, 9.9999],
+            "stated": 10.0,
+            "shift_in_prior_sds": -2e-4,
+        },
+    }
+    rec = _C(RECALIBRATION, 0.9, 0.3, True, params)
+    assert named_parameters(rec) == ["sensor_offset"]
+    params["initial_resistance"]["shift_in_prior_sds"] = -0.5  # R0 stated 2.5 % off its reading
+    assert named_parameters(rec) == ["initial_resistance"]

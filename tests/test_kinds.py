@@ -215,31 +215,49 @@ def test_calibration_parameters_name_real_fields(name):
     assert set(kind.nuisance_zeros) <= set(kind.outputs)
 
 
+def _pull(rest, noise, rng, n=40):
+    """A run logged at rest (``rest`` readings of R), then pulled: the cable jumps to a tenth
+    of its range and ramps on, R along a straight line with noise."""
+    return pd.DataFrame(
+        {
+            "cable": np.r_[np.zeros(len(rest)), np.linspace(0.1, 1.0, n) * 1e-2],
+            "r1": np.r_[rest, np.linspace(10.5, 12.0, n) + rng.normal(0.0, noise, n)],
+        }
+    )
+
+
 def test_rest_reading_is_the_mean_at_rest_with_its_run_to_run_sd():
     kind = kinds.get_kind("curvature")
-    runs = [
-        pd.DataFrame(
-            {"cable": [0.0, 0.0, 1e-3, 2e-3], "r1": [10.0, 10.02, 20.0, 30.0], "r2": [10.04, 10.02, 30, 40]}
-        ),
-        pd.DataFrame({"cable": [0.0, 1e-3, 2e-3], "r1": [9.98, 21.0, 32.0], "r2": [10.0, 21.5, 32.5]}),
-    ]
-    mean, sd = kinds.rest_reading(kind, runs, ("r1", "r2"))
-    at_rest = np.array([10.0, 10.02, 10.04, 10.02, 9.98, 10.0])  # rows before the cable moves
+    rng = np.random.default_rng(1)
+    runs = [_pull([10.00, 10.02], 1e-4, rng), _pull([10.04], 1e-4, rng), _pull([9.98], 1e-4, rng)]
+    mean, sd = kinds.rest_reading(kind, runs, ("r1",))
+    at_rest = np.array([10.0, 10.02, 10.04, 9.98])  # rows before the cable moves
     assert mean == pytest.approx(at_rest.mean())
     # spread of all readings over sqrt(runs), not sqrt(readings)
-    assert sd == pytest.approx(np.std(at_rest, ddof=1) / np.sqrt(2))
-    assert kinds.rest_reading(kind, runs[1:], ("r1",)) is None  # one reading: no spread
-    assert kinds.rest_reading(kind, runs, ("r3",)) is None
+    assert sd == pytest.approx(np.std(at_rest, ddof=1) / np.sqrt(3))
+    assert kinds.rest_reading(kind, runs[1:2], ("r1",)) is None  # one reading: no spread
+    assert kinds.rest_reading(kind, runs, ("r2",)) is None
+
+
+def test_readings_that_agree_by_chance_keep_the_columns_noise():
+    # three readings 0.1 mOhm apart on a meter whose noise over the run is 2 mOhm
+    kind = kinds.get_kind("curvature")
+    rng = np.random.default_rng(2)
+    runs = [_pull([10.0 + 1e-4 * k], 2e-3, rng, n=200) for k in range(3)]
+    mean, sd = kinds.rest_reading(kind, runs, ("r1",))
+    assert mean == pytest.approx(10.0001)
+    assert sd == pytest.approx(2e-3 / np.sqrt(3), rel=0.15)
 
 
 def test_identical_readings_at_rest_keep_the_logging_step_as_their_spread():
     kind = kinds.get_kind("curvature")
-    steps = np.random.default_rng(0).integers(1, 4, 39)
-    ramp = 10.0 + 0.001 * np.r_[0, np.cumsum(steps)]  # a 3-decimal log: step 0.001 ohm
+    steps = np.ones(39)
+    steps[[9, 19, 29]] = 2  # a smooth ramp on a 3-decimal log: step 0.001 ohm
+    ramp = 10.0 + 0.001 * np.r_[0, np.cumsum(steps)]
     runs = [pd.DataFrame({"cable": np.arange(40) * 1e-4, "r1": ramp}) for _ in range(3)]
     mean, sd = kinds.rest_reading(kind, runs, ("r1",))
     assert mean == pytest.approx(10.0)
-    assert sd == pytest.approx(0.001 / np.sqrt(12) / np.sqrt(3), rel=1e-3)
+    assert sd == pytest.approx(0.001 / np.sqrt(12) / np.sqrt(3), rel=1e-6)
 
 
 def test_only_the_curvature_r0_is_read_at_rest():

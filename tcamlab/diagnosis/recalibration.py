@@ -335,7 +335,10 @@ class Recalibration:
                 "stated_sd": sd,
                 "prior_sd": s.prior_sd,
                 "shift_in_stated_sds": (value - s.stated) / sd if sd else None,
-                "shift_in_prior_sds": float((fit.u[m] - s.u0) / s.sd_u),
+                # against the stated value and prior sd: a reading at rest sharpens the prior
+                # the fit uses, not the yardstick of a shift
+                "shift_in_prior_sds": float((fit.u[m] - s.stated_u0) / s.stated_sd_u),
+                "reading": list(s.reading) if s.reading is not None else None,
                 "pinned_by": s.param.pinned_by,
                 "aliased_with": {
                     o.name: float(corr[m, j])

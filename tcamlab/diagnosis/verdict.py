@@ -19,6 +19,7 @@ from tcamlab.effects import combine
 
 __all__ = [
     "MIN_FRACTION_CLOSED",
+    "MIN_NAMED_SHIFT",
     "MIN_PARTIAL_FRACTION",
     "PAIR_POOL",
     "Decision",
@@ -153,11 +154,22 @@ def verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limi
     )
 
 
+MIN_NAMED_SHIFT = 0.1
+"""A recalibrated parameter is named only if it moved at least this many prior sds (the
+stated sd, else the default) besides its interval excluding the stated value. A parameter the
+logs pin far tighter than it is known can leave its stated value by a statistically clear
+but immaterial amount: the curvature rig's R0, read at rest to 1 mOhm, moved 1 mOhm (0.0002
+of its 5 % prior sd) to absorb part of a 0.4 mm d1 error and was named instead of d1."""
+
+
 def named_parameters(recal: CandidateResult) -> list[str]:
-    """The recalibrated parameters that moved: 95 % interval excluding the stated value,
-    else the one that moved furthest in prior sds."""
+    """The recalibrated parameters that moved: 95 % interval excluding the stated value and a
+    shift of at least :data:`MIN_NAMED_SHIFT` prior sds, else the one that moved furthest in
+    prior sds."""
     params = recal.recalibrated
-    moved = [n for n, p in params.items() if not (p["ci95"][0] <= p["stated"] <= p["ci95"][1])]
+    moved = [
+        n for n, p in params.items() if not _covers(p) and abs(p["shift_in_prior_sds"]) >= MIN_NAMED_SHIFT
+    ]
     if moved or not params:
         return moved
     return [max(params, key=lambda n: abs(params[n]["shift_in_prior_sds"]))]
@@ -438,7 +450,7 @@ def parameter_entry(effect, c: CandidateResult, rec, rig) -> dict:
         value=value,
         ci95=[lo, hi],
         shift_in_stated_sds=(value - base["stated"]) / sd if sd else None,
-        shift_in_prior_sds=float((spec.to_u(value) - spec.u0) / spec.sd_u),
+        shift_in_prior_sds=float((spec.to_u(value) - spec.stated_u0) / spec.stated_sd_u),
         via_effect=effect.name,
     )
     return base

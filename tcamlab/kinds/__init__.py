@@ -322,10 +322,13 @@ def rest_reading(kind: Kind, runs, columns) -> tuple[float, float] | None:
     """Mean of ``columns`` over every run's rows at rest (:func:`rest_rows`) and its sd [their unit].
 
     The sd of the mean counts runs, not rows: readings at rest vary from run to run
-    (temperature, a re-mounted sensor) more than within a run, so the spread of all
-    readings over the square root of the number of runs. A spread below the columns'
-    logging step (identical readings) is taken as the step over sqrt(12). None with
-    fewer than two readings or a missing column.
+    (temperature, a re-mounted sensor) more than within a run, so it is the spread of the
+    readings over the square root of the number of runs. A handful of readings
+    underestimates a spread as often as not (six readings of a 2 mOhm meter spread 1 mOhm
+    and made a stated R0 look 2.5 sds off), so the spread is at least the columns' own
+    noise over the whole run (the robust sd of their second differences over sqrt(6),
+    blind to the few kinks where a pull starts or turns; median over runs and columns)
+    and at least their logging step over sqrt(12). None with fewer than two readings or a missing column.
 
     Parameters
     ----------
@@ -338,8 +341,9 @@ def rest_reading(kind: Kind, runs, columns) -> tuple[float, float] | None:
     import numpy as np
 
     from tcamlab.quantisation import logging_step
+    from tcamlab.signals import mad_scale
 
-    values, steps = [], []
+    values, steps, noise = [], [0.0], []
     for data in runs:
         if not all(c in data for c in columns):
             return None
@@ -347,12 +351,16 @@ def rest_reading(kind: Kind, runs, columns) -> tuple[float, float] | None:
         for c in columns:
             x = data[c].to_numpy(float)
             values.append(x[rows])
-            steps.append(logging_step(x) or 0.0)
+            steps.append((logging_step(x) or 0.0) / math.sqrt(12.0))
+            d2 = np.diff(x[np.isfinite(x)], 2)
+            noise.append(mad_scale(d2) / math.sqrt(6.0) if d2.size >= 3 else np.nan)
     x = np.concatenate(values) if values else np.array([])
     x = x[np.isfinite(x)]
     if x.size < 2:
         return None
-    sd = max(float(np.std(x, ddof=1)), max(steps) / math.sqrt(12.0))
+    noise = [v for v in noise if np.isfinite(v)]
+    floor = max(max(steps), float(np.median(noise)) if noise else 0.0)
+    sd = max(float(np.std(x, ddof=1)), floor)
     if not sd > 0:
         return None
     return float(np.mean(x)), sd / math.sqrt(len(runs))
