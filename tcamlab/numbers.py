@@ -10,6 +10,8 @@
   from it (``0.99998``), so a model short of perfect never prints as perfect.
 - :func:`fmt_percent`: whole percent by default, never ``-0%``; :func:`fmt_percent_range`
   adds the decimals that keep an interval's two ends apart.
+- :func:`shift_text`: a recalibrated parameter's shift, ``+1.4 stated sds`` (or prior
+  sds when the file states none); below 0.1 one significant digit (``+0.03``), not ``+0.0``.
 - :func:`with_unit`: a value and its unit (``0.0123 mm``); every printed RMSE,
   MAE, max |err| and bias carries one (:func:`unit_label` of the quantity).
 
@@ -37,6 +39,7 @@ __all__ = [
     "bare_name",
     "rmse_unit",
     "lab_unit",
+    "shift_text",
 ]
 
 MISSING = "\u2013"
@@ -200,3 +203,13 @@ def lab_unit(si_unit: str) -> tuple[str, float]:
     """(lab unit, factor from SI) of a fitted parameter's SI unit (``"m"`` -> ``("mm", 1e3)``,
     ``"m/s"`` -> ``("um/s", 1e6)``; a dimensionless ``"-"`` -> ``("", 1.0)``: no unit printed)."""
     return _LAB_UNITS.get(si_unit, (si_unit, 1.0))
+
+
+def shift_text(p: dict) -> str:
+    """A recalibrated parameter's shift from its stated value in words (see the module docstring).
+
+    ``p`` holds ``shift_in_stated_sds`` (None when the file states no sd) and
+    ``shift_in_prior_sds``."""
+    stated = p.get("shift_in_stated_sds")
+    x, what = (stated, "stated sds") if stated is not None else (p["shift_in_prior_sds"], "prior sds")
+    return f"{x:+.1f} {what}" if abs(x) >= 0.1 or x == 0 else f"{x:+.1g} {what}"

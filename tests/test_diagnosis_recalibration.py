@@ -285,8 +285,8 @@ def test_as_miscalibration_words_and_summary():
     spec = SimpleNamespace(
         name="sensor_offset",
         param=SimpleNamespace(field="sensor_offset"),
-        u0=float(np.log(9e-3)),
-        sd_u=0.3 / 9,
+        stated_u0=float(np.log(9e-3)),
+        stated_sd_u=0.3 / 9,
         to_u=lambda v: float(np.log(v)),
     )
     entry = {
@@ -328,8 +328,8 @@ def test_parameter_entry_converts_the_effect_value_to_the_parameter():
     spec = SimpleNamespace(
         name="initial_resistance",
         param=SimpleNamespace(field="initial_resistance"),
-        u0=float(np.log(10.0)),
-        sd_u=0.05,
+        stated_u0=float(np.log(10.0)),
+        stated_sd_u=0.05,
         to_u=lambda v: float(np.log(v)),
     )
     c = SimpleNamespace(
@@ -431,9 +431,9 @@ def test_a_fit_told_to_stay_defined_on_a_run_never_leaves_its_domain(tmp_path):
         assert walled.n == sum(int(m.sum()) for _, m in train) * len(problem.quantities)
 
 
-def test_a_clear_but_immaterial_shift_is_not_named():
-    # the curvature rig's R0, pinned by the readings at rest to 1 mOhm, moved 1 mOhm (0.0002
-    # of its 5 % prior sd) while d1, known to 20 %, moved 4.6 % inside a wide interval
+def test_a_shift_within_the_reading_at_rest_is_not_named():
+    # the curvature rig's R0, read at rest to 1.3 mOhm (sd), moved 1 mOhm while d1, known to
+    # 20 %, moved 4.6 % inside a wide interval: d1 is the one to name
     params = {
         "sensor_offset": {
             "value": 9.41e-3,
@@ -446,9 +446,14 @@ def test_a_clear_but_immaterial_shift_is_not_named():
             "ci95": [9.998, 9.9999],
             "stated": 10.0,
             "shift_in_prior_sds": -2e-4,
+            "reading": [10.0, 1.3e-3],
         },
     }
     rec = _C(RECALIBRATION, 0.9, 0.3, True, params)
     assert named_parameters(rec) == ["sensor_offset"]
-    params["initial_resistance"]["shift_in_prior_sds"] = -0.5  # R0 stated 2.5 % off its reading
+    # the rows at rest read 10.1 ohm against a stated 10: R0 is named
+    params["initial_resistance"].update(value=10.1, ci95=[10.098, 10.102], reading=[10.1, 1.3e-3])
+    assert named_parameters(rec) == ["initial_resistance"]
+    # without a reading, an interval that excludes the stated value is enough
+    params["initial_resistance"].update(value=9.999, ci95=[9.998, 9.9999], reading=None)
     assert named_parameters(rec) == ["initial_resistance"]

@@ -462,3 +462,12 @@ def test_a_bias_that_is_rounding_of_a_whole_run_zero_shows_as_zero():
     # a real bias stays, however small against the RMSE threshold of 1e-9
     assert _shown({"rmse": 0.0114, "bias": -2.0e-6}, "bias") == -2.0e-6
     assert _shown({"rmse": 0.0114, "bias": 1e-20}, "rmse") == 0.0114
+
+
+def test_a_small_shift_is_not_printed_as_zero():
+    from tcamlab.numbers import shift_text
+
+    assert shift_text({"shift_in_stated_sds": 1.44, "shift_in_prior_sds": 0.3}) == "+1.4 stated sds"
+    assert shift_text({"shift_in_stated_sds": None, "shift_in_prior_sds": 0.034}) == "+0.03 prior sds"
+    assert shift_text({"shift_in_stated_sds": None, "shift_in_prior_sds": -0.0004}) == "-0.0004 prior sds"
+    assert shift_text({"shift_in_stated_sds": 0.0, "shift_in_prior_sds": 0.0}) == "+0.0 stated sds"

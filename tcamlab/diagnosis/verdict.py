@@ -16,10 +16,10 @@ from tcamlab.diagnosis.problem import Problem
 from tcamlab.diagnosis.recalibration import RECALIBRATION
 from tcamlab.diagnosis.result import CandidateResult, Gap
 from tcamlab.effects import combine
+from tcamlab.numbers import shift_text
 
 __all__ = [
     "MIN_FRACTION_CLOSED",
-    "MIN_NAMED_SHIFT",
     "MIN_PARTIAL_FRACTION",
     "PAIR_POOL",
     "Decision",
@@ -154,22 +154,25 @@ def verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limi
     )
 
 
-MIN_NAMED_SHIFT = 0.1
-"""A recalibrated parameter is named only if it moved at least this many prior sds (the
-stated sd, else the default) besides its interval excluding the stated value. A parameter the
-logs pin far tighter than it is known can leave its stated value by a statistically clear
-but immaterial amount: the curvature rig's R0, read at rest to 1 mOhm, moved 1 mOhm (0.0002
-of its 5 % prior sd) to absorb part of a 0.4 mm d1 error and was named instead of d1."""
+def _material(p: dict) -> bool:
+    """Whether a recalibrated parameter's shift from its stated value is more than the logs'
+    direct reading of it can tell (95 %); always, for a parameter without a reading.
+
+    Read at rest to 1 mOhm and pulled by the curvatures, the curvature rig's R0 moved 1 mOhm
+    to absorb part of a 0.4 mm d1 error: its interval excluded the stated value, and R0 was
+    named instead of d1. A stated R0 that the rows at rest contradict is named."""
+    reading = p.get("reading")
+    if not reading:
+        return True
+    return abs(p["value"] - p["stated"]) > 1.96 * reading[1]
 
 
 def named_parameters(recal: CandidateResult) -> list[str]:
-    """The recalibrated parameters that moved: 95 % interval excluding the stated value and a
-    shift of at least :data:`MIN_NAMED_SHIFT` prior sds, else the one that moved furthest in
-    prior sds."""
+    """The recalibrated parameters that moved: 95 % interval excluding the stated value (and,
+    for a parameter the logs read directly, a shift beyond that reading's 95 %), else the one
+    that moved furthest in prior sds."""
     params = recal.recalibrated
-    moved = [
-        n for n, p in params.items() if not _covers(p) and abs(p["shift_in_prior_sds"]) >= MIN_NAMED_SHIFT
-    ]
+    moved = [n for n, p in params.items() if not _covers(p) and _material(p)]
     if moved or not params:
         return moved
     return [max(params, key=lambda n: abs(params[n]["shift_in_prior_sds"]))]
@@ -177,8 +180,7 @@ def named_parameters(recal: CandidateResult) -> list[str]:
 
 def describe_parameter(name: str, p: dict) -> str:
     """A recalibrated parameter in words: value, interval, stated value and shift."""
-    shift = p["shift_in_stated_sds"]
-    sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
+    sds = shift_text(p)
     lo, hi = p["ci95"]
     partners = p.get("aliased_with") or {}
     alias = (

@@ -13,6 +13,7 @@ from tcamlab.numbers import (
     lab_unit,
     percent_decimals,
     rmse_unit,
+    shift_text,
 )
 
 from .diagnosis_figures import MIN_REGIME_POINTS, forest_figure, regime_figure, residual_figure
@@ -102,8 +103,7 @@ def _miscalibrated_text(rec: dict) -> str:
     parts = []
     for name in rec.get("named", []):
         p = rec["parameters"][name]
-        shift = p["shift_in_stated_sds"]
-        sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
+        sds = shift_text(p)
         unit, fac = _parameter_unit(name, p["unit"])
         interval = (
             "at the edge of the model's domain on these runs, so no posterior interval"
@@ -345,8 +345,7 @@ def diagnosis_lines(result) -> list[str]:
     for name in rec.get("named", []):
         p = rec["parameters"][name]
         unit, fac = _parameter_unit(name, p["unit"])
-        shift = p["shift_in_stated_sds"]
-        sds = f"{shift:+.1f} stated sds" if shift is not None else f"{p['shift_in_prior_sds']:+.1f} prior sds"
+        sds = shift_text(p)
         lo, hi = p["ci95"]
         lines.append(
             f"  recalibrated {p['symbol']} = {fmt(p['value'] * fac)} {unit} (95 % {fmt(lo * fac)} to "
