@@ -10,6 +10,8 @@
   from it (``0.99998``), so a model short of perfect never prints as perfect.
 - :func:`fmt_percent`: whole percent by default, never ``-0%``; :func:`fmt_percent_range`
   adds the decimals that keep an interval's two ends apart.
+- :func:`fmt_interval`: a value and its interval with the digits that keep them apart
+  (``10.1 (95 % 10.098 to 10.102)``, not ``10.1 to 10.1``).
 - :func:`shift_text`: a recalibrated parameter's shift, ``+1.4 stated sds`` (or prior
   sds when the file states none); below 0.1 one significant digit (``+0.03``), not ``+0.0``.
 - :func:`with_unit`: a value and its unit (``0.0123 mm``); every printed RMSE,
@@ -40,6 +42,8 @@ __all__ = [
     "rmse_unit",
     "lab_unit",
     "shift_text",
+    "reading_text",
+    "fmt_interval",
 ]
 
 MISSING = "\u2013"
@@ -213,3 +217,30 @@ def shift_text(p: dict) -> str:
     stated = p.get("shift_in_stated_sds")
     x, what = (stated, "stated sds") if stated is not None else (p["shift_in_prior_sds"], "prior sds")
     return f"{x:+.1f} {what}" if abs(x) >= 0.1 or x == 0 else f"{x:+.1g} {what}"
+
+
+def reading_text(p: dict, factor: float = 1.0, unit: str = "") -> str:
+    """``"; read at rest 10 ohm (sd 0.0013)"`` for a recalibrated parameter the logs read
+    directly (``p["reading"]`` = [mean, sd] [SI], shown times ``factor`` in ``unit``), else ''."""
+    reading = p.get("reading")
+    if not reading:
+        return ""
+    unit = f" {unit}" if unit else ""
+    return f"; read at rest {fmt(reading[0] * factor)}{unit} (sd {fmt(reading[1] * factor)})"
+
+
+MAX_INTERVAL_DIGITS = 10
+"""Most significant digits :func:`fmt_interval` adds to keep an interval's ends apart."""
+
+
+def fmt_interval(value, lo, hi, sig: int = SIG_DIGITS) -> tuple[str, str, str]:
+    """``(value, lo, hi)`` formatted with the fewest significant digits (at least ``sig``, at
+    most :data:`MAX_INTERVAL_DIGITS`) at which the three that differ still print apart: a
+    pinned R0 of 10.1 ohm has the interval 10.098 to 10.102, which 4 digits print as
+    10.1 to 10.1."""
+    for k in range(sig, MAX_INTERVAL_DIGITS + 1):
+        out = (fmt(value, k), fmt(lo, k), fmt(hi, k))
+        pairs = ((value, lo, 0, 1), (value, hi, 0, 2), (lo, hi, 1, 2))
+        if all(a == b or out[i] != out[j] for a, b, i, j in pairs):
+            return out
+    return out

@@ -471,3 +471,18 @@ def test_a_small_shift_is_not_printed_as_zero():
     assert shift_text({"shift_in_stated_sds": None, "shift_in_prior_sds": 0.034}) == "+0.03 prior sds"
     assert shift_text({"shift_in_stated_sds": None, "shift_in_prior_sds": -0.0004}) == "-0.0004 prior sds"
     assert shift_text({"shift_in_stated_sds": 0.0, "shift_in_prior_sds": 0.0}) == "+0.0 stated sds"
+
+
+def test_a_parameter_read_at_rest_says_what_the_reading_was():
+    from tcamlab.numbers import reading_text
+
+    assert reading_text({"reading": [10.1, 0.0013]}, 1.0, "ohm") == "; read at rest 10.1 ohm (sd 0.0013)"
+    assert reading_text({"reading": None}) == "" and reading_text({}) == ""
+
+
+def test_an_interval_never_prints_its_two_ends_alike():
+    from tcamlab.numbers import fmt_interval
+
+    assert fmt_interval(10.1, 10.098, 10.102) == ("10.1", "10.098", "10.102")
+    assert fmt_interval(0.03933, 0.03925, 0.03942) == ("0.03933", "0.03925", "0.03942")
+    assert fmt_interval(9e-3, 9e-3, 9e-3) == ("0.009", "0.009", "0.009")  # equal ends stay equal

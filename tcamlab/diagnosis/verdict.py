@@ -16,7 +16,7 @@ from tcamlab.diagnosis.problem import Problem
 from tcamlab.diagnosis.recalibration import RECALIBRATION
 from tcamlab.diagnosis.result import CandidateResult, Gap
 from tcamlab.effects import combine
-from tcamlab.numbers import shift_text
+from tcamlab.numbers import fmt, fmt_interval, reading_text, shift_text
 
 __all__ = [
     "MIN_FRACTION_CLOSED",
@@ -181,7 +181,7 @@ def named_parameters(recal: CandidateResult) -> list[str]:
 def describe_parameter(name: str, p: dict) -> str:
     """A recalibrated parameter in words: value, interval, stated value and shift."""
     sds = shift_text(p)
-    lo, hi = p["ci95"]
+    value, lo, hi = fmt_interval(p["value"], *p["ci95"])
     partners = p.get("aliased_with") or {}
     alias = (
         " (these data fix it only together with "
@@ -191,8 +191,8 @@ def describe_parameter(name: str, p: dict) -> str:
         else ""
     )
     return (
-        f"{p['symbol']} ({name}) {p['value']:.4g} {p['unit']} (95 % {lo:.4g} to {hi:.4g}), "
-        f"stated {p['stated']:.4g}: {sds}{alias}"
+        f"{p['symbol']} ({name}) {value} {p['unit']} (95 % {lo} to {hi}), "
+        f"stated {fmt(p['stated'])}: {sds}{reading_text(p, unit=p['unit'])}{alias}"
     )
 
 

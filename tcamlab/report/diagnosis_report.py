@@ -8,10 +8,12 @@ from tcamlab.numbers import (
     MISSING,
     fmt,
     fmt_column,
+    fmt_interval,
     fmt_percent,
     fmt_percent_range,
     lab_unit,
     percent_decimals,
+    reading_text,
     rmse_unit,
     shift_text,
 )
@@ -105,14 +107,15 @@ def _miscalibrated_text(rec: dict) -> str:
         p = rec["parameters"][name]
         sds = shift_text(p)
         unit, fac = _parameter_unit(name, p["unit"])
+        value, lo, hi = fmt_interval(p["value"] * fac, p["ci95"][0] * fac, p["ci95"][1] * fac)
         interval = (
             "at the edge of the model's domain on these runs, so no posterior interval"
             if p.get("at_domain_edge")
-            else f"95 % interval {fmt(p['ci95'][0] * fac)} to {fmt(p['ci95'][1] * fac)}"
+            else f"95 % interval {lo} to {hi}"
         )
         parts.append(
-            f"{p['symbol']} = {fmt(p['value'] * fac)} {unit} ({interval}; stated "
-            f"{fmt(p['stated'] * fac)}, {sds})"
+            f"{p['symbol']} = {value} {unit} ({interval}; stated "
+            f"{fmt(p['stated'] * fac)}, {sds}{reading_text(p, fac, unit)})"
         )
     if rec.get("via_effect"):
         # the parameter's own error, fitted as an effect (no prior), explained the gap
@@ -346,10 +349,10 @@ def diagnosis_lines(result) -> list[str]:
         p = rec["parameters"][name]
         unit, fac = _parameter_unit(name, p["unit"])
         sds = shift_text(p)
-        lo, hi = p["ci95"]
+        value, lo, hi = fmt_interval(p["value"] * fac, p["ci95"][0] * fac, p["ci95"][1] * fac)
         lines.append(
-            f"  recalibrated {p['symbol']} = {fmt(p['value'] * fac)} {unit} (95 % {fmt(lo * fac)} to "
-            f"{fmt(hi * fac)}; stated {fmt(p['stated'] * fac)}, {sds})"
+            f"  recalibrated {p['symbol']} = {value} {unit} (95 % {lo} to "
+            f"{hi}; stated {fmt(p['stated'] * fac)}, {sds}{reading_text(p, fac, unit)})"
         )
     rows = ([doc["combination"]] if doc.get("combination") else []) + doc["ranking"][:5]
     for r in rows:
