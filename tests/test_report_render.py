@@ -369,6 +369,20 @@ def test_pdf_long_table_splits_with_header_repeated():
         assert "HEADERX" in page.extract_text()
 
 
+def test_a_table_that_fits_a_page_starts_in_place_when_most_of_the_page_is_left():
+    # a 40-row table (it fits a page) after a short summary: moved whole to page 2, it left page 1 blank
+    rows = [[i, f"figure {i}", 0.5] for i in range(40)]
+    doc = Document(
+        "Benchmark",
+        sections=[
+            Section("Summary", paragraphs=["One line."] * 3),
+            Section("Families", tables=[Table(["family", "FIGUREHEAD", "result"], rows)]),
+        ],
+    )
+    first = _reader(render_pdf(doc)).pages[0].extract_text()
+    assert "FIGUREHEAD" in first and "figure 0" in first
+
+
 def test_combined_pdf(doc, pdf):
     other = Document("Second report", sections=[Section("Only", paragraphs=["hello"])])
     other_pdf = render_pdf(other)
