@@ -104,19 +104,23 @@ def test_a_remounted_sensor_is_no_gap(tmp_path):
     assert res.verdict == "none"
 
 
-def test_two_effects_at_once_are_both_named(tmp_path):
-    # Camera placement and axial compression at 5x each. Alone (stated parameters)
-    # neither closes half of the gap; fitted with the recalibrated parameters (d1, S, R0
-    # absorb part of the other effect) each does, and they fit the withheld runs equally
-    # well: the verdict must name both, as an aliased set or as a pair.
+def test_two_effects_at_once_name_one_that_leaves_no_gap(tmp_path):
+    # Camera placement and axial compression at 5x each. Until R0 was read at rest, each
+    # alone closed the gap (R0 absorbing part of the other) and the verdict named both as an
+    # aliased set. With R0 read at rest, compression refitted with d1, S and E leaves the
+    # withheld runs at 1.25 x noise, inside the no-gap limit (1.43 on these 66 points), and
+    # camera placement alone does not come close: one of the pair is named (the benchmark's
+    # "one of the pair"), and what it leaves is no gap the data can show.
     truth = {"camera-placement": 5.0, "axial-compression": 5.0}
     exp = _simulate(tmp_path, "curvature", truth, 9001)
     res = diagnose(exp, n_boot=300)
     assert res.verdict in ("attributed", "aliased")
     assert res.effect in truth
-    named = set(res.combination["effects"]) if res.combination else {res.effect, *res.aliased_with}
-    assert named == set(truth)
-    assert set(res.separate_by) == set(truth) or res.combination
+    best = res.ranking[0]
+    assert best.effect == res.effect
+    assert best.heldout_rmse_after_noise < res.gap["limit"] < res.gap["rmse_over_noise"]
+    other = next(c for c in res.ranking if c.effect in truth and c.effect != res.effect)
+    assert other.heldout_rmse_after_noise > 1.5 * best.heldout_rmse_after_noise
     doc = res.to_dict()
     json.dumps(doc, allow_nan=False)
 
