@@ -238,9 +238,9 @@ def fmt_interval(value, lo, hi, sig: int = SIG_DIGITS) -> tuple[str, str, str]:
     most :data:`MAX_INTERVAL_DIGITS`) at which the three that differ still print apart: a
     pinned R0 of 10.1 ohm has the interval 10.098 to 10.102, which 4 digits print as
     10.1 to 10.1."""
+    pairs = ((value, lo, 0, 1), (value, hi, 0, 2), (lo, hi, 1, 2))
     for k in range(sig, MAX_INTERVAL_DIGITS + 1):
         out = (fmt(value, k), fmt(lo, k), fmt(hi, k))
-        pairs = ((value, lo, 0, 1), (value, hi, 0, 2), (lo, hi, 1, 2))
         if all(a == b or out[i] != out[j] for a, b, i, j in pairs):
             return out
     return out
