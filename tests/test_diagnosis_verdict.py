@@ -60,6 +60,13 @@ def test_two_qualifying_candidates_that_fit_alike_are_aliased():
     assert res[:3] == ("aliased", "a", ["b"])
 
 
+def test_a_second_qualifying_candidate_clearly_worse_is_not_aliased():
+    # both close most of the gap, but b's withheld error is twice a's in every fold
+    folds, idx, bn = _boot({"a": 100.0, "b": 200.0})
+    res = verdict([_cand("a", 0.95, 0.3), _cand("b", 0.8, 0.2, after=1.4)], True, folds, idx, bn, 2.0, 1.3)
+    assert res[:3] == ("attributed", "a", [])
+
+
 def test_parameters_the_data_fix_only_together_are_named_together():
     import numpy as np
 

@@ -79,7 +79,9 @@ def beats(after_folds, name, ref, boot_idx, b_n) -> bool:
 def _effect_verdict(cands, after_folds, boot_idx, b_n, recal):
     """(verdict, effect, aliased_with, reason) among effects that beat recalibration, best first."""
     best = cands[0]
-    aliased = [c.effect for c in cands[1:] if not beats(after_folds, c.effect, best.effect, boot_idx, b_n)]
+    # Aliased: the runners-up the best does not clearly beat (not: those that do not beat it,
+    # which would alias every runner-up, however much worse).
+    aliased = [c.effect for c in cands[1:] if not beats(after_folds, best.effect, c.effect, boot_idx, b_n)]
     alone = f"; recalibration alone closes {pct(recal.fraction_closed)}" if recal is not None else ""
     closes = (
         f"{best.effect} closes {pct(best.fraction_closed)} of the gap above the noise floor on "
