@@ -58,6 +58,10 @@ class Mods:
     lag_tau : float
         Time constant of the actuator behind the oven thermometer [s] (in
         samples when a static log has no time column).
+    lag_conductance_tc : float
+        gamma in h(T) = h (1 + gamma (T_film - T_ambient)): the heat-transfer
+        coefficient behind that lag grows with temperature, so the lag shortens
+        as the oven warms [1/K] (0: one time constant).
     drift : float
         Displacement sensor drift [m/s] (per sample without a time column).
     resistance_tc : float
@@ -104,6 +108,7 @@ class Mods:
     glass_gain: float = 0.0
     glass_temperature: float = 45.0
     lag_tau: float = 0.0
+    lag_conductance_tc: float = 0.0
     drift: float = 0.0
     resistance_tc: float = 0.0
     heat_loss_tc: float = 0.0
@@ -276,9 +281,19 @@ EFFECTS: dict[tuple[str, str], Effect] = {
         _e(
             "oven-thermal-lag",
             "static",
-            [EffectParam("lag_tau", "s", 60.0, 0.0, 3600.0)],
-            "the actuator lags the oven thermometer, so each reading sees an older, cooler temperature",
-            "thesis sec. 2.5.1 (thermometer in the vent hole)",
+            # Both parameters: a lag with one time constant is a modelling choice; the heat
+            # reaches the fibre by convection and radiation, whose coefficients grow with
+            # temperature, so the lag shortens as the oven warms (linear in the film
+            # temperature, as lambda(T) of the dynamic kind's convective-heat-loss).
+            [
+                EffectParam("lag_tau", "s", 60.0, 0.0, 3600.0),
+                EffectParam("lag_conductance_tc", "1/K", 2e-4, 0.0, 0.05),
+            ],
+            "the actuator lags the oven thermometer, so each reading sees an older, cooler "
+            "temperature; the lag shortens as the oven warms (convection and radiation grow "
+            "with temperature)",
+            "thesis sec. 2.5.1 (thermometer in the vent hole); Incropera, heat-transfer "
+            "coefficients of natural convection and linearised radiation",
             "longer dwell per oven step, or a cooling branch (the lag reverses sign)",
         ),
         _e(

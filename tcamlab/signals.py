@@ -35,7 +35,9 @@ def clock(data: pd.DataFrame) -> np.ndarray:
     return np.arange(len(data), dtype=float)
 
 
-def first_order_lag(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+def first_order_lag(
+    x: np.ndarray, t: np.ndarray, tau: float, conductance_tc: float = 0.0, reference: float = 0.0
+) -> np.ndarray:
     """First-order lag of a stepwise signal: y' = (x - y) / tau, x held between samples.
 
     Parameters
@@ -45,15 +47,39 @@ def first_order_lag(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
     t : ndarray
         Sample times [s] (or sample indices when ``tau`` is in samples).
     tau : float
-        Time constant [s]; ``tau <= 0`` returns ``x`` unchanged.
+        Time constant at ``reference`` [s]; ``tau <= 0`` returns ``x`` unchanged.
+    conductance_tc : float
+        gamma of a heat-transfer coefficient h (1 + gamma (T_film - reference)) that
+        grows with the film temperature T_film = (y + x) / 2 (convection and radiation
+        both do): y' = (x - y) (1 + gamma (T_film - reference)) / tau [1/unit of x].
+        0: one time constant.
+    reference : float
+        Temperature at which the time constant is ``tau`` [unit of x].
+
+    Notes
+    -----
+    With x held, u = x - y obeys the logistic equation u' = -(a u - b u^2) / tau,
+    a = 1 + gamma (x - reference), b = gamma / 2, whose exact solution over a step
+    dt is u a E / (a - b u (1 - E)), E = exp(-a dt / tau): no step-size error.
     """
     if tau <= 0:
         return x
-    out = np.empty_like(x)
+    out = np.empty_like(x, dtype=float)
     out[0] = x[0]
-    decay = np.exp(-np.diff(t) / tau)
+    dt = np.diff(t)
+    if conductance_tc == 0.0:
+        decay = np.exp(-dt / tau)
+        for k in range(1, x.size):
+            out[k] = x[k] + (out[k - 1] - x[k]) * decay[k - 1]
+        return out
+    b = 0.5 * conductance_tc
     for k in range(1, x.size):
-        out[k] = x[k] + (out[k - 1] - x[k]) * decay[k - 1]
+        u = x[k] - out[k - 1]
+        # Floor: the coefficient must stay positive far below the reference (not physical there).
+        a = max(0.05, 1.0 + conductance_tc * (x[k] - reference))
+        decay = math.exp(-a * dt[k - 1] / tau)
+        den = a - b * u * (1.0 - decay)
+        out[k] = x[k] - (u * a * decay / den if den > 0.0 else u * decay)
     return out
 
 

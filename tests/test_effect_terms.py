@@ -31,6 +31,7 @@ def test_every_mods_field_is_covered():
         "glass_gain",
         "glass_temperature",
         "lag_tau",
+        "lag_conductance_tc",
         "drift",
         "resistance_tc",
         "heat_loss_tc",
@@ -231,6 +232,32 @@ def test_lag_tau_sees_an_older_cooler_temperature():
     assert np.all(diff[:2] == 0.0)
     # heating: the actuator is cooler than the oven, so contracts less
     assert np.all(diff[2:] > 0) and np.all(np.diff(diff[2:]) < 0)
+
+
+def test_lag_conductance_shortens_the_lag_as_the_oven_warms():
+    from scipy.integrate import solve_ivp
+
+    tau, gamma = 120.0, 0.01
+    t = np.array([0.0, 30.0, 90.0, 200.0, 400.0, 700.0])
+    temps = np.array([20.0, 80.0, 80.0, 120.0, 60.0, 60.0])
+    # by hand: y' = (x - y)(1 + gamma ((x + y) / 2 - T_ambient)) / tau, x held, integrated finely
+    hand_T = [temps[0]]
+    for k in range(1, t.size):
+
+        def rhs(_, y, x=temps[k]):
+            return (x - y) * (1.0 + gamma * (0.5 * (x + y) - TCA_RIG.ambient)) / tau
+
+        sol = solve_ivp(rhs, (t[k - 1], t[k]), [hand_T[-1]], rtol=1e-11, atol=1e-11)
+        hand_T.append(sol.y[0, -1])
+    mods = Mods(lag_tau=tau, lag_conductance_tc=gamma)
+    lagged = _static(mods, temps=temps, time=t)
+    np.testing.assert_allclose(lagged, _static(temps=np.array(hand_T), time=t), rtol=1e-7, atol=1e-13)
+    # warmer than ambient the coefficient is larger, so the actuator is nearer the oven
+    one_tau = _static(Mods(lag_tau=tau), temps=temps, time=t)
+    no_lag = _static(temps=temps, time=t)
+    assert np.all(np.abs(lagged - no_lag)[1:] < np.abs(one_tau - no_lag)[1:])
+    # without a lag the coefficient does nothing
+    np.testing.assert_array_equal(_static(Mods(lag_conductance_tc=gamma), temps=temps, time=t), no_lag)
 
 
 # ---------------------------------------------------------------------------

@@ -56,7 +56,7 @@ def predict(
         weight of each row, logged where runs are made at several loads; else the rig's).
     mods : Mods
         Effect terms (shear_slope_extra, coil_shear_slope, youngs_modulus_slope, glass_*, lag_tau,
-        drift).
+        lag_conductance_tc, drift).
     constant_g : bool
         Use the constant-G model of (2.12) (slope 0) instead of the sample's G(T).
 
@@ -66,7 +66,9 @@ def predict(
         ``displacement`` [m], zero at the first row.
     """
     t = clock(data)
-    temp = first_order_lag(data["temperature"].to_numpy(float), t, mods.lag_tau)
+    temp = first_order_lag(
+        data["temperature"].to_numpy(float), t, mods.lag_tau, mods.lag_conductance_tc, rig.ambient
+    )
     dT = temp - rig.ambient
     kw = sample.model_kwargs()
     kw["shear_modulus_slope"] = (0.0 if constant_g else kw["shear_modulus_slope"]) + mods.shear_slope_extra
