@@ -37,6 +37,7 @@ def test_every_mods_field_is_covered():
         "heat_loss_tc",
         "delay",
         "slack",
+        "slack_length",
         "hysteresis",
         "relaxation",
         "relaxation_tau",
@@ -438,6 +439,20 @@ def test_slack_adds_offset_to_displacement_only():
         out["displacement"][DELTA_TRI > SLACK_RAMP] - base["displacement"][DELTA_TRI > SLACK_RAMP] > 0
     )
     np.testing.assert_array_equal(out["force"], base["force"])
+
+
+def test_slack_length_takes_the_slack_up_gradually():
+    sl, length = 0.3e-3, 2e-3
+    r = _resistance(DELTA_TRI)
+    base = _sensing(r)
+    out = _sensing(r, Mods(slack=sl, slack_length=length))
+    # by hand: the offset grows linearly over SLACK_RAMP + length, then stays
+    hand = sl * np.minimum(np.maximum(DELTA_TRI, 0.0) / (SLACK_RAMP + length), 1.0)
+    np.testing.assert_allclose(out["displacement"] - base["displacement"], hand, rtol=0, atol=1e-9)
+    assert hand.max() == pytest.approx(sl) and np.any((hand > 0) & (hand < 0.5 * sl))
+    np.testing.assert_array_equal(out["force"], base["force"])
+    # without slack the length does nothing
+    np.testing.assert_array_equal(_sensing(r, Mods(slack_length=length))["displacement"], base["displacement"])
 
 
 def test_stiffening_adds_s_q_delta_squared():

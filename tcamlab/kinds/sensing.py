@@ -69,7 +69,7 @@ def predict(
     initial_resistance : float
         R0 [ohm].
     mods : Mods
-        slack, hysteresis, relaxation(_tau), temperature_offset, stiffening.
+        slack(_length), hysteresis, relaxation(_tau), temperature_offset, stiffening.
 
     Returns
     -------
@@ -88,7 +88,7 @@ def predict(
     if mods.relaxation:
         dwell = time_in_dwell(data["resistance"].to_numpy(float), clock(data))
         force = force * (1.0 - mods.relaxation * (1.0 - np.exp(-dwell / mods.relaxation_tau)))
-    disp = delta + mods.slack * np.clip(delta / SLACK_RAMP, 0.0, 1.0)
+    disp = delta + mods.slack * np.clip(delta / (SLACK_RAMP + mods.slack_length), 0.0, 1.0)
     return {"displacement": disp, "force": force}
 
 
