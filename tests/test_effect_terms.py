@@ -452,7 +452,9 @@ def test_slack_length_takes_the_slack_up_gradually():
     assert hand.max() == pytest.approx(sl) and np.any((hand > 0) & (hand < 0.5 * sl))
     np.testing.assert_array_equal(out["force"], base["force"])
     # without slack the length does nothing
-    np.testing.assert_array_equal(_sensing(r, Mods(slack_length=length))["displacement"], base["displacement"])
+    np.testing.assert_array_equal(
+        _sensing(r, Mods(slack_length=length))["displacement"], base["displacement"]
+    )
 
 
 def test_stiffening_adds_s_q_delta_squared():
