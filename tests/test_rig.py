@@ -381,11 +381,12 @@ def test_two_parameter_effect_is_scaled_along_its_scale_vector(tmp_path):
     truth = json.loads(res.truth_path.read_text())
     info = truth["effects"]["initial-slack+stress-relaxation"]
     params = info["parameters"]
-    assert set(params) == {"slack", "relaxation"}
+    assert set(params) == {"slack", "slack_length", "relaxation"}
     assert info["limited_by"] is None
     assert info["achieved_strength"] == pytest.approx(3.0, rel=1e-6)
-    # Both moved along (+scale): slack 0.5 mm, relaxation 0.02 -> ratio 40.
+    # All moved along (+scale): slack 0.5 mm, its take-up length 1 mm, relaxation 0.02.
     assert params["slack"] > 0 and params["relaxation"] / params["slack"] == pytest.approx(0.02 / 0.5e-3)
+    assert params["slack_length"] / params["slack"] == pytest.approx(1e-3 / 0.5e-3)
     assert info["fixed"] == {"relaxation_tau": 1.5}
     assert truth["mods"] == params
     # The recorded parameters give the recorded strength when put back as values.
@@ -394,7 +395,13 @@ def test_two_parameter_effect_is_scaled_along_its_scale_vector(tmp_path):
     sd = rig.noise_sd("sensing", t.sample, t.rig)
     joined = combine(get_effect("initial-slack", "sensing"), get_effect("stress-relaxation", "sensing"))
     again = rig.scale_effect(
-        "sensing", joined, {"value": [params["slack"], params["relaxation"]]}, t.sample, t.rig, proto, sd
+        "sensing",
+        joined,
+        {"value": [params["slack"], params["slack_length"], params["relaxation"]]},
+        t.sample,
+        t.rig,
+        proto,
+        sd,
     )
     assert again["achieved_strength"] == pytest.approx(3.0, rel=1e-6)
 
