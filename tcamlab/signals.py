@@ -67,12 +67,7 @@ def first_order_lag(
     out = np.empty_like(x, dtype=float)
     out[0] = x[0]
     dt = np.diff(t)
-    if conductance_tc == 0.0:
-        decay = np.exp(-dt / tau)
-        for k in range(1, x.size):
-            out[k] = x[k] + (out[k - 1] - x[k]) * decay[k - 1]
-        return out
-    b = 0.5 * conductance_tc
+    b = 0.5 * conductance_tc  # gamma = 0: a = 1, b = 0, the one-tau lag u E
     for k in range(1, x.size):
         u = x[k] - out[k - 1]
         # Floor: the coefficient must stay positive far below the reference (not physical there).
