@@ -86,8 +86,10 @@ def test_null_dynamic_with_noisy_zeros_is_none(tmp_path):
 class _C:
     """A minimal ranking entry for the verdict rules."""
 
-    def __init__(self, effect, fc, lo, plausible=True, params=None, after=1.5):
+    def __init__(self, effect, fc, lo, plausible=True, params=None, after=1.5, shift=None, cov=None):
         self.effect = effect
+        self.shift_u = None if shift is None else np.asarray(shift, float)
+        self.shift_cov = None if cov is None else np.asarray(cov, float)
         self.heldout_rmse_after_noise = after
         self.fraction_closed = fc
         self.shrinkage = fc / 2
@@ -232,6 +234,46 @@ def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
     v = verdict([rec, stand, same], True, after, idx, b_n, 3.0, 1.1)
     assert v[:3] == ("miscalibrated", None, ["resistance-temperature"])
     assert "resistance-temperature" in v[3]
+
+
+def test_an_effect_that_restores_a_jointly_moved_pair_is_kept_beside_miscalibrated():
+    # rho and E fixed only together (r = -0.99 in u): each 95 % interval covers its stated
+    # value, but their sum (the direction the data pin, sd 0.07) moved 0.4, 5.7 sds. An
+    # effect fitted with them that puts that combination back at its stated value stands in
+    # for the shift; one that leaves it where recalibration put it does not.
+    from tcamlab.diagnosis.verdict import moved_jointly, restores_combination
+
+    def par(symbol, value):
+        return {
+            "symbol": symbol,
+            "value": value,
+            "ci95": [value - 0.98, value + 0.98],
+            "unit": "-",
+            "stated": 0.0,
+            "shift_in_stated_sds": value / 0.5,
+            "shift_in_prior_sds": value / 0.5,
+        }
+
+    cov = 0.25 * np.array([[1.0, -0.99], [-0.99, 1.0]])
+    moved = {"resistivity": par("rho", 0.2), "youngs_modulus": par("E", 0.2)}
+    rec = _C(RECALIBRATION, 0.9, 0.3, True, moved, shift=[0.2, 0.2], cov=cov)
+    back = {"resistivity": par("rho", 0.6), "youngs_modulus": par("E", -0.6)}
+    stand = _C("youngs-modulus-temperature", 0.9, 0.3, params=back, shift=[0.6, -0.6], cov=cov)
+    same = _C("displacement-drift", 0.9, 0.3, params=moved, shift=[0.2, 0.2], cov=cov)
+    assert moved_jointly(rec)
+    assert restores_combination(stand, rec) and not restores_combination(same, rec)
+    idx = np.random.default_rng(0).integers(0, 5, size=(200, 5))
+    after = _after({RECALIBRATION: 110, stand.effect: 110, same.effect: 110})
+    v = verdict([rec, stand, same], True, after, idx, np.full(200, 500.0), 3.0, 1.1)
+    assert v[:3] == ("miscalibrated", None, ["youngs-modulus-temperature"])
+    assert "combination of parameters the data fix" in v[3]
+    # an effect whose term is a named parameter's own error is that shift, not a stand-in
+    own = {stand.effect: ["resistivity", "youngs_modulus"]}
+    assert verdict([rec, stand, same], True, after, idx, np.full(200, 500.0), 3.0, 1.1, own_errors=own)[2] == []
+    # a shift the data do not pin as a whole (same sum, loose covariance) names no stand-in
+    loose = _C(RECALIBRATION, 0.9, 0.3, True, moved, shift=[0.2, 0.2], cov=np.eye(2))
+    assert not moved_jointly(loose)
+    assert verdict([loose, stand, same], True, after, idx, np.full(200, 500.0), 3.0, 1.1)[2] == []
 
 
 def test_an_effect_that_is_a_calibrated_parameter_is_fitted_with_it_held(tmp_path):

@@ -224,6 +224,11 @@ class CandidateResult:
     pinned_by} [SI]."""
     recalibration_plausible: bool | None = None
     """Whether those values are within the priors (:data:`PLAUSIBLE_LEVEL`)."""
+    shift_u: np.ndarray | None = field(default=None, repr=False)
+    """The calibrated parameters' shift from their stated values in fitted coordinates
+    (log value, or value over prior sd), in the order of ``recalibrated``."""
+    shift_cov: np.ndarray | None = field(default=None, repr=False)
+    """Posterior covariance of ``shift_u`` (the effect's parameters marginalised out)."""
 
     def to_dict(self) -> dict:
         return to_jsonable(
@@ -247,6 +252,9 @@ class CandidateResult:
                 "fit_success": self.fit_success,
                 "recalibrated": self.recalibrated,
                 "recalibration_plausible": self.recalibration_plausible,
+                "recalibrated_shift": (
+                    {"u": self.shift_u, "covariance": self.shift_cov} if self.shift_u is not None else None
+                ),
             }
         )
 

@@ -9,6 +9,7 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
 from tcamlab.diagnosis.candidates import CandidateFit, FoldScores, ci, fit_candidates
 from tcamlab.diagnosis.noise import BaselineFit
@@ -32,6 +33,10 @@ __all__ = [
     "describe_parameter",
     "aliased_parameters",
     "stands_in",
+    "JOINT_LEVEL",
+    "joint_shift_chi2",
+    "moved_jointly",
+    "restores_combination",
     "pair_verdict",
     "pct",
     "parameter_entry",
@@ -115,11 +120,23 @@ def closes_the_rest(c: CandidateResult, recal: CandidateResult | None, floor2: f
     return (recal.heldout_rmse_after_noise**2 - c.heldout_rmse_after_noise**2) / rest >= MIN_FRACTION_CLOSED
 
 
-def verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limit, floor2: float = 1.0):
+def verdict(
+    ranking,
+    gap_significant,
+    after_folds,
+    boot_idx,
+    b_n,
+    base_rms,
+    limit,
+    floor2: float = 1.0,
+    own_errors=None,
+):
     """(verdict, effect, aliased_with, reason) from the single candidates (see the package docstring).
 
     ``ranking`` holds the recalibration (:data:`RECALIBRATION`) and every effect fitted
     with it; an effect must beat recalibration alone (paired bootstrap) to be named.
+    ``own_errors`` maps an effect to the recalibrated parameters whose error its term is
+    (:attr:`tcamlab.effects.Effect.generalises`): it is no stand-in for their shift.
     """
     if not gap_significant:
         return (
@@ -141,7 +158,7 @@ def verdict(ranking, gap_significant, after_folds, boot_idx, b_n, base_rms, limi
     if winners:
         return _effect_verdict(winners, after_folds, boot_idx, b_n, recal)
     if recal is not None and qualifies(recal):
-        return _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n)
+        return _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_errors or {})
     best = ranking[0] if ranking else None
     if best is None:
         return "unexplained", None, [], "the gap is significant and there are no candidates"
@@ -208,18 +225,58 @@ def _covers(p: dict) -> bool:
     return bool(p["ci95"][0] <= p["stated"] <= p["ci95"][1])
 
 
+JOINT_LEVEL = 0.95
+"""Recalibration moved the parameters jointly when the chi-square of its shift under its
+posterior covariance exceeds this quantile (one degree of freedom per parameter), and an
+effect restores that shift when, along the same combination, its own shift is inside this
+two-sided level. Static rho and E are fixed only together (r = -0.99): each interval covers its
+stated value while the combination the data fix has moved many sds."""
+
+
+def joint_shift_chi2(c: CandidateResult) -> float:
+    """Chi-square of ``c``'s parameter shift from the stated values under its posterior
+    covariance (nan without them)."""
+    u, cov = c.shift_u, c.shift_cov
+    if u is None or cov is None or u.size == 0 or not np.all(np.isfinite(cov)):
+        return float("nan")
+    return float(u @ np.linalg.pinv(cov) @ u)
+
+
+def moved_jointly(recal: CandidateResult) -> bool:
+    """Whether recalibration's shift is significant as a whole (:data:`JOINT_LEVEL`)."""
+    d2 = joint_shift_chi2(recal)
+    return bool(np.isfinite(d2) and d2 > stats.chi2.ppf(JOINT_LEVEL, recal.shift_u.size))
+
+
+def restores_combination(c: CandidateResult, recal: CandidateResult) -> bool:
+    """Whether, fitted with effect ``c``, the combination of parameters recalibration moved
+    (direction ``pinv(cov) @ shift``, the one its shift is most significant along) keeps
+    its stated value inside :data:`JOINT_LEVEL`."""
+    if c.shift_u is None or c.shift_cov is None or not np.all(np.isfinite(c.shift_cov)):
+        return False
+    w = np.linalg.pinv(recal.shift_cov) @ recal.shift_u
+    var = float(w @ c.shift_cov @ w)
+    z = stats.norm.ppf(0.5 + JOINT_LEVEL / 2.0)
+    return bool(var > 0 and abs(float(w @ c.shift_u)) <= z * np.sqrt(var))
+
+
 def stands_in(c: CandidateResult, recal: CandidateResult, named) -> bool:
     """Whether effect ``c`` explains the gap in place of the recalibration's shift: with it, every
-    parameter recalibration moves (``named``) keeps its stated value inside its 95 % interval."""
+    parameter recalibration moves (``named``, interval excluding the stated value) keeps its
+    stated value inside its 95 % interval; when no single parameter's interval excludes its
+    stated value but the shift is significant as a whole (:func:`moved_jointly`), the
+    combination the data fix keeps its stated value (:func:`restores_combination`)."""
     params = c.recalibrated or {}
     # only parameters whose interval excludes the stated value (not the fallback "furthest")
-    named = [n for n in named if not _covers(recal.recalibrated[n])]
-    return bool(named) and all(
-        n in params and params[n]["ci95"][0] <= params[n]["stated"] <= params[n]["ci95"][1] for n in named
+    excluded = [n for n in named if not _covers(recal.recalibrated[n])]
+    if not excluded:
+        return moved_jointly(recal) and restores_combination(c, recal)
+    return all(
+        n in params and params[n]["ci95"][0] <= params[n]["stated"] <= params[n]["ci95"][1] for n in excluded
     )
 
 
-def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n):
+def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_errors):
     """``miscalibrated``, or ``aliased`` when the shift is implausible and an effect with
     plausible parameters fits the withheld runs as well.
 
@@ -249,11 +306,20 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n):
                 "a parameter error from the effect",
             )
         closes += "; the shift is beyond the stated uncertainties (the stated values are in doubt)"
-    stand_ins = [c.effect for c in as_well if stands_in(c, recal, named)]
+    # an effect that is a named parameter's own error is that shift, not an alternative to it
+    stand_ins = [
+        c.effect
+        for c in as_well
+        if not set(own_errors.get(c.effect, ())) & set(named) and stands_in(c, recal, named)
+    ]
     if stand_ins:
+        held = (
+            f"{', '.join(named)} at the stated value{'s' if len(named) > 1 else ''}"
+            if any(not _covers(recal.recalibrated[n]) for n in named)
+            else "the combination of parameters the data fix at its stated value"
+        )
         closes += (
-            f"; {', '.join(stand_ins)} with {', '.join(named)} at the stated value"
-            f"{'s' if len(named) > 1 else ''} fit{'s' if len(stand_ins) == 1 else ''} the withheld "
+            f"; {', '.join(stand_ins)} with {held} fit{'s' if len(stand_ins) == 1 else ''} the withheld "
             "runs as well (the experiments under separate_by tell them apart), and no effect "
             "fitted with recalibration beats it"
         )
@@ -408,6 +474,7 @@ def decide(
         gap.rmse_over_noise,
         gap.limit,
         baseline.floor2,
+        own_errors=_own_errors(rec, effects),
     )
     combination = None
     best = ranking[0] if ranking else None
@@ -429,6 +496,12 @@ def decide(
         v, reason, recalibration = as_miscalibration(own, best, rec, problem.rig, reason)
         effect = None
     return Decision(v, effect, aliased, reason, combination, best, best_fit, separate, recalibration)
+
+
+def _own_errors(rec, effects) -> dict:
+    """{effect: recalibrated parameters whose error its term is}."""
+    by_field = {s.param.field: s.name for s in rec.specs}
+    return {e.name: [by_field[f] for f in e.generalises if f in by_field] for e in effects if e.generalises}
 
 
 def _parameter_effect(v: str, effect, combination, effects):
