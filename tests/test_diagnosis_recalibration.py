@@ -269,7 +269,9 @@ def test_an_effect_that_restores_a_jointly_moved_pair_is_kept_beside_miscalibrat
     assert "combination of parameters the data fix" in v[3]
     # an effect whose term is a named parameter's own error is that shift, not a stand-in
     own = {stand.effect: ["resistivity", "youngs_modulus"]}
-    assert verdict([rec, stand, same], True, after, idx, np.full(200, 500.0), 3.0, 1.1, own_errors=own)[2] == []
+    assert (
+        verdict([rec, stand, same], True, after, idx, np.full(200, 500.0), 3.0, 1.1, own_errors=own)[2] == []
+    )
     # a shift the data do not pin as a whole (same sum, loose covariance) names no stand-in
     loose = _C(RECALIBRATION, 0.9, 0.3, True, moved, shift=[0.2, 0.2], cov=np.eye(2))
     assert not moved_jointly(loose)
