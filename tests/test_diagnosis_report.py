@@ -276,6 +276,10 @@ def test_text_lines_print_parameters_in_lab_units():
     assert "force 3.18 -> 2.03 mN" in line and "displacement 0.24 -> 0.068 mm" in line
     assert "(0% shrinkage)" in line  # never -0%
     assert "relaxation = 0.01 (95 %" in line and "] -" not in line
+    # a verdict with aliased candidates prints the experiments that tell them apart
+    doc = {**fake.to_dict(), "separate_by": {"initial-slack": "pre-tension the thread"}}
+    lines = diagnosis_lines(SimpleNamespace(reason="something", to_dict=lambda: doc))
+    assert "  to tell apart, initial-slack: pre-tension the thread" in lines
 
 
 def test_diagnosis_json_records_no_absolute_path(glass):
@@ -330,8 +334,63 @@ def test_verdict_text_of_a_parameter_found_as_its_own_error():
             "fraction_closed": 0.99,
             "via_effect": "sensor-offset-error",
         },
+        aliased_with=[],
+        separate_by={},
     )
     text = verdict_text(result)
     assert "a wrong parameter, not missing physics" in text
     assert "(sensor-offset-error)" in text and "-3.0 stated sds" in text
     assert "does not move it that far" in text
+
+
+def test_verdict_text_of_miscalibrated_names_the_stand_ins_and_how_to_separate_them():
+    # a miscalibrated verdict with effects that fit as well must say so in the report, with
+    # the experiments under separate_by; without stand-ins it says nothing of them
+    entry = {
+        "symbol": "rho",
+        "value": 1.02e-3,
+        "ci95": [0.9e-3, 1.1e-3],
+        "unit": "m",
+        "stated": 1.0e-3,
+        "shift_in_stated_sds": 0.2,
+        "shift_in_prior_sds": 0.2,
+    }
+    result = SimpleNamespace(
+        gap={"rmse_over_noise": 1.9, "limit": 1.2, "level": 0.99},
+        verdict="miscalibrated",
+        ranking=[],
+        effect=None,
+        recalibration={
+            "named": ["resistivity"],
+            "parameters": {"resistivity": entry},
+            "fraction_closed": 0.9,
+        },
+        aliased_with=["youngs-modulus-temperature", "glass-transition"],
+        separate_by={"recalibration": "a second load", "glass-transition": "a slower oven ramp"},
+    )
+    text = verdict_text(result)
+    assert "youngs-modulus-temperature, glass-transition fit the withheld runs as well" in text
+    assert "recalibration: a second load; glass-transition: a slower oven ramp." in text
+    result.aliased_with, result.separate_by = [], {}
+    assert "withheld runs as well" not in verdict_text(result)
+
+
+def test_a_parameter_at_a_bound_of_its_fit_is_printed_without_an_interval():
+    params = {
+        "lag_tau": {"value": 3.6e-6, "ci95": [3.6e-6, 3.6e-6], "unit": "s", "at_bound": True},
+        "drift": {"value": 2e-6, "ci95": [1e-6, 3e-6], "unit": "m", "at_bound": False},
+    }
+    cand = {
+        "effect": "oven-thermal-lag",
+        "unit": "m",
+        "heldout_rmse_before": 1e-5,
+        "heldout_rmse_after": 6e-6,
+    }
+    doc = {
+        "verdict": "unexplained",
+        "effect": None,
+        "ranking": [{**cand, "shrinkage": 0.4, "parameters": params}],
+    }
+    text = diagnosis_lines(SimpleNamespace(reason="something", to_dict=lambda: doc))[-1]
+    assert "lag_tau = 3.6e-06 s (at a bound of its fitted range, so no interval)" in text
+    assert "3.6e-06 to 3.6e-06" not in text and "(95 % " in text

@@ -69,15 +69,28 @@ def effect_parameters(effect: Effect, fit: JointFit, cov: np.ndarray) -> dict:
     sd = np.sqrt(np.clip(var, 0.0, None)) * scales
     z = stats.norm.ppf(0.5 + CI_LEVEL / 2.0)
     out = {}
-    for p, v, s in zip(effect.params, fit.values, sd):
+    for k, (p, v, s) in enumerate(zip(effect.params, fit.values, sd)):
         out[p.field] = {
             "value": float(v),
             "ci95": [float(v - z * s), float(v + z * s)],
             "stderr": float(s),
             "unit": p.unit,
-            "at_bound": bool(np.isclose(v, p.lower) or np.isclose(v, p.upper)),
+            "at_bound": _at_bound(fit, p0 + k) or bool(np.isclose(v, p.lower) or np.isclose(v, p.upper)),
         }
     return out
+
+
+AT_BOUND = 1.0e-6
+"""A fitted effect parameter this close to an edge of the box its fit respected (in units of
+its scale) is at that bound: its Laplace interval is then no interval (the Jacobian column
+vanishes or the bound cuts it), seen as "3.6e-06 to 3.6e-06" on an oven lag fitted to nothing."""
+
+
+def _at_bound(fit: JointFit, j: int) -> bool:
+    if fit.box is None:
+        return False
+    x, lo, hi = fit.x[j], fit.box[0][j], fit.box[1][j]
+    return bool(abs(x - lo) <= AT_BOUND or abs(hi - x) <= AT_BOUND)
 
 
 def candidate_job(job):

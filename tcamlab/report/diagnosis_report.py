@@ -52,7 +52,7 @@ def verdict_text(result) -> str:
         result.ranking[0] if result.ranking else None
     )
     if result.verdict == "miscalibrated":
-        return lead + _miscalibrated_text(result.recalibration or {})
+        return lead + _miscalibrated_text(result.recalibration or {}) + _stand_ins_text(result)
     if result.verdict == "unexplained":
         tail = " The gap is real, but none of the candidate effects explains most of it on withheld runs"
         if best is not None:
@@ -136,6 +136,25 @@ def _miscalibrated_text(rec: dict) -> str:
     )
 
 
+def _stand_ins_text(result) -> str:
+    """The effects that fit the withheld runs as well as a ``miscalibrated`` shift, with the
+    experiments that tell them apart (empty without any)."""
+    if not result.aliased_with:
+        return ""
+    many = len(result.aliased_with) > 1
+    return (
+        " But "
+        + ", ".join(result.aliased_with)
+        + (" fit" if many else " fits")
+        + " the withheld runs as well with the parameters at their stated values; these data "
+        "cannot tell the shift from "
+        + ("them" if many else "it")
+        + ". Experiments that would: "
+        + "; ".join(f"{k}: {v}" for k, v in result.separate_by.items())
+        + "."
+    )
+
+
 def _params_text(parameters: dict) -> str:
     """Fitted parameters in lab units: ``slack = 0.6884 mm (95 % 0.6822 to 0.6947)``."""
     out = []
@@ -144,7 +163,9 @@ def _params_text(parameters: dict) -> str:
         lo, hi = p["ci95"]
         u = f" {unit}" if unit else ""
         v, a, b = fmt_column([_scaled(x, fac) for x in (p["value"], lo, hi)])
-        out.append(f"{name} = {v}{u} (95 % {a} to {b})")
+        # at a bound of its fit the Laplace interval is no interval ("3.6e-06 to 3.6e-06")
+        where = "at a bound of its fitted range, so no interval" if p.get("at_bound") else f"95 % {a} to {b}"
+        out.append(f"{name} = {v}{u} ({where})")
     return "; ".join(out)
 
 
@@ -345,6 +366,7 @@ def diagnosis_lines(result) -> list[str]:
     lines = [f"verdict: {doc['verdict']}" + (f" ({named})" if named else ""), f"  {_reason(result)}"]
     if "clearly worse" in result.reason:
         lines += [f"    {t}" for t in paired_lines(result)]
+    lines += [f"  to tell apart, {k}: {v}" for k, v in (doc.get("separate_by") or {}).items()]
     for name in rec.get("named", []):
         p = rec["parameters"][name]
         unit, fac = _parameter_unit(name, p["unit"])
