@@ -309,6 +309,22 @@ def test_delay_shifts_the_output_in_time(dyn_base):
     np.testing.assert_allclose(half[1:], 0.5 * (b[1:] + b[:-1]), rtol=0, atol=1e-12)
 
 
+def test_delay_and_slack_are_causal_so_never_fitted_or_made_negative():
+    # A response cannot lead its step and slack is taken up before the load: below 0 the
+    # delay took up part of R(T) (a response that settles sooner), so the fit's box and the
+    # rig's ray both stop at 0.
+    from tcamlab.effects import EFFECTS
+    from tcamlab.errors import ConfigError
+    from tcamlab.rig import strength as rig_strength
+
+    for key, field in ((("dynamic", "response-delay"), "delay"), (("sensing", "initial-slack"), "slack")):
+        effect = EFFECTS[key]
+        param = next(p for p in effect.params if p.field == field)
+        assert param.lower == 0.0 < param.upper
+        with pytest.raises(ConfigError, match="cannot take a negative"):
+            rig_strength.ray_bound(effect, -1.0)
+
+
 def test_resistance_tc_first_order_cooling(dyn_base):
     beta = 1e-4
     out = _dynamic(Mods(resistance_tc=beta))
