@@ -309,20 +309,44 @@ def test_delay_shifts_the_output_in_time(dyn_base):
     np.testing.assert_allclose(half[1:], 0.5 * (b[1:] + b[:-1]), rtol=0, atol=1e-12)
 
 
-def test_delay_and_slack_are_causal_so_never_fitted_or_made_negative():
-    # A response cannot lead its step and slack is taken up before the load: below 0 the
-    # delay took up part of R(T) (a response that settles sooner), so the fit's box and the
-    # rig's ray both stop at 0.
+SIGNED = (
+    (("dynamic", "response-delay"), "delay"),
+    (("sensing", "initial-slack"), "slack"),
+    (("static", "shear-modulus-temperature"), "coil_shear_slope"),
+    (("dynamic", "shear-modulus-temperature"), "coil_shear_slope"),
+    (("static", "youngs-modulus-temperature"), "youngs_modulus_slope"),
+    (("dynamic", "convective-heat-loss"), "heat_loss_tc"),
+    (("sensing", "stress-relaxation"), "relaxation"),
+    (("sensing", "stiffening-spring"), "stiffening"),
+    (("curvature", "axial-compression"), "compression"),
+)
+UNSIGNED = (
+    (("static", "displacement-drift"), "drift"),
+    (("dynamic", "resistance-temperature"), "resistance_tc"),
+    (("sensing", "hysteresis"), "hysteresis"),
+    (("sensing", "ambient-temperature"), "temperature_offset"),
+    (("curvature", "camera-placement"), "camera_offset"),
+    (("curvature", "sensor-offset-error"), "offset_error"),
+)
+
+
+def test_an_effect_whose_cause_has_a_direction_is_never_fitted_or_made_the_other_way():
+    # A response cannot lead its step, a warming fibre softens, a dwell loses force: fitted
+    # the other way the term is no longer its cause (below 0 the delay took up part of R(T),
+    # a response that settles sooner), so the fit's box and the rig's ray both stop at 0.
     from tcamlab.effects import EFFECTS
     from tcamlab.errors import ConfigError
     from tcamlab.rig import strength as rig_strength
 
-    for key, field in ((("dynamic", "response-delay"), "delay"), (("sensing", "initial-slack"), "slack")):
-        effect = EFFECTS[key]
-        param = next(p for p in effect.params if p.field == field)
-        assert param.lower == 0.0 < param.upper
+    for key, field in SIGNED:
+        param = next(p for p in EFFECTS[key].params if p.field == field)
+        assert param.lower == 0.0 < param.upper, key
         with pytest.raises(ConfigError, match="cannot take a negative"):
-            rig_strength.ray_bound(effect, -1.0)
+            rig_strength.ray_bound(EFFECTS[key], -1.0)
+    for key, field in UNSIGNED:
+        param = next(p for p in EFFECTS[key].params if p.field == field)
+        assert param.lower < 0.0 < param.upper, key
+        assert rig_strength.ray_bound(EFFECTS[key], -1.0) < 0
 
 
 def test_resistance_tc_first_order_cooling(dyn_base):
