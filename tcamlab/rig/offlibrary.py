@@ -17,7 +17,8 @@ noise sds of the kind's strength quantities.
 form                     nearest library effect      functional form (library form in brackets)
 =======================  ==========================  ==============================================
 static
-quadratic-shear-modulus  shear-modulus-temperature   G_t' = G_t - k dT + a dT^2 [extra linear slope]
+quadratic-shear-modulus  shear-modulus-temperature   G = G_t - k dT - a dT^2 in the torque (2.13)
+                                                     and the coil (f11, f12) [G_t - k_c dT, coil]
 sigmoid-youngs-modulus   youngs-modulus-temperature  E' = E (1 - a / (1 + exp(-(T - 75 degC) / 8 K)))
                                                      [E (1 - c dT)]
 smooth-glass-transition  glass-transition            strain = rho (dT + a w softplus((T - 55) / w)),
@@ -125,8 +126,13 @@ def _dT(ctx: Context) -> np.ndarray:
 
 
 def _quadratic_shear(a, ctx):
-    # G_t' = G_t - (k - a dT) dT: the extra slope of (2.13) varies along the row.
-    return _static_with(Mods(shear_slope_extra=-a * _dT(ctx)), ctx)
+    # A physical G(T) acts on the torque and the coil alike: (2.13)'s slope becomes
+    # k + a dT and the coil's k_c = a dT, row by row, so both see G_t - k dT - a dT^2.
+    # (Before session 18 this form acted on the torque only and levelled off, a + a dT^2:
+    # the library's coil softening could follow it only with a coil that stiffens as it
+    # warms, k_c < 0, which the library no longer fits.)
+    dT = _dT(ctx)
+    return _static_with(Mods(shear_slope_extra=a * dT, coil_shear_slope=a * dT), ctx)
 
 
 def _sigmoid_youngs(a, ctx):
@@ -281,7 +287,7 @@ FORMS: dict[tuple[str, str], OffLibraryForm] = {
             "quadratic-shear-modulus",
             "static",
             "shear-modulus-temperature",
-            "G_t' = G_t - k dT + a dT^2 (softening that levels off), a [Pa/K^2]",
+            "G = G_t - k dT - a dT^2 in the torque and the coil (softening that speeds up), a [Pa/K^2]",
             50.0,
             1e5,
             _quadratic_shear,
