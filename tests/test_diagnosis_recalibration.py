@@ -172,6 +172,31 @@ def test_fold_refit_step_matches_a_refit_on_the_training_runs(tmp_path):
     assert np.linalg.norm(step.u - refit.u) < 0.2 * np.linalg.norm(full.u - refit.u)
 
 
+def test_fold_step_from_a_fit_at_a_bound_holds_that_parameter_and_solves_for_the_rest():
+    # A linear least-squares problem whose all-rows fit has its second parameter at its
+    # upper bound. Without the withheld rows the unconstrained optimum pushes further past
+    # that bound; the step must land on the bounded optimum of the training rows (as
+    # lsq_linear finds it), not on the clipped unconstrained one.
+    from scipy.optimize import lsq_linear
+
+    from tcamlab.diagnosis.problem import bounded_gauss_newton_step
+
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(40, 3))
+    A[:, 1] += 0.8 * A[:, 0]  # correlated columns: clipping one leaves the other's share wrong
+    y = A @ np.array([1.0, 3.0, -0.5]) + 0.05 * rng.normal(size=40)
+    lo, hi = np.array([-10.0, -10.0, -10.0]), np.array([10.0, 2.0, 10.0])
+    full = lsq_linear(A, y, bounds=(lo, hi)).x
+    assert full[1] == pytest.approx(2.0)  # the all-rows fit sits at the bound
+    keep = np.arange(40) >= 10
+    train = lsq_linear(A[keep], y[keep], bounds=(lo, hi)).x
+    f = A[keep] @ full - y[keep]
+    x = full + bounded_gauss_newton_step(A[keep], f, full, lo, hi)
+    np.testing.assert_allclose(x, train, atol=1e-8)
+    clipped = np.clip(full + np.linalg.lstsq(A[keep], -f, rcond=None)[0], lo, hi)
+    assert np.max(np.abs(clipped - train)) > 1e-3  # the case the active set exists for
+
+
 def test_benchmark_scores_miscalibrated_right_on_a_lying_null_and_a_miss_on_an_effect():
     from tcamlab.benchmark import score
 

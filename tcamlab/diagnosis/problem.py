@@ -25,6 +25,7 @@ from tcamlab.kinds import get_kind, predict, run_scatter
 __all__ = [
     "serial_kernels",
     "best_least_squares",
+    "bounded_gauss_newton_step",
     "inner_box",
     "FAIL_RESIDUAL",
     "MODEL_ERRORS",
@@ -290,6 +291,31 @@ def inner_box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     inside, as ``least_squares`` requires."""
     width = np.where(np.isfinite(hi - lo), hi - lo, 2.0)
     return lo + 1e-9 * width, hi - 1e-9 * width
+
+
+def bounded_gauss_newton_step(J: np.ndarray, f: np.ndarray, x: np.ndarray, lo, hi) -> np.ndarray:
+    """The Gauss-Newton step from ``x`` (residuals ``f``, Jacobian ``J``) inside the box
+    ``[lo, hi]``: a parameter at a bound that the step would push out of the box is held
+    there (an active set), and the step is solved for the others.
+
+    Clipping the unconstrained step instead keeps the other parameters' share of a move the
+    bound forbids: from a fit with the curvature rig's d1 error at its 4 mm bound, the
+    clipped step of two of three folds moved S 60 % and predicted the withheld run at 7 x
+    recalibration's held-out RMSE (off-library tilted sensor at 10x, session 19).
+    """
+    free = np.ones(x.size, bool)
+    step = np.zeros(x.size)
+    width = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    at_lo, at_hi = x <= lo + 1e-6 * width, x >= hi - 1e-6 * width
+    for _ in range(x.size + 1):
+        step = np.zeros(x.size)
+        if free.any():
+            step[free] = np.linalg.lstsq(J[:, free], -f, rcond=None)[0]
+        out = free & ((at_lo & (step < 0)) | (at_hi & (step > 0)))
+        if not out.any():
+            break
+        free &= ~out
+    return np.clip(x + step, lo, hi) - x
 
 
 def best_least_squares(fun, starts, lo, hi, x_scale, max_nfev: int):

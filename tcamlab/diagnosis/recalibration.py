@@ -30,6 +30,7 @@ from tcamlab.diagnosis.problem import (
     MODEL_ERRORS,
     Problem,
     best_least_squares,
+    bounded_gauss_newton_step,
     domain_bounds,
     inner_box,
 )
@@ -273,8 +274,7 @@ class Recalibration:
             [np.full(n, i not in held, bool) for i, n in enumerate(sizes)] + [np.ones(priors, bool)]
         )
         J = np.asarray(fit.jac, float)[keep]
-        step = np.linalg.lstsq(J, -fit.fun[keep], rcond=None)[0]
-        x = np.clip(fit.x + step, fit.box[0], fit.box[1])
+        x = fit.x + bounded_gauss_newton_step(J, fit.fun[keep], fit.x, fit.box[0], fit.box[1])
         p = self.p
         scales = np.array([q.scale for q in effect.params], float) if effect is not None else np.zeros(0)
         return JointFit(
