@@ -264,6 +264,49 @@ def test_noise_estimators():
     assert gap_limit(1000, 500, reference=[(1.0, 4)]) > gap_limit(1000, 500)
 
 
+def test_the_noise_of_a_noisy_input_is_measured_at_the_recalibrated_parameters(tmp_path):
+    # A pull test with E 2 stated sds (20 %) high, no effect. The ohmmeter's noise reaches the
+    # inferred elongation through the sensor's gain, which falls as E rises: at the true E the
+    # displacement residuals scatter by 5.1e-5 m, at the stated E by 5.9e-5 m. The floor must
+    # be the data's (it was 22 % high at the stated values, and hid a stiffening spring).
+    import pandas as pd
+
+    from tcamlab.kinds import get_kind
+    from tcamlab.kinds.sensing import predict
+
+    sim = rig.simulate(
+        "sensing",
+        TEMPLATES / "sensing.toml",
+        seed=21,
+        out_dir=tmp_path,
+        parameter_offsets={"youngs_modulus": 2.0},
+        uncertainty=dict(get_kind("sensing").benchmark_uncertainty),
+    )
+    exp = load_experiment(sim.experiment_path)
+    truth = json.loads(Path(sim.truth_path).read_text())
+    template = load_experiment(TEMPLATES / "sensing.toml", require_runs=False)
+    scatter = []
+    for run in truth["runs"]:
+        log = pd.read_csv(tmp_path / run["file"])
+        true_sample = exp.sample.replace(
+            **{f: run["sample"][f] for f in ("youngs_modulus", "twists", "coil_length")}
+        )
+        data = pd.DataFrame({"resistance": log["resistance_ohm"], "time": log["time_s"]})
+        pred = predict(
+            true_sample,
+            exp.rig,
+            data,
+            spring_constant=template.rig.spring_constant,
+            initial_resistance=template.rig.initial_resistance,
+        )
+        scatter.append(
+            second_difference_sigma(log["displacement_mm"].to_numpy() * 1e-3 - pred["displacement"])
+        )
+    res = diagnose(exp, effects=["hysteresis"], n_boot=50)
+    floor = res.noise_floor.by_quantity["displacement"].sigma * 1e-3  # mm -> m
+    assert floor == pytest.approx(float(np.median(scatter)), rel=0.05)
+
+
 @pytest.mark.parametrize("n_runs, n_rows", [(3, 11), (3, 51), (5, 30)])
 def test_pooled_noise_is_unbiased_with_the_stated_dof(n_runs, n_rows):
     # Replicated runs with a common smooth gap and white noise (sd 0.5): the

@@ -194,6 +194,21 @@ class Recalibration:
         """Predictions [SI] of run i at ``u`` with ``mods`` (raises outside the domain)."""
         return self.cal.predict_run(0, i, u, mods)
 
+    def fitted_residuals(self) -> tuple[list, list] | None:
+        """(predictions, residuals) [SI] of every run at recalibration alone fitted on every
+        row from the stated values, or None when it fails (one start: the noise floor needs
+        the model's gain near the data's, not the best of the starts the verdict uses)."""
+        rows = [(i, np.ones(len(d), bool)) for i, d in enumerate(self.problem.frames)]
+        box = (np.zeros(0), np.zeros(0))
+        fit = self.fit(None, rows, [self.cal.u0], box, MAX_NFEV_FULL)
+        if fit.jac is None:
+            return None
+        try:
+            preds = [self.predict(i, fit.u, Mods()) for i, _ in rows]
+        except MODEL_ERRORS:
+            return None
+        return preds, [self.problem.resid(i, p) for i, p in enumerate(preds)]
+
     def prior_chi2(self, u: np.ndarray) -> float:
         """Prior chi-square of a recalibration's shift from the stated values."""
         r = self.cal.prior_residuals(u)
