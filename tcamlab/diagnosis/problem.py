@@ -304,7 +304,6 @@ def bounded_gauss_newton_step(J: np.ndarray, f: np.ndarray, x: np.ndarray, lo, h
     withheld run at 7 x recalibration's held-out RMSE (off-library tilted sensor at 10x).
     """
     free = np.ones(x.size, bool)
-    step = np.zeros(x.size)
     width = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
     at_lo, at_hi = x <= lo + 1e-6 * width, x >= hi - 1e-6 * width
     for _ in range(x.size + 1):

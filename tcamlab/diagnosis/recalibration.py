@@ -199,8 +199,7 @@ class Recalibration:
         row from the stated values, or None when it fails (one start: the noise floor needs
         the model's gain near the data's, not the best of the starts the verdict uses)."""
         rows = [(i, np.ones(len(d), bool)) for i, d in enumerate(self.problem.frames)]
-        box = (np.zeros(0), np.zeros(0))
-        fit = self.fit(None, rows, [self.cal.u0], box, MAX_NFEV_FULL)
+        fit = self.fit(None, rows, [self.cal.u0], effect_box(self.problem, None, None), MAX_NFEV_FULL)
         if fit.jac is None:
             return None
         try:
