@@ -323,6 +323,7 @@ def _score(
         members=tuple(p.name for p in eff.parts) if eff is not None else (),
         recalibrated=rec.parameters(full, cov, z),
         recalibration_plausible=rec.plausible(full.u),
+        term_rms=rec.term_rms(full, eff),
         shift_u=np.asarray(full.u, float) - rec.cal.stated_u0,
         shift_cov=np.asarray(cov, float)[: rec.p, : rec.p],
     )

@@ -208,6 +208,23 @@ class Recalibration:
             return None
         return preds, [self.problem.resid(i, p) for i, p in enumerate(preds)]
 
+    def term_rms(self, fit: JointFit, effect: Effect | None) -> float:
+        """RMS over every row of what ``effect``'s term adds to the predictions at ``fit``:
+        the model with the fitted effect minus the model without it, both at the fit's
+        recalibrated parameters [noise-floor multiples]. NaN for recalibration alone, or
+        where either model has no solution on some run's inputs (the term then matters).
+        """
+        if effect is None:
+            return float("nan")
+        mods, d2, n = effect.mods(fit.values), 0.0, 0
+        for i in range(len(self.problem.frames)):
+            with_term, without = self.resid(i, fit.u, mods), self.resid(i, fit.u, Mods())
+            if np.any(with_term == FAIL_RESIDUAL) or np.any(without == FAIL_RESIDUAL):
+                return float("nan")
+            d2 += float(np.sum((with_term - without) ** 2))
+            n += with_term.size
+        return math.sqrt(d2 / max(n, 1))
+
     def prior_chi2(self, u: np.ndarray) -> float:
         """Prior chi-square of a recalibration's shift from the stated values."""
         r = self.cal.prior_residuals(u)

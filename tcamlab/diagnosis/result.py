@@ -224,6 +224,9 @@ class CandidateResult:
     pinned_by} [SI]."""
     recalibration_plausible: bool | None = None
     """Whether those values are within the priors (:data:`PLAUSIBLE_LEVEL`)."""
+    term_rms: float = float("nan")
+    """RMS of what the effect's term adds to the predictions at its all-runs fit, at the same
+    recalibrated parameters [noise-floor multiples] (NaN for recalibration alone)."""
     shift_u: np.ndarray | None = field(default=None, repr=False)
     """The calibrated parameters' shift from their stated values in fitted coordinates
     (log value, or value over prior sd), in the order of ``recalibrated``."""
@@ -252,6 +255,7 @@ class CandidateResult:
                 "fit_success": self.fit_success,
                 "recalibrated": self.recalibrated,
                 "recalibration_plausible": self.recalibration_plausible,
+                "term_rms_noise": self.term_rms,
                 "recalibrated_shift": (
                     {"u": self.shift_u, "covariance": self.shift_cov} if self.shift_u is not None else None
                 ),

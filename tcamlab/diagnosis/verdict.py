@@ -28,6 +28,8 @@ __all__ = [
     "verdict",
     "qualifies",
     "closes_the_rest",
+    "switched_off",
+    "SWITCHED_OFF",
     "beats",
     "named_parameters",
     "describe_parameter",
@@ -61,13 +63,27 @@ PAIR_POOL = 4
 (6 pairs), which bounds its cost."""
 
 
+SWITCHED_OFF = 0.01
+"""An effect whose fitted term moves the predictions by less than this RMS [noise-floor
+multiples] is the thesis model: whatever it gains on withheld data comes from the
+recalibrated parameters fitted with it, which recalibration alone has too. The benchmark's
+weakest effects are 1 noise sd; the one effect named at zero in session 19's full run (an
+oven lag of 3.6 us beside G(T), effect-only 10x seed 1001) won by the path of a fold refit."""
+
+
+def switched_off(c: CandidateResult) -> bool:
+    """Whether an effect's fitted term is below :data:`SWITCHED_OFF` (never for recalibration)."""
+    return bool(c.term_rms < SWITCHED_OFF)
+
+
 def qualifies(c: CandidateResult) -> bool:
     """Closes at least :data:`MIN_FRACTION_CLOSED` of the gap on withheld data, shrinkage
-    interval above 0."""
+    interval above 0, and (an effect) its term is not switched off."""
     return bool(
         np.isfinite(c.fraction_closed)
         and c.fraction_closed >= MIN_FRACTION_CLOSED
         and c.shrinkage_ci95[0] > 0
+        and not switched_off(c)
     )
 
 
@@ -417,6 +433,7 @@ def _pair_pool(ranking) -> list[str]:
         if np.isfinite(c.fraction_closed)
         and c.fraction_closed >= MIN_PARTIAL_FRACTION
         and c.shrinkage_ci95[0] > 0
+        and not switched_off(c)
     ][:PAIR_POOL]
 
 
