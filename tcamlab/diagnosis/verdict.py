@@ -35,6 +35,7 @@ __all__ = [
     "describe_parameter",
     "aliased_parameters",
     "stands_in",
+    "taken_over",
     "JOINT_LEVEL",
     "joint_shift_chi2",
     "moved_jointly",
@@ -276,28 +277,38 @@ def restores_combination(c: CandidateResult, recal: CandidateResult) -> bool:
     return bool(var > 0 and abs(float(w @ c.shift_u)) <= z * np.sqrt(var))
 
 
-def stands_in(c: CandidateResult, recal: CandidateResult, named) -> bool:
-    """Whether effect ``c`` explains the gap in place of the recalibration's shift: with it, every
-    parameter recalibration moves (``named``, interval excluding the stated value) keeps its
-    stated value inside its 95 % interval; when no single parameter's interval excludes its
-    stated value but the shift is significant as a whole (:func:`moved_jointly`), the
-    combination the data fix keeps its stated value (:func:`restores_combination`)."""
+def taken_over(c: CandidateResult, recal: CandidateResult, named) -> list[str]:
+    """The parameters among ``named`` whose shift effect ``c`` takes over: recalibration's
+    95 % interval excludes the stated value, and ``c``'s fit (the effect with recalibration)
+    keeps the stated value inside its own."""
     params = c.recalibrated or {}
-    # only parameters whose interval excludes the stated value (not the fallback "furthest")
-    excluded = [n for n in named if not _covers(recal.recalibrated[n])]
-    if not excluded:
+    return [n for n in named if not _covers(recal.recalibrated[n]) and n in params and _covers(params[n])]
+
+
+def stands_in(c: CandidateResult, recal: CandidateResult, named) -> bool:
+    """Whether effect ``c`` explains the gap in place of (part of) the recalibration's shift:
+    with it, some parameter recalibration moves (``named``, interval excluding the stated
+    value) keeps its stated value inside its 95 % interval (:func:`taken_over`); when no
+    single parameter's interval excludes its stated value but the shift is significant as a
+    whole (:func:`moved_jointly`), the combination the data fix keeps its stated value
+    (:func:`restores_combination`).
+
+    Part of the shift, not all of it: where an effect and a parameter error are both real
+    (the benchmark's realistic family: a 3x R(T) beside heat loss, damping and G_t slope
+    drawn off), the effect takes over one parameter's shift while the others stay moved in
+    both stories; the data cannot tell the two stories apart.
+    """
+    if not any(not _covers(recal.recalibrated[n]) for n in named):
         return moved_jointly(recal) and restores_combination(c, recal)
-    return all(
-        n in params and params[n]["ci95"][0] <= params[n]["stated"] <= params[n]["ci95"][1] for n in excluded
-    )
+    return bool(taken_over(c, recal, named))
 
 
 def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_errors):
     """``miscalibrated``, or ``aliased`` when the shift is implausible and an effect with
     plausible parameters fits the withheld runs as well.
 
-    ``miscalibrated`` keeps the effects that fit the withheld runs as well *with the moved
-    parameters at their stated values* (:func:`stands_in`) in ``aliased_with``: the data
+    ``miscalibrated`` keeps the effects that fit the withheld runs as well *with a moved
+    parameter at its stated value* (:func:`stands_in`) in ``aliased_with``: the data
     cannot tell the shift from them (parsimony names the shift, since the stated values are
     known to be uncertain), and ``separate_by`` gives the experiments that would.
     """
@@ -329,18 +340,21 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
         if not set(own_errors.get(c.effect, ())) & set(named) and stands_in(c, recal, named)
     ]
     if stand_ins:
-        held = (
-            f"{', '.join(named)} at the stated value{'s' if len(named) > 1 else ''}"
-            if any(not _covers(recal.recalibrated[n]) for n in named)
-            else "the combination of parameters the data fix at its stated value"
-        )
+        by = {c.effect: c for c in effects}
+        each = [f"{e} with {_held_text(taken_over(by[e], recal, named))}" for e in stand_ins]
         closes += (
-            f"; {', '.join(stand_ins)} with {held} fit{'s' if len(stand_ins) == 1 else ''} the withheld "
-            "runs as well (the experiments under separate_by tell them apart), and no effect "
-            "fitted with recalibration beats it"
+            f"; {', '.join(each)} fit{'s' if len(stand_ins) == 1 else ''} the withheld runs as well "
+            "(the experiments under separate_by tell them apart), and no effect fitted with "
+            "recalibration beats it"
         )
         return "miscalibrated", None, stand_ins, closes
     return "miscalibrated", None, [], closes + "; no effect fitted with recalibration beats it"
+
+
+def _held_text(params) -> str:
+    if not params:
+        return "the combination of parameters the data fix at its stated value"
+    return f"{', '.join(params)} at the stated value{'s' if len(params) > 1 else ''}"
 
 
 def pair_verdict(combos, after_folds, boot_idx, b_n, order):
