@@ -1238,9 +1238,20 @@ _CALIBRATION_ROWS = (
 )
 
 
+def _proposed(fam: str, st: str) -> tuple[str, str]:
+    """The proposed targets (README, "Proposed targets") of one family and strength: named
+    or aliased with the verdict, and top-1 where the effect beats recalibration."""
+    weak = float(st) < 3
+    named = "-" if weak or fam == "off-library" else "(proposed) >= 0.9"
+    if fam == "off-library":
+        return named, "-" if weak else "(proposed) >= 0.8"
+    return named, ("(proposed) >= 0.7" if fam == "effect-only" else "-") if weak else "(proposed) >= 0.9"
+
+
 def _accuracy_rows(fam: str, st: str, a: dict) -> list[list[str]]:
     """Top-1, named-or-aliased and separable top-1 rows of one family and strength."""
     target = (">= 0.7" if float(st) < 3 else ">= 0.9") if fam == "effect-only" else _TOP1_TARGET.get(fam, "-")
+    named, separable = _proposed(fam, st)
     rows = [[fam, f"top-1 at {st}x", str(a["n"]), _fmt(a["top1"]), target]]
     if a.get("named_or_aliased") is not None:
         rows.append(
@@ -1249,7 +1260,7 @@ def _accuracy_rows(fam: str, st: str, a: dict) -> list[list[str]]:
                 f"named, or aliased with the verdict, at {st}x",
                 str(a["n"]),
                 _fmt(a["named_or_aliased"]),
-                "-",
+                named,
             ]
         )
     if a.get("separable_n"):
@@ -1259,9 +1270,7 @@ def _accuracy_rows(fam: str, st: str, a: dict) -> list[list[str]]:
                 f"top-1 at {st}x where the effect beats recalibration on withheld runs",
                 str(a["separable_n"]),
                 _fmt(a["separable_top1"]),
-                ("(proposed) >= 0.8" if fam == "off-library" else "(proposed) >= 0.9")
-                if float(st) >= 3
-                else "-",
+                separable,
             ]
         )
     return rows

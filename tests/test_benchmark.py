@@ -462,6 +462,14 @@ def test_top1_where_the_effect_beats_recalibration_on_withheld_runs():
     rows = _family_rows({"effect-only": {"3.0": acc}, "off-library": {"10.0": acc}})
     sep = [r for r in rows if "beats recalibration" in r[1]]
     assert sep[0][2:] == ["2", "0.5", "(proposed) >= 0.9"] and sep[1][-1] == "(proposed) >= 0.8"
+    # the proposed targets by family and strength (README, "Proposed targets")
+    rows = _family_rows({"effect-only": {"1.0": acc}, "realistic": {"3.0": acc}, "off-library": {"3.0": acc}})
+    target = {(r[0], r[1].split(" at ")[0]): r[-1] for r in rows}
+    assert target[("effect-only", "top-1")] == ">= 0.7"
+    assert target[("effect-only", "named, or aliased with the verdict,")] == "-"
+    assert [r[-1] for r in rows if r[0] == "effect-only" and "beats" in r[1]] == ["(proposed) >= 0.7"]
+    assert target[("realistic", "named, or aliased with the verdict,")] == "(proposed) >= 0.9"
+    assert target[("off-library", "named, or aliased with the verdict,")] == "-"
 
 
 def _another(kind):
