@@ -183,6 +183,35 @@ def test_fold_refit_step_matches_a_refit_on_the_training_runs(tmp_path):
     assert np.linalg.norm(step.u - refit.u) < 0.2 * np.linalg.norm(full.u - refit.u)
 
 
+def test_an_effects_term_is_what_it_adds_to_the_predictions_at_its_fit(tmp_path):
+    # term_rms reads the with-effect residuals off the all-rows fit; it must equal the RMS of
+    # the two models' difference evaluated afresh, be 0 for the effect at zero, and grow
+    # linearly for R(T), whose term is linear in its slope at small slopes.
+    import dataclasses
+
+    from tcamlab.diagnosis.noise import all_rows, baseline_fit, estimate_noise
+    from tcamlab.diagnosis.problem import Problem
+    from tcamlab.diagnosis.recalibration import Recalibration, effect_box
+    from tcamlab.effects import get_effect
+
+    exp = _simulate(tmp_path, "dynamic", 5, effects={"resistance-temperature": 3.0}, n_runs=2)
+    runs = exp.read_runs()
+    problem = Problem(exp, runs)
+    estimate_noise(problem, baseline_fit(problem))
+    rec = Recalibration(problem, exp, runs)
+    eff = get_effect("resistance-temperature", "dynamic")
+    box = effect_box(problem, eff, None)
+    fit = rec.fit(eff, all_rows(problem), rec.starts(eff, rec.cal.u0, box), box, 80)
+    term = rec.term_rms(fit, eff)
+    assert term > 0.5  # a 3x effect, of which recalibration takes up only part
+    assert rec.term_rms(dataclasses.replace(fit, fun=None), eff) == pytest.approx(term, rel=1e-9)
+    at_zero = dataclasses.replace(fit, fun=None, values=np.zeros_like(fit.values))
+    assert rec.term_rms(at_zero, eff) == 0.0
+    half = dataclasses.replace(fit, fun=None, values=0.5 * fit.values)
+    assert rec.term_rms(half, eff) == pytest.approx(0.5 * term, rel=0.1)
+    assert np.isnan(rec.term_rms(fit, None))
+
+
 def test_fold_step_from_a_fit_at_a_bound_holds_that_parameter_and_solves_for_the_rest():
     # A linear least-squares problem whose all-rows fit has its second parameter at its
     # upper bound. Without the withheld rows the unconstrained optimum pushes further past

@@ -217,8 +217,13 @@ class Recalibration:
         if effect is None:
             return float("nan")
         mods, d2, n = effect.mods(fit.values), 0.0, 0
+        sizes = [len(d) * len(self.problem.quantities) for d in self.problem.frames]
+        # an all-rows fit's residuals start with every run's, in run order: no re-evaluation
+        fitted = fit.fun is not None and fit.fun.size >= sum(sizes)
+        starts = np.concatenate([[0], np.cumsum(sizes)])
         for i in range(len(self.problem.frames)):
-            with_term, without = self.resid(i, fit.u, mods), self.resid(i, fit.u, Mods())
+            with_term = fit.fun[starts[i] : starts[i + 1]] if fitted else self.resid(i, fit.u, mods)
+            without = self.resid(i, fit.u, Mods())
             if np.any(with_term == FAIL_RESIDUAL) or np.any(without == FAIL_RESIDUAL):
                 return float("nan")
             d2 += float(np.sum((with_term - without) ** 2))
