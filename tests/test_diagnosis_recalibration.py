@@ -298,7 +298,7 @@ def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
     after = _after({RECALIBRATION: 110, stand.effect: 110, same.effect: 110})
     v = verdict([rec, stand, same], True, after, idx, b_n, 3.0, 1.1)
     assert v[:3] == ("miscalibrated", None, ["resistance-temperature"])
-    assert "resistance-temperature with thermal_mass at the stated value" in v[3]
+    assert "resistance-temperature (with thermal_mass at its stated value) fits" in v[3]
     # A second parameter moved too (an effect beside a parameter error, the realistic case):
     # an effect that takes over C_th's shift while lambda stays moved is still a stand-in;
     # one that takes over neither is not.
@@ -308,7 +308,7 @@ def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
     same.recalibrated = {"thermal_mass": moved, "heat_loss": lam}
     v = verdict([rec, stand, same], True, after, idx, b_n, 3.0, 1.1)
     assert v[:3] == ("miscalibrated", None, ["resistance-temperature"])
-    assert "resistance-temperature with thermal_mass at the stated value" in v[3]
+    assert "resistance-temperature (with thermal_mass at its stated value) fits" in v[3]
 
 
 def test_an_effect_that_restores_a_jointly_moved_pair_is_kept_beside_miscalibrated():

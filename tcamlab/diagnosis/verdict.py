@@ -341,9 +341,10 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
     ]
     if stand_ins:
         by = {c.effect: c for c in effects}
-        each = [f"{e} with {_held_text(taken_over(by[e], recal, named))}" for e in stand_ins]
+        each = [f"{e} (with {_held_text(taken_over(by[e], recal, named))})" for e in stand_ins]
+        listed = each[0] if len(each) == 1 else f"{', '.join(each[:-1])} and {each[-1]}"
         closes += (
-            f"; {', '.join(each)} fit{'s' if len(stand_ins) == 1 else ''} the withheld runs as well "
+            f"; {listed} fit{'s' if len(stand_ins) == 1 else ''} the withheld runs as well "
             "(the experiments under separate_by tell them apart), and no effect fitted with "
             "recalibration beats it"
         )
@@ -354,7 +355,9 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
 def _held_text(params) -> str:
     if not params:
         return "the combination of parameters the data fix at its stated value"
-    return f"{', '.join(params)} at the stated value{'s' if len(params) > 1 else ''}"
+    if len(params) == 1:
+        return f"{params[0]} at its stated value"
+    return f"{', '.join(params[:-1])} and {params[-1]} at their stated values"
 
 
 def pair_verdict(combos, after_folds, boot_idx, b_n, order):
