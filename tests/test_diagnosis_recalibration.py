@@ -490,6 +490,11 @@ def test_fold_refits_stay_defined_on_the_withheld_runs_inputs(tmp_path, seed):
     assert (by["oven-thermal-lag"].term_rms < SWITCHED_OFF) == (
         by["oven-thermal-lag"].parameters["lag_tau"]["value"] < 1e-3
     )
+    if res.verdict == "miscalibrated":
+        # each stand-in with the named parameters it takes over (JSON and report read these)
+        takes = res.recalibration["stand_ins"]
+        assert list(takes) == res.aliased_with
+        assert all(set(v) <= set(res.recalibration["named"]) for v in takes.values())
     if res.verdict == "miscalibrated" and "shear_modulus_slope" in res.recalibration["named"]:
         # held where G_t' reaches zero at the hottest reading: flagged, its interval not offered
         slope = res.recalibration["parameters"]["shear_modulus_slope"]

@@ -364,12 +364,18 @@ def test_verdict_text_of_miscalibrated_names_the_stand_ins_and_how_to_separate_t
             "named": ["resistivity"],
             "parameters": {"resistivity": entry},
             "fraction_closed": 0.9,
+            "stand_ins": {"youngs-modulus-temperature": ["resistivity"], "glass-transition": []},
         },
         aliased_with=["youngs-modulus-temperature", "glass-transition"],
         separate_by={"recalibration": "a second load", "glass-transition": "a slower oven ramp"},
     )
     text = verdict_text(result)
-    assert "youngs-modulus-temperature, glass-transition fit the withheld runs as well" in text
+    # each with the parameter whose shift it takes over (none listed: the combination the data fix)
+    assert (
+        "youngs-modulus-temperature (with resistivity at its stated value) and glass-transition "
+        "(with the combination of parameters the data fix at its stated value) fit the withheld "
+        "runs as well" in text
+    )
     assert "recalibration: a second load; glass-transition: a slower oven ramp." in text
     result.aliased_with, result.separate_by = [], {}
     assert "withheld runs as well" not in verdict_text(result)

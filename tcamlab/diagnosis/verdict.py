@@ -36,6 +36,7 @@ __all__ = [
     "aliased_parameters",
     "stands_in",
     "taken_over",
+    "stand_in_text",
     "JOINT_LEVEL",
     "joint_shift_chi2",
     "moved_jointly",
@@ -282,7 +283,8 @@ def taken_over(c: CandidateResult, recal: CandidateResult, named) -> list[str]:
     95 % interval excludes the stated value, and ``c``'s fit (the effect with recalibration)
     keeps the stated value inside its own."""
     params = c.recalibrated or {}
-    return [n for n in named if not _covers(recal.recalibrated[n]) and n in params and _covers(params[n])]
+    moved = [n for n in named if n in recal.recalibrated and not _covers(recal.recalibrated[n])]
+    return [n for n in moved if n in params and _covers(params[n])]
 
 
 def stands_in(c: CandidateResult, recal: CandidateResult, named) -> bool:
@@ -341,7 +343,7 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
     ]
     if stand_ins:
         by = {c.effect: c for c in effects}
-        each = [f"{e} (with {_held_text(taken_over(by[e], recal, named))})" for e in stand_ins]
+        each = [stand_in_text(e, taken_over(by[e], recal, named)) for e in stand_ins]
         listed = each[0] if len(each) == 1 else f"{', '.join(each[:-1])} and {each[-1]}"
         closes += (
             f"; {listed} fit{'s' if len(stand_ins) == 1 else ''} the withheld runs as well "
@@ -352,12 +354,16 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
     return "miscalibrated", None, [], closes + "; no effect fitted with recalibration beats it"
 
 
-def _held_text(params) -> str:
+def stand_in_text(effect: str, params) -> str:
+    """A stand-in and the moved parameters it takes over, in words: "E (with P at its stated
+    value)"; no parameters: the combination the data fix (:func:`restores_combination`)."""
     if not params:
-        return "the combination of parameters the data fix at its stated value"
-    if len(params) == 1:
-        return f"{params[0]} at its stated value"
-    return f"{', '.join(params[:-1])} and {params[-1]} at their stated values"
+        held = "the combination of parameters the data fix at its stated value"
+    elif len(params) == 1:
+        held = f"{params[0]} at its stated value"
+    else:
+        held = f"{', '.join(params[:-1])} and {params[-1]} at their stated values"
+    return f"{effect} (with {held})"
 
 
 def pair_verdict(combos, after_folds, boot_idx, b_n, order):
@@ -475,10 +481,13 @@ def _recalibration_summary(ranking, verdict_name: str, aliased) -> dict | None:
     if recal is None or not (verdict_name == "miscalibrated" or RECALIBRATION in aliased):
         return None
     named = named_parameters(recal)
+    by = {c.effect: c for c in ranking}
     return {
         "parameters": recal.recalibrated,
         "named": named,
         "aliased_parameters": aliased_parameters(recal.recalibrated, named),
+        # each stand-in listed beside miscalibrated -> the moved parameters it takes over
+        "stand_ins": {e: taken_over(by[e], recal, named) for e in aliased if e in by and e != RECALIBRATION},
         "plausible": recal.recalibration_plausible,
         "fraction_closed": recal.fraction_closed,
         "shrinkage": recal.shrinkage,

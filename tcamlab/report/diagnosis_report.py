@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from tcamlab.diagnosis.verdict import stand_in_text
 from tcamlab.numbers import (
     MISSING,
     fmt,
@@ -142,12 +143,13 @@ def _stand_ins_text(result) -> str:
     if not result.aliased_with:
         return ""
     many = len(result.aliased_with) > 1
+    takes = (result.recalibration or {}).get("stand_ins") or {}
+    each = [stand_in_text(e, takes[e]) if e in takes else e for e in result.aliased_with]
     return (
         " But "
-        + ", ".join(result.aliased_with)
+        + (each[0] if not many else ", ".join(each[:-1]) + " and " + each[-1])
         + (" fit" if many else " fits")
-        + " the withheld runs as well with the parameters at their stated values; these data "
-        "cannot tell the shift from "
+        + " the withheld runs as well; these data cannot tell the shift from "
         + ("them" if many else "it")
         + ". Experiments that would: "
         + "; ".join(f"{k}: {v}" for k, v in result.separate_by.items())
