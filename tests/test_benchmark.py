@@ -464,12 +464,13 @@ def test_top1_where_the_effect_beats_recalibration_on_withheld_runs():
     assert sep[0][2:] == ["2", "0.5", "(proposed) >= 0.9"] and sep[1][-1] == "(proposed) >= 0.8"
     # the proposed targets by family and strength (README, "Proposed targets")
     rows = _family_rows({"effect-only": {"1.0": acc}, "realistic": {"3.0": acc}, "off-library": {"3.0": acc}})
-    target = {(r[0], r[1].split(" at ")[0]): r[-1] for r in rows}
-    assert target[("effect-only", "top-1")] == ">= 0.7"
-    assert target[("effect-only", "named, or aliased with the verdict,")] == "-"
-    assert [r[-1] for r in rows if r[0] == "effect-only" and "beats" in r[1]] == ["(proposed) >= 0.7"]
-    assert target[("realistic", "named, or aliased with the verdict,")] == "(proposed) >= 0.9"
-    assert target[("off-library", "named, or aliased with the verdict,")] == "-"
+    target = {(r[0], r[1]): r[-1] for r in rows}
+    assert target[("effect-only", "top-1 at 1.0x")] == ">= 0.7"
+    assert target[("effect-only", "named, or aliased with the verdict, at 1.0x")] == "-"
+    beats = "top-1 at 1.0x where the effect beats recalibration on withheld runs"
+    assert target[("effect-only", beats)] == "(proposed) >= 0.7"
+    assert target[("realistic", "named, or aliased with the verdict, at 3.0x")] == "(proposed) >= 0.9"
+    assert target[("off-library", "named, or aliased with the verdict, at 3.0x")] == "-"
 
 
 def _another(kind):
