@@ -36,7 +36,7 @@ __all__ = [
     "aliased_parameters",
     "stands_in",
     "taken_over",
-    "stand_in_text",
+    "stand_ins_text",
     "JOINT_LEVEL",
     "joint_shift_chi2",
     "moved_jointly",
@@ -343,8 +343,7 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
     ]
     if stand_ins:
         by = {c.effect: c for c in effects}
-        each = [stand_in_text(e, taken_over(by[e], recal, named)) for e in stand_ins]
-        listed = each[0] if len(each) == 1 else f"{', '.join(each[:-1])} and {each[-1]}"
+        listed = stand_ins_text({e: taken_over(by[e], recal, named) for e in stand_ins})
         closes += (
             f"; {listed} fit{'s' if len(stand_ins) == 1 else ''} the withheld runs as well "
             "(the experiments under separate_by tell them apart), and no effect fitted with "
@@ -354,16 +353,25 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
     return "miscalibrated", None, [], closes + "; no effect fitted with recalibration beats it"
 
 
-def stand_in_text(effect: str, params) -> str:
-    """A stand-in and the moved parameters it takes over, in words: "E (with P at its stated
-    value)"; no parameters: the combination the data fix (:func:`restores_combination`)."""
-    if not params:
-        held = "the combination of parameters the data fix at its stated value"
-    elif len(params) == 1:
-        held = f"{params[0]} at its stated value"
-    else:
-        held = f"{', '.join(params[:-1])} and {params[-1]} at their stated values"
-    return f"{effect} (with {held})"
+def _and(words) -> str:
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} and {words[-1]}"
+
+
+def stand_ins_text(stand_ins: dict) -> str:
+    """Stand-ins and the moved parameters each takes over (``{effect: [parameters]}``, or
+    ``{effect: None}`` when that is not known), in words: "E (with P at its stated value)
+    and F"; no parameters: the combination the data fix (:func:`restores_combination`)."""
+
+    def one(effect, params):
+        if params is None:
+            return effect
+        if not params:
+            return f"{effect} (with the combination of parameters the data fix at its stated value)"
+        if len(params) == 1:
+            return f"{effect} (with {params[0]} at its stated value)"
+        return f"{effect} (with {_and(params)} at their stated values)"
+
+    return _and([one(e, p) for e, p in stand_ins.items()])
 
 
 def pair_verdict(combos, after_folds, boot_idx, b_n, order):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from tcamlab.diagnosis.verdict import stand_in_text
+from tcamlab.diagnosis.verdict import stand_ins_text
 from tcamlab.numbers import (
     MISSING,
     fmt,
@@ -144,10 +144,9 @@ def _stand_ins_text(result) -> str:
         return ""
     many = len(result.aliased_with) > 1
     takes = (result.recalibration or {}).get("stand_ins") or {}
-    each = [stand_in_text(e, takes[e]) if e in takes else e for e in result.aliased_with]
     return (
         " But "
-        + (each[0] if not many else ", ".join(each[:-1]) + " and " + each[-1])
+        + stand_ins_text({e: takes.get(e) for e in result.aliased_with})
         + (" fit" if many else " fits")
         + " the withheld runs as well; these data cannot tell the shift from "
         + ("them" if many else "it")
