@@ -5,8 +5,8 @@
 #   raw/{kind}_run{1,2,3}.csv
 #   truth/{kind}.truth.json   (the generator's truth: no effects, per-run sample scatter)
 # The data are effect-free virtual-rig runs (tcamlab/rig/), 3 runs each, seed 1.
-# Re-running gives byte-identical files, except the recorded command line: the
-# shipped files were made when the templates lived in experiments/templates/.
+# Re-running gives byte-identical files: each records this command line, which
+# tests/test_real_files.py re-runs and compares with the shipped files.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -166,10 +166,7 @@ def test_shipped_sample_data_is_reproducible(tmp_path):
         shipped = ROOT / "experiments" / f"{kind}.toml"
         if not shipped.exists():
             pytest.skip("sample data not generated")
-        # the command line recorded when the sample data were made (templates then lived there)
-        cmd = f"tcamlab simulate {kind} --experiment experiments/templates/{kind}.toml --seed 1 --out ."
-        if kind == "selfsensing":  # made after the templates moved into the package
-            cmd = f"tcamlab simulate {kind} --experiment {kind} --seed 1 --out ."
+        cmd = f"tcamlab simulate {kind} --experiment {kind} --seed 1 --out ."  # as recorded
         res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=1, out_dir=tmp_path, command=cmd)
         assert res.experiment_path.read_bytes() == shipped.read_bytes()
         for p in res.run_paths:

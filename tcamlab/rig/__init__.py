@@ -556,6 +556,17 @@ def _write_experiment(plan: _Plan, run_paths: list[Path]) -> Path:
     return path
 
 
+def _template_label(template) -> str:
+    """How the truth file names its template: a shipped one by its kind (what ``--experiment``
+    accepts, the same on every machine), any other by the path as given."""
+    from tcamlab.templates import TEMPLATES
+
+    path = Path(template)
+    if path.parent.resolve() == TEMPLATES and path.suffix == ".toml":
+        return path.stem
+    return str(template)
+
+
 def _truth(
     plan: _Plan, effect_truth: dict, mods: Mods, sd: Mapping[str, float], runs_truth: list[dict], forms=()
 ) -> dict[str, Any]:
@@ -566,7 +577,7 @@ def _truth(
         "seed": plan.seed,
         "generator": GENERATOR,
         "command": plan.command,
-        "template": str(plan.template_arg),
+        "template": _template_label(plan.template_arg),
         "n_runs": plan.n_runs,
         "noise_scale": float(plan.noise_scale),
         "effects": effect_truth,
