@@ -39,6 +39,7 @@ __all__ = [
     "fit_spring_runs",
     "leave_one_out_spring",
     "split_branches",
+    "starts_under_load",
 ]
 
 """1 / Phi^-1(3/4): scales a median absolute deviation to a normal sd."""
@@ -681,13 +682,22 @@ def _intercept_warnings(pooled: SpringFit, runs, *, robust: bool) -> list[str]:
             f"origin-forced S = {pooled.spring_constant:.5g} N/m is biased (the fit with F0 gives "
             f"{free.spring_constant:.5g} N/m); fit with the intercept (the default)"
         ]
-    out = []
-    if pooled.intercept_significant:
+    preloaded = {name: float(f[0]) for name, x, f in runs if starts_under_load(f)}
+    out = [
+        f"{name} starts under load (first reading {start:+.4g} N): a preloaded segment, whose F0 is "
+        f"the preload, not a load-cell tare error; S, the slope, is not biased by it"
+        for name, start in preloaded.items()
+    ]
+    if pooled.intercept_significant and len(preloaded) < len(runs):
         out.append(
             f"the load cell's zero is off: mean F0 = {_mn(pooled.intercept)} ({_in_se(pooled)}); "
             f"it is fitted as a nuisance, so S is not biased by it, but check the tare"
         )
-    bad = [r for r in pooled.run_intercepts if r["intercept_ci95_N"][0] > 0 or r["intercept_ci95_N"][1] < 0]
+    bad = [
+        r
+        for r in pooled.run_intercepts
+        if (r["intercept_ci95_N"][0] > 0 or r["intercept_ci95_N"][1] < 0) and r["run"] not in preloaded
+    ]
     if bad and len(pooled.run_intercepts) > 1:
         out.append(
             "runs whose own F0 is significant: "
@@ -697,6 +707,17 @@ def _intercept_warnings(pooled: SpringFit, runs, *, robust: bool) -> list[str]:
             )
         )
     return out
+
+
+def starts_under_load(force) -> bool:
+    """A segment whose first force reading is a fifth or more of its largest and of its span: it
+    starts preloaded (a release, or a segment cut from a longer test), not at the unloaded length
+    (a load cell's tare error is a small fraction of the force)."""
+    f = np.asarray(force, float)
+    f = f[np.isfinite(f)]
+    if f.size < 2 or np.ptp(f) == 0.0:
+        return False
+    return bool(abs(f[0]) >= 0.2 * np.ptp(f) and abs(f[0]) >= 0.2 * np.max(np.abs(f)))
 
 
 def _mn(force: float) -> str:

@@ -55,6 +55,7 @@ from tcamlab.text import close_matches, did_you_mean
 from tcamlab.units import QUANTITIES
 
 __all__ = [
+    "sign_flip_entry",
     "ABSOLUTE_ZERO_C",
     "DEFAULT_MAX_BYTES",
     "KINDS",
@@ -1442,6 +1443,22 @@ def column_option(text: str) -> tuple[str, Any]:
     if colon and name.strip() and unit_key(unit.strip()):
         return canon.strip(), {"from": name.strip(), "unit": unit.strip()}
     return canon.strip(), {"from": header.strip()}
+
+
+def sign_flip_entry(run: RunData, canon: str) -> str:
+    """The ``[columns]`` entry that reads a run's column ``canon`` with the opposite sign
+    (``force_N = { from = "Load", unit = "mN", scale = -1 }``)."""
+    internal = VARIABLE_MAP[canon][0]
+    how = run.source_units.get(internal, VARIABLE_MAP[canon][1])
+    unit, _, rest = how.partition(",")
+    scale = 1.0
+    if rest.strip().startswith("scale"):
+        scale = float(rest.split()[1])
+    entry: dict[str, Any] = {"from": run.source_columns.get(internal, canon)}
+    if unit.strip() != VARIABLE_MAP[canon][1]:
+        entry["unit"] = unit.strip()
+    entry["scale"] = -scale
+    return _toml_entry(canon, entry)
 
 
 def _how_read(spec: ColumnSpec) -> str:

@@ -475,8 +475,10 @@ def fit_spring_files(
 
     if plot_path is not None:
         _check_plot_path(Path(plot_path), force)
-    runs = _pull_runs(paths, drop_na, max_bytes, columns)
+    frames = _pull_frames(paths, drop_na, max_bytes, columns)
+    runs = _pull_runs(frames)
     report = fit_spring_runs(runs, intercept=intercept, robust=robust, by_branch=by_branch)
+    _refuse_negative_spring(report, frames)
     if plot_path is not None:
         import matplotlib
 
@@ -499,9 +501,33 @@ def _check_plot_path(path: Path, force: bool) -> None:
         raise InputError(f"--plot {path}: file exists", hint="pass --force to overwrite it")
 
 
-def _pull_runs(paths: Sequence, drop_na: bool, max_bytes: int | None, columns=None) -> list:
-    """(name, displacement [m], force [N]) of every pull test in CSVs or sensing experiment files;
-    a bare CSV needs only displacement and force, mapped by ``columns`` (see fit_spring_files)."""
+def _refuse_negative_spring(report, frames) -> None:
+    """A negative S is no spring constant: name the likely cause instead of reporting it."""
+    from tcamlab.fitting import starts_under_load
+    from tcamlab.io import sign_flip_entry
+
+    s = report.pooled.spring_constant
+    if not s < 0:
+        return
+    files = ", ".join(str(r.path) for r in frames)
+    released = [r.path.name for r in frames if starts_under_load(r.data["force"].to_numpy(float))]
+    segment = (
+        f"; {', '.join(released)} starts under load (a release or unloading segment, preloaded)"
+        if released
+        else ""
+    )
+    raise InputError(
+        f"fit-spring: {files}: S = {s:.5g} N/m is negative (the force falls as the sample is stretched), "
+        f"so it is not reported as a spring constant{segment}",
+        hint=f"the likely cause is the force column's sign: map it in [columns] as "
+        f"{sign_flip_entry(frames[0], 'force_N')}; or the displacement runs the other way in "
+        "a release/unloading segment: fit a loading segment, stretched from its unloaded length",
+    )
+
+
+def _pull_frames(paths: Sequence, drop_na: bool, max_bytes: int | None, columns=None) -> list:
+    """Every pull test in CSVs or sensing experiment files, read; a bare CSV needs only
+    displacement and force, mapped by ``columns`` (see fit_spring_files)."""
     from tcamlab import io as tio
 
     read_kw: dict = {"drop_na": drop_na}
@@ -516,6 +542,11 @@ def _pull_runs(paths: Sequence, drop_na: bool, max_bytes: int | None, columns=No
             frames.extend(load_experiment(p, expected_kind="sensing").read_runs(**read_kw))
         else:
             frames.append(tio.read_run(p, "sensing", columns, only=("displacement_mm", "force_N"), **read_kw))
+    return frames
+
+
+def _pull_runs(frames: list) -> list:
+    """(name, displacement [m], force [N]) of every pull test read."""
     runs = [
         (r.path.stem, r.data["displacement"].to_numpy(float), r.data["force"].to_numpy(float)) for r in frames
     ]

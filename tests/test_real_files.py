@@ -42,3 +42,46 @@ def test_recorded_command_runs_and_remakes_the_shipped_files(tmp_path, monkeypat
     for path in made:
         rel = path.relative_to(tmp_path)
         assert path.read_bytes() == (ROOT / rel).read_bytes(), rel
+
+
+# --- fit-spring: a negative S is refused, a preload is named as one ----------------------
+
+
+def _segment(path: Path, header: str, xs, fs) -> Path:
+    path.write_text(header + "\n" + "".join(f"{x:.5f},{f:.4f}\n" for x, f in zip(xs, fs)))
+    return path
+
+
+def _release(tmp_path: Path, sign: float = 1.0) -> Path:
+    """A rheometer release segment: 17 N at the start, falling to 0 over 0.13 mm."""
+    import numpy as np
+
+    x = np.linspace(0.0, 0.13, 40)
+    f = 17.0 - 129470.0 * x * 1e-3 + np.random.default_rng(0).normal(0.0, 0.05, x.size)
+    return _segment(tmp_path / "release.csv", "Gap (mm),Normal force (N)", sign * x, sign * f)
+
+
+def test_fit_spring_refuses_a_negative_spring_constant(tmp_path):
+    path = _release(tmp_path, sign=-1.0)  # the force column's sign as exported
+    res = runner.invoke(
+        app,
+        ["fit-spring", str(path), "--column", "displacement_mm=Gap (mm)", "--column", "force_N=Normal force (N)"],
+    )
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in res.output
+    assert "release.csv" in lines[0] and "negative" in lines[0]
+    assert 'force_N = { from = "Normal force (N)", scale = -1 }' in lines[0]
+    assert "release" in lines[0] and "starts under load" in lines[0]
+
+
+def test_fit_spring_names_a_preload_not_a_tare_error(tmp_path):
+    import numpy as np
+
+    x = np.linspace(0.0, 0.13, 40)
+    f = 17.0 + 129470.0 * x * 1e-3 + np.random.default_rng(1).normal(0.0, 0.05, x.size)
+    path = _segment(tmp_path / "preloaded.csv", "displacement_mm,force_N", x, f)
+    res = runner.invoke(app, ["fit-spring", str(path)])
+    assert res.exit_code == 0, res.output
+    assert "preloaded starts under load" in res.output and "preload" in res.output
+    assert "check the tare" not in res.output
