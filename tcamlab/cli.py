@@ -237,6 +237,8 @@ def _zero_line(run: str, q: str, z: dict) -> str:
     if z["stderr"] is not None:
         lo, hi = z["ci95"]
         text += f" (standard error {fmt(z['stderr'], 2)} {unit}, 95% CI {fmt(lo, 3)} to {fmt(hi, 3)} {unit})"
+    if z["source"] == "logged zero":
+        return text + f", the logged zero (too few rows at rest; its sd over {z['rows']} row(s))"
     where = f"{z['rows']} rows at rest" if z["source"] == "rest rows" else f"all {z['rows']} rows of the run"
     return text + f", mean residual of {where}; subtracted"
 
@@ -506,6 +508,7 @@ def init(
 def check(
     experiment: Experiment,
     rows: int = typer.Option(3, "--rows", min=0, metavar="N", help="First rows of each run shown in SI."),
+    drop_na: DropNa = False,
 ):
     """Dry run: what tcamlab makes of an experiment file, writing nothing.
 
@@ -517,7 +520,7 @@ def check(
     """
     from tcamlab.starter import check_experiment
 
-    report = _run(check_experiment, experiment, rows)
+    report = _run(check_experiment, experiment, rows, drop_na=drop_na)
     for line in report.lines():
         typer.echo(line)
     if report.problems:
@@ -646,6 +649,7 @@ def calibrate(
     force: bool = typer.Option(
         False, "--force", help="Overwrite an existing NAME.calibrated.toml or calibration output."
     ),
+    drop_na: DropNa = False,
 ):
     """Calibrate the model parameters from the logs, with profile intervals and identifiability.
 
@@ -659,7 +663,9 @@ def calibrate(
     """
     from tcamlab.pipeline import calibrate_experiment
 
-    outcome = _run(calibrate_experiment, experiments, params=params, out_dir=out, force=force)
+    outcome = _run(
+        calibrate_experiment, experiments, params=params, out_dir=out, force=force, drop_na=drop_na
+    )
     doc = outcome.result.to_dict()
     if as_json:
         _print_json(doc)
@@ -742,6 +748,7 @@ def diagnose(
     as_json: Json = False,
     seed: int = typer.Option(0, "--seed", metavar="N", help="Seed of the bootstrap."),
     force: Force = False,
+    drop_na: DropNa = False,
 ):
     """Where the model departs from the logs, which effect explains it, and by how much.
 
@@ -753,7 +760,9 @@ def diagnose(
     from tcamlab.pipeline import diagnose_experiment
     from tcamlab.report.diagnosis_report import diagnosis_lines
 
-    outcome = _run(diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out, force=force)
+    outcome = _run(
+        diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out, force=force, drop_na=drop_na
+    )
     if as_json:
         _print_json(outcome.result.to_dict())
         return
@@ -913,3 +922,7 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+
+
+# the click command behind the Typer app, for the generated CLI reference (docs/cli.md)
+click_command = typer.main.get_command(app)
