@@ -162,6 +162,14 @@ class _CalibrationTable(BaseModel):
     sd_above: list[float] | None = None
 
 
+class _ValidationTable(BaseModel):
+    """``[validation]``: how ``validate`` takes each run's nuisance zero (checked further in
+    :func:`_zero_rule`)."""
+
+    model_config = _STRICT
+    zero: str = "rest"
+
+
 class _JoinTable(BaseModel):
     """A second instrument's file joined to a run on time (its own clock, ``offset_s`` added)."""
 
@@ -193,6 +201,7 @@ class _ExperimentFile(BaseModel):
     columns: dict[str, Any] = Field(default_factory=dict)
     thresholds: dict[str, Any] = Field(default_factory=dict)
     calibration: _CalibrationTable | None = None
+    validation: _ValidationTable | None = None
 
 
 class _TemplateFile(_ExperimentFile):
@@ -214,6 +223,7 @@ _ALLOWED_KEYS: dict[tuple[str, ...], list[str]] = {
     ("rig",): _model_keys(_RigTable),
     ("rig", "uncertainty"): _model_keys(_RigUncertainty),
     ("calibration",): _model_keys(_CalibrationTable),
+    ("validation",): _model_keys(_ValidationTable),
     ("runs",): _model_keys(_RunTable),
     ("runs", "join"): _model_keys(_JoinTable),
 }
@@ -326,6 +336,9 @@ class Experiment:
         sample fields (re-mounting a sensor changes its twists and coil length a little);
         calibration treats each run's departure as a random effect. None: the kind's default
         (:attr:`tcamlab.kinds.Kind.run_reproducibility`).
+    zero_rule : str
+        ``[validation] zero``: ``"rest"`` (default; each run's zero from its rows at rest,
+        else as logged) or ``"whole-run"`` (:data:`tcamlab.metrics.ZERO_RULES`).
     """
 
     path: Path
@@ -346,6 +359,7 @@ class Experiment:
     run_columns: tuple[dict, ...] = ()
     run_joins: tuple[dict | None, ...] = ()
     run_to_run: dict[str, float] | None = None
+    zero_rule: str = "rest"
 
     @property
     def preset(self) -> str | None:
@@ -576,6 +590,7 @@ def load_experiment(
         run_columns=run_columns,
         run_joins=run_joins,
         run_to_run=_run_to_run(doc, shown),
+        zero_rule=_zero_rule(doc, shown),
     )
 
 
@@ -838,6 +853,20 @@ def _sample_uncertainty(doc: _ExperimentFile, shown: str) -> dict[str, float]:
             )
         out[si_name] = v * factor
     return out
+
+
+def _zero_rule(doc: _ExperimentFile, shown: str) -> str:
+    """``[validation] zero``: one of :data:`tcamlab.metrics.ZERO_RULES` (default ``"rest"``)."""
+    from tcamlab.metrics import ZERO_RULES
+
+    rule = doc.validation.zero if doc.validation else ZERO_RULES[0]
+    if rule not in ZERO_RULES:
+        raise ConfigError(
+            f"{shown}: validation.zero = {rule!r} is not a zero rule",
+            'use "rest" (zeros from the rows at rest, else as logged; the default) or "whole-run" '
+            "(each model's zero fitted over the whole run: bias 0 by construction)",
+        )
+    return rule
 
 
 def _run_to_run(doc: _ExperimentFile, shown: str) -> dict[str, float] | None:

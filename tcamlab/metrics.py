@@ -22,6 +22,11 @@ __all__ = [
     "ZERO_METHOD_NOTE",
     "ZeroEstimate",
     "estimate_zero",
+    "logged_zero",
+    "ZERO_RULES",
+    "ZERO_REST",
+    "ZERO_WHOLE_RUN",
+    "LOGGED_ZERO",
     "METRIC_NAMES",
     "METRIC_LABELS",
     "METRIC_UNITS_NOTE",
@@ -214,22 +219,36 @@ def pooled_metrics(pairs: Iterable[tuple[object, object]]) -> dict[str, float]:
 # --------------------------------------------------------------------------
 
 MIN_REST_ROWS = 10
-"""Fewest leading rest rows a zero is estimated from; with fewer, from the whole run."""
+"""Fewest leading rest rows a zero is estimated from; with fewer, the logged zero stands."""
+
+ZERO_REST = "rest"
+"""Zero rule (default): each run's zero from its rows at rest only, else the logged zero."""
+ZERO_WHOLE_RUN = "whole-run"
+"""Zero rule on request: each run's zero fitted over the whole run (each model's mean error)."""
+ZERO_RULES = (ZERO_REST, ZERO_WHOLE_RUN)
+"""The values of ``[validation] zero`` in an experiment file."""
 
 ZERO_METHOD_NOTE = """\
 Each run's zero (tare) of a zero-referenced channel is a nuisance parameter:
-logged = true + zero + noise on every row, the first included (a log re-zeroed
-on its first row carries that row's noise in every later row). It is estimated
-as the mean of measured - predicted over the run's leading rows at rest
-(tcamlab.kinds.rest_rows) when there are at least MIN_REST_ROWS of them, else
-over the whole run (the joint estimate of tcamlab calibrate, flat prior), and
-subtracted from the measurement before the metrics. Its standard error is the
-sd of those residuals over sqrt(rows), its 95 % interval Student-t with rows - 1
-degrees of freedom (residuals taken as independent). After the subtraction the
-first row is a measured point like the others: it stays in n, and the RMSE is
-sqrt(mean(e^2)) over all n rows (not divided by n - zeros; with a whole-run
-zero the bias of that run is 0 by construction)."""
+logged = true + zero + noise on every row, the first included. It is estimated
+from the run's leading rows at rest only (tcamlab.kinds.rest_rows): the mean of
+measured - predicted over them when there are at least MIN_REST_ROWS, its
+standard error the sd of those residuals over sqrt(rows), its 95 % interval
+Student-t with rows - 1 degrees of freedom. With fewer rows at rest (the static
+oven test has one) the logged zero stands: a displacement logged from its first
+row is referenced to that row (the model's displacement is 0 there), a load cell
+is taken as logged; its uncertainty is the noise sd of the run (second
+differences of the residuals) over sqrt(rows used, at least 1), reported beside
+the bias, which then keeps the model's mean error. Every model of a kind is
+scored after its own zero under the same rule. With [validation] zero =
+"whole-run" each model's zero is instead fitted over the whole run: its bias is
+0 by construction and R^2 excludes its mean error, so the unadjusted metrics
+(under the rest rule) are shown beside. The RMSE is sqrt(mean(e^2)) over all n
+rows (not divided by n - zeros)."""
 """How validation treats the zeros (shown in reports)."""
+
+LOGGED_ZERO = "logged zero"
+"""``ZeroEstimate.source`` of a zero that stands as logged (too few rows at rest)."""
 
 
 @dataclass(frozen=True)
@@ -239,15 +258,17 @@ class ZeroEstimate:
     Attributes
     ----------
     value : float
-        The zero: mean of measured - predicted over ``rows`` rows.
+        The zero: mean of measured - predicted over ``rows`` rows, or the logged zero.
     stderr : float
-        Its standard error (sd of those residuals / sqrt(rows)).
+        Its standard error (sd of those residuals / sqrt(rows); for a logged zero,
+        the run's noise sd / sqrt(rows)).
     ci95 : tuple of float
-        Student-t 95 % interval with rows - 1 degrees of freedom.
+        95 % interval: Student-t with rows - 1 degrees of freedom, or normal for a
+        logged zero.
     rows : int
-        Rows it was estimated from.
+        Rows it was estimated from (a logged zero: the rest rows it stands on, at least 1).
     source : str
-        ``"rest rows"`` (the leading rows at rest) or ``"whole run"``.
+        ``"rest rows"``, ``"logged zero"`` or ``"whole run"``.
     """
 
     value: float
@@ -278,33 +299,8 @@ class ZeroEstimate:
         }
 
 
-def estimate_zero(measured, predicted, rest=None, *, min_rest: int = MIN_REST_ROWS) -> ZeroEstimate:
-    """A run's zero: the mean of measured - predicted at rest, else over the run.
-
-    See :data:`ZERO_METHOD_NOTE`. Pairs with a NaN are left out.
-
-    Parameters
-    ----------
-    measured, predicted : array_like
-        One run's series [any unit, the same for both].
-    rest : array_like of int, optional
-        Indices of the run's leading rows at rest (:func:`tcamlab.kinds.rest_rows`).
-    min_rest : int
-        Fewest usable rest rows for a rest-row estimate.
-
-    Returns
-    -------
-    ZeroEstimate
-        In the unit of the series; all NaN when no pair is usable.
-    """
-    m, p = _as_pair(measured, predicted)
-    r = m - p
-    source, sel = "whole run", r[np.isfinite(r)]
-    if rest is not None:
-        at_rest = r[np.asarray(rest, dtype=int)]
-        at_rest = at_rest[np.isfinite(at_rest)]
-        if at_rest.size >= min_rest:
-            source, sel = "rest rows", at_rest
+def _mean_zero(sel: np.ndarray, source: str) -> ZeroEstimate:
+    """Mean of the residuals ``sel`` with its standard error and Student-t interval."""
     k = int(sel.size)
     if k == 0:
         return ZeroEstimate(float("nan"), float("nan"), (float("nan"), float("nan")), 0, source)
@@ -314,6 +310,88 @@ def estimate_zero(measured, predicted, rest=None, *, min_rest: int = MIN_REST_RO
     se = float(sel.std(ddof=1)) / np.sqrt(k)
     half = float(stats.t.ppf(0.975, k - 1)) * se
     return ZeroEstimate(value, se, (value - half, value + half), k, source)
+
+
+def logged_zero(residual, rest, *, first_row: bool = True) -> ZeroEstimate:
+    """The zero that stands as logged, with the noise sd over sqrt(rest rows) as its sd.
+
+    Parameters
+    ----------
+    residual : array_like
+        One run's measured - predicted [any unit].
+    rest : array_like of int
+        Indices of the run's leading rows at rest (at least the first row).
+    first_row : bool
+        The channel is referenced to its first row (a displacement log whose model
+        reads 0 there): the zero is that row's residual. Else (a load cell) the log
+        is taken as it is: the zero is 0.
+
+    Returns
+    -------
+    ZeroEstimate
+        ``source`` "logged zero", ``rows`` the rest rows used (at least 1); the
+        standard error is the noise sd of the residuals
+        (:func:`tcamlab.signals.second_difference_sigma`) over sqrt(rows), NaN for
+        fewer than 3 finite residuals.
+    """
+    from tcamlab.signals import second_difference_sigma
+
+    r = np.asarray(residual, float)
+    if not np.any(np.isfinite(r)):
+        return ZeroEstimate(float("nan"), float("nan"), (float("nan"), float("nan")), 0, LOGGED_ZERO)
+    value = float(r[0]) if first_row else 0.0
+    rows = max(1, int(np.size(rest))) if not first_row else 1
+    sd = second_difference_sigma(r[np.isfinite(r)]) / np.sqrt(rows)
+    half = 1.959963984540054 * sd
+    return ZeroEstimate(value, float(sd), (value - half, value + half), rows, LOGGED_ZERO)
+
+
+def estimate_zero(
+    measured,
+    predicted,
+    rest=None,
+    *,
+    min_rest: int = MIN_REST_ROWS,
+    rule: str = ZERO_REST,
+    first_row: bool = True,
+) -> ZeroEstimate:
+    """A run's zero: the mean of measured - predicted at rest, else the logged zero.
+
+    See :data:`ZERO_METHOD_NOTE`. Pairs with a NaN are left out.
+
+    Parameters
+    ----------
+    measured, predicted : array_like
+        One run's series [any unit, the same for both].
+    rest : array_like of int, optional
+        Indices of the run's leading rows at rest (:func:`tcamlab.kinds.rest_rows`);
+        default the first row.
+    min_rest : int
+        Fewest usable rest rows for a rest-row estimate.
+    rule : {"rest", "whole-run"}
+        :data:`ZERO_REST` (default) or :data:`ZERO_WHOLE_RUN` (the mean residual of
+        every row: the model's mean error is taken away).
+    first_row : bool
+        With too few rest rows, the channel's logged zero is its first row
+        (:func:`logged_zero`).
+
+    Returns
+    -------
+    ZeroEstimate
+        In the unit of the series; all NaN when no pair is usable.
+    """
+    m, p = _as_pair(measured, predicted)
+    r = m - p
+    if rule == ZERO_WHOLE_RUN:
+        return _mean_zero(r[np.isfinite(r)], "whole run")
+    if rule != ZERO_REST:
+        raise ValueError(f"unknown zero rule {rule!r}; use one of {', '.join(ZERO_RULES)}")
+    rest = np.arange(min(1, r.size)) if rest is None else np.asarray(rest, dtype=int)
+    at_rest = r[rest]
+    at_rest = at_rest[np.isfinite(at_rest)]
+    if at_rest.size >= min_rest:
+        return _mean_zero(at_rest, "rest rows")
+    return logged_zero(r, rest, first_row=first_row)
 
 
 # --------------------------------------------------------------------------

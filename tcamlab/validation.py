@@ -5,7 +5,8 @@ the measured and predicted columns, error metrics per model variant and
 quantity (per run and pooled), threshold checks, and kind-specific extras
 (spring constants used for sensing, the Monte Carlo band for dynamic runs).
 Each run's zero of every zero-referenced channel (:attr:`Kind.nuisance_zeros`)
-is estimated and subtracted before the metrics and the kind's extras
+is estimated for every model under one rule (rows at rest, else the logged zero;
+the whole run on request) and subtracted before the metrics and the kind's extras
 (:data:`tcamlab.metrics.ZERO_METHOD_NOTE`).
 No file is written here: see :mod:`tcamlab.pipeline`.
 """
@@ -22,10 +23,13 @@ from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.io import RunData, input_files, sha256_file
 from tcamlab.kinds import Kind, get_kind, rest_rows
 from tcamlab.metrics import (
+    LOGGED_ZERO,
     MIN_REST_ROWS,
     SANITY_CHECKS,
     STATUS_FAILED,
     STATUS_PASSED,
+    ZERO_REST,
+    ZERO_WHOLE_RUN,
     check_thresholds,
     domain_warning,
     error_metrics,
@@ -48,6 +52,11 @@ __all__ = ["ValidationResult", "RunPrediction", "validate", "MC_DRAWS"]
 MC_DRAWS = 1000
 """Monte Carlo draws for the dynamic prediction band."""
 
+FIRST_ROW_ZEROS = ("displacement",)
+"""Quantities logged from their first row (the laser zeroed on the run; the static, dynamic
+and self-sensing displacement models read 0 there): their logged zero is the first row's
+residual. Any other zero-referenced channel (the load cell) stands as logged."""
+
 
 @dataclass
 class RunPrediction:
@@ -68,7 +77,13 @@ class RunPrediction:
         Per-run facts shown in the report (spring constant and its source...).
     zeros : dict
         Quantity -> :class:`tcamlab.metrics.ZeroEstimate` [SI] of the run's
-        nuisance zero (its ``stderr`` is the zero's sd, e.g. for a prediction band).
+        nuisance zero under the primary model (its ``stderr`` is the zero's sd, e.g.
+        for a prediction band); subtracted from ``data``.
+    variant_zeros : dict
+        Model variant -> {quantity -> ZeroEstimate [SI]}: each model's own zero under
+        the same rule (the primary's is ``zeros``). Another model's prediction is moved
+        by the difference of its zero and the primary's, so that its residuals are
+        those against the logged measurement minus its own zero.
     """
 
     name: str
@@ -77,6 +92,7 @@ class RunPrediction:
     band: dict | None = None
     info: dict = field(default_factory=dict)
     zeros: dict = field(default_factory=dict)
+    variant_zeros: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -101,6 +117,11 @@ class ValidationResult:
     warnings : list of SanityWarning
         The sanity checks that failed (:data:`tcamlab.metrics.SANITY_CHECKS`); they
         never change the status, ``--strict`` turns them into exit status 1.
+    zero_rule : str
+        ``"rest"`` (zeros from rows at rest, else as logged) or ``"whole-run"``.
+    unadjusted : dict or None
+        With the whole-run rule: the metrics (shape of ``metrics``) under the rest
+        rule, i.e. without each model's mean error taken away; else None.
     """
 
     experiment: Experiment
@@ -113,6 +134,8 @@ class ValidationResult:
     notes: list = field(default_factory=list)
     extras: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    zero_rule: str = ZERO_REST
+    unadjusted: dict | None = None
 
     @property
     def kind(self) -> str:
@@ -142,15 +165,22 @@ class ValidationResult:
         """Run -> {quantity -> ZeroEstimate [SI]}: the nuisance zeros subtracted."""
         return {p.name: dict(p.zeros) for p in self.predictions if p.zeros}
 
+    def variant_zeros(self, variant: str) -> dict:
+        """Run -> {quantity -> ZeroEstimate [SI]}: one model's own zeros."""
+        return {
+            p.name: dict(p.variant_zeros[variant]) for p in self.predictions if variant in p.variant_zeros
+        }
+
     def zeros_dict(self) -> dict:
-        """The ``zeros`` block of metrics.json: per run and quantity, in lab units."""
-        runs = {}
-        for p in self.predictions:
-            if p.zeros:
-                runs[p.name] = {
-                    quantity(q).column: z.scaled(quantity(q).factor).to_dict() for q, z in p.zeros.items()
-                }
-        return {"min_rest_rows": MIN_REST_ROWS, "runs": runs}
+        """The ``zeros`` block of metrics.json: the rule, and per run and quantity in lab
+        units the primary model's zeros (``runs``) and every model's (``by_model``)."""
+
+        def block(zeros: dict) -> dict:
+            return {quantity(q).column: z.scaled(quantity(q).factor).to_dict() for q, z in zeros.items()}
+
+        runs = {p.name: block(p.zeros) for p in self.predictions if p.zeros}
+        by_model = {v: {run: block(z) for run, z in self.variant_zeros(v).items()} for v in self.variants}
+        return {"rule": self.zero_rule, "min_rest_rows": MIN_REST_ROWS, "runs": runs, "by_model": by_model}
 
     def to_pandas(self) -> pd.DataFrame:
         """One row per logged sample: run, inputs, measured (as logged), the run's estimated
@@ -222,6 +252,8 @@ class ValidationResult:
                 }
                 for v in self.variants
             },
+            **({"models_unadjusted": _json(self.unadjusted)} if self.unadjusted is not None else {}),
+            "zero_rule": self.zero_rule,
             "zeros": self.zeros_dict(),
             "thresholds": [c.to_dict() for c in self.checks],
             "status": self.status,
@@ -296,71 +328,115 @@ def _json(obj):
     return obj
 
 
+def _fitted(z) -> int:
+    """1 for a zero estimated from the data (rows at rest, whole run), 0 for a logged zero."""
+    return int(z is not None and z.source != LOGGED_ZERO)
+
+
+def _bias_sd(zeros, counts) -> float:
+    """Sd of a bias from the zeros' standard errors [the zeros' unit]: the bias over rows
+    sum(n_i z_i) / sum(n_i) with independent zeros. NaN when a run has no zero."""
+    se = np.array([np.nan if z is None else z.stderr for z in zeros], float)
+    n = np.asarray(counts, float)
+    if n.sum() <= 0:
+        return float("nan")
+    return float(np.sqrt(np.sum((n * se) ** 2)) / n.sum())
+
+
 def _metrics(predictions, variants, quantities) -> dict:
-    """Metrics per variant, quantity, run and pooled; ``n_zeros`` counts the zeros subtracted."""
+    """Metrics per variant, quantity, run and pooled; ``n_zeros`` counts the zeros estimated
+    from the data, ``bias_sd`` is the bias's sd from the model's own zeros [lab unit]."""
     out = {}
     for v in variants:
         out[v] = {}
         for q in quantities:
             name, factor = quantity(q).column, quantity(q).factor
             pairs = [(p.data[q].to_numpy() * factor, p.predicted[v][q] * factor) for p in predictions]
-            runs = {}
-            for p, (m, pr) in zip(predictions, pairs):
-                runs[p.name] = {**error_metrics(m, pr), "n_zeros": int(q in p.zeros)}
-            pooled = {**pooled_metrics(pairs), "n_zeros": sum(int(q in p.zeros) for p in predictions)}
+            zeros = [p.variant_zeros.get(v, {}).get(q) for p in predictions]
+            runs, counts = {}, []
+            for p, (m, pr), z in zip(predictions, pairs, zeros):
+                m_run = error_metrics(m, pr)
+                counts.append(m_run["n"])
+                runs[p.name] = {**m_run, "bias_sd": _bias_sd([z], [1]) * factor, "n_zeros": _fitted(z)}
+            pooled = {
+                **pooled_metrics(pairs),
+                "bias_sd": _bias_sd(zeros, counts) * factor,
+                "n_zeros": sum(_fitted(z) for z in zeros),
+            }
             out[v][name] = {"runs": runs, "pooled": pooled}
     return out
 
 
-def _own_zeros(kind: Kind, p: RunPrediction, q: str, raw: np.ndarray, rest, primary_zero: float) -> None:
-    """Give every other variant its own nuisance zero: the zero is profiled per model, as in
-    calibration, so a variant referenced to its own rest (the self-sensing EKF, tared at rest
-    like the laser) is not charged the primary model's rest offset. The measurement keeps the
-    primary's zero; the variant's prediction moves by the difference of the two zeros. Only
-    for a zero from the rows at rest: a whole-run zero would take each model's bias away."""
-    for v in kind.variants:
-        if v == kind.primary or q not in p.predicted.get(v, {}):
-            continue
-        own = estimate_zero(raw, p.predicted[v][q], rest).value
-        if np.isfinite(own):
-            p.predicted[v] = {
-                **p.predicted[v],
-                q: np.asarray(p.predicted[v][q], float) + (own - primary_zero),
-            }
+def _zeros_of_run(kind: Kind, p: RunPrediction, q: str, rule: str) -> dict:
+    """Variant -> ZeroEstimate [SI] of one run and quantity: every model under the same rule,
+    against the same logged measurement."""
+    raw, rest = p.data[q].to_numpy(float), rest_rows(kind, p.data)
+    first = q in FIRST_ROW_ZEROS
+    return {
+        v: estimate_zero(raw, p.predicted[v][q], rest, rule=rule, first_row=first)
+        for v in kind.variants
+        if q in p.predicted.get(v, {})
+    }
 
 
-def _subtract_zeros(kind: Kind, preds: list[RunPrediction]) -> list[str]:
-    """Estimate each run's nuisance zeros with the primary model, subtract them (every other
-    variant is shifted to its own zero, :func:`_own_zeros`); the notes."""
+def _subtract_zeros(kind: Kind, preds: list[RunPrediction], rule: str = ZERO_REST) -> list[str]:
+    """Estimate each run's nuisance zeros for every model under ``rule``; subtract the primary
+    model's from the measurement and move every other model's prediction by the difference of
+    its own zero and the primary's (its residuals are then those against the logged
+    measurement minus its own zero); the notes."""
     sources: dict[str, set] = {}
     for p in preds:
-        rest = rest_rows(kind, p.data)
         for q in kind.nuisance_zeros:
             if q not in kind.outputs or q not in p.data:
                 continue
-            raw = p.data[q].to_numpy(float)
-            est = estimate_zero(raw, p.predicted[kind.primary][q], rest)
-            if not np.isfinite(est.value):
+            own = _zeros_of_run(kind, p, q, rule)
+            est = own.get(kind.primary)
+            if est is None or not np.isfinite(est.value):
                 continue
-            if "whole run" not in est.source:  # a whole-run zero would hide each model's bias
-                _own_zeros(kind, p, q, raw, rest, est.value)
-            p.data = p.data.assign(**{q: raw - est.value})
+            for v, z in own.items():
+                if v != kind.primary and np.isfinite(z.value):
+                    shift = z.value - est.value
+                    p.predicted[v] = {**p.predicted[v], q: np.asarray(p.predicted[v][q], float) + shift}
+                p.variant_zeros.setdefault(v, {})[q] = z
+            p.data = p.data.assign(**{q: p.data[q].to_numpy(float) - est.value})
             p.zeros[q] = est
             sources.setdefault(q, set()).add(est.source)
-    notes = []
-    for q, src in sources.items():
-        how = " or ".join(sorted(src))
-        notes.append(
-            f"the zero of {quantity(q).column} was estimated per run ({how}, with the {kind.primary} "
-            f"model) and subtracted before the metrics; see the table of nuisance zeros"
-            + ("; each other model is scored after its own zero" if len(kind.variants) > 1 else "")
-            + (
-                f" (fewer than {MIN_REST_ROWS} rows at rest: whole-run zeros make those runs' bias 0)"
-                if "whole run" in src
-                else ""
-            )
+    return [_zero_note(kind, q, src, rule) for q, src in sources.items()]
+
+
+def _zero_note(kind: Kind, q: str, sources: set, rule: str) -> str:
+    """The report's note on how the zeros of quantity ``q`` were taken."""
+    col = quantity(q).column
+    each = (
+        "; every model is scored after its own zero under the same rule (the figures draw the "
+        f"measurement minus the {kind.primary} model's zero and move each other model's prediction "
+        "by the difference of its zero and that one)"
+        if len(kind.variants) > 1
+        else ""
+    )
+    if rule == ZERO_WHOLE_RUN:
+        return (
+            f'[validation] zero = "whole-run": the zero of {col} was fitted over each whole run, for '
+            "each model its own, and subtracted: bias and R² exclude the mean error (the bias is 0 "
+            "by construction); the unadjusted metrics (zeros from the rows at rest, else as logged) "
+            "are given beside" + each
         )
-    return notes
+    how = []
+    if "rest rows" in sources:
+        how.append(f"the mean residual of its rows at rest (at least {MIN_REST_ROWS} of them)")
+    if LOGGED_ZERO in sources:
+        ref = "its first row" if q in FIRST_ROW_ZEROS else "the log as it is"
+        how.append(
+            f"the logged zero ({ref}) where fewer than {MIN_REST_ROWS} rows are at rest; its "
+            "uncertainty (the noise sd over the square root of the rest rows used) is given beside "
+            "the bias, which keeps the model's mean error"
+        )
+    return (
+        f"the zero of {col} was taken per run as "
+        + ", or ".join(how)
+        + each
+        + "; see the table of nuisance zeros"
+    )
 
 
 _REFERENCES = {
@@ -548,6 +624,7 @@ def validate(
     drop_na: bool = False,
     max_bytes: int | None = None,
     zeros: bool = True,
+    zero_rule: str | None = None,
 ) -> ValidationResult:
     """Validate the thesis model of ``experiment.kind`` against its runs.
 
@@ -569,6 +646,9 @@ def validate(
         Estimate and subtract each run's nuisance zeros
         (:data:`tcamlab.metrics.ZERO_METHOD_NOTE`); False compares the log as
         it is (a re-zeroed first row is then an exact, zero residual).
+    zero_rule : {"rest", "whole-run"}, optional
+        Default: the experiment file's ``[validation] zero`` (else ``"rest"``). With
+        ``"whole-run"`` the metrics under ``"rest"`` are kept as ``unadjusted``.
 
     Returns
     -------
@@ -580,7 +660,13 @@ def validate(
     names = _run_names(runs)
     kind = get_kind(experiment.kind)
     preds = _predict_runs(experiment, kind, runs, names)
-    zero_notes = _subtract_zeros(kind, preds) if zeros else []
+    rule = zero_rule or getattr(experiment, "zero_rule", ZERO_REST)
+    unadjusted = None
+    if zeros and rule == ZERO_WHOLE_RUN:
+        logged = [_copy_prediction(p) for p in preds]
+        _subtract_zeros(kind, logged, ZERO_REST)
+        unadjusted = _metrics(logged, list(kind.variants), kind.outputs)
+    zero_notes = _subtract_zeros(kind, preds, rule) if zeros else []
     notes, extras = kind.validation_extras(
         experiment,
         preds,
@@ -604,5 +690,22 @@ def validate(
         if w is not None
     ]
     return ValidationResult(
-        experiment, runs, preds, variants, primary, metrics, checks, notes, extras, warnings
+        experiment,
+        runs,
+        preds,
+        variants,
+        primary,
+        metrics,
+        checks,
+        notes,
+        extras,
+        warnings,
+        zero_rule=rule if zeros else ZERO_REST,
+        unadjusted=unadjusted,
     )
+
+
+def _copy_prediction(p: RunPrediction) -> RunPrediction:
+    """A copy of a run's prediction that zeros can be subtracted from independently."""
+    predicted = {v: dict(d) for v, d in p.predicted.items()}
+    return RunPrediction(p.name, p.data.copy(), predicted, p.band, dict(p.info))

@@ -222,15 +222,29 @@ def test_zero_from_rest_rows_by_hand():
     assert z.ci95 == pytest.approx((0.2 - half, 0.2 + half), rel=1e-12)
 
 
-def test_zero_falls_back_to_the_whole_run_with_too_few_rest_rows():
-    resid = np.array([1.0, 2.0, 3.0, np.nan, 6.0])
+def test_with_too_few_rest_rows_the_logged_zero_stands():
+    """Fewer than MIN_REST_ROWS rows at rest: no zero is fitted over the run (that would take
+    the model's mean error away); the logged zero stands, with the noise sd as its sd."""
+    from tcamlab.signals import second_difference_sigma
+
+    resid = np.array([0.0, 2.0, 3.0, np.nan, 6.0])
     z = estimate_zero(resid, np.zeros(5), np.arange(MIN_REST_ROWS - 1)[:3])
-    assert z.source == "whole run" and z.rows == 4  # the NaN pair is left out
-    assert z.value == pytest.approx(3.0)
-    assert estimate_zero(resid, np.zeros(5)).value == pytest.approx(3.0)
+    assert z.source == "logged zero" and z.rows == 1 and z.value == 0.0  # the first row
+    assert z.stderr == pytest.approx(second_difference_sigma([0.0, 2.0, 3.0, 6.0]))
+    assert z.ci95 == pytest.approx((-1.96 * z.stderr, 1.96 * z.stderr), rel=1e-3)
+    shifted = estimate_zero(resid + 1.5, np.zeros(5))  # a log not zeroed on its first row
+    assert shifted.value == pytest.approx(1.5) and shifted.source == "logged zero"
+    tare = estimate_zero(resid + 1.5, np.zeros(5), np.arange(4), first_row=False)
+    assert tare.value == 0.0 and tare.rows == 4  # a load cell stands as logged
+    assert tare.stderr == pytest.approx(second_difference_sigma([0.0, 2.0, 3.0, 6.0]) / 2)
+    whole = estimate_zero(resid, np.zeros(5), np.arange(3), rule="whole-run")
+    assert whole.source == "whole run" and whole.rows == 4  # the NaN pair is left out
+    assert whole.value == pytest.approx(11.0 / 4)
     empty = estimate_zero([np.nan, np.nan], [0.0, 0.0])
     assert empty.rows == 0 and math.isnan(empty.value)
     json.dumps(empty.to_dict(), allow_nan=False)
+    with pytest.raises(ValueError, match="whole-run"):
+        estimate_zero(resid, np.zeros(5), rule="wholerun")
 
 
 def test_zero_interval_covers_the_true_zero_95_percent_of_the_time():

@@ -335,7 +335,7 @@ def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, 
     assert header == ["Experiment", "Kind", "Status", "Warnings", "Quantity", "RMSE", "R²"]
     assert len(re.findall(r"<th[ >]", html)) == 7 + 2  # the index table, then the provenance table
     assert "SYNTHETIC DATA: 2 of 2 experiments" in "".join(p.text)
-    assert "0.005777 mm" in p.cells and "no limits set" in p.cells
+    assert "0.005913 mm" in p.cells and "no limits set" in p.cells
     # the sensing force RMSE in mN, as the diagnosis prints it (not 0.002 N)
     rmse = [c for c in p.cells if "mN" in c]
     assert len(rmse) == 1 and not re.search(r"\d N\b", rmse[0])

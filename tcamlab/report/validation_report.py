@@ -119,11 +119,29 @@ def synthetic_banner(experiment) -> str | None:
 
 def _shown(m: dict, key: str):
     """A metric as the table shows it: a bias below 1e-9 of the RMSE is rounding (a whole-run
-    zero makes the bias 0 by construction), shown as 0, not as -1.8e-17."""
+    zero, ``[validation] zero = "whole-run"``, makes the bias 0 by construction), shown as 0,
+    not as -1.8e-17."""
     v = m[key]
     if key == "bias" and v is not None and abs(v) <= 1e-9 * abs(m.get("rmse") or 0.0):
         return 0.0
     return v
+
+
+UNADJUSTED = ("rmse", "bias", "r2")
+"""Metrics shown again without the whole-run zeros (under the rest rule) beside the adjusted ones."""
+
+
+def _metrics_row(result, variant: str, q: str, run: str, m: dict) -> list:
+    """One row of the metrics table: the metrics, the bias's sd from the zero, the unadjusted
+    metrics with a whole-run zero, n."""
+    cells = [fmt_r2(m[k]) if k == "r2" else _shown(m, k) for k in METRIC_NAMES]
+    cells.insert(METRIC_NAMES.index("bias") + 1, m.get("bias_sd"))
+    if result.unadjusted is not None:
+        block = result.unadjusted[variant][q]
+        raw = block["pooled"] if run == "pooled" else block["runs"][run]
+        cells += [fmt_r2(raw[k]) if k == "r2" else raw[k] for k in UNADJUSTED]
+    label = variant + (" (primary)" if variant == result.primary else "")
+    return [label, _quantity_label(q), run, *cells, m["n"]]
 
 
 def _metrics_table(result) -> Table:
@@ -131,20 +149,21 @@ def _metrics_table(result) -> Table:
     for variant in result.variants:
         for q, block in result.metrics[variant].items():
             for run, m in list(block["runs"].items()) + [("pooled", block["pooled"])]:
-                rows.append(
-                    [
-                        variant + (" (primary)" if variant == result.primary else ""),
-                        _quantity_label(q),
-                        run,
-                        *(fmt_r2(m[k]) if k == "r2" else _shown(m, k) for k in METRIC_NAMES),
-                        m["n"],
-                    ]
-                )
-    return Table(
-        ["model", "quantity", "run", *(METRIC_LABELS[k] for k in METRIC_NAMES), "n"],
-        rows,
-        caption="Error metrics (predicted − measured) in the quantity's unit",
+                rows.append(_metrics_row(result, variant, q, run, m))
+    labels = [METRIC_LABELS[k] for k in METRIC_NAMES]
+    labels.insert(METRIC_NAMES.index("bias") + 1, "bias sd (zero)")
+    caption = (
+        "Error metrics (predicted − measured) in the quantity's unit, each model after its own zero; "
+        "bias sd (zero): the bias's standard deviation from the zeros' uncertainty"
     )
+    if result.unadjusted is not None:
+        labels += [f"{METRIC_LABELS[k]} unadjusted" for k in UNADJUSTED]
+        caption += (
+            '. [validation] zero = "whole-run": bias and R² exclude each model\'s mean error (the '
+            "bias is 0 by construction); the unadjusted columns take the zeros from the rows at "
+            "rest, else as logged"
+        )
+    return Table(["model", "quantity", "run", *labels, "n"], rows, caption=caption)
 
 
 def _quantity_label(q: str) -> str:
@@ -190,24 +209,33 @@ def status_section(result) -> Section:
     )
 
 
+ZERO_SOURCES = {
+    "rest rows": "{rows} rows at rest",
+    "logged zero": "logged zero (sd over {rows} row(s))",
+    "whole run": "whole run ({rows} rows)",
+}
+"""How the zeros table says where a zero comes from."""
+
+
 def _zeros_table(result) -> Table | None:
-    """Each run's estimated nuisance zero, with its standard error and 95% interval."""
+    """Each model's nuisance zero per run, with its standard error and 95% interval."""
     rows = []
-    for run, zeros in result.zeros_dict()["runs"].items():
-        for q, z in zeros.items():
-            lo, hi = z["ci95"]
-            ci = "–" if lo is None else f"{fmt(lo, 3)} to {fmt(hi, 3)}"
-            where = (
-                f"{z['rows']} rows at rest" if z["source"] == "rest rows" else f"whole run ({z['rows']} rows)"
-            )
-            rows.append([run, _quantity_label(q), z["value"], z["stderr"], ci, where])
+    by_model = result.zeros_dict()["by_model"]
+    for variant in result.variants:
+        for run, zeros in by_model.get(variant, {}).items():
+            for q, z in zeros.items():
+                lo, hi = z["ci95"]
+                ci = "–" if lo is None else f"{fmt(lo, 3)} to {fmt(hi, 3)}"
+                where = ZERO_SOURCES.get(z["source"], z["source"]).format(rows=z["rows"])
+                rows.append([variant, run, _quantity_label(q), z["value"], z["stderr"], ci, where])
     if not rows:
         return None
     return Table(
-        ["run", "quantity", "zero", "standard error", "95% CI", "estimated from"],
+        ["model", "run", "quantity", "zero", "standard error", "95% CI", "estimated from"],
         rows,
-        caption="Nuisance zeros (quantity's unit): each run's zero, the mean of measured − predicted "
-        "at rest (else over the run), subtracted from the measurement before the metrics",
+        caption="Nuisance zeros (quantity's unit), each model its own under one rule: the mean of "
+        "measured − predicted over the rows at rest, else the logged zero (standard error: the noise "
+        "sd over the square root of the rest rows used), or over the whole run on request",
     )
 
 
