@@ -620,7 +620,7 @@ def named_or_aliased(r: dict) -> bool:
 SEPARABLE_RATIO = 1.02
 """A case is *separable* on its withheld runs when recalibration's held-out RMSE is at least
 this factor above the true effect's (each fitted with the recalibrated parameters). Below it
-no rule scored on withheld runs can prefer the effect: on the session-11 full run the
+no rule scored on withheld runs can prefer the effect: on the 2026-11-24 full run the
 `miscalibrated` misses had a median ratio of 1.000 (``bench/analyse_benchmark.py``)."""
 
 

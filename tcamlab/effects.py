@@ -253,7 +253,7 @@ def _r0_warmed(stated: float, value: float, rig) -> float:
 # heat loss that grows, force lost in a dwell, a pull that compresses, a spring that
 # stiffens, a causal delay, slack) is bounded at 0 on the other side: fitted the other way
 # it is not that cause, only a free shape that takes up a parameter error or another
-# effect (a negative delay took up R(T); session 17 fitted 40-190 such signs over the
+# effect (a negative delay took up R(T); a full benchmark run fitted 40-190 such signs over the
 # benchmark's cases). Effects whose cause has no direction (drift, R(T), hysteresis, a
 # temperature offset, a camera offset, a distance error) keep both signs.
 EFFECTS: dict[tuple[str, str], Effect] = {
@@ -349,7 +349,7 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             # a delay of -2 to -20 ms advanced the response and took up part of a
             # temperature-dependent resistance (the Joule power falls as the coil heats, so it
             # settles sooner): 107 of 185 dynamic benchmark cases fitted a negative delay,
-            # and two realistic R(T) cases at 10x were named response delay (session 17). A
+            # and two realistic R(T) cases at 10x were named response delay. A
             # logger started after the step is an error of the time origin, not a delay.
             [EffectParam("delay", "s", 0.05, 0.0, 2.0)],
             "a pure delay between the command and the response (driver, logging latency)",

@@ -469,7 +469,7 @@ def test_fold_refits_stay_defined_on_the_withheld_runs_inputs(tmp_path, seed):
     # A G_t slope refitted on two runs of a 10x G(T) oven test sat where G_t' of (2.13) reaches
     # zero just above their hottest reading; the withheld run's oven reads a little hotter, so
     # every candidate fitted with recalibration failed that fold (held-out RMSE 577 x noise,
-    # verdict `unexplained`, session 12). The fold fits must stay defined on the withheld
+    # verdict `unexplained`). The fold fits must stay defined on the withheld
     # run's inputs, and the effect or a recalibration must then explain the gap.
     exp = _simulate(tmp_path, "static", seed, effects={"shear-modulus-temperature": 10.0}, oven="heat-cool")
     res = diagnose(exp, n_boot=300)

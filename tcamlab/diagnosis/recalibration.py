@@ -254,7 +254,7 @@ class Recalibration:
         held-out run. Fitted on the other runs alone, a G_t slope moved far enough to soften
         the coil turns G_t' non-positive a few kelvin above their hottest reading, where the
         held-out run's oven reading can lie (static, 10x G(T): 14 of 20 cases came out
-        ``unexplained`` that way, every candidate failing one fold, session 12).
+        ``unexplained`` that way, every candidate failing one fold).
         """
         params = effect.params if effect is not None else ()
         scales = np.array([p.scale for p in params], float)

@@ -69,7 +69,7 @@ SWITCHED_OFF = 0.01
 """An effect whose fitted term moves the predictions by less than this RMS [noise-floor
 multiples] is the thesis model: whatever it gains on withheld data comes from the
 recalibrated parameters fitted with it, which recalibration alone has too. The benchmark's
-weakest effects are 1 noise sd; the one effect named at zero in session 19's full run (an
+weakest effects are 1 noise sd; the one effect named at zero in one full benchmark run (an
 oven lag of 3.6 us beside G(T), effect-only 10x seed 1001) won by the path of a fold refit."""
 
 

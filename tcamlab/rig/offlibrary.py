@@ -128,7 +128,7 @@ def _dT(ctx: Context) -> np.ndarray:
 def _quadratic_shear(a, ctx):
     # A physical G(T) acts on the torque and the coil alike: (2.13)'s slope becomes
     # k + a dT and the coil's k_c = a dT, row by row, so both see G_t - k dT - a dT^2.
-    # (Before session 18 this form acted on the torque only and levelled off, - k dT + a dT^2:
+    # (An earlier version of this form acted on the torque only and levelled off, - k dT + a dT^2:
     # the library's coil softening could follow it only with a coil that stiffens as it
     # warms, k_c < 0, which the library no longer fits.)
     dT = _dT(ctx)
