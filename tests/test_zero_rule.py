@@ -178,3 +178,25 @@ def test_an_unknown_zero_rule_names_the_key(tmp_path):
         _write(tmp_path, [constant_g_displacement_mm(OVEN_C)], extra='\n[validation]\nzero = "wholerun"\n')
     text = err.value.one_line()
     assert "validation.zero" in text and "whole-run" in text and "\n" not in text
+
+
+def test_selfsensing_stroke_is_each_runs_range_as_logged():
+    """Two runs of 2 mm and 4 mm strokes whose zeros differ by 10 mm: the pooled stroke is the
+    mean of the runs' ranges (3 mm), not the 12 mm range of the zero-shifted rows together."""
+    import pandas as pd
+
+    from tcamlab.kinds.selfsensing import _published
+    from tcamlab.metrics import ZeroEstimate
+    from tcamlab.validation import RunPrediction
+
+    preds = []
+    for name, stroke, zero in (("a", 2e-3, 0.0), ("b", 4e-3, -10e-3)):
+        meas = np.linspace(0.0, stroke, 50) - zero  # after the run's zero
+        p = RunPrediction(name, pd.DataFrame({"displacement": meas}), {"x": {"displacement": meas + 1e-4}})
+        p.zeros["displacement"] = ZeroEstimate(zero, 0.0, (zero, zero), 50, "rest rows")
+        preds.append(p)
+    pub = _published(preds, "x")
+    assert pub["runs"]["a"]["stroke_mm"] == pytest.approx(2.0)
+    assert pub["runs"]["b"]["stroke_mm"] == pytest.approx(4.0)
+    assert pub["pooled"]["stroke_mm"] == pytest.approx(3.0)
+    assert pub["pooled"]["mean_error_of_stroke"] == pytest.approx(0.1 / 3.0)
