@@ -211,8 +211,15 @@ def _print_validation(outcome, as_json: bool) -> None:
         m = block["pooled"]
         typer.echo(
             f"{res.experiment.name}: {res.primary} {q}: RMSE {with_unit(m['rmse'], unit_label(q))}, "
-            f"R² {fmt_r2(m['r2'])} over {m['n']} samples"
+            f"R² {fmt_r2(m['r2'])} over {m['n']} samples" + _bias_text(m, unit_label(q))
         )
+        if res.unadjusted is not None:
+            u = res.unadjusted[res.primary][q]["pooled"]
+            typer.echo(
+                f"  whole-run zeros take the mean error away; unadjusted: RMSE "
+                f"{with_unit(u['rmse'], unit_label(q))}, bias {with_unit(u['bias'], unit_label(q))}, "
+                f"R² {fmt_r2(u['r2'])}"
+            )
     for run, zeros in res.zeros_dict()["runs"].items():
         for q, z in zeros.items():
             typer.echo(_zero_line(run, q, z))
@@ -224,6 +231,17 @@ def _print_validation(outcome, as_json: bool) -> None:
         typer.echo(f"WARNING: {w.message}")
     typer.echo(f"status: {res.status}" + (f", {len(res.warnings)} warning(s)" if res.warnings else ""))
     typer.echo(f"wrote {outcome.out_dir}")
+
+
+def _bias_text(m: dict, unit: str) -> str:
+    """``, bias -0.0527 mm (sd 0.0035 mm)``: a pooled bias with its sd from the zeros, or ""."""
+    from tcamlab.numbers import fmt, with_unit
+
+    sd = m.get("bias_sd")
+    if sd is None or sd != sd or m.get("bias") is None:
+        return ""
+    bias = 0.0 if abs(m["bias"]) <= 1e-9 * abs(m.get("rmse") or 0.0) else m["bias"]  # rounding
+    return f", bias {with_unit(bias, unit)} (sd {fmt(sd, 2)} {unit})"
 
 
 def _zero_line(run: str, q: str, z: dict) -> str:
