@@ -704,7 +704,7 @@ class DiagnoseOutcome:
 
 
 def diagnose_experiment(
-    path, *, effects=None, seed: int = 0, out_dir=None, force: bool = False
+    path, *, effects=None, seed: int = 0, out_dir=None, force: bool = False, drop_na: bool = False
 ) -> DiagnoseOutcome:
     """Diagnose the sim-to-real gap of one experiment.
 
@@ -712,7 +712,8 @@ def diagnose_experiment(
     ``seed`` seeds the bootstrap. With ``out_dir``, writes
     ``out_dir/NAME/diagnosis.{json,html,pdf}`` all or nothing (NAME as
     :func:`output_folder` names it); an existing diagnosis of the experiment is
-    replaced only with ``force``, checked before the diagnosis runs.
+    replaced only with ``force``, checked before the diagnosis runs. ``drop_na`` drops
+    rows with blank cells (:func:`tcamlab.io.read_run`).
     """
     from tcamlab.diagnosis import diagnose
 
@@ -722,7 +723,7 @@ def diagnose_experiment(
     )
     if isinstance(effects, str):
         effects = [e.strip() for e in effects.split(",") if e.strip()]
-    result = diagnose(exp, effects=effects or None, seed=seed)
+    result = diagnose(exp, exp.read_runs(drop_na=drop_na), effects=effects or None, seed=seed)
     files = _write_diagnosis(result, exp, folder) if folder is not None else []
     return DiagnoseOutcome(result, exp, files)
 
@@ -851,7 +852,13 @@ class CalibrateOutcome:
 
 
 def calibrate_experiment(
-    paths, *, params=None, out_dir=None, force: bool = False, command: str | None = None
+    paths,
+    *,
+    params=None,
+    out_dir=None,
+    force: bool = False,
+    command: str | None = None,
+    drop_na: bool = False,
 ) -> CalibrateOutcome:
     """Calibrate one or more experiments of one sample and write the results.
 
@@ -864,6 +871,7 @@ def calibrate_experiment(
     ``force``, checked before the calibration runs. Nothing is written unless the
     calibration and the reports succeed; a failed write removes the files just written.
     ``command`` is the command line shown in the report (default: built from the options).
+    ``drop_na`` drops rows with blank cells (:func:`tcamlab.io.read_run`).
     """
     from tcamlab.calibration import calibrate, calibrated_path, calibrated_text, load_experiments
 
@@ -877,7 +885,9 @@ def calibrate_experiment(
         folder = output_folder(out_dir, [e.path for e in exps], "calibration.json", force=True)
     if not force:
         _refuse_existing(targets, folder)
-    result = calibrate(exps, params)
+    result = calibrate(exps, params, drop_na=drop_na)
+    if command is None:
+        command = _calibrate_command(exps, params, drop_na)
     payload = _calibration_payload(result, exps, params, command) if folder is not None else {}
     files: list[Path] = []
     try:
@@ -907,19 +917,25 @@ def _refuse_existing(targets, folder) -> None:
         raise InputError(f"{existing[0]}: calibration output exists{more}", "pass --force to overwrite it")
 
 
+def _calibrate_command(exps, params, drop_na: bool) -> str:
+    """The calibrate command line shown in the report (the options that change it)."""
+    from tcamlab.text import command_line, shown_path
+
+    if params is not None and not isinstance(params, str):
+        params = ",".join(params)
+    return command_line(
+        "calibrate",
+        *(shown_path(e.path) for e in exps),
+        options=[("--params", params), ("--drop-na", drop_na)],
+    )
+
+
 def _calibration_payload(result, exps, params, command) -> dict[str, bytes]:
     """calibration.json, the HTML and PDF report and the standalone figures, in memory."""
     from tcamlab.report.calibration_report import calibration_document, figure_files
     from tcamlab.report.html import render_html
     from tcamlab.report.pdf import render_pdf
-    from tcamlab.text import command_line, shown_path
 
-    if command is None:
-        if params is not None and not isinstance(params, str):
-            params = ",".join(params)
-        command = command_line(
-            "calibrate", *(shown_path(e.path) for e in exps), options=[("--params", params)]
-        )
     doc = calibration_document(result, exps, command=command)
     html = render_html(doc)
     payload = {

@@ -876,7 +876,7 @@ def _warnings(exp, runs) -> list[str]:
     return out
 
 
-def check_experiment(path: str | os.PathLike, rows: int = 3) -> CheckReport:
+def check_experiment(path: str | os.PathLike, rows: int = 3, *, drop_na: bool = False) -> CheckReport:
     """Load an experiment file and read its runs without writing anything; every problem at once.
 
     Parameters
@@ -885,6 +885,8 @@ def check_experiment(path: str | os.PathLike, rows: int = 3) -> CheckReport:
         The experiment file.
     rows : int
         First rows of each run shown in SI.
+    drop_na : bool
+        Drop rows with blank cells (:func:`tcamlab.io.read_run`), as validate would.
 
     Returns
     -------
@@ -908,7 +910,7 @@ def check_experiment(path: str | os.PathLike, rows: int = 3) -> CheckReport:
     read = []
     for p, cols, join in zip(exp.runs, columns, joins):
         try:
-            run = tio.read_run(p, exp.kind, cols, join=join)
+            run = tio.read_run(p, exp.kind, cols, join=join, drop_na=drop_na)
         except TcamlabError as exc:  # every run is read: all problems at once
             from tcamlab.text import shown_path
 

@@ -85,3 +85,29 @@ def test_fit_spring_names_a_preload_not_a_tare_error(tmp_path):
     assert res.exit_code == 0, res.output
     assert "preloaded starts under load" in res.output and "preload" in res.output
     assert "check the tare" not in res.output
+
+
+# --- one missing-value option on every command that reads runs ---------------------------
+
+READS_RUNS = [["validate", "static"], "report", "fit-spring", "check", "calibrate", "diagnose"]
+
+
+@pytest.mark.parametrize("command", READS_RUNS)
+def test_every_command_that_reads_runs_takes_drop_na(command):
+    words = command if isinstance(command, list) else [command]
+    res = runner.invoke(app, [*words, "--help"])
+    assert res.exit_code == 0, res.output
+    assert "--drop-na" in res.output
+
+
+def test_check_honours_drop_na_which_its_hint_names(tmp_path):
+    lines = (ROOT / "raw" / "static_run1.csv").read_text().splitlines()
+    lines[5] = lines[5].rsplit(",", 1)[0] + ","
+    (tmp_path / "r1.csv").write_text("\n".join(lines) + "\n")
+    text = (ROOT / "experiments" / "static.toml").read_text()
+    text = text.replace('"../raw/static_run1.csv"', '"r1.csv"').replace('"../raw/', f'"{ROOT}/raw/')
+    (tmp_path / "s.toml").write_text(text)
+    res = runner.invoke(app, ["check", str(tmp_path / "s.toml")])
+    assert res.exit_code == 2 and "blank or NaN cell" in res.output and "--drop-na" in res.output
+    res = runner.invoke(app, ["check", str(tmp_path / "s.toml"), "--drop-na"])
+    assert res.exit_code == 0, res.output
