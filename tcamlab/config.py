@@ -1018,7 +1018,18 @@ def _calibration_sds(table: _CalibrationTable, name: str, fields, shown: str) ->
 
 
 # Rig fields that must be positive / non-negative; ambient above absolute zero.
-_RIG_POSITIVE = ("resistance", "thermal_mass", "heat_loss", "initial_resistance", "spring_constant")
+_RIG_POSITIVE = (
+    "resistance",
+    "thermal_mass",
+    "heat_loss",
+    "initial_resistance",
+    "spring_constant",
+    "sensor_offset",
+)
+_RIG_POSITIVE_WHY = {
+    "sensor_offset": "d1 is the distance between the sensor and the cable; eq. (4.1) divides by it, "
+    "and a sensor on the cable's line would not see the bend",
+}
 _RIG_NONNEGATIVE = ("load", "pulse", "damping")
 _SI_TO_RIG_KEY = {si: key for key, (si, _) in RIG_KEYS.items()}
 
@@ -1031,7 +1042,10 @@ def _build_rig(doc: _ExperimentFile, shown: str) -> tuple[Rig, dict[str, str]]:
     for name, value in overrides.items():
         key = _SI_TO_RIG_KEY[name]
         if name in _RIG_POSITIVE and value <= 0:
-            raise ConfigError(f"{shown}: rig.{key} = {table[key]!r} must be positive")
+            raise ConfigError(
+                f"{shown}: rig.{key} = {table[key]!r} must be positive",
+                _RIG_POSITIVE_WHY.get(name, "a physical magnitude; check the unit in the key name"),
+            )
         if name in _RIG_NONNEGATIVE and value < 0:
             raise ConfigError(f"{shown}: rig.{key} = {table[key]!r} must not be negative")
         if name == "ambient" and value < tio.ABSOLUTE_ZERO_C:

@@ -87,8 +87,8 @@ def _estimate(problem, k: int, u: np.ndarray, cov: np.ndarray, sides) -> Paramet
     stated_sd = s.prior_sd if s.sd_stated else None
     if s.param.positive:
         post_rel, prior_rel = sd_u, float(s.stated_sd_u)
-    elif s.stated != 0:
-        post_rel, prior_rel = post_sd / abs(value), s.prior_sd / abs(s.stated)
+    elif s.stated != 0:  # relative to the value; to the stated value where the fit reaches 0
+        post_rel, prior_rel = post_sd / (abs(value) or abs(s.stated)), s.prior_sd / abs(s.stated)
     else:  # stated 0 (dynamic beta): relative to the default prior sd, the parameter's scale
         scale = float(s.param.zero_sd or s.prior_sd)
         post_rel, prior_rel = post_sd / scale, s.prior_sd / scale

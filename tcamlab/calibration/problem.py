@@ -1,7 +1,10 @@
 """The calibration problem: parameter vector, priors, noise floors and stacked residuals.
 
 The fitted vector ``u`` holds one entry per calibrated parameter: ``log(value)``
-for positive parameters, ``value / prior_sd`` otherwise. Each run's zero of a
+for a parameter whose physics requires it to be positive (a stiffness, a thermal
+mass), ``value / prior_sd`` for one whose physics allows 0 or a sign (rho, the G_t
+slope, a sensor offset, a TCR): a fitted coordinate is defined at every value the
+experiment file may state. Each run's zero of a
 zero-referenced quantity (:attr:`tcamlab.kinds.Kind.nuisance_zeros`) has a flat
 prior and enters linearly, so it is profiled out exactly (variable projection):
 for any ``u`` it is the mean of the run's ``measured - predicted``.

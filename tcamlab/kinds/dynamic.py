@@ -22,6 +22,7 @@ import pandas as pd
 from tcamlab import band, instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions
+from tcamlab.kinds.static import RHO_ZERO_SD, SLOPE_ZERO_SD
 from tcamlab.models import dynamic as _dyn
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure, Section, Table
@@ -549,6 +550,8 @@ CALIBRATION = (
         0.3,
         "a static oven test of the same sample, calibrated jointly "
         "(tcamlab calibrate static.toml dynamic.toml)",
+        positive=False,
+        zero_sd=RHO_ZERO_SD,
     ),
     CalibrationParam(
         "shear_modulus_slope",
@@ -558,6 +561,8 @@ CALIBRATION = (
         0.3,
         "a static oven test of the same sample, calibrated jointly "
         "(tcamlab calibrate static.toml dynamic.toml)",
+        positive=False,
+        zero_sd=SLOPE_ZERO_SD,
     ),
 )
 """Calibratable parameters of the voltage-step test; the default prior sds are wide

@@ -227,6 +227,15 @@ def measure(
     return out
 
 
+RHO_ZERO_SD = 0.3 * THESIS_TCA.sample["radial_cte"].value
+"""Prior sd of rho [1/K] where the file states 0 and no sd: 30 % of the thesis's |rho|."""
+
+SLOPE_ZERO_SD = 0.3 * THESIS_TCA.sample["shear_modulus_slope"].value
+"""Prior sd of the G_t slope [Pa/K] where the file states 0 (the thesis's constant-G model
+(2.12)) and no sd: 30 % of the thesis's 1.11 MPa/K."""
+
+# rho and the G_t slope are fitted in linear coordinates: 0 is a legitimate statement of
+# either (constant G, no radial swelling) and a logarithm is undefined there.
 CALIBRATION = (
     CalibrationParam(
         "radial_cte",
@@ -235,6 +244,8 @@ CALIBRATION = (
         "1/K",
         0.3,
         "an oven test at a second load (rho and G_t act differently with load)",
+        positive=False,
+        zero_sd=RHO_ZERO_SD,
     ),
     CalibrationParam(
         "shear_modulus_slope",
@@ -243,6 +254,8 @@ CALIBRATION = (
         "Pa/K",
         0.3,
         "an oven test over a wider temperature range, or at a second load",
+        positive=False,
+        zero_sd=SLOPE_ZERO_SD,
     ),
     CalibrationParam(
         "youngs_modulus",

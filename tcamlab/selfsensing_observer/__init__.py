@@ -290,6 +290,50 @@ def observer_config(experiment, *, resistance=None, noise=None, temperature_span
     )
 
 
+DOMAIN_BISECTIONS = 30
+"""Halvings of the search for the edge of chapter 3's domain (2^-30 of the table's span)."""
+
+
+def defined_extensions(resistance, rig: Rig, x0: float, span: tuple[float, float]) -> tuple[float, float]:
+    """The part of ``span`` [m] around ``x0`` where ``resistance(T_a, x)`` is defined.
+
+    Chapter 3's map (3.1)-(3.7) has no physical coil diameter beyond an extension that
+    depends on the sample and S; a heavy stated load puts the table's upper edge there.
+    The geometric factor does not depend on T, so the edge is searched at ambient.
+
+    Raises
+    ------
+    ModelDomainError
+        Where the rest extension ``x0`` itself lies outside (names the stated load).
+    """
+    from tcamlab.errors import ModelDomainError, TcamlabError
+
+    def ok(x: float) -> bool:
+        try:
+            return bool(np.isfinite(resistance(np.array([rig.ambient]), np.array([x]))).all())
+        except TcamlabError:
+            return False
+
+    if not ok(x0):
+        raise ModelDomainError(
+            f"self-sensing EKF: the stated load (load_g = {rig.load * 1e3:g} g) stretches the muscle "
+            f"by {x0 * 1e3:.4g} mm at rest, beyond chapter 3's sensing model for this sample and "
+            f"spring_constant_N_per_m = {rig.spring_constant:g}",
+            "check load_g and spring_constant_N_per_m in [rig]",
+        )
+    edges = []
+    for far in span:
+        good, bad = x0, far
+        if ok(far):
+            edges.append(far)
+            continue
+        for _ in range(DOMAIN_BISECTIONS):
+            mid = 0.5 * (good + bad)
+            good, bad = (mid, bad) if ok(mid) else (good, mid)
+        edges.append(good)
+    return edges[0], edges[1]
+
+
 def config_from(
     sample: Sample, rig: Rig, *, initial_resistance=None, resistance=None, noise=None, temperature_span=160.0
 ) -> ObserverConfig:
@@ -299,9 +343,8 @@ def config_from(
     fn = resistance or combined_resistance(sample, rig, r0, tcr)
     x0 = rest_extension(sample, rig)
     half = 0.3 * x0 + 2e-3  # loads from about 70% to 130% of the stated one
-    table = ResistanceTable.build(
-        fn, (rig.ambient - 20.0, rig.ambient + temperature_span), (x0 - half, x0 + half)
-    )
+    x_range = defined_extensions(fn, rig, x0, (x0 - half, x0 + half))
+    table = ResistanceTable.build(fn, (rig.ambient - 20.0, rig.ambient + temperature_span), x_range)
     return ObserverConfig(sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})})
 
 
