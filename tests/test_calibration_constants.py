@@ -12,6 +12,7 @@ do not depend on which coordinate a kind's own parameters use.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -344,3 +345,57 @@ def test_directions_ratio_relative_sd_and_the_component_share():
     assert best.pinned == (rel <= 0.10 and 0.02 <= math.tan(0.05 * math.pi))
     assert [d.ratio for d in dirs] == pytest.approx(np.sqrt(lam), rel=1e-9)
     assert COMPONENT_SHARE == 0.3
+
+
+def _restart_problem(target):
+    """20 data rows, 2 parameters stated at 1 (log 0): the minimum chi-square is quadratic in
+    the data, scaled here to ``target``."""
+    rng = np.random.default_rng(7)
+    a = rng.normal(0.0, 1.0, (20, 2))
+    p = LinearProblem(a, rng.normal(0.0, 1.0, 20), [_spec("a", 1.0, 0.5), _spec("b", 1.0, 0.5)])
+    h = a @ np.linalg.inv(a.T @ a + np.diag(p.sd_u**-2.0)) @ a.T
+    chi2_min = float(p.y @ (np.eye(20) - h) @ p.y)
+    p.y = p.y * math.sqrt(target / chi2_min)
+    return p
+
+
+@pytest.mark.parametrize("scale, restarted", [(1 - 1e-3, False), (1 + 1e-3, True)])
+def test_map_fit_restarts_beyond_3_sds_of_chi2_above_its_expectation(monkeypatch, scale, restarted):
+    import tcamlab.calibration.fit as fit_module
+
+    n = 20 + 2  # data rows and prior rows
+    p = _restart_problem((n + 3.0 * math.sqrt(2.0 * n)) * scale)
+    calls = []
+    solve = fit_module.solve
+
+    def counted(*args, **kw):
+        calls.append(1)
+        return solve(*args, **kw)
+
+    monkeypatch.setattr(fit_module, "solve", counted)
+    map_fit(p)
+    # one fit from the stated values; with restarts two along the lead and two per axis
+    assert len(calls) == (1 + 2 + 2 * 2 if restarted else 1)
+
+
+def test_zero_interval_is_z_975_sds_of_the_noise_and_the_parameters():
+    from tcamlab.calibration.core import _zeros  # only calibrate() reaches it otherwise
+
+    class Run:
+        def __init__(self, n, path):
+            self.data, self.path = np.zeros(n), path
+
+    cov = np.array([[0.04, 0.01], [0.01, 0.09]])
+    g = np.array([[1.0, 2.0], [0.5, -1.0]])
+    p = _bare(0)
+    p.zero_labels = lambda: [(0, 0, "q"), (0, 1, "q")]
+    p.zeros = lambda u: np.array([0.3, -0.2])
+    p.jacobian = lambda u, fn=None: g
+    p.runs = [[Run(16, "r1.csv"), Run(25, "r2.csv")]]
+    p.sigma = {(0, "q"): 2.0}
+    p.experiments = [SimpleNamespace(name="e")]
+    out = _zeros(p, np.zeros(2), cov)
+    for z, n, gk, value in zip(out, (16, 25), g, (0.3, -0.2)):
+        sd = math.sqrt(4.0 / n + gk @ cov @ gk)  # the noise's sigma^2 / n plus the parameters'
+        assert z.sd == pytest.approx(sd, rel=1e-12)
+        assert z.interval_95 == pytest.approx((value - Z_975 * sd, value + Z_975 * sd), rel=1e-9)
