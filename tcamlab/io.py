@@ -208,15 +208,19 @@ def unit_key(text: str) -> str | None:
 def unit_suggestion(text: str, dimension: str | None = None) -> str:
     """``"; did you mean 'x'?"`` among real units (of ``dimension`` when given), or ``""``.
 
-    A unit that differs from ``text`` only by a prefix or by letter case is
-    never proposed: ``"xm"`` is not answered ``"m"`` (a factor of 10^3..10^6).
+    A unit that differs from ``text`` only by a prefix or by letter case is never proposed:
+    ``"xm"`` and ``"MM"`` are not answered ``"m"`` or ``"mm"`` (a factor of 10^3..10^6); a
+    unit spelt as one in another case is told that a prefix's case is its size.
     """
     choices = [a for a, k in UNIT_ALIASES.items() if dimension is None or UNITS[k][0] == dimension]
     word = str(text).strip()
+    low = word.lower()
+    if any(c.lower() == low for c in choices):  # 'MM', 'Mm': a prefix's case is its size
+        return " (a unit's prefix is case-sensitive: M mega, m milli)"
     ok = [
         c
         for c in close_matches(word, choices, n=3)
-        if not (c.endswith(word) or word.endswith(c) or c.lower() == word.lower())
+        if not (c.lower().endswith(low) or low.endswith(c.lower()))
     ]
     return "; did you mean " + repr(ok[0]) + "?" if ok else ""
 
@@ -1025,7 +1029,49 @@ def _column_label(layout: _Layout, col: int) -> str:
     return repr(layout.headers[col]) if layout.header_line else f"column {col + 1}"
 
 
-def _missing_column(shown: str, kind: str, layout: _Layout, spec: ColumnSpec, canon: str) -> InputError:
+_FOREIGN_UNITS = frozenset("rad mrad deg ° Hz kHz W mW J Pa kPa MPa g kg rpm".split())
+"""Units of quantities no tcamlab column holds: a header carrying one is never proposed for a column."""
+
+
+def _header_unit(header: str) -> tuple[str | None, bool]:
+    """The unit a header states (``"Load [mN]"``, ``"angle_rad"``), and whether it was bracketed."""
+    text = header.strip()
+    if text[-1:] in ")]}" and any(b in text for b in "([{"):
+        return text[max(text.rfind(b) for b in "([{") + 1 : -1].strip(), True
+    for sep in ("/", "_", " "):
+        if sep in text:
+            return text.rsplit(sep, 1)[1].strip(), False
+    return None, False
+
+
+def _of_dimension(header: str, canon: str) -> bool:
+    """Whether a header may hold ``canon``: no unit stated, or one of ``canon``'s dimension."""
+    unit, bracketed = _header_unit(header)
+    if not unit or unit == "%":
+        return True
+    key = unit_key(unit)
+    if key is None:
+        return not bracketed and unit not in _FOREIGN_UNITS
+    return _dimension(key) == _dimension(VARIABLE_MAP[canon][1])
+
+
+def _free_column_hint(canon: str, kind: str, layout: _Layout, taken: dict[int, str]) -> str:
+    """Where a header-less file's column ``canon`` may be: a column number no other column takes."""
+    free = [i + 1 for i in range(len(layout.headers)) if i not in taken]
+    mapped = ", ".join(f"{i + 1} is {name}" for i, name in sorted(taken.items()))
+    if not free:
+        return (
+            f"every one of its {len(layout.headers)} columns is mapped ({mapped}): a {kind} run needs a "
+            f"{canon} column too; add it to the log and map it in [columns] by its number"
+        )
+    return f"map it by its number in [columns], e.g. {canon} = {{ from = {free[0]} }}" + (
+        f" (columns are numbered from 1 at the left; {mapped})" if mapped else ""
+    )
+
+
+def _missing_column(
+    shown: str, kind: str, layout: _Layout, spec: ColumnSpec, canon: str, taken: dict[int, str] | None = None
+) -> InputError:
     """The error for a column the file lacks, proposing the ``[columns]`` line that maps a near header."""
     headers = layout.headers
     required = canon in REQUIRED[kind]
@@ -1038,9 +1084,9 @@ def _missing_column(shown: str, kind: str, layout: _Layout, spec: ColumnSpec, ca
     if not layout.header_line:
         return InputError(
             f"{shown}: the file has no header (header_row = 0), so {canon} needs a column number",
-            f"e.g. {canon} = {{ from = 1 }} in [columns]",
+            _free_column_hint(canon, kind, layout, taken or {}),
         )
-    near = close_matches(spec.header, headers)
+    near = close_matches(spec.header, [h for h in headers if _of_dimension(h, canon)])
     if near:
         entry = {"from": near[0]}
         if spec.unit_given or spec.unit != VARIABLE_MAP[canon][1]:
@@ -1107,6 +1153,9 @@ def _select_columns(
     selected: dict[str, tuple[ColumnSpec, int]] = {}
     wanted = REQUIRED[kind] + OPTIONAL[kind] if wanted is None else wanted
     required = REQUIRED[kind] if required is None else required
+    taken = {
+        s.header - 1: c for c, s in specs.items() if isinstance(s, ColumnSpec) and isinstance(s.header, int)
+    }
     for canon in wanted:
         spec = specs.get(canon) or column_spec(kind, canon)
         if isinstance(spec.header, int):
@@ -1116,7 +1165,7 @@ def _select_columns(
         if where is None:
             if canon not in required and not spec.explicit:
                 continue
-            raise _missing_column(shown, kind, layout, spec, canon)
+            raise _missing_column(shown, kind, layout, spec, canon, taken)
         if len(where) > 1:
             raise InputError(
                 f"{shown}: line {layout.header_line}: header {spec.header!r} appears in "

@@ -111,3 +111,45 @@ def test_check_honours_drop_na_which_its_hint_names(tmp_path):
     assert res.exit_code == 2 and "blank or NaN cell" in res.output and "--drop-na" in res.output
     res = runner.invoke(app, ["check", str(tmp_path / "s.toml"), "--drop-na"])
     assert res.exit_code == 0, res.output
+
+
+# --- did-you-mean stays within a dimension ------------------------------------------------
+
+_RIG = '[sample]\npreset = "thesis-tca"\n[rig]\nload_g = 50\nambient_C = 20\n'
+
+
+def _check(tmp_path: Path, csv: str, columns: str = "") -> str:
+    (tmp_path / "run.csv").write_text(csv)
+    (tmp_path / "e.toml").write_text(f'kind = "static"\ntitle = "t"\nruns = ["run.csv"]\n{columns}{_RIG}')
+    res = runner.invoke(app, ["check", str(tmp_path / "e.toml")])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    return res.output
+
+
+def test_a_column_of_another_dimension_is_never_proposed(tmp_path):
+    rows = "".join(f"{i},{0.1 * i},{25 + i}\n" for i in range(6))
+    out = _check(tmp_path, "time_s,displacement_rad,temperature_C\n" + rows)
+    assert "'displacement_mm' not found" in out
+    assert 'from = "displacement_rad"' not in out and "the file has 'displacement_rad'" not in out
+    out = _check(tmp_path, "time_s,Displacement (rad),temperature_C\n" + rows)
+    assert 'from = "Displacement (rad)"' not in out
+    out = _check(tmp_path, "time_s,displacement_um,temperature_C\n" + rows)  # same dimension: proposed
+    assert 'displacement_mm = { from = "displacement_um" }' in out
+
+
+def test_a_headerless_file_is_never_told_to_reuse_a_mapped_column(tmp_path):
+    rows = "".join(f"{i},{0.1 * i}\n" for i in range(6))
+    cols = "[columns]\nheader_row = 0\ntime_s = { from = 1 }\ndisplacement_mm = { from = 2 }\n"
+    out = _check(tmp_path, rows, cols)
+    assert "temperature_C needs a column number" in out and "from = 1" not in out
+    rows3 = "".join(f"{i},{0.1 * i},{25 + i}\n" for i in range(6))
+    out = _check(tmp_path, rows3, cols)
+    assert "temperature_C = { from = 3 }" in out
+
+
+def test_mm_in_capitals_is_never_answered_with_another_unit(tmp_path):
+    rows = "".join(f"{i},{0.1 * i},{25 + i}\n" for i in range(6))
+    cols = '[columns]\ndisplacement_mm = { from = "displacement_mm", unit = "MM" }\n'
+    out = _check(tmp_path, "time_s,displacement_mm,temperature_C\n" + rows, cols)
+    assert "unknown unit 'MM'" in out and "did you mean 'm'" not in out
+    assert "case-sensitive" in out and "length units: m, cm, mm" in out
