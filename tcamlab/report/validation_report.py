@@ -128,18 +128,36 @@ def _shown(m: dict, key: str):
 
 
 UNADJUSTED = ("rmse", "bias", "r2")
-"""Metrics shown again without the whole-run zeros (under the rest rule) beside the adjusted ones."""
+"""Metrics shown again without the whole-run zeros (under the rest rule), each beside its own."""
+
+
+def _metric_columns(result) -> list[tuple[str, str]]:
+    """(key, source) of the metric columns: ``"m"`` the metric, ``"u"`` its unadjusted value
+    (whole-run zeros only, right after it), ``"sd"`` the bias's sd from the zeros."""
+    cols = []
+    for k in METRIC_NAMES:
+        cols.append((k, "m"))
+        if result.unadjusted is not None and k in UNADJUSTED:
+            cols.append((k, "u"))
+        if k == "bias":
+            cols.append(("bias_sd", "sd"))
+    return cols
 
 
 def _metrics_row(result, variant: str, q: str, run: str, m: dict) -> list:
-    """One row of the metrics table: the metrics, the bias's sd from the zero, the unadjusted
-    metrics with a whole-run zero, n."""
-    cells = [fmt_r2(m[k]) if k == "r2" else _shown(m, k) for k in METRIC_NAMES]
-    cells.insert(METRIC_NAMES.index("bias") + 1, m.get("bias_sd"))
+    """One row of the metrics table: the metrics (each unadjusted one beside it with a
+    whole-run zero), the bias's sd from the zero, n."""
+    raw = {}
     if result.unadjusted is not None:
         block = result.unadjusted[variant][q]
         raw = block["pooled"] if run == "pooled" else block["runs"][run]
-        cells += [fmt_r2(raw[k]) if k == "r2" else raw[k] for k in UNADJUSTED]
+    cells = []
+    for k, src in _metric_columns(result):
+        if src == "sd":
+            cells.append(m.get("bias_sd"))
+        else:
+            d = m if src == "m" else raw
+            cells.append(fmt_r2(d[k]) if k == "r2" else (_shown(d, k) if src == "m" else d[k]))
     label = variant + (" (primary)" if variant == result.primary else "")
     return [label, _quantity_label(q), run, *cells, m["n"]]
 
@@ -150,18 +168,17 @@ def _metrics_table(result) -> Table:
         for q, block in result.metrics[variant].items():
             for run, m in list(block["runs"].items()) + [("pooled", block["pooled"])]:
                 rows.append(_metrics_row(result, variant, q, run, m))
-    labels = [METRIC_LABELS[k] for k in METRIC_NAMES]
-    labels.insert(METRIC_NAMES.index("bias") + 1, "bias sd (zero)")
+    names = {"m": "{}", "u": "{} unadjusted", "sd": "bias sd (zero)"}
+    labels = [names[src].format(METRIC_LABELS.get(k, k)) for k, src in _metric_columns(result)]
     caption = (
         "Error metrics (predicted − measured) in the quantity's unit, each model after its own zero; "
         "bias sd (zero): the bias's standard deviation from the zeros' uncertainty"
     )
     if result.unadjusted is not None:
-        labels += [f"{METRIC_LABELS[k]} unadjusted" for k in UNADJUSTED]
         caption += (
             '. [validation] zero = "whole-run": bias and R² exclude each model\'s mean error (the '
-            "bias is 0 by construction); the unadjusted columns take the zeros from the rows at "
-            "rest, else as logged"
+            "bias is 0 by construction); each unadjusted column, beside its metric, takes the zeros "
+            "from the rows at rest, else as logged"
         )
     return Table(["model", "quantity", "run", *labels, "n"], rows, caption=caption)
 
