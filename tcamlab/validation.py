@@ -660,13 +660,8 @@ def validate(
     names = _run_names(runs)
     kind = get_kind(experiment.kind)
     preds = _predict_runs(experiment, kind, runs, names)
-    rule = zero_rule or getattr(experiment, "zero_rule", ZERO_REST)
-    unadjusted = None
-    if zeros and rule == ZERO_WHOLE_RUN:
-        logged = [_copy_prediction(p) for p in preds]
-        _subtract_zeros(kind, logged, ZERO_REST)
-        unadjusted = _metrics(logged, list(kind.variants), kind.outputs)
-    zero_notes = _subtract_zeros(kind, preds, rule) if zeros else []
+    rule = (zero_rule or getattr(experiment, "zero_rule", ZERO_REST)) if zeros else ZERO_REST
+    zero_notes, unadjusted = _apply_zeros(kind, preds, rule) if zeros else ([], None)
     notes, extras = kind.validation_extras(
         experiment,
         preds,
@@ -689,20 +684,20 @@ def validate(
         for w in calibrated_parameter_warnings(experiment) + identified_parameter_warnings(experiment, runs)
         if w is not None
     ]
-    return ValidationResult(
-        experiment,
-        runs,
-        preds,
-        variants,
-        primary,
-        metrics,
-        checks,
-        notes,
-        extras,
-        warnings,
-        zero_rule=rule if zeros else ZERO_REST,
-        unadjusted=unadjusted,
-    )
+    result = ValidationResult(experiment, runs, preds, variants, primary, metrics, checks, notes, extras)
+    result.warnings, result.zero_rule, result.unadjusted = warnings, rule, unadjusted
+    return result
+
+
+def _apply_zeros(kind: Kind, preds: list[RunPrediction], rule: str) -> tuple[list[str], dict | None]:
+    """Subtract the zeros under ``rule`` (:func:`_subtract_zeros`); the notes, and with the
+    whole-run rule the metrics under the rest rule (unadjusted), else None."""
+    unadjusted = None
+    if rule == ZERO_WHOLE_RUN:
+        logged = [_copy_prediction(p) for p in preds]
+        _subtract_zeros(kind, logged, ZERO_REST)
+        unadjusted = _metrics(logged, list(kind.variants), kind.outputs)
+    return _subtract_zeros(kind, preds, rule), unadjusted
 
 
 def _copy_prediction(p: RunPrediction) -> RunPrediction:
