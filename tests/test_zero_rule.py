@@ -200,3 +200,21 @@ def test_selfsensing_stroke_is_each_runs_range_as_logged():
     assert pub["runs"]["b"]["stroke_mm"] == pytest.approx(4.0)
     assert pub["pooled"]["stroke_mm"] == pytest.approx(3.0)
     assert pub["pooled"]["mean_error_of_stroke"] == pytest.approx(0.1 / 3.0)
+
+
+def test_the_report_says_what_each_rule_did(tmp_path):
+    """Default: the note names the logged zero and the bias sd column is there; whole-run: the
+    note says bias and R² exclude the mean error and each unadjusted metric is beside its own."""
+    from tcamlab.report.html import render_html
+    from tcamlab.report.validation_report import validation_document
+
+    disp = constant_g_displacement_mm(OVEN_C)
+    rest = validate(_write(tmp_path, [disp]))
+    html = render_html(validation_document(rest))
+    assert "logged zero" in html and "bias sd (zero)" in html and "unadjusted" not in html
+    (tmp_path / "w").mkdir()
+    whole = validate(_write(tmp_path / "w", [disp], extra='\n[validation]\nzero = "whole-run"\n'))
+    html = render_html(validation_document(whole))
+    assert "exclude the mean error" in html
+    for k in ("RMSE", "bias", "R²"):
+        assert f'<th scope="col">{k}</th><th scope="col">{k} unadjusted</th>' in html
