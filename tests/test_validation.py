@@ -141,3 +141,6 @@ def test_every_model_is_scored_after_its_own_nuisance_zero():
     np.testing.assert_allclose(p.data["displacement"], truth, atol=1e-15)
     # the other model after its own zero: no error left (with the primary's it would be 0.5 mm)
     np.testing.assert_allclose(p.predicted[other]["displacement"], truth, atol=1e-15)
+    # each model's own zero is recorded (metrics.json zeros.by_model)
+    assert p.variant_zeros[primary]["displacement"] is p.zeros["displacement"]
+    assert p.variant_zeros[other]["displacement"].value == pytest.approx(-2e-4)
