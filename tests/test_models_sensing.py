@@ -177,3 +177,15 @@ def test_stiff_spring_compression_root_is_nearest_zero(tcs, frac):
             sample.youngs_modulus,
         )
         assert np.all(x * (1 - spring * f11) + f12 * tau > 0)
+
+
+def test_forward_outside_the_domain_names_the_model_the_point_and_s(tcs):
+    """An extension with no physical coil diameter is a domain error naming the map, the
+    point and the stated S (it was a bare 'no sign change in bracket' before)."""
+    kw = geometry(tcs[0])
+    stretch = np.array([0.0, 10e-3, 230e-3])  # the 4.7 N/m sensor has no diameter at 230 mm
+    with pytest.raises(
+        ModelDomainError, match=r"at delta = 230 mm \(point 2; 1 of 3 points\) for S = 4.7 N/m"
+    ):
+        sensing.forward(stretch, 30.0, 4.7, **kw)
+    sensing.forward(stretch[:2], 30.0, 4.7, **kw)  # the points inside the domain solve

@@ -476,34 +476,42 @@ def forward(
         der = d0 * dl[i] * S * (4.0 * P[i] / dd**5 + 2.0 * Q[i] / dd**3) + U[i] * K / u**2
         return val, der
 
-    u = np.ones(dl.size)
-    pos = dl > 0
-    neg = dl < 0
-    if pos.any():
-        idx = np.flatnonzero(pos)
-        res = bracketed_newton(
-            lambda x, j: q(x, idx[j]),
-            np.full(idx.size, 0.5),
-            np.ones(idx.size),
-            None,
-            xtol=xtol,
-            rtol=rtol,
-            maxiter=maxiter,
-            what="sensing diameter",
-        )
-        u[idx] = res.root
-    if neg.any():
-        idx = np.flatnonzero(neg)
-        res = bracketed_newton(
-            lambda x, j: q(x, idx[j]),
-            np.ones(idx.size),
-            np.full(idx.size, 2.0),
-            None,
-            xtol=xtol,
-            rtol=rtol,
-            maxiter=maxiter,
-            what="sensing diameter",
-        )
-        u[idx] = res.root
+    u = _diameter_ratio(q, dl, S, xtol, rtol, maxiter)
     r0 = np.broadcast_to(np.asarray(initial_resistance, float), shape).ravel()
     return (r0 / u**2).reshape(shape)
+
+
+def _diameter_ratio(q, dl, spring_constant, xtol, rtol, maxiter):
+    """d / d0 solving ``q(u, i)`` per point: in [0.5, 1] when stretched, [1, 2] when compressed.
+
+    Raises
+    ------
+    ModelDomainError
+        Where a bracket holds no root: no physical coil diameter for that extension.
+    """
+    u = np.ones(dl.size)
+    for idx, lo, hi in ((np.flatnonzero(dl > 0), 0.5, 1.0), (np.flatnonzero(dl < 0), 1.0, 2.0)):
+        if not idx.size:
+            continue
+        ends = [q(np.full(idx.size, x), idx)[0] for x in (lo, hi)]
+        bad = np.flatnonzero(np.sign(ends[0]) * np.sign(ends[1]) > 0)
+        if bad.size:
+            k = int(idx[bad[0]])
+            raise ModelDomainError(
+                f"sensing forward map (3.1)-(3.7): no physical coil diameter at delta = "
+                f"{dl[k] * 1e3:.4g} mm (point {k}; {bad.size} of {dl.size} points) for "
+                f"S = {spring_constant:.4g} N/m and the stated sample",
+                hint="check spring_constant_N_per_m, the load and the sample's geometry",
+            )
+        res = bracketed_newton(
+            lambda x, j, idx=idx: q(x, idx[j]),
+            np.full(idx.size, lo),
+            np.full(idx.size, hi),
+            None,
+            xtol=xtol,
+            rtol=rtol,
+            maxiter=maxiter,
+            what="sensing diameter",
+        )
+        u[idx] = res.root
+    return u
