@@ -515,6 +515,8 @@ def init(
         entry = entry if isinstance(entry, dict) else {"from": entry}
         extra = "".join(f", {k} {entry[k]}" for k in ("scale", "offset") if k in entry)
         typer.echo(f"{canon:<16s} <- {entry.get('from')!r} [{entry.get('unit', '')}{extra}]")
+    for line in res.signs:
+        typer.echo(f"sign of {line}")
     if res.unused:
         typer.echo("not used: " + ", ".join(res.unused))
     if res.placeholders:

@@ -525,20 +525,71 @@ def _values(cells: list[str]) -> np.ndarray:
     return np.asarray(out, dtype=float)
 
 
+DISPLACEMENT_CONVENTION = (
+    "tcamlab's displacement_mm is positive when the sample gets longer, so a TCA contracting "
+    "(heated, or powered) gives negative values"
+)
+"""The sign convention of ``displacement_mm`` (docs/data_contract.md), stated by ``init``."""
+
+_DRIVERS = {"static": "temperature", "dynamic": "voltage", "selfsensing": "voltage"}
+"""Kind -> the quantity whose rise makes its TCA contract (heating, or the voltage that heats it)."""
+
+
+def _driver_column(kind: str, layout: CsvLayout, i: int) -> np.ndarray | None:
+    """The values of the column a ``kind`` run's contraction follows, row by row beside column ``i``."""
+    quantity = _DRIVERS.get(kind)
+    for j, header in enumerate(layout.headers):
+        name, _ = split_header(header) if layout.header_row else ("", None)
+        if quantity and j != i and name and _word_match(name, quantity):
+            return _paired(layout, j, i)
+    return None
+
+
+def _paired(layout: CsvLayout, j: int, i: int) -> np.ndarray:
+    """Rows of columns j and i where both read a number, as a (rows, 2) array."""
+    out = []
+    for row in layout.sample:
+        try:
+            out.append((float(row[j].replace(",", ".")), float(row[i].replace(",", "."))))
+        except (IndexError, ValueError):
+            continue
+    return np.asarray(out, dtype=float).reshape(-1, 2)
+
+
+def _strain_sign(kind: str, layout: CsvLayout, i: int) -> tuple[str, str]:
+    """The sign of a strain column's scale ("" or "-") and why: checked against the data."""
+    pairs = _driver_column(kind, layout, i)
+    if pairs is not None and len(pairs) >= 3 and np.ptp(pairs[:, 0]) > 0 and np.ptp(pairs[:, 1]) > 0:
+        r = float(np.corrcoef(pairs[:, 0], pairs[:, 1])[0, 1])
+        if abs(r) >= 0.5:
+            rises = "rises" if r > 0 else "falls"
+            what = f"it {rises} as the {_DRIVERS[kind]} rises"
+            return ("-", f"{what}: it counts contraction as positive") if r > 0 else ("", f"{what}: shorter is negative")
+    v = _values(_cells(layout, i))
+    if kind in _DRIVERS and v.size >= 3:
+        d = v - v[0]
+        if (d < 0).sum() > 2 * (d > 0).sum():
+            return "", "it falls from its first row, as a TCA contracting: shorter is negative"
+        if (d > 0).sum() > 2 * (d < 0).sum() and "contract" in layout.headers[i].lower():
+            return "-", "it rises from its first row and its header says contraction: it counts contraction as positive"
+    if "contract" in layout.headers[i].lower():
+        return "-", "its header says contraction (not checked against the data): it counts contraction as positive"
+    return "", "assumed to read longer as positive (not checked against the data)"
+
+
 def _entry(kind: str, layout: CsvLayout, i: int, rec: Recognised, by_position: bool) -> tuple[dict, str]:
     """One ``[columns]`` entry and its comment."""
     header = layout.headers[i]
     entry: dict = {"from": i + 1 if by_position else header}
     note = rec.note
     if rec.unit in ("%", "strain"):
-        shorter = "contract" in header.lower()  # contraction counts shortening as positive
-        sign, per = ("-" if shorter else ""), (" / 100" if rec.unit == "%" else "")
+        sign, why = _strain_sign(kind, layout, i)
+        per = " / 100" if rec.unit == "%" else ""
         entry["unit"] = "mm"
         entry["scale"] = f"{PLACEHOLDER}: {sign}coil_length_mm{per} (a strain of the coil length -> mm)"
         note = (
-            f"a strain{' in %' if per else ''}: scale = {sign}coil_length_mm{per}"
-            + (", negative as the column counts contraction" if shorter else "")
-            + "; samples of other lengths: a per-run scale in runs"
+            f"a strain{' in %' if per else ''}: scale = {sign}coil_length_mm{per}, as {why}; "
+            f"{DISPLACEMENT_CONVENTION}; samples of other lengths: a per-run scale in runs"
         )
     else:
         entry["unit"] = rec.unit
@@ -713,6 +764,8 @@ class Starter:
     mapped: dict[str, dict]
     unused: list[str]
     placeholders: list[str]
+    signs: list[str] = field(default_factory=list)
+    """Each sign the mapping assumed, with the convention and what in the data it rests on."""
 
 
 def write_starter(
@@ -746,7 +799,8 @@ def write_starter(
             "pick another name with --out experiments/NAME.toml, or move the old file away",
         )
     text = starter_text(kind, csv_path, out)
-    unused = map_columns(kind, inspect_csv(csv_path)).unused
+    mapping = map_columns(kind, inspect_csv(csv_path))
+    signs = [f"{c}: {n}" for c, n in mapping.notes.items() if DISPLACEMENT_CONVENTION in n]
     doc = tomllib.loads(text)  # the starter must always be valid TOML
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
@@ -754,7 +808,7 @@ def write_starter(
             fh.write(text)
     except FileExistsError:
         raise ConfigError(f"{out}: already exists; tcamlab init never overwrites a file") from None
-    return Starter(out, dict(doc.get("columns", {})), unused, placeholders(doc))
+    return Starter(out, dict(doc.get("columns", {})), mapping.unused, placeholders(doc), signs)
 
 
 def placeholders(doc, prefix: str = "") -> list[str]:

@@ -153,3 +153,29 @@ def test_mm_in_capitals_is_never_answered_with_another_unit(tmp_path):
     out = _check(tmp_path, "time_s,displacement_mm,temperature_C\n" + rows, cols)
     assert "unknown unit 'MM'" in out and "did you mean 'm'" not in out
     assert "case-sensitive" in out and "length units: m, cm, mm" in out
+
+
+# --- init checks a strain column's sign against the data ---------------------------------
+
+
+def _strain_log(tmp_path: Path, sign: float, header: str = "Contraction strain (%)") -> Path:
+    rows = "".join(f"{25 + 1.25 * i:.2f},{sign * 0.028 * i:.4f}\n" for i in range(100))
+    path = tmp_path / "strain.csv"
+    path.write_text(f"Temperature (C),{header}\n" + rows)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("sign", "scale"), [(-1.0, "scale = coil_length_mm / 100"), (1.0, "scale = -coil_length_mm / 100")]
+)
+def test_init_checks_a_strain_sign_against_the_data(tmp_path, sign, scale):
+    """Signed (negative = shorter) gets +L/100, contraction counted positive -L/100; either way
+    init says which convention it assumed."""
+    csv = _strain_log(tmp_path, sign)
+    res = runner.invoke(app, ["init", "static", "--csv", str(csv), "--out", str(tmp_path / "e.toml")])
+    assert res.exit_code == 0, res.output
+    text = (tmp_path / "e.toml").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("displacement_mm"))
+    assert scale in line and "as the temperature rises" in line
+    assert "sign of displacement_mm" in res.output
+    assert "positive when the sample gets longer" in res.output
