@@ -359,7 +359,7 @@ def _restart_problem(target):
     return p
 
 
-@pytest.mark.parametrize("scale, restarted", [(1 - 1e-3, False), (1 + 1e-3, True)])
+@pytest.mark.parametrize("scale, restarted", [(1 - 1e-4, False), (1 + 1e-4, True)])
 def test_map_fit_restarts_beyond_3_sds_of_chi2_above_its_expectation(monkeypatch, scale, restarted):
     import tcamlab.calibration.fit as fit_module
 
