@@ -202,6 +202,7 @@ class _ExperimentFile(BaseModel):
     thresholds: dict[str, Any] = Field(default_factory=dict)
     calibration: _CalibrationTable | None = None
     validation: _ValidationTable | None = None
+    protocol: dict[str, Any] | None = None  # a designed protocol (tcamlab design): read by the rig
 
 
 class _TemplateFile(_ExperimentFile):

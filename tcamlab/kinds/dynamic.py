@@ -21,6 +21,7 @@ import pandas as pd
 
 from tcamlab import band, instruments
 from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import ConfigError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions
 from tcamlab.kinds.static import RHO_ZERO_SD, SLOPE_ZERO_SD
 from tcamlab.models import dynamic as _dyn
@@ -411,7 +412,17 @@ tells a resistance or heat loss that changes with temperature, or a coil that so
 it, from a constant C_th, lambda or G_t slope set wrong."""
 
 
-def protocol(rig: Rig, rng: np.random.Generator, *, condition: int | None = None) -> pd.DataFrame:
+def protocol(
+    rig: Rig,
+    rng: np.random.Generator,
+    *,
+    condition: int | None = None,
+    voltage_V: float | None = None,
+    pulse_s: float | None = None,
+    pulses: int = 1,
+    period_s: float | None = None,
+    duration_s: float | None = None,
+) -> pd.DataFrame:
     """The exact voltage step of one run.
 
     Parameters
@@ -422,13 +433,23 @@ def protocol(rig: Rig, rng: np.random.Generator, *, condition: int | None = None
         Draws the timing jitter of each sample (:data:`TIMING_JITTER_PROB`).
     condition : {None, 0, 1}
         1: the step at :data:`SECOND_VOLTAGE_FACTOR` times the stated voltage.
+    voltage_V, pulse_s : float, optional
+        This run's step voltage [V] and pulse length [s] (a designed protocol's); default the rig's.
+    pulses : int
+        Pulses in a train, each ``period_s`` [s] after the last (default 2 x the pulse + 2 s).
+    duration_s : float, optional
+        Logged duration [s] (default :data:`DYNAMIC_DURATION_S`, longer for a train).
 
     Returns
     -------
     pandas.DataFrame
         ``time`` [s] (integer ms of the actual samples), ``voltage`` [V] (as commanded).
     """
-    n = int(round(DYNAMIC_DURATION_S * DYNAMIC_RATE_HZ))
+    pulse = float(rig.pulse if pulse_s is None else pulse_s)
+    period = 2.0 * pulse + 2.0 if period_s is None else float(period_s)
+    train_end = PULSE_START_S + (int(pulses) - 1) * period + pulse
+    duration = duration_s or max(DYNAMIC_DURATION_S, train_end + DYNAMIC_DURATION_S - PULSE_START_S - 1.0)
+    n = int(round(duration * DYNAMIC_RATE_HZ))
     period_ms = int(round(1000 / DYNAMIC_RATE_HZ))
     u = rng.random(n)
     jitter = np.where(u < TIMING_JITTER_PROB / 2, -1, np.where(u > 1 - TIMING_JITTER_PROB / 2, 1, 0))
@@ -436,10 +457,63 @@ def protocol(rig: Rig, rng: np.random.Generator, *, condition: int | None = None
     ms = np.arange(n) * period_ms + jitter
     nominal = np.arange(n) / DYNAMIC_RATE_HZ
     # The pulse is on the nominal grid; the 1e-9 s keeps float steps off its edges.
-    on = (nominal >= PULSE_START_S - 1e-9) & (nominal < PULSE_START_S + rig.pulse - 1e-9)
+    on = np.zeros(n, bool)
+    for j in range(int(pulses)):
+        t0 = PULSE_START_S + j * period
+        on |= (nominal >= t0 - 1e-9) & (nominal < t0 + pulse - 1e-9)
     level = float(rig.voltage) * (SECOND_VOLTAGE_FACTOR if condition else 1.0)
+    level = level if voltage_V is None else float(voltage_V)
     volt = np.where(on, round(level, 3), 0.0)
     return pd.DataFrame({"time": ms / 1000.0, "voltage": volt})
+
+
+PROTOCOL_KEYS = ("kind", "voltages_V", "pulse_s", "pulses", "period_s", "duration_s", "runs", "channels")
+"""Keys of a dynamic ``[protocol]`` table (docs/design.md)."""
+
+RUN_OVERHEAD_S = 120.0
+"""Rig time per run beyond its logged duration [s]: the coil cools back to ambient."""
+
+
+def protocol_runs(table: dict, rig: Rig) -> list[dict]:
+    """Each run's :func:`protocol` options from a ``[protocol]`` table (docs/design.md): runs
+    cycle through ``voltages_V`` (the rig's voltage when absent), each with the table's
+    pulse, train and duration."""
+    unknown = sorted(set(table) - set(PROTOCOL_KEYS))
+    if unknown:
+        raise ConfigError(
+            f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
+        )
+    volts = [float(v) for v in table.get("voltages_V", [rig.voltage])]
+    n = int(table.get("runs", len(volts)))
+    if n < 1 or not volts or min(volts) <= 0:
+        raise ConfigError("[protocol]: runs must be >= 1 and voltages_V positive")
+    common = {"pulse_s": float(table.get("pulse_s", rig.pulse)), "pulses": int(table.get("pulses", 1))}
+    for key in ("period_s", "duration_s"):
+        if key in table:
+            common[key] = float(table[key])
+    return [{"voltage_V": volts[k % len(volts)], **common} for k in range(n)]
+
+
+def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
+    """Candidate protocols of a voltage-step test [(name, ``[protocol]`` table)]: the thesis's
+    step repeated, a second voltage (0.8 x, 1.2 x), a shorter (0.5 x) or longer (2 x) pulse,
+    a train of three pulses. Two runs per voltage."""
+    v0, p0 = round(float(rig.voltage), 3), round(float(rig.pulse), 3)
+    base = {
+        "kind": "dynamic",
+        "voltages_V": [v0],
+        "pulse_s": p0,
+        "pulses": 1,
+        "runs": 2,
+        "channels": ["time_s", "voltage_V", "displacement_mm"],
+    }
+    menu = [("repeat (same protocol)", base)]
+    for f in (0.8, 1.2):
+        menu.append((f"second voltage {f:g}x", {**base, "voltages_V": [v0, round(f * v0, 3)], "runs": 4}))
+    menu.append(("shorter pulse 0.5x", {**base, "pulse_s": round(0.5 * p0, 3)}))
+    menu.append(("longer pulse 2x", {**base, "pulse_s": round(2.0 * p0, 3)}))
+    menu.append(("pulse train of 3", {**base, "pulses": 3, "period_s": round(2.0 * p0 + 2.0, 3)}))
+    return menu
 
 
 def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
@@ -616,7 +690,7 @@ KIND = Kind(
     # C_th, lambda and b: the template states the thesis's sds
     benchmark_uncertainty={},
     benchmark_pairs=(("response-delay", "convective-heat-loss"),),
-    program_options=("condition",),
+    program_options=("condition", "voltage_V", "pulse_s", "pulses", "period_s", "duration_s"),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,

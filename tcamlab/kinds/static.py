@@ -156,7 +156,14 @@ calibrated rho and G_t slope act differently at the two loads (thesis 2.9-2.13).
 
 
 def protocol(
-    rig: Rig, rng: np.random.Generator, *, oven: str = "heating", condition: int | None = None
+    rig: Rig,
+    rng: np.random.Generator,
+    *,
+    oven: str = "heating",
+    condition: int | None = None,
+    load_N: float | None = None,
+    set_points_C: tuple[float, float, float] | None = None,
+    dwell_s: float | None = None,
 ) -> pd.DataFrame:
     """The exact oven program of one run.
 
@@ -171,6 +178,12 @@ def protocol(
     condition : {None, 0, 1}
         None: the stated load, not logged. 0 or 1: the stated load or
         :data:`SECOND_LOAD_FACTOR` times it, logged.
+    load_N : float, optional
+        The hanging weight of this run [N], logged (a designed protocol's ``loads_g``).
+    set_points_C : (first, last, step), optional
+        Oven set points [degC] (default :data:`OVEN_STEPS_C`).
+    dwell_s : float, optional
+        Dwell per step [s] (default :data:`OVEN_DWELL_S`).
 
     Returns
     -------
@@ -178,16 +191,112 @@ def protocol(
         ``time`` [s] (one reading per dwell), ``temperature`` [degC] (the
         actual oven temperature: set point + regulation error), ``load`` [N] with a condition.
     """
-    steps = np.asarray(OVEN_STEPS_C)
+    steps = np.asarray(OVEN_STEPS_C) if set_points_C is None else set_points(*set_points_C)
     if oven == "heat-cool":
         steps = np.concatenate([steps, steps[-2::-1]])
     elif oven != "heating":
         raise ConfigError(f"unknown oven program {oven!r}", hint="one of " + ", ".join(OVEN_PROGRAMS))
     temp = steps + rng.normal(0.0, OVEN_REGULATION_SD_C, steps.size)
-    out = pd.DataFrame({"time": np.arange(steps.size) * OVEN_DWELL_S, "temperature": temp})
-    if condition is not None:
+    dwell = OVEN_DWELL_S if dwell_s is None else float(dwell_s)
+    out = pd.DataFrame({"time": np.arange(steps.size) * dwell, "temperature": temp})
+    if load_N is not None:
+        out["load"] = float(load_N)
+    elif condition is not None:
         out["load"] = rig.force * (SECOND_LOAD_FACTOR if condition else 1.0)
     return out
+
+
+def set_points(first: float, last: float, step: float) -> np.ndarray:
+    """Oven set points [degC] from ``first`` to ``last`` (included) in steps of ``step``."""
+    if not (step > 0 and last > first):
+        raise ConfigError(f"oven set points {first} to {last} degC in {step} degC steps: none")
+    return np.arange(float(first), float(last) + step / 2.0, float(step))
+
+
+PROTOCOL_KEYS = ("kind", "loads_g", "oven", "temperature_C", "step_C", "dwell_s", "runs", "channels")
+"""Keys of a static ``[protocol]`` table (docs/design.md)."""
+
+MAX_OVEN_C = 170.0
+"""Highest oven set point a design may propose [degC]: nylon 6,6 keeps well below its
+softening range there, and the model's G_t' limit (~160 degC at the thesis values) usually
+comes first (:func:`design_menu` stays :data:`G_LIMIT_MARGIN_C` below it)."""
+
+G_LIMIT_MARGIN_C = 5.0
+"""A design's hottest set point stays this far below the temperature where G_t' of (2.13)
+reaches zero at the stated values [K]; each hypothesis is checked over the range as well."""
+
+
+def protocol_runs(table: dict, rig: Rig) -> list[dict]:
+    """Each run's :func:`protocol` options from a ``[protocol]`` table (docs/design.md).
+
+    Runs cycle through ``loads_g`` (grams; the stated load when absent), all with the
+    table's oven program, set points (``temperature_C`` = [first, last], ``step_C``) and dwell.
+    """
+    unknown = sorted(set(table) - set(PROTOCOL_KEYS))
+    if unknown:
+        raise ConfigError(
+            f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
+        )
+    loads = [float(x) * 1e-3 for x in table.get("loads_g", [rig.load * 1e3])]
+    first, last = table.get("temperature_C", [OVEN_STEPS_C[0], OVEN_STEPS_C[-1]])
+    step = float(table.get("step_C", OVEN_STEPS_C[1] - OVEN_STEPS_C[0]))
+    n = int(table.get("runs", len(loads)))
+    if n < 1 or not loads or min(loads) <= 0:
+        raise ConfigError("[protocol]: runs must be >= 1 and loads_g positive")
+    return [
+        {
+            "oven": str(table.get("oven", "heating")),
+            "load_N": rig.force * loads[k % len(loads)] / rig.load,
+            "set_points_C": (float(first), float(last), step),
+            "dwell_s": float(table.get("dwell_s", OVEN_DWELL_S)),
+        }
+        for k in range(n)
+    ]
+
+
+def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
+    """Candidate protocols of a static oven test [(name, ``[protocol]`` table)].
+
+    The thesis's program (one load, heating, 25-150 degC, 300 s dwell) and its changes: a
+    second hanging load (1.5 x, 2 x), a heat-cool program, a wider temperature range
+    (capped at :data:`MAX_OVEN_C` and :data:`G_LIMIT_MARGIN_C` below the G_t' = 0
+    temperature at the stated values), a longer dwell. Each runs twice per load.
+    """
+    g = _static.sample_shear_modulus(
+        sample.fiber_diameter,
+        sample.fiber_length,
+        sample.twists,
+        sample.youngs_modulus,
+        sample.thread_plies,
+        sample.max_volume_fraction,
+    )
+    rise = float(_static.max_temperature_rise(g, sample.shear_modulus_slope))
+    top = float(min(MAX_OVEN_C, 5.0 * np.floor((rig.ambient + rise - G_LIMIT_MARGIN_C) / 5.0)))
+    g0 = round(rig.load * 1e3, 3)
+    base = {
+        "kind": "static",
+        "loads_g": [g0],
+        "oven": "heating",
+        "temperature_C": [25.0, 150.0],
+        "step_C": 5.0,
+        "dwell_s": OVEN_DWELL_S,
+        "runs": 2,
+        "channels": ["time_s", "temperature_C", "load_N", "displacement_mm"],
+    }
+    menu = [("repeat (same protocol)", base)]
+    for f in (1.5, 2.0):
+        menu.append((f"second load {f:g}x", {**base, "loads_g": [g0, round(f * g0, 3)], "runs": 4}))
+    menu.append(("heat-cool", {**base, "oven": "heat-cool"}))
+    if top > 150.0:
+        menu.append((f"wider range to {top:.0f} degC", {**base, "temperature_C": [25.0, top]}))
+    menu.append(("longer dwell 900 s", {**base, "dwell_s": 900.0}))
+    menu.append(
+        (
+            "second load 1.5x, heat-cool",
+            {**base, "loads_g": [g0, round(1.5 * g0, 3)], "oven": "heat-cool", "runs": 4},
+        )
+    )
+    return menu
 
 
 def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
@@ -308,7 +417,7 @@ KIND = Kind(
         ("glass-transition", "displacement-drift"),
         ("oven-thermal-lag", "youngs-modulus-temperature"),
     ),
-    program_options=("oven", "condition"),
+    program_options=("oven", "condition", "load_N", "set_points_C", "dwell_s"),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,

@@ -163,7 +163,15 @@ from tcamlab.params import Rig, Sample
 from tcamlab.report.atomic import atomic_write_text
 from tcamlab.rig.lies import draw_parameters, stated_sds
 from tcamlab.rig.offlibrary import apply_form, get_form, scale_form
-from tcamlab.rig.runs import exact_inputs, instrument_sd, measure, program_options, protocol, true_options
+from tcamlab.rig.runs import (
+    designed_programs,
+    exact_inputs,
+    instrument_sd,
+    measure,
+    program_options,
+    protocol,
+    true_options,
+)
 from tcamlab.rig.scatter import rig_truth, scattered
 from tcamlab.rig.strength import DOMAIN_BACKOFF, noise_sd, resolve_effect, scale_effect
 from tcamlab.rig.writers import GENERATOR, SYNTHETIC_NOTE, experiment_doc, format_csv, mods_truth
@@ -249,6 +257,8 @@ class _Plan:
     true_rig: Rig
     true_parameters: dict[str, dict] | None
     lies: dict[str, Any]
+    designed: tuple = ()
+    """Each run's program options from the template's ``[protocol]`` table (cycled), or empty."""
 
 
 @dataclass(frozen=True)
@@ -410,7 +420,8 @@ def _plan(
         raise ConfigError(f"{exp.path}: template is a {exp.kind!r} experiment, not {kind!r}")
     if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)) or seed < 0:
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
-    n = DEFAULT_RUNS[kind] if n_runs is None else int(n_runs)
+    designed = designed_programs(kind, exp) or []
+    n = (len(designed) or DEFAULT_RUNS[kind]) if n_runs is None else int(n_runs)
     if n < 1:
         raise ConfigError(f"n_runs must be at least 1, got {n_runs!r}")
     if noise_scale < 0 or not math.isfinite(noise_scale):
@@ -452,6 +463,7 @@ def _plan(
         true_rig=true_rig,
         true_parameters=true_parameters,
         lies=lies,
+        designed=tuple(designed),
     )
 
 
@@ -477,7 +489,9 @@ def _draw_runs(plan: _Plan) -> list[_Run]:
     rngs = [np.random.default_rng([plan.seed, k]) for k in range(plan.n_runs)]
     # The program is the lab's: commanded from the stated rig.
     conds = [{"condition": k % plan.conditions} if plan.conditions > 1 else {} for k in range(plan.n_runs)]
-    protos = [protocol(plan.kind, plan.exp.rig, rng, **plan.program, **c) for rng, c in zip(rngs, conds)]
+    if plan.designed:  # a designed protocol: each run's own program, cycled
+        conds = [plan.designed[k % len(plan.designed)] for k in range(plan.n_runs)]
+    protos = [protocol(plan.kind, plan.exp.rig, rng, **{**plan.program, **c}) for rng, c in zip(rngs, conds)]
     trues = [scattered(plan.kind, plan.true_sample, plan.true_rig, plan.scatter, rng) for rng in rngs]
     return [_Run(rng, p, s, r) for rng, p, (s, r) in zip(rngs, protos, trues)]
 

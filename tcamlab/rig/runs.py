@@ -6,6 +6,7 @@ These are thin public functions that look the kind up with
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -13,15 +14,42 @@ import numpy as np
 import pandas as pd
 
 from tcamlab.effects import NO_MODS, Mods
+from tcamlab.errors import ConfigError
 from tcamlab.kinds import get_kind
 from tcamlab.params import Rig, Sample
 
-__all__ = ["protocol", "program_options", "exact_inputs", "instrument_sd", "true_options", "measure"]
+__all__ = [
+    "protocol",
+    "designed_programs",
+    "program_options",
+    "exact_inputs",
+    "instrument_sd",
+    "true_options",
+    "measure",
+]
 
 
 def program_options(kind: str, **options) -> dict[str, Any]:
     """The protocol options ``kind`` takes, out of ``options`` (others are ignored: a dynamic run has no oven)."""
     return {k: v for k, v in options.items() if k in get_kind(kind).program_options}
+
+
+def designed_programs(kind: str, experiment) -> list[dict] | None:
+    """Each run's program options from the experiment file's ``[protocol]`` table (a designed
+    protocol, ``tcamlab design``; docs/design.md), or None when the file has none.
+
+    The table is read by the kind's own ``protocol_runs`` (beside its ``protocol``).
+    """
+    table = (getattr(experiment, "raw", None) or {}).get("protocol")
+    if table is None:
+        return None
+    if table.get("kind", kind) != kind:
+        raise ConfigError(f"[protocol]: a {table.get('kind')!r} protocol in a {kind!r} experiment")
+    module = importlib.import_module(get_kind(kind).protocol.__module__)
+    reader = getattr(module, "protocol_runs", None)
+    if reader is None:
+        raise ConfigError(f"[protocol]: the {kind} rig takes no designed protocol")
+    return reader(dict(table), experiment.rig)
 
 
 def protocol(kind: str, rig: Rig, rng: np.random.Generator, **options) -> pd.DataFrame:
