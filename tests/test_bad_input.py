@@ -189,6 +189,7 @@ def test_blank_or_nan_cell_needs_drop_na_and_is_counted(lab, value, shown):
     assert "dropped" in (out / "bad" / "report.html").read_text()
 
 
+@pytest.mark.slow
 def test_report_has_drop_na_too(lab, monkeypatch):
     """`tcamlab report --drop-na` passes the option to every experiment."""
     text = shipped(lab, "curvature").splitlines()
@@ -465,6 +466,7 @@ def test_max_bytes_must_be_positive(lab):
 # --- report: one broken experiment does not stop the others ------------------------------
 
 
+@pytest.mark.slow
 def test_report_lists_a_bad_csv_and_builds_the_rest(lab, monkeypatch):
     write_run(lab, "time_s,temperature_C,displacement_mm\n0,25,0\n1,x,0\n2,27,0\n")
     experiment(lab, "static", name="broken", runs=["bad.csv"])

@@ -301,6 +301,7 @@ def test_prediction_band_in_the_legend(withheld):
     assert "for measured points" in fig.caption
 
 
+@pytest.mark.slow
 def test_informative_rows_covered_on_withheld_runs_when_training_logs_are_short(tmp_path_factory):
     """Calibrated on the first 2 s of runs 1-3 (the cooling barely seen, so lambda is loose), the
     band on the full withheld runs is wider than the noise over most of the cooling. Pooled over

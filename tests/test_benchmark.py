@@ -22,6 +22,7 @@ def _check_outputs(out, res):
     assert not res.scores["errors"], res.scores["errors"]
 
 
+@pytest.mark.slow
 def test_quick_benchmark_tiny_subset(tmp_path):
     res = run_benchmark(
         tmp_path,
@@ -41,6 +42,7 @@ def test_quick_benchmark_tiny_subset(tmp_path):
     assert "| strength |" in (tmp_path / "benchmark.md").read_text()
 
 
+@pytest.mark.slow
 def test_dask_path_with_local_cluster(tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(

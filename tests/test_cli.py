@@ -143,6 +143,7 @@ def test_threshold_failure_exits_1(lab):
     assert "FAIL" in result.output
 
 
+@pytest.mark.slow
 def test_report_builds_index_and_combined_pdf(lab, monkeypatch):
     monkeypatch.chdir(lab)
     result = runner.invoke(app, ["report", "--mc-draws", "100"])
@@ -155,6 +156,7 @@ def test_report_builds_index_and_combined_pdf(lab, monkeypatch):
     assert len(PdfReader(str(lab / "reports/reports.pdf")).pages) >= 5
 
 
+@pytest.mark.slow
 def test_report_lists_a_broken_experiment_and_builds_the_rest(lab, monkeypatch):
     monkeypatch.chdir(lab)
     (lab / "experiments/broken.toml").write_text(
@@ -358,6 +360,7 @@ def test_simulate_unknown_effect_is_a_clear_error(tmp_path):
     assert "glass-transition" in result.output
 
 
+@pytest.mark.slow
 def test_diagnose_command_on_a_simulated_experiment(tmp_path):
     result = runner.invoke(
         app,
@@ -388,6 +391,7 @@ def test_diagnose_command_on_a_simulated_experiment(tmp_path):
     assert text.exit_code == 0 and "verdict: attributed" in text.output
 
 
+@pytest.mark.slow
 def test_benchmark_diagnose_command_on_a_tiny_subset(tmp_path):
     result = runner.invoke(
         app,
@@ -437,6 +441,7 @@ def test_diagnose_writes_all_or_nothing(tmp_path, monkeypatch):
     assert not (tmp_path / "d/curvature").exists() or list((tmp_path / "d/curvature").iterdir()) == []
 
 
+@pytest.mark.slow
 def test_validate_diagnose_calibrate_name_by_path_and_refuse_a_rerun(lab, monkeypatch):
     """Two valid ``case.toml`` in different folders get two output folders (the second named
     by its path, as ``report`` names them); a second run of the same file into the same

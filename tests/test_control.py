@@ -28,6 +28,7 @@ def _step(config, mode):
     return ct.step_metrics(r.time, r.displacement, -0.2e-3, 2.0, 30.0)
 
 
+@pytest.mark.slow
 def test_laser_step_response(config):
     m = _step(config, "laser")
     # PI designed for a 1 rad/s first-order loop; measured 10% overshoot (the mechanics
@@ -66,6 +67,7 @@ def test_feedback_beats_open_loop_under_a_load_change(config):
     assert np.percentile(e, 97.5) - np.percentile(e, 2.5) < 0.10 * stroke  # measured 7.4 %
 
 
+@pytest.mark.slow
 def test_closed_loop_command_writes_the_report_and_refuses_to_overwrite(tmp_path):
     import json
     import subprocess

@@ -31,6 +31,7 @@ def _simulate(tmp_path, kind, effects, seed, n_runs=None):
     return load_experiment(sim.experiment_path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "kind, effect, seed",
     [
@@ -53,6 +54,7 @@ def test_withheld_effect_is_attributed(tmp_path, kind, effect, seed):
     assert best.fraction_closed > 0.5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect, strength", [("axial-compression", 3.0), ("camera-placement", 10.0)])
 def test_curvature_rows_at_rest_tell_compression_from_camera_placement(tmp_path, effect, strength):
     # With R0 left to its 5 % prior, a camera offset plus R0 0.3-0.8 % off fitted an axially
@@ -66,6 +68,7 @@ def test_curvature_rows_at_rest_tell_compression_from_camera_placement(tmp_path,
     assert not res.aliased_with
 
 
+@pytest.mark.slow
 def test_slack_cannot_shrink_the_noise_of_a_sensing_null(tmp_path):
     # Ramped in over the noisy inverted elongation, a negative slack (-0.26 mm) pulled the
     # rows at rest towards zero and beat recalibration on every withheld run of a null by
@@ -84,6 +87,7 @@ def _quiet_null(tmp_path, kind, seed, **kw):
     return load_experiment(sim.experiment_path)
 
 
+@pytest.mark.slow
 def test_a_quiet_laser_on_a_coarse_adc_is_no_gap(tmp_path):
     # A fifth of the rig's noise (1 um) under the 10-bit ADC's 9.8 um step: the residuals
     # of a perfect model are 3.0 um, their second differences 2.4 um. Counting the hidden
@@ -95,6 +99,7 @@ def test_a_quiet_laser_on_a_coarse_adc_is_no_gap(tmp_path):
     assert res.verdict == "none"
 
 
+@pytest.mark.slow
 def test_a_remounted_sensor_is_no_gap(tmp_path):
     # Each pull re-mounts the sensor (twists and coil length 0.05 % a run, the kind's
     # run_reproducibility): with a quiet load cell every sensing null was `unexplained`.
@@ -104,6 +109,7 @@ def test_a_remounted_sensor_is_no_gap(tmp_path):
     assert res.verdict == "none"
 
 
+@pytest.mark.slow
 def test_two_effects_at_once_name_one_that_leaves_no_gap(tmp_path):
     # Camera placement and axial compression at 5x each. Until R0 was read at rest, each
     # alone closed the gap (R0 absorbing part of the other) and the verdict named both as an
@@ -161,6 +167,7 @@ def test_combined_effect_is_nested_and_refuses_overlap():
     assert combine(a, get_effect("hysteresis", "sensing")) is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, seed", [("static", 21), ("curvature", 22), ("sensing", 23)])
 def test_null_case_gives_none(tmp_path, kind, seed):
     exp = _simulate(tmp_path, kind, {}, seed)
@@ -182,6 +189,7 @@ def test_diagnosis_never_imports_the_rig():
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
+@pytest.mark.slow
 def test_json_has_documented_keys_and_no_nan(tmp_path):
     exp = _simulate(tmp_path, "curvature", {"camera-placement": 3.0}, 31)
     res = diagnose(exp, n_boot=100)
@@ -238,6 +246,7 @@ def test_single_run_uses_block_folds(tmp_path):
     json.dumps(res.to_dict(), allow_nan=False)
 
 
+@pytest.mark.slow
 def test_effect_subset_and_report_section(tmp_path):
     from tcamlab.report import render_html, render_pdf
     from tcamlab.report.diagnosis_report import diagnosis_document, diagnosis_section
@@ -264,6 +273,7 @@ def test_noise_estimators():
     assert gap_limit(1000, 500, reference=[(1.0, 4)]) > gap_limit(1000, 500)
 
 
+@pytest.mark.slow
 def test_the_noise_of_a_noisy_input_is_measured_at_the_recalibrated_parameters(tmp_path):
     # A pull test with E 2 stated sds (20 %) high, no effect. The ohmmeter's noise reaches the
     # inferred elongation through the sensor's gain, which falls as E rises: at the true E the

@@ -27,6 +27,7 @@ def _simulate(tmp_path, kind, seed, **options):
     return load_experiment(sim.experiment_path)
 
 
+@pytest.mark.slow
 def test_thermal_mass_off_by_one_and_a_half_sds_is_miscalibrated(tmp_path):
     # C_th 1.5 stated sds high (0.0266 + 1.5 x 0.00845 J/K), no effect: recalibration must
     # explain the gap, name C_th and recover it; no effect may be attributed.
@@ -73,6 +74,7 @@ def test_glass_transition_with_rho_off_is_still_attributed(tmp_path):
     assert glass.fraction_closed > 0.5
 
 
+@pytest.mark.slow
 def test_null_dynamic_with_noisy_zeros_is_none(tmp_path):
     # Honest parameters, each run zeroed on one noisy laser reading: the per-run zeros are
     # nuisances, so the gap test must find nothing.
@@ -183,6 +185,7 @@ def test_fold_refit_step_matches_a_refit_on_the_training_runs(tmp_path):
     assert np.linalg.norm(step.u - refit.u) < 0.2 * np.linalg.norm(full.u - refit.u)
 
 
+@pytest.mark.slow
 def test_an_effects_term_is_what_it_adds_to_the_predictions_at_its_fit(tmp_path):
     # term_rms reads the with-effect residuals off the all-rows fit; it must equal the RMS of
     # the two models' difference evaluated afresh, be 0 for the effect at zero, and grow
@@ -353,6 +356,7 @@ def test_an_effect_that_restores_a_jointly_moved_pair_is_kept_beside_miscalibrat
     assert verdict([loose, stand, same], True, after, idx, np.full(200, 500.0), 3.0, 1.1)[2] == []
 
 
+@pytest.mark.slow
 def test_an_effect_that_is_a_calibrated_parameter_is_fitted_with_it_held(tmp_path):
     # The curvature rig with d1 0.6 mm off, made as the sensor-offset-error effect (10x noise):
     # the effect's fit holds the calibrated d1 at its stated value (they are one direction), so
@@ -375,6 +379,7 @@ def test_an_effect_that_is_a_calibrated_parameter_is_fitted_with_it_held(tmp_pat
     assert c.fraction_closed > 0.8
 
 
+@pytest.mark.slow
 def test_an_effect_that_is_a_parameter_error_is_reported_as_that_parameter_miscalibrated(tmp_path):
     # d1 stated 9 mm, truly 3 stated sds (0.9 mm) closer: recalibration under the 0.3 mm prior
     # stops short, the sensor-offset-error effect (d1's own error) explains the gap, and the
@@ -464,6 +469,7 @@ def test_parameter_entry_converts_the_effect_value_to_the_parameter():
     assert e["via_effect"] == "ambient-temperature"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1000, 1001])
 def test_fold_refits_stay_defined_on_the_withheld_runs_inputs(tmp_path, seed):
     # A G_t slope refitted on two runs of a 10x G(T) oven test sat where G_t' of (2.13) reaches
@@ -540,6 +546,7 @@ def test_a_parameter_well_inside_the_domain_is_not_at_its_edge_and_one_at_the_li
     assert not rec.at_domain_edge(at(inside - 10 * EDGE_STEP), m)
 
 
+@pytest.mark.slow
 def test_a_fit_told_to_stay_defined_on_a_run_never_leaves_its_domain(tmp_path):
     # Recalibration.fit's defined_on: the run's inputs bound the fit (a wall), its data do not
     # enter it (a run that is only a wall leaves the fitted chi-square that of the other runs).

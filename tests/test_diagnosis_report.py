@@ -223,6 +223,7 @@ def test_lab_units_of_parameters_and_rmse():
     )
 
 
+@pytest.mark.slow
 def test_diagnose_text_units_and_standalone_figures(tmp_path):
     sim = rig.simulate(
         "curvature",

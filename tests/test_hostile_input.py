@@ -149,6 +149,7 @@ def test_markup_in_a_mapped_column_header(lab, monkeypatch):
     )
 
 
+@pytest.mark.slow
 def test_markup_in_experiment_names_and_titles_in_the_index(lab, monkeypatch):
     exp = _hostile_static(lab, ["static_run1.csv"], title='"<script>x</script>"')
     for name in ("x?y#z.toml", "javascript:alert(1).toml"):
@@ -323,6 +324,7 @@ def _check_run(run: tio.RunData, kind: str) -> None:
     assert np.isfinite(df.to_numpy()).all()
 
 
+@pytest.mark.slow
 @settings(
     max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
 )

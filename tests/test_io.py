@@ -590,6 +590,7 @@ def _csv_texts(draw):
     return kind, text, bom
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(_csv_texts())
 def test_random_csv_parses_or_raises_input_error(case):

@@ -140,6 +140,7 @@ def test_validate_from_the_file_and_by_kind(tmp_path):
     assert "selfsensing_run1 (EKF (causal))" in html
 
 
+@pytest.mark.slow
 def test_calibrate_and_diagnose_run_through_the_registry(tmp_path):
     exp = tmp_path / "selfsensing.toml"
     text = (ROOT / "experiments" / "selfsensing.toml").read_text().replace("../raw/", str(ROOT / "raw") + "/")

@@ -87,6 +87,7 @@ def guide_run(tmp_path_factory):
     return top / "mylab", proc.stdout
 
 
+@pytest.mark.slow
 def test_the_guide_walks_a_csv_to_a_validated_calibrated_diagnosed_experiment(guide_run):
     lab, out = guide_run
     # init read the rheometer's layout as the guide says

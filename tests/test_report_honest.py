@@ -192,6 +192,7 @@ def sensor45(tmp_path_factory):
     return root / "experiments" / "s45.toml"
 
 
+@pytest.mark.slow
 def test_preset_r0_far_from_the_rest_value_warns_and_is_credited_to_the_preset(sensor45, tmp_path):
     out = runner.invoke(app, ["validate", "sensing", str(sensor45), "--out", str(tmp_path)])
     assert out.exit_code == 0, out.output
@@ -322,6 +323,7 @@ def test_residuals_one_panel_per_quantity_against_the_physical_input():
     assert axes[-1].get_xlabel() == "time [s]"
 
 
+@pytest.mark.slow
 def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, tmp_path):
     """Two kinds with different quantities still give 7 columns (no per-quantity columns full
     of dashes); the synthetic banner is on the index and the combined PDF's first page."""
@@ -365,6 +367,7 @@ def _beside(tmp_path, name: str, *, c_th: float) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_calibrated_parameter_far_from_stated_warns_and_strict_exits_1(tmp_path):
     # stated 0.0266 +- 0.00845 J/K in dynamic.toml; calibrated 0.0604 = +4.0 stated sds
     path = _beside(tmp_path, "dynamic.calibrated.toml", c_th=0.0604)

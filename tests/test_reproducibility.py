@@ -75,6 +75,7 @@ COMMANDS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(COMMANDS))
 def test_no_command_writes_to_raw_or_experiments(lab, monkeypatch, name):
     monkeypatch.chdir(lab)
@@ -209,6 +210,7 @@ def _run_everything(lab: Path, out: str) -> dict[str, bytes]:
     return _all_outputs(lab / out)
 
 
+@pytest.mark.slow
 def test_outputs_are_byte_identical_and_ignore_source_date_epoch(lab, monkeypatch):
     monkeypatch.chdir(lab)
     monkeypatch.delenv("SOURCE_DATE_EPOCH", raising=False)
@@ -222,6 +224,7 @@ def test_outputs_are_byte_identical_and_ignore_source_date_epoch(lab, monkeypatc
         assert _run_everything(lab, "a") == first, f"SOURCE_DATE_EPOCH={epoch} changed a byte"
 
 
+@pytest.mark.slow
 def test_outputs_hold_no_absolute_paths(lab, tmp_path_factory):
     """Run with absolute paths from another working directory, as a user would."""
     elsewhere = tmp_path_factory.mktemp("cwd")

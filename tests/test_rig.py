@@ -148,6 +148,7 @@ def test_dynamic_csv_time_is_integer_ms_and_voltage_as_commanded(clean):
 # --- determinism -------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_same_seed_same_bytes_other_seed_other_data(tmp_path, kind):
     tpl = TEMPLATES / f"{kind}.toml"
@@ -176,6 +177,7 @@ def test_shipped_sample_data_is_reproducible(tmp_path):
 # --- effects are hidden -------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_experiment_and_csvs_do_not_reveal_effects(tmp_path, kind):
     names = [e.name for e in effects_for(kind)]
@@ -228,6 +230,7 @@ def test_thesis_model_fits_effect_free_data_within_noise(clean, kind):
         assert 0.7 < ratio < 1.5, (q, ratio)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_noise_floor_with_more_seeds(tmp_path, kind):
     """The noise sd is the floor on average, not only for one lucky seed."""
@@ -273,6 +276,7 @@ def test_noise_scale_zero_leaves_only_quantisation(tmp_path):
 CASES = [(k, e.name) for k in KINDS for e in effects_for(k)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind,name", CASES)
 def test_strength_is_in_noise_sd(tmp_path, kind, name):
     res = rig.simulate(kind, TEMPLATES / f"{kind}.toml", seed=7, out_dir=tmp_path, effects={name: 5.0})

@@ -183,6 +183,7 @@ def _run_offsets(tmp_path, noisy_zero: bool, n_runs: int):
     return np.asarray(offsets), zeros
 
 
+@pytest.mark.slow
 def test_noisy_zero_offsets_every_run_by_about_one_laser_sd(tmp_path):
     n = 40
     noisy, zeros = _run_offsets(tmp_path / "noisy", True, n)

@@ -85,6 +85,7 @@ def _best_candidate_share(kind, form, exp, proto, opts, gap, sd, quantities):
     return float(np.sqrt(min(res.fun, vals[i]) / np.sum(target**2)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", sorted(FORMS), ids=lambda k: f"{k[0]}-{k[1]}")
 def test_form_has_its_strength_and_differs_from_the_candidate(key):
     kind, _ = key
