@@ -45,7 +45,7 @@ Measures per kind (scoring functions below, tested in
 * failures: the fraction of cases where calibrate raised or returned a
   non-finite value or interval; seconds of calibrate per case.
 
-Targets (issue 10): coverage >= 90 % over >= 100 cases per kind;
+Targets: coverage >= 90 % over >= 100 cases per kind;
 pinned-closer >= 90 %.
 """
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Self-sensing with parameters from ``calibrate``, not the true ones (issue 14's target).
+"""Self-sensing with parameters from ``calibrate``, not the true ones.
 
 Run from the repository root::
 
@@ -16,7 +16,7 @@ inversion and the causal EKF, each after its own nuisance zero (the estimate tar
 as the laser is). The same with the load column removed ("load unknown"), where the EKF
 must estimate the load.
 
-Targets (issue 14): the EKF's 95 % interval of the error within 10 % of the stroke and its
+Targets: the EKF's 95 % interval of the error within 10 % of the stroke and its
 mean within 2 %. Prints one row per seed and case, then the worst seed; nothing asserts.
 """
 

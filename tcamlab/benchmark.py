@@ -97,7 +97,7 @@ GENERATOR = "tcamlab.rig"
 BENCHMARK_KINDS = tuple(k for k in KINDS if k != "selfsensing")
 """Kinds the benchmark runs unless told otherwise: selfsensing's virtual rig integrates a
 50 s powered run per simulation (about 4 s), too slow for the benchmark's budget while its
-diagnosis is not a target (issue 14); pass ``kinds`` to include it."""
+diagnosis is not a target; pass ``kinds`` to include it."""
 
 
 # ---------------------------------------------------------------------------
@@ -838,7 +838,7 @@ def _noisy_nulls(rows: list[dict]) -> dict:
 
 
 def family_scores(results: list[dict]) -> dict:
-    """Per family: the figures its targets are stated in (README, issue 11)."""
+    """Per family: the figures its targets are stated in (README)."""
     by = defaultdict(list)
     for r in results:
         by[CASE_FAMILY.get(r["case"], r["case"])].append(r)

@@ -1,4 +1,4 @@
-"""Bad input through the CLI (issue 5): every case is a one-line error naming the file and
+"""Bad input through the CLI: every case is a one-line error naming the file and
 row+column or key, what was expected and a hint, exit status 2, no traceback and no
 partial report; `tcamlab report` lists the failure and still builds the other experiments.
 """

@@ -462,7 +462,7 @@ def test_dynamic_resistance_stated_5_percent_off_is_calibrated_back_from_the_cur
 
 @pytest.mark.slow
 def test_dynamic_beta_of_r_t_is_calibrated_from_the_current_and_kept_from_the_diagnosis(tmp_path):
-    """beta of R(T) (issue 10): five virtual-rig pulses (seed 27) made with a heater whose
+    """beta of R(T): five virtual-rig pulses (seed 27) made with a heater whose
     resistance rises by beta = 0.003 /K (stated in the template, left out of the written file,
     so the file states the thesis's constant R) and a logged current (synthetic: V / R(T) along
     the true temperature plus 1 mA normal noise, numpy seed 27). beta comes back within its

@@ -253,7 +253,7 @@ def test_fit_spring_bad_file_is_a_clear_error(lab):
     bad.write_text("displacement_mm,force_N\n1,2\n")
     result = runner.invoke(app, ["fit-spring", str(bad)])
     assert result.exit_code == 2
-    # F = S delta needs no resistance (issue 13): the file is refused for being one row long
+    # F = S delta needs no resistance: the file is refused for being one row long
     assert "bad.csv" in result.output and "only 1 usable data row" in result.output
 
 

@@ -1,4 +1,4 @@
-"""Hostile input (issue 5): markup in titles, notes, headers and file names is escaped
+"""Hostile input: markup in titles, notes, headers and file names is escaped
 everywhere it appears; text cells of exported CSV cannot run as spreadsheet formulas; huge
 files are refused; and property-based fuzzing of CSV and TOML texts never gets anything but
 tcamlab's own errors out of the readers.

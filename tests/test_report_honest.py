@@ -177,7 +177,7 @@ def test_reference_and_domain_warnings():
 
 @pytest.fixture(scope="module")
 def sensor45(tmp_path_factory):
-    """The case of issue 12: the bundled sensing data with every resistance x1.5 (a 45 ohm
+    """A case found by users: the bundled sensing data with every resistance x1.5 (a 45 ohm
     sensor) and no initial_resistance_ohm, so the thesis-tcs preset's 30 ohm is taken."""
     root = tmp_path_factory.mktemp("sensor45")
     (root / "experiments").mkdir()

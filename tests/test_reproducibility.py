@@ -1,4 +1,4 @@
-"""Nothing lost, atomic writes, idempotence (issue 5).
+"""Nothing lost, atomic writes, idempotence.
 
 - raw/ is never written: every file's hash is the same before and after each command;
 - a report is written all or nothing: a killed process or a failing renderer/file system

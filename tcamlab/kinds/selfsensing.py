@@ -1,4 +1,4 @@
-"""Self-sensing powered run (thesis sec. 5.2 future work, issue 14): displacement from V and I.
+"""Self-sensing powered run (thesis sec. 5.2 future work): displacement from V and I.
 
 A TCA is heated by its own current under a hanging load; the rig logs
 ``time_s``, ``voltage_V``, ``current_A``, optionally ``load_N`` (the hanging
@@ -587,7 +587,7 @@ open-loop inversion; b enters once the estimator models the mechanics)."""
 
 KIND = Kind(
     name="selfsensing",
-    description="self-sensing powered run (thesis sec. 5.2, issue 14): displacement from voltage and "
+    description="self-sensing powered run (thesis sec. 5.2): displacement from voltage and "
     "current through the combined model R(T, delta) (chapter 3 x silver TCR x swelling (2.8)) and the "
     "electro-thermal model (2.18), against a reference laser",
     required_columns=("time_s", "voltage_V", "current_A", "displacement_mm"),

@@ -104,7 +104,7 @@ instruments.CAMERA_SD_PER_M            0.2 1/m             curvature from the ca
 instruments.CAMERA_RESOLUTION_PER_M    0.001 1/m           written with 6 decimals in per_mm
 (resistances)                                              two channels of the same multimeter as above
 curvature.KIND.default_runs            3
-**self-sensing powered run** (issue 14; truth: :mod:`.selfsensing`)
+**self-sensing powered run** (truth: :mod:`.selfsensing`)
 selfsensing.RATE_HZ                    100 Hz              logging rate; one run holds every protocol, 50 s
 selfsensing.SEGMENTS                   2+12+12+12+12 s     rest at the probe, voltage steps, PWM, sine, chirp
 selfsensing.PROBE_V                    1.5 V               probe between heating phases: a current to read R
