@@ -792,6 +792,56 @@ def diagnose(
         typer.echo(f"wrote {f}")
 
 
+# -- design -----------------------------------------------------------------------------
+
+
+@app.command("design", cls=_Command)
+def design(
+    experiment: Experiment,
+    diagnosis: Path | None = typer.Option(
+        None, "--diagnosis", metavar="diagnosis.json", help="Use this diagnosis (default: diagnose here)."
+    ),
+    effects: str | None = typer.Option(
+        None, "--effects", metavar="A,B,...", help="Candidate effects of the diagnosis run here."
+    ),
+    out: Annotated[
+        Path | None, typer.Option("--out", metavar="DIR", help="Write OUT/NAME/design.json.")
+    ] = None,
+    as_json: Json = False,
+    seed: int = typer.Option(0, "--seed", metavar="N", help="Seed of the draws and the bootstrap."),
+    force: Force = False,
+    drop_na: DropNa = False,
+):
+    """The next protocol that tells apart what the diagnosis could not.
+
+    Scores the kind's protocols by the expected separation of the hypotheses the diagnosis
+    left (docs/design.md); writes the best as NAME.next.toml beside the experiment (refused
+    if it exists, unless --force) and design.json.
+
+    Example: tcamlab design experiments/static.toml --diagnosis reports/static/diagnosis.json
+    """
+    from tcamlab.design.text import design_lines
+    from tcamlab.pipeline import design_experiment
+
+    outcome = _run(
+        design_experiment,
+        experiment,
+        diagnosis=diagnosis,
+        effects=effects,
+        out_dir=out,
+        force=force,
+        seed=seed,
+        drop_na=drop_na,
+    )
+    if as_json:
+        _print_json(outcome.result.to_dict())
+        return
+    for line in design_lines(outcome.result):
+        typer.echo(line)
+    for f in outcome.files:
+        typer.echo(f"wrote {f}")
+
+
 # -- benchmark --------------------------------------------------------------------------
 
 

@@ -747,6 +747,70 @@ def _write_diagnosis(result, experiment: Experiment, folder) -> list[Path]:
     return write_all_or_nothing(Path(folder), payload)
 
 
+# -- design -------------------------------------------------------------------------------
+
+
+@dataclass
+class DesignOutcome:
+    """What :func:`design_experiment` found and wrote."""
+
+    result: object  # tcamlab.design.DesignResult
+    experiment: Experiment
+    files: list[Path] = field(default_factory=list)
+
+
+def design_experiment(
+    path,
+    *,
+    diagnosis=None,
+    effects=None,
+    out_dir=None,
+    force: bool = False,
+    seed: int = 0,
+    drop_na: bool = False,
+) -> DesignOutcome:
+    """The next protocol that separates what the experiment's diagnosis could not (:mod:`tcamlab.design`).
+
+    ``diagnosis``: a ``diagnosis.json`` of this experiment; default, the experiment is diagnosed
+    here (``effects``, ``seed`` and ``drop_na`` as :func:`diagnose_experiment`). Writes the best
+    protocol as ``NAME.next.toml`` beside the experiment and ``design.json`` (in ``out_dir/NAME/``,
+    else ``NAME.design.json`` beside the experiment); an existing file is replaced only with
+    ``force``, checked before anything runs.
+    """
+    import json
+
+    from tcamlab.design import design, protocol_toml
+
+    exp = load_experiment(path)
+    protocol_path = exp.path.with_name(f"{exp.name}.next.toml")
+    folder = Path(out_dir) / exp.name if out_dir is not None else exp.path.parent
+    json_path = folder / ("design.json" if out_dir is not None else f"{exp.name}.design.json")
+    for target in (protocol_path, json_path):
+        if target.exists() and not force:
+            raise ConfigError(f"{target}: exists (not replaced)", "--force replaces it")
+    if diagnosis is not None:
+        try:
+            found = json.loads(Path(diagnosis).read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"{diagnosis}: not a diagnosis.json ({exc})") from None
+        if found.get("kind") != exp.kind:
+            raise ConfigError(f"{diagnosis}: a {found.get('kind')!r} diagnosis of a {exp.kind!r} experiment")
+    else:
+        from tcamlab.diagnosis import diagnose
+
+        if isinstance(effects, str):
+            effects = [e.strip() for e in effects.split(",") if e.strip()]
+        found = diagnose(exp, exp.read_runs(drop_na=drop_na), effects=effects or None, seed=seed).to_dict()
+    result = design(exp, found, seed=seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    files = [atomic_write_text(json_path, dumps_json(result.to_dict()))]
+    if result.best is not None:
+        header = f"{exp.name}: the next protocol ({result.message})\nmade by tcamlab design"
+        atomic_write_text(protocol_path, protocol_toml(exp.raw, result.best.table, header))
+        files.append(protocol_path)
+    return DesignOutcome(result, exp, files)
+
+
 # -- benchmark and effects ----------------------------------------------------------------
 
 

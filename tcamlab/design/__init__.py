@@ -1,0 +1,159 @@
+"""Experiment design: the next protocol that tells apart what a diagnosis could not.
+
+Steps (one module each):
+
+1. :mod:`~tcamlab.design.hypotheses` -- the hypotheses a diagnosis left standing
+   (recalibration and each aliased or stand-in effect) with their fitted parameters.
+2. :mod:`~tcamlab.design.protocols` -- the kind's menu of protocol changes (static: a second
+   load, heat-cool, a wider range, a longer dwell; dynamic: a second voltage, a shorter or
+   longer pulse, a pulse train), each with its runs and rig time.
+3. :mod:`~tcamlab.design.predict` -- every hypothesis's predicted logs under each protocol,
+   with their spread over draws of its parameters, and the protocol's limits (no G_t' <= 0,
+   coil not closed, temperature under :data:`~tcamlab.design.predict.TEMPERATURE_LIMIT_C`).
+4. :mod:`~tcamlab.design.score` -- the expected separation of the hardest pair (a
+   T-optimality-like criterion, Atkinson & Fedorov 1975, with predictive variance), ranked
+   per hour of rig time.
+5. :mod:`~tcamlab.design.result` -- the typed result; :func:`protocol_toml` the file a lab
+   follows and :func:`tcamlab.rig.simulate` runs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
+from tcamlab.design.predict import N_DRAWS, limits, predictive
+from tcamlab.design.protocols import Protocol, cost_minutes, menu, protocol_frames
+from tcamlab.design.result import CandidateProtocol, DesignResult
+from tcamlab.design.score import separation
+from tcamlab.design.toml import protocol_toml
+from tcamlab.kinds import get_kind
+from tcamlab.units import display
+
+__all__ = ["design", "DesignResult", "CandidateProtocol", "Hypothesis", "protocol_toml", "DECISIVE"]
+
+DECISIVE = 2.0 * float(np.log(100.0))
+"""Separation [-] at which a protocol is expected to decide: an expected log Bayes factor
+D / 2 of ln 100 ("decisive" on Jeffreys' scale). The best protocol is the one with the most
+separation per hour among those that reach it, else the one with the most separation."""
+
+CRITERION = (
+    "D_ij = sum over predicted rows of (mean_i - mean_j)^2 / (sigma_noise^2 + var_i + var_j) for each "
+    "pair of hypotheses (T-optimality with predictive variance, Atkinson & Fedorov 1975); a protocol's "
+    "separation is the hardest pair's D, D/2 its expected log Bayes factor; ranked per hour of rig time"
+)
+
+
+def noise_si(diagnosis: dict) -> dict[str, float]:
+    """Noise floor sd of each quantity [SI] from a diagnosis (stored in display units)."""
+    out = {}
+    for q, v in diagnosis["noise_floor"]["by_quantity"].items():
+        out[q] = float(v["sigma"]) / display(q)[1]
+    return out
+
+
+def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0) -> DesignResult:
+    """Score the kind's protocols by how well they separate the diagnosis's hypotheses.
+
+    Parameters
+    ----------
+    experiment : tcamlab.config.Experiment
+        The experiment diagnosed (its sample and rig are the menu's starting point).
+    diagnosis : dict
+        Its diagnosis in the JSON layout (:meth:`tcamlab.diagnosis.DiagnosisResult.to_dict`).
+    n_draws : int
+        Parameter draws per hypothesis and protocol.
+    seed : int
+        Seed of the draws and of the protocols' regulation errors.
+
+    Returns
+    -------
+    DesignResult
+    """
+    kind, st = experiment.kind, status(diagnosis)
+    noise = noise_si(diagnosis)
+    base = DesignResult(
+        kind,
+        experiment.name,
+        st,
+        diagnosis.get("verdict", ""),
+        [],
+        noise,
+        criterion=CRITERION,
+        settings={"n_draws": n_draws, "seed": seed, "decisive": DECISIVE},
+    )
+    if st != "ambiguous":
+        base.message = _clear_message(diagnosis, st)
+        return base
+    hyps = hypotheses(diagnosis, kind)
+    base.hypotheses = [{"name": h.name, "parameters": h.intervals} for h in hyps]
+    cands = [
+        _score(experiment, p, hyps, noise, n_draws, seed)
+        for p in menu(kind, experiment.sample, experiment.rig)
+    ]
+    cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
+    base.candidates, base.best = cands, _best(cands)
+    base.message = _message(base, hyps)
+    return base
+
+
+def _clear_message(diagnosis: dict, st: str) -> str:
+    if st == "none":
+        return "the thesis model fits within the noise: no further experiment is needed"
+    what = diagnosis.get("effect") or diagnosis.get("verdict")
+    return f"the diagnosis is clear ({diagnosis.get('verdict')}: {what}); no further experiment is needed to tell hypotheses apart"
+
+
+def _best(cands: list[CandidateProtocol]) -> CandidateProtocol | None:
+    ok = [c for c in cands if c.feasible and np.isfinite(c.separation) and c.separation > 0]
+    decisive = [c for c in ok if c.separation >= DECISIVE]
+    if decisive:
+        return max(decisive, key=lambda c: c.per_hour)
+    return max(ok, key=lambda c: c.separation) if ok else None
+
+
+def _message(res: DesignResult, hyps) -> str:
+    names = " vs ".join(h.name for h in hyps)
+    b = res.best
+    if b is None:
+        return f"no protocol of the {res.kind} menu separates {names} within the limits"
+    verdict = "decides" if b.separation >= DECISIVE else "does not decide but separates best"
+    return f"{b.name} {verdict} between {names}: separation {b.separation:.1f} ({b.runs} runs, {b.minutes:.0f} min)"
+
+
+def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) -> CandidateProtocol:
+    """One protocol scored: predictions of every hypothesis, limits, D of every pair."""
+    kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
+    frames = protocol_frames(kind, rig, proto.table, seed)
+    minutes = cost_minutes(frames, kind)
+    out = CandidateProtocol(
+        proto.name, proto.table, len(frames), minutes, float("nan"), float("nan"), float("nan"), {}, {}
+    )
+    preds = []
+    for h in hyps:
+        pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed)
+        why = (
+            point
+            if pred is None
+            else limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
+        )
+        if why:
+            out.feasible, out.limit = False, why if pred is None else f"{h.name}: {why}"
+            return out
+        preds.append(pred)
+    D = sum(
+        separation([p.mean[q] for p in preds], [p.var[q] for p in preds], noise[q] ** 2)[1]
+        for q in get_kind(kind).outputs
+    )
+    pairs = [(i, j) for i in range(len(hyps)) for j in range(i + 1, len(hyps))]
+    out.pairs = {f"{hyps[i].name} vs {hyps[j].name}": float(D[i, j]) for i, j in pairs}
+    out.max_difference = {
+        f"{hyps[i].name} vs {hyps[j].name}": {
+            q: float(np.max(np.abs(preds[i].mean[q] - preds[j].mean[q]))) for q in preds[i].mean
+        }
+        for i, j in pairs
+    }
+    out.separation = float(min(out.pairs.values())) if pairs else float("inf")
+    out.log_bayes_factor = out.separation / 2.0
+    out.per_hour = out.separation / (minutes / 60.0)
+    return out

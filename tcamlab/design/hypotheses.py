@@ -1,0 +1,128 @@
+"""The hypotheses a diagnosis could not tell apart, with their fitted parameters.
+
+A hypothesis is the thesis model with the kind's calibrated parameters recalibrated (their
+fitted values and the Laplace covariance of their fitted coordinates ``u``: log value for a
+positive parameter, value / prior sd otherwise) and, for an effect, the effect's parameters
+(values and standard errors [SI]). Everything is read from the diagnosis's JSON layout
+(:meth:`tcamlab.diagnosis.DiagnosisResult.to_dict`), so a stored ``diagnosis.json`` serves as
+well as a fresh diagnosis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tcamlab.diagnosis.recalibration import RECALIBRATION
+from tcamlab.effects import Mods, combine, get_effect
+from tcamlab.errors import ConfigError
+from tcamlab.kinds import get_kind
+
+__all__ = ["Hypothesis", "hypotheses", "status"]
+
+
+@dataclass
+class Hypothesis:
+    """One explanation of the runs, as the diagnosis fitted it.
+
+    Attributes
+    ----------
+    name : str
+        ``recalibration`` or the effect's name.
+    fields : list of (str, str, bool)
+        (SI field, ``"sample"`` or ``"rig"``, positive) of each calibrated parameter.
+    values : ndarray
+        Their fitted values [SI].
+    prior_sd : ndarray
+        Their prior sds [SI] (the scale of a linear fitted coordinate).
+    cov_u : ndarray
+        Covariance of their fitted coordinates [-, or (value / prior sd)^2].
+    effect_values, effect_sd : ndarray
+        The effect's parameters and standard errors [SI] (empty for recalibration).
+    """
+
+    name: str
+    fields: list
+    values: np.ndarray
+    prior_sd: np.ndarray
+    cov_u: np.ndarray
+    effect_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    effect_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    intervals: dict = field(default_factory=dict)
+    """Every fitted parameter -> {value, ci95, unit} [SI], as the diagnosis reported it."""
+
+    def effect(self, kind: str):
+        """The :class:`tcamlab.effects.Effect` of this hypothesis (None for recalibration)."""
+        if self.name == RECALIBRATION:
+            return None
+        parts = [get_effect(n, kind) for n in self.name.split("+")]
+        return parts[0] if len(parts) == 1 else combine(*parts)
+
+    def u(self) -> np.ndarray:
+        """Fitted coordinates of ``values``."""
+        return np.array(
+            [_to_u(v, s, pos) for v, s, (_, _, pos) in zip(self.values, self.prior_sd, self.fields)]
+        )
+
+    def at(self, u: np.ndarray, theta: np.ndarray, sample, rig, kind: str):
+        """(sample, rig, mods) at fitted coordinates ``u`` and effect parameters ``theta`` [SI]."""
+        kw = {"sample": {}, "rig": {}}
+        for x, s, (name, where, pos) in zip(u, self.prior_sd, self.fields):
+            kw[where][name] = math.exp(x) if pos else float(x) * s
+        eff = self.effect(kind)
+        mods = eff.mods(theta) if eff is not None else Mods()
+        return sample.replace(**kw["sample"]), rig.replace(**kw["rig"]), mods
+
+
+def _to_u(value: float, prior_sd: float, positive: bool) -> float:
+    return math.log(value) if positive else value / prior_sd
+
+
+def status(diagnosis: dict) -> str:
+    """``"ambiguous"`` when the diagnosis left hypotheses it could not tell apart, ``"clear"``
+    when it named one explanation (or the model has no gap: ``"none"``)."""
+    if diagnosis.get("verdict") == "none":
+        return "none"
+    return "ambiguous" if diagnosis.get("aliased_with") else "clear"
+
+
+def _names(diagnosis: dict) -> list[str]:
+    """Recalibration first, then the named effect and each alias and stand-in."""
+    verdict, effect = diagnosis.get("verdict"), diagnosis.get("effect")
+    stand_ins = list((diagnosis.get("recalibration") or {}).get("stand_ins") or {})
+    names = [RECALIBRATION] if verdict == "miscalibrated" or not effect else []
+    names += [effect] if effect else []
+    names += list(diagnosis.get("aliased_with") or []) + stand_ins
+    return list(dict.fromkeys(names))
+
+
+def hypotheses(diagnosis: dict, kind: str) -> list[Hypothesis]:
+    """The hypotheses of a diagnosis (its JSON layout): the verdict's explanation and every
+    alias and stand-in, each with its parameters as fitted on all runs."""
+    by = {c["effect"]: c for c in diagnosis.get("ranking", [])}
+    cal = {p.field: p for p in get_kind(kind).calibration}
+    out = []
+    for name in _names(diagnosis):
+        if name not in by:
+            raise ConfigError(f"diagnosis: no fit of {name!r} in its ranking")
+        out.append(_hypothesis(by[name], cal))
+    return out
+
+
+def _hypothesis(c: dict, cal: dict) -> Hypothesis:
+    rec = c.get("recalibrated") or {}
+    fields = [(n, cal[n].where, bool(cal[n].positive)) for n in rec]
+    values = np.array([rec[n]["value"] for n in rec], float)
+    prior_sd = np.array([rec[n]["prior_sd"] for n in rec], float)
+    shift = c.get("recalibrated_shift") or {}
+    cov = np.asarray(shift.get("covariance") or np.zeros((len(rec), len(rec))), float)
+    params = c.get("parameters") or {}
+    ev = np.array([p["value"] for p in params.values()], float)
+    esd = np.array([p.get("stderr") or 0.0 for p in params.values()], float)
+    intervals = {n: {k: rec[n].get(k) for k in ("value", "ci95", "unit")} for n in rec}
+    intervals.update({n: {k: p.get(k) for k in ("value", "ci95", "unit")} for n, p in params.items()})
+    return Hypothesis(
+        c["effect"], fields, values, prior_sd, np.nan_to_num(cov), ev, np.nan_to_num(esd), intervals
+    )

@@ -1,0 +1,126 @@
+"""Each hypothesis's predicted logs under a protocol, with their spread over its parameters.
+
+The kind's public model (:func:`tcamlab.kinds.predict`, with an effect's
+:class:`~tcamlab.effects.Mods`) is evaluated on the protocol's exact inputs at draws of the
+hypothesis's parameters: its recalibrated parameters from the Gaussian of their fitted
+coordinates (:attr:`Hypothesis.cov_u`), its effect parameters from independent Gaussians of
+their standard errors (the diagnosis reports no effect-recalibration covariance), with a
+fixed seed. The first draw is the fit itself. A quantity whose zero each run profiles out
+(:attr:`tcamlab.kinds.Kind.nuisance_zeros`) has each run's mean removed, as the diagnosis
+scores it: a constant offset per run tells nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tcamlab.design.hypotheses import Hypothesis
+from tcamlab.diagnosis.problem import MODEL_ERRORS
+from tcamlab.kinds import get_kind
+from tcamlab.models import static as _static
+
+__all__ = ["Prediction", "predictive", "limits", "TEMPERATURE_LIMIT_C", "N_DRAWS"]
+
+N_DRAWS = 30
+"""Parameter draws per hypothesis and protocol (the first is the fit itself)."""
+
+TEMPERATURE_LIMIT_C = 170.0
+"""Highest temperature a protocol may take the coil to [degC] (input or predicted):
+:data:`tcamlab.kinds.static.MAX_OVEN_C`, the same for the Joule-heated coil."""
+
+
+@dataclass
+class Prediction:
+    """One hypothesis's predictions under one protocol, rows of every run stacked.
+
+    Attributes
+    ----------
+    mean, var : dict
+        Quantity -> mean [SI] and variance [SI^2] over the draws, per row.
+    point : dict
+        Quantity -> the prediction at the fit itself [SI], per row (no zero removed).
+    failed : float
+        Share of the draws where the model has no solution on the protocol [-].
+    """
+
+    mean: dict
+    var: dict
+    point: dict
+    failed: float
+
+
+def _draws(h: Hypothesis, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    u0 = h.u()
+    out = [(u0, h.effect_values)]
+    for _ in range(n - 1):
+        u = rng.multivariate_normal(u0, h.cov_u, method="eigh") if u0.size else u0
+        theta = h.effect_values + h.effect_sd * rng.standard_normal(h.effect_values.size)
+        out.append((u, theta))
+    return out
+
+
+def run_outputs(kind: str, sample, rig, mods, frames) -> list[dict]:
+    """The kind's outputs [SI] of each run's exact inputs (raises where the model has no solution)."""
+    k = get_kind(kind)
+    out = []
+    for data in frames:
+        opts = dict(k.run_options(sample, rig, data).options)
+        opts.update(k.variants[k.primary])
+        with np.errstate(all="ignore"):
+            pred = k.predict(sample, rig, data, mods, **opts)
+        if not all(np.all(np.isfinite(np.asarray(pred[q], float))) for q in k.outputs):
+            raise ValueError("non-finite prediction")
+        out.append(pred)
+    return out
+
+
+def _stack(kind: str, preds: list[dict], zero: bool) -> dict:
+    k = get_kind(kind)
+    out = {}
+    for q in k.outputs:
+        parts = [np.asarray(p[q], float) for p in preds]
+        if zero and q in k.nuisance_zeros:
+            parts = [x - x.mean() for x in parts]
+        out[q] = np.concatenate(parts)
+    return out
+
+
+def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_DRAWS, seed: int = 0):
+    """(:class:`Prediction`, the fit's per-run outputs) of hypothesis ``h`` on ``frames``, or
+    (None, reason) when the model has no solution at the fit itself."""
+    rows, point = [], None
+    for j, (u, theta) in enumerate(_draws(h, n_draws, seed)):
+        s, r, mods = h.at(u, theta, sample, rig, kind)
+        try:
+            preds = run_outputs(kind, s, r, mods, frames)
+        except (*MODEL_ERRORS, ValueError) as exc:
+            if j == 0:
+                return None, f"{h.name}: no solution ({str(exc).split(';')[0][:80]})"
+            continue
+        if j == 0:
+            point = preds
+        rows.append(_stack(kind, preds, True))
+    mean = {q: np.mean([r[q] for r in rows], axis=0) for q in rows[0]}
+    var = {q: np.var([r[q] for r in rows], axis=0, ddof=1) if len(rows) > 1 else 0 * mean[q] for q in mean}
+    failed = 1.0 - len(rows) / n_draws
+    return Prediction(mean, var, _stack(kind, point, False), failed), point
+
+
+def limits(kind: str, sample, frames, point: list[dict]) -> str | None:
+    """Why a protocol is out of bounds for a hypothesis's fit, or None: a temperature above
+    :data:`TEMPERATURE_LIMIT_C` (input or predicted), or a static coil contracted shut (its
+    length down to the solid length of its coils, n d0)."""
+    temps = [x for f, p in zip(frames, point) for x in (f.get("temperature"), p.get("temperature"))]
+    hottest = max((float(np.max(np.asarray(t, float))) for t in temps if t is not None), default=-np.inf)
+    if hottest > TEMPERATURE_LIMIT_C:
+        return f"{hottest:.0f} degC, above the {TEMPERATURE_LIMIT_C:.0f} degC limit"
+    if kind == "static":
+        n = float(_static.n_coils(sample.fiber_length, sample.coil_length, sample.coil_diameter))
+        room = sample.coil_length - n * sample.fiber_diameter
+        squeeze = max(float(np.max(np.abs(np.asarray(p["displacement"], float)))) for p in point)
+        if squeeze >= room:
+            return f"the coil closes ({squeeze * 1e3:.2f} mm of {room * 1e3:.2f} mm)"
+    return None

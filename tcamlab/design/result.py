@@ -1,0 +1,117 @@
+"""Typed results of the design: each candidate protocol scored, and the choice."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from tcamlab.jsonutil import to_jsonable
+
+__all__ = ["CandidateProtocol", "DesignResult", "SCHEMA_VERSION"]
+
+SCHEMA_VERSION = 1
+"""Version of the :meth:`DesignResult.to_dict` layout."""
+
+
+@dataclass
+class CandidateProtocol:
+    """One protocol of the kind's menu, scored.
+
+    Attributes
+    ----------
+    name : str
+        What it changes, in words.
+    table : dict
+        Its ``[protocol]`` table.
+    runs : int
+        Runs it makes.
+    minutes : float
+        Rig time [min].
+    separation : float
+        min over pairs of hypotheses of D_ij [-] (:mod:`tcamlab.design.score`); NaN when
+        out of bounds.
+    log_bayes_factor : float
+        Expected log Bayes factor of the hardest pair, separation / 2 [-].
+    per_hour : float
+        Separation per hour of rig time [1/h].
+    pairs : dict
+        "A vs B" -> D_ij [-].
+    max_difference : dict
+        "A vs B" -> {quantity: largest |mean_A - mean_B| over the rows [SI]}.
+    feasible : bool
+        Within the limits for every hypothesis.
+    limit : str
+        Why not, or "".
+    """
+
+    name: str
+    table: dict
+    runs: int
+    minutes: float
+    separation: float
+    log_bayes_factor: float
+    per_hour: float
+    pairs: dict
+    max_difference: dict
+    feasible: bool = True
+    limit: str = ""
+
+    def to_dict(self) -> dict:
+        return to_jsonable(dict(self.__dict__))
+
+
+@dataclass
+class DesignResult:
+    """Outcome of :func:`tcamlab.design.design`.
+
+    Attributes
+    ----------
+    kind : str
+    experiment : str
+        The experiment's name.
+    status : str
+        ``ambiguous`` (hypotheses to separate), ``clear`` or ``none`` (nothing to separate).
+    verdict : str
+        The diagnosis's verdict.
+    hypotheses : list of dict
+        Each hypothesis's name and fitted parameters {value, ci95, unit} [SI].
+    noise : dict
+        Quantity -> noise floor sd [SI] used in the criterion.
+    candidates : list of CandidateProtocol
+        Best first (separation per hour; out-of-bounds last).
+    best : CandidateProtocol or None
+        The protocol to run next (None when nothing needs separating).
+    criterion : str
+        The criterion, in words.
+    message : str
+        One sentence for the lab.
+    """
+
+    kind: str
+    experiment: str
+    status: str
+    verdict: str
+    hypotheses: list
+    noise: dict
+    candidates: list = field(default_factory=list)
+    best: CandidateProtocol | None = None
+    criterion: str = ""
+    message: str = ""
+    settings: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return to_jsonable(
+            {
+                "schema_version": SCHEMA_VERSION,
+                "kind": self.kind,
+                "experiment": self.experiment,
+                "status": self.status,
+                "verdict": self.verdict,
+                "message": self.message,
+                "criterion": self.criterion,
+                "hypotheses": self.hypotheses,
+                "noise": self.noise,
+                "best": self.best.name if self.best is not None else None,
+                "candidates": [c.to_dict() for c in self.candidates],
+                "settings": self.settings,
+            }
+        )

@@ -1,0 +1,55 @@
+"""Expected separation of hypotheses under a protocol.
+
+Criterion: for each pair of hypotheses (i, j),
+
+    D_ij = sum over predicted rows and quantities of (m_i - m_j)^2 / (s^2 + v_i + v_j)
+
+with m and v the mean and variance of a hypothesis's predictions over draws of its fitted
+parameters, and s the diagnosis's noise floor of that quantity. It is the T-optimality
+criterion of Atkinson & Fedorov (1975) for discriminating between rival models (the squared
+distance of one model's predictions from the other's), with each model's predictive variance
+added to the noise in the denominator so that a difference the current fits cannot pin down
+counts for less. For two Gaussian predictive distributions that differ mainly in the mean,
+D_ij / 2 is the expected log Bayes factor in favour of the true one after the new runs. A
+protocol separates as well as its hardest pair: min over pairs of D_ij.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+__all__ = ["pair_separation", "separation"]
+
+
+def pair_separation(mean_i, var_i, mean_j, var_j, noise_var) -> float:
+    """D_ij of two hypotheses' predictions [-].
+
+    Parameters
+    ----------
+    mean_i, mean_j : array_like
+        Predicted means per row [SI].
+    var_i, var_j : array_like
+        Predictive variances per row from the parameter draws [SI^2].
+    noise_var : array_like or float
+        Noise floor variance per row [SI^2].
+    """
+    d2 = (np.asarray(mean_i, float) - np.asarray(mean_j, float)) ** 2
+    den = np.asarray(noise_var, float) + np.asarray(var_i, float) + np.asarray(var_j, float)
+    return float(np.sum(d2 / den))
+
+
+def separation(means: list, variances: list, noise_var) -> tuple[float, np.ndarray]:
+    """(min over pairs of D_ij, the matrix D) of several hypotheses' predictions [-].
+
+    ``means`` and ``variances``: one array per hypothesis, the same rows in each (noise
+    normalisation by ``noise_var`` [SI^2], per row). One hypothesis alone: (inf, [[0]]).
+    """
+    k = len(means)
+    D = np.zeros((k, k))
+    for i, j in itertools.combinations(range(k), 2):
+        D[i, j] = D[j, i] = pair_separation(means[i], variances[i], means[j], variances[j], noise_var)
+    if k < 2:
+        return float("inf"), D
+    return float(min(D[i, j] for i, j in itertools.combinations(range(k), 2))), D

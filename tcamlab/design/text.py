@@ -1,0 +1,53 @@
+"""The design's result as a few lines of text (the CLI's table)."""
+
+from __future__ import annotations
+
+import math
+
+from tcamlab.units import display
+
+__all__ = ["design_lines"]
+
+
+def _diff(c) -> str:
+    """Largest predicted difference of the hardest pair, in display units."""
+    if not c.pairs:
+        return "-"
+    pair = min(c.pairs, key=c.pairs.get)
+    parts = []
+    for q, v in c.max_difference[pair].items():
+        unit, fac = display(q)
+        parts.append(f"{q} {v * fac:.3f} {unit}")
+    return ", ".join(parts)
+
+
+def design_lines(result) -> list[str]:
+    """Headline, hypotheses, then one line per protocol (best first)."""
+    lines = [f"{result.experiment}: {result.message}"]
+    if not result.candidates:
+        return lines
+    lines.append("hypotheses: " + "; ".join(_hypothesis(h) for h in result.hypotheses))
+    head = f"{'protocol':30s} {'separation':>10s} {'log BF':>7s} {'runs':>4s} {'min':>6s} {'per h':>6s}  max difference"
+    lines += [head, "-" * len(head)]
+    for c in result.candidates:
+        mark = "*" if result.best is not None and c.name == result.best.name else " "
+        if not c.feasible:
+            lines.append(f"{mark}{c.name:29s} {'out of bounds':>10s}  {c.limit}")
+            continue
+        sep = "inf" if math.isinf(c.separation) else f"{c.separation:.1f}"
+        lines.append(
+            f"{mark}{c.name:29s} {sep:>10s} {c.log_bayes_factor:7.1f} {c.runs:4d} {c.minutes:6.0f} "
+            f"{c.per_hour:6.2f}  {_diff(c)}"
+        )
+    return lines
+
+
+def _hypothesis(h: dict) -> str:
+    parts = []
+    for name, p in h["parameters"].items():
+        lo, hi = (p.get("ci95") or [None, None])[:2]
+        if p.get("value") is None:
+            continue
+        ci = f" ({lo:.3g} to {hi:.3g})" if lo is not None and hi is not None else ""
+        parts.append(f"{name} {p['value']:.3g}{ci} {p.get('unit') or ''}".rstrip())
+    return f"{h['name']}: " + ", ".join(parts)

@@ -1,0 +1,55 @@
+"""The protocol file: ``NAME.next.toml``, the experiment's sample and rig with a ``[protocol]``
+table the lab follows and the virtual rig runs (:func:`tcamlab.rig.simulate`)."""
+
+from __future__ import annotations
+
+from tcamlab.config import dumps_toml
+
+__all__ = ["protocol_toml", "KEY_DOCS", "COPIED"]
+
+COPIED = ("kind", "title", "notes", "runs", "sample", "rig", "columns")
+"""Top-level keys copied from the experiment file (``runs``: its runs so far; add the new
+runs' files there once they are made)."""
+
+KEY_DOCS = {
+    "kind": "rig kind the protocol is for",
+    "loads_g": "hanging loads [g]; runs cycle through them (static)",
+    "oven": '"heating" (set points up) or "heat-cool" (up, then back down) (static)',
+    "temperature_C": "first and last oven set point [degC] (static)",
+    "step_C": "oven set point step [degC] (static)",
+    "dwell_s": "dwell at each set point before the reading [s] (static)",
+    "voltages_V": "step voltages [V]; runs cycle through them (dynamic)",
+    "pulse_s": "length of each voltage pulse [s] (dynamic)",
+    "pulses": "pulses per run, a train when above 1 (dynamic)",
+    "period_s": "start-to-start time of the pulses of a train [s] (dynamic)",
+    "duration_s": "logged duration of a run [s] (dynamic)",
+    "runs": "runs to make",
+    "channels": "columns to log, as the experiment's CSV headers",
+}
+"""What each ``[protocol]`` key means, with its unit (written as a comment beside it)."""
+
+
+def _value(v) -> str:
+    line = dumps_toml({"x": v}).strip()
+    return line.split("=", 1)[1].strip()
+
+
+def protocol_toml(raw: dict, table: dict, header: str) -> str:
+    """The text of a protocol file.
+
+    Parameters
+    ----------
+    raw : dict
+        The experiment file as parsed (:attr:`tcamlab.config.Experiment.raw`).
+    table : dict
+        The ``[protocol]`` table.
+    header : str
+        Comment lines at the top (why this protocol).
+    """
+    doc = {k: raw[k] for k in COPIED if k in raw}
+    body = dumps_toml(doc)
+    lines = ["[protocol]"]
+    for k, v in table.items():
+        lines.append(f"{k} = {_value(v)}  # {KEY_DOCS.get(k, '')}".rstrip(" #"))
+    top = "".join(f"# {x}".rstrip() + "\n" for x in header.splitlines())
+    return top + "\n" + body.rstrip() + "\n\n" + "\n".join(lines) + "\n"
