@@ -101,44 +101,71 @@ class Sample:
         return kw
 
 
+def _key(name: str, value) -> str:
+    """``coil_length_mm = 95``: an SI field as its experiment-file key and value."""
+    key, factor = next((k, f) for k, (si, f) in SAMPLE_KEYS.items() if si == name)
+    if isinstance(value, (int, float)) and math.isfinite(value):
+        return f"{key} = {value / factor:g}"
+    return f"{key} = {value!r}"
+
+
+def _coil_problems(s: Sample) -> list[str]:
+    """What makes a sample no coil: no twist, a coil as long as its fiber, or no wider than it."""
+    out = []
+    if isinstance(s.twists, (int, float)) and s.twists == 0:
+        out.append(_key("twists", s.twists))
+    if _finite_positive(s.coil_length) and _finite_positive(s.fiber_length) and s.coil_length >= s.fiber_length:
+        out.append(f"{_key('coil_length', s.coil_length)} not shorter than {_key('fiber_length', s.fiber_length)}")
+    if (
+        _finite_positive(s.coil_diameter)
+        and _finite_positive(s.fiber_diameter)
+        and s.coil_diameter <= s.fiber_diameter
+    ):
+        out.append(
+            f"{_key('coil_diameter', s.coil_diameter)} does not exceed {_key('fiber_diameter', s.fiber_diameter)}"
+        )
+    return out
+
+
+def _finite_positive(value) -> bool:
+    return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
+
+
 def validate_sample(s: Sample, where: str = "[sample]") -> None:
-    """Raise :class:`ConfigError` when a sample is physically impossible."""
+    """Raise :class:`ConfigError` when a sample is physically impossible, or no coil (outside the
+    models' scope), naming every key at fault in one message."""
+    coil = _coil_problems(s)
     positive = (
-        "fiber_diameter",
-        "fiber_length",
-        "coil_length",
-        "coil_diameter",
-        "twists",
-        "youngs_modulus",
-        "thread_plies",
-        "max_volume_fraction",
-    )
-    for name in positive:
-        value = getattr(s, name)
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ConfigError(
-                f"{where}: {name} = {value!r} must be a positive finite number",
-                hint="check the unit in the key name",
-            )
-    if s.max_volume_fraction > 1:
-        raise ConfigError(
-            f"{where}: max_volume_fraction = {s.max_volume_fraction} exceeds 1",
-            hint="a volume fraction lies between 0 and 1",
-        )
-    if s.coil_length >= s.fiber_length:
-        raise ConfigError(
-            f"{where}: coil_length ({s.coil_length * 1e3:g} mm) is not shorter than "
-            f"fiber_length ({s.fiber_length * 1e3:g} mm), so sin(alpha0) = L/l >= 1",
-            hint="a coil is made from a longer twisted fiber; check both lengths",
-        )
-    if s.coil_diameter <= s.fiber_diameter:
-        raise ConfigError(
-            f"{where}: coil_diameter ({s.coil_diameter * 1e3:g} mm) must exceed "
-            f"fiber_diameter ({s.fiber_diameter * 1e3:g} mm)",
-            hint="coil_diameter is the outside diameter of the coil",
-        )
+        "fiber_diameter", "fiber_length", "coil_length", "coil_diameter",
+        "twists", "youngs_modulus", "thread_plies", "max_volume_fraction",
+    )  # fmt: skip
+    bad = [
+        f"{_key(n, getattr(s, n))} must be a positive finite number"
+        for n in positive
+        if not _finite_positive(getattr(s, n)) and not (n == "twists" and coil and s.twists == 0)
+    ]
+    if _finite_positive(s.max_volume_fraction) and s.max_volume_fraction > 1:
+        bad.append(f"{_key('max_volume_fraction', s.max_volume_fraction)} exceeds 1 (a volume fraction)")
     if not math.isfinite(s.radial_cte) or not math.isfinite(s.shear_modulus_slope):
-        raise ConfigError(f"{where}: radial_cte and shear_modulus_slope must be finite")
+        bad.append("radial_cte_per_K and shear_modulus_slope_MPa_per_K must be finite")
+    if len(coil) >= 2 or (coil and s.twists == 0):
+        rest = f"; also {'; '.join(bad)}" if bad else ""
+        raise ConfigError(
+            f"{where}: not a coiled sample ({'; '.join(coil)}){rest}: tcamlab's models describe "
+            "twisted-and-coiled samples only, so a straight fiber is outside their scope",
+            hint="a coiled sample has twists > 0, coil_length_mm < fiber_length_mm and "
+            "coil_diameter_mm > fiber_diameter_mm",
+        )
+    problems = bad + [
+        p.replace("does not exceed", "must exceed") + (", so sin(alpha0) = L/l >= 1" if "shorter" in p else "")
+        for p in coil
+    ]
+    if problems:
+        raise ConfigError(
+            f"{where}: " + "; ".join(problems),
+            hint="give each key in the unit its name ends in (mm, GPa), e.g. coil_length_mm = 20; "
+            "a coil is made from a longer twisted fiber and is wider than it",
+        )
 
 
 @dataclass(frozen=True)

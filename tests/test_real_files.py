@@ -179,3 +179,22 @@ def test_init_checks_a_strain_sign_against_the_data(tmp_path, sign, scale):
     assert scale in line and "as the temperature rises" in line
     assert "sign of displacement_mm" in res.output
     assert "positive when the sample gets longer" in res.output
+
+
+# --- a straight fiber is outside the models' scope: one message, every key ----------------
+
+
+def test_a_straight_fiber_gets_one_message_naming_its_scope_and_every_key(tmp_path):
+    text = (ROOT / "experiments" / "static.toml").read_text().replace('"../raw/', f'"{ROOT}/raw/')
+    text = text.replace("twists = 150.0", "twists = 0").replace("coil_length_mm = 20.0", "coil_length_mm = 95.0")
+    text = text.replace("coil_diameter_mm = 0.36", "coil_diameter_mm = 0.17")
+    (tmp_path / "straight.toml").write_text(text)
+    res = runner.invoke(app, ["check", str(tmp_path / "straight.toml")])
+    assert res.exit_code == 2
+    problems = [ln for ln in res.output.splitlines() if ln.startswith("problem:")]
+    assert len(problems) == 1, res.output
+    line = problems[0]
+    assert "not a coiled sample" in line and "outside their scope" in line
+    for key in ("twists = 0", "coil_length_mm = 95", "fiber_length_mm = 95", "coil_diameter_mm = 0.17"):
+        assert key in line
+    assert "check the unit in the key name" not in line
