@@ -54,9 +54,12 @@ class Prediction:
 def _draws(h: Hypothesis, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
     rng = np.random.default_rng(seed)
     u0 = h.u()
+    # the covariance's square root by eigendecomposition, rounding's negative eigenvalues clipped
+    w, vecs = np.linalg.eigh((h.cov_u + h.cov_u.T) / 2.0) if u0.size else (np.zeros(0), np.zeros((0, 0)))
+    root = vecs * np.sqrt(np.clip(w, 0.0, None))
     out = [(u0, h.effect_values)]
     for _ in range(n - 1):
-        u = rng.multivariate_normal(u0, h.cov_u, method="eigh") if u0.size else u0
+        u = u0 + root @ rng.standard_normal(u0.size)
         theta = h.effect_values + h.effect_sd * rng.standard_normal(h.effect_values.size)
         out.append((u, theta))
     return out
