@@ -580,6 +580,12 @@ class RunData:
         columns, and the resampling.
     join_path : pathlib.Path or None
         The second instrument's file of a joined run.
+    dropped : dict of str to int
+        Every row not kept, by why: ``"blank cells"`` (``drop_na``), ``"outside the joined
+        file's time span"``, ``"blank cells in <joined file>"``; empty when none was.
+    columns : dict of str to dict
+        The ``[columns]`` mapping as applied: canonical column -> ``from`` (header or column
+        number), ``unit``, ``scale``, ``offset`` (and ``file`` for a joined column).
     """
 
     path: Path
@@ -595,6 +601,23 @@ class RunData:
     source_units: dict[str, str] = field(default_factory=dict)
     join: dict | None = None
     join_path: Path | None = None
+    dropped: dict[str, int] = field(default_factory=dict)
+    columns: dict[str, dict] = field(default_factory=dict)
+
+    @property
+    def n_dropped_total(self) -> int:
+        """Rows dropped for any reason (:attr:`dropped`)."""
+        return int(sum(self.dropped.values()))
+
+
+def _mapping(selected: dict, file: str | None = None) -> dict[str, dict]:
+    """The ``[columns]`` entries as applied to the selected columns (see :attr:`RunData.columns`)."""
+    out = {}
+    for name, (spec, _) in selected.items():
+        entry = {"from": spec.header, "unit": "datetime" if spec.clock else spec.unit}
+        entry |= {"scale": float(spec.scale), "offset": float(spec.offset)}
+        out[INTERNAL_TO_CANONICAL[name]] = entry | ({"file": file} if file else {})
+    return out
 
 
 def input_files(run: RunData) -> list[tuple[str, Path, str]]:
@@ -1374,7 +1397,7 @@ def _join(data: dict, where: _Where, kind: str, join: Mapping[str, Any], drop_na
             "map the run's time in [columns]; the two files are joined on time",
         )
     offset = float(join.get("offset_s", 0.0))
-    jdata, jwhere, _, jsel, _, _ = _read_columns(
+    jdata, jwhere, _, jsel, _, jblank = _read_columns(
         jp, jshown, kind, join.get("columns"), drop_na, max_bytes, ("time_s", *joined), ("time_s", *joined)
     )
     _check_values(jdata, kind, jwhere, 0)
@@ -1398,6 +1421,7 @@ def _join(data: dict, where: _Where, kind: str, join: Mapping[str, Any], drop_na
         "offset_s": offset,
         "overlap_s": [float(data["time"][0]), float(data["time"][-1])],
         "rows_outside_overlap": int((~inside).sum()),
+        "blank_rows_dropped": int(jblank),
         "joined_rows": int(tj.size),
         "columns": [VARIABLE_MAP[c][0] for c in joined],
         "resampling": "linear interpolation onto the run's time",
@@ -1438,6 +1462,11 @@ def _read_run(
         _check_pull_force(shown, data, selected)
     frame = pd.DataFrame(data)
     frame.index = pd.RangeIndex(len(frame))
+    dropped = {"blank cells": n_dropped} if n_dropped else {}
+    if record and record["rows_outside_overlap"]:
+        dropped["outside the joined file's time span"] = record["rows_outside_overlap"]
+    if record and record["blank_rows_dropped"]:
+        dropped[f"blank cells in {record['file']}"] = record["blank_rows_dropped"]
     return RunData(
         path=p,
         kind=kind,
@@ -1456,6 +1485,9 @@ def _read_run(
         source_units={name: _how_read(spec) for name, (spec, _) in (selected | jsel).items()},
         join=record,
         join_path=Path(join["file"]) if join else None,
+        dropped=dropped,
+        columns=_mapping({n: v for n, v in selected.items() if n not in jsel})
+        | _mapping(jsel, record["file"] if record else None),
     )
 
 

@@ -239,7 +239,9 @@ class ValidationResult:
                     "path": relative_to(r.path, exp.path.parent),
                     "sha256": r.sha256,
                     "rows": int(len(r.data)),
-                    "dropped_rows": int(r.n_dropped),
+                    "dropped_rows": r.n_dropped_total,
+                    "dropped": dict(r.dropped),
+                    "columns": r.columns,
                 }
                 | _joined_input(r, exp.path.parent)
                 for r in self.runs

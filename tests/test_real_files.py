@@ -198,3 +198,26 @@ def test_a_straight_fiber_gets_one_message_naming_its_scope_and_every_key(tmp_pa
     for key in ("twists = 0", "coil_length_mm = 95", "fiber_length_mm = 95", "coil_diameter_mm = 0.17"):
         assert key in line
     assert "check the unit in the key name" not in line
+
+
+# --- the [columns] mapping and every dropped row reach metrics.json and the report ---------
+
+
+def test_join_drops_and_the_mapping_are_recorded_and_shown(tmp_path):
+    from tests.test_io import two_clock_lab
+
+    exp = two_clock_lab(tmp_path, 2.0)  # the laser's first 20 rows precede the logger's
+    rig = 'preset = "thesis-tca"\n[rig]\nload_g = 50\nambient_C = 20\n'
+    exp.write_text(exp.read_text().replace('preset = "thesis-tca"\n', rig))
+    res = runner.invoke(app, ["validate", str(exp), "--out", str(tmp_path / "out"), "--format", "html"])
+    assert res.exit_code in (0, 1), res.output
+    metrics = json.loads(next((tmp_path / "out").rglob("metrics.json")).read_text())
+    (inp,) = metrics["inputs"]
+    assert inp["dropped_rows"] == 20
+    assert inp["dropped"] == {"outside the joined file's time span": 20}
+    mapped = {"from": "Position (mm)", "unit": "mm", "scale": 1.0, "offset": 0.0}
+    assert inp["columns"]["displacement_mm"] == mapped
+    assert inp["columns"]["temperature_C"]["file"].endswith("tc.csv")
+    html = next((tmp_path / "out").rglob("*.html")).read_text()
+    assert "20 (20 outside the joined file&#39;s time span)" in html
+    assert "Position (mm)" in html and "[columns] mapping" in html

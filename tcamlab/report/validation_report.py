@@ -89,11 +89,34 @@ def input_table(runs, start=None) -> Table:
     return Table(
         ["file", "rows", "dropped rows", "SHA-256"],
         [
-            [shown(path), len(r.data) if role == "run" else f"joined to {shown(r.path)}", r.n_dropped, sha]
+            [shown(path), len(r.data) if role == "run" else f"joined to {shown(r.path)}", _dropped(r, role), sha]
             for r in runs
             for role, path, sha in input_files(r)
         ],
         caption="Input files, relative to the experiment file (raw data is never modified)",
+    )
+
+
+def _dropped(run, role: str) -> str:
+    """A run's dropped rows with why (blank cells, outside a joined file's span); '' on a joined file's line."""
+    if role != "run":
+        return ""
+    why = ", ".join(f"{n} {reason}" for reason, n in run.dropped.items())
+    return f"{run.n_dropped_total} ({why})" if why else "0"
+
+
+def mapping_table(runs, start=None) -> Table:
+    """The ``[columns]`` mapping each run was read with: file header -> canonical column, unit, scale, offset."""
+    rows = []
+    for r in runs:
+        name = r.path.name if start is None else relative_to(r.path, start)
+        for canon, e in r.columns.items():
+            source = f"{e['file']}: {e['from']}" if "file" in e else str(e["from"])
+            rows.append([name, canon, source, e["unit"], f"{e['scale']:g}", f"{e['offset']:g}"])
+    return Table(
+        ["run", "column", "from", "unit", "scale", "offset"],
+        rows,
+        caption="[columns] mapping: value = convert(raw * scale + offset, unit)",
     )
 
 
@@ -358,7 +381,12 @@ def validation_document(result, *, command: str | None = None) -> Document:
     if extra:
         sections.append(extra)
     sections.append(Section("Parameters", tables=[parameter_table(exp, result)]))
-    sections.append(Section("Inputs", tables=[input_table(result.runs, exp.path.parent)]))
+    sections.append(
+        Section(
+            "Inputs",
+            tables=[input_table(result.runs, exp.path.parent), mapping_table(result.runs, exp.path.parent)],
+        )
+    )
     metadata = {"tool": f"tcamlab {__version__}", "experiment file": exp.path.name, "kind": exp.kind}
     metadata["sha256 " + exp.path.name] = sha256_file(exp.path)
     if command:
