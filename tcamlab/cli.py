@@ -836,10 +836,12 @@ def design(
     if as_json:
         _print_json(outcome.result.to_dict())
         return
+    from tcamlab.text import shown_path
+
     for line in design_lines(outcome.result):
         typer.echo(line)
     for f in outcome.files:
-        typer.echo(f"wrote {f}")
+        typer.echo(f"wrote {shown_path(f)}")
 
 
 # -- benchmark --------------------------------------------------------------------------
