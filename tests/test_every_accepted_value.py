@@ -149,6 +149,7 @@ def _property(kind: str, examples: int):
     return check
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "kind, table, key, value",
     [
