@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from tcamlab.cli import app
 from tcamlab.config import load_experiment
 from tcamlab.design import design, protocol_toml
-from tcamlab.design.score import pair_separation, separation
+from tcamlab.design.score import pair_separation, refit_separation, separation
 from tcamlab.kinds import dynamic, static
 from tcamlab.models import static as static_model
 from tcamlab.rig import simulate
@@ -110,6 +110,16 @@ def test_pair_separation_by_hand():
     assert worst == pytest.approx(0.25) and D[0, 1] == pytest.approx(9.0) and D[1, 2] == pytest.approx(6.25)
 
 
+def test_refit_separation_by_hand():
+    # i: two rows at 1, no spread; j: rows at 0 with draws 0 +- 1 moving both rows together.
+    # R = z^T (I + A A^T)^-1 z with z = (1, 1), A = [[1, -1], [1, -1]]: 2 / (1 + 4) = 0.4;
+    # the diagonal D sees only var_j = 2 per row: 2 x 1 / (1 + 2)
+    i = np.array([[1.0, 1.0]])
+    j = np.array([[1.0, 1.0], [-1.0, -1.0]])
+    assert refit_separation(i, j, 1.0) == pytest.approx(0.4)
+    assert pair_separation(i.mean(0), 0.0, j.mean(0), j.var(0, ddof=1), 1.0) == pytest.approx(2 / 3)
+
+
 def test_static_menu_stays_where_g_is_positive():
     exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
     for slope in (exp.sample.shear_modulus_slope, 1.6 * exp.sample.shear_modulus_slope):
@@ -148,6 +158,7 @@ def test_design_ranks_a_second_load_above_a_repeat_on_an_aliased_static_case():
     by = {c.name: c for c in res.candidates}
     assert res.status == "ambiguous" and res.best is not None
     assert len(res.best.table["loads_g"]) == 2
+    assert by["second load 1.5x"].separation_refit > by["repeat (same protocol)"].separation_refit
     for other in ("repeat (same protocol)", "longer dwell 900 s"):
         assert by["second load 1.5x"].per_hour > by[other].per_hour
         assert by["second load 1.5x"].separation > by[other].separation

@@ -43,12 +43,15 @@ class Prediction:
         Quantity -> the prediction at the fit itself [SI], per row (no zero removed).
     failed : float
         Share of the draws where the model has no solution on the protocol [-].
+    draws : dict
+        Quantity -> every successful draw's predictions [SI], shape (draws, rows).
     """
 
     mean: dict
     var: dict
     point: dict
     failed: float
+    draws: dict
 
 
 def _draws(h: Hypothesis, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -106,10 +109,11 @@ def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_D
         if j == 0:
             point = preds
         rows.append(_stack(kind, preds, True))
-    mean = {q: np.mean([r[q] for r in rows], axis=0) for q in rows[0]}
+    draws = {q: np.array([r[q] for r in rows]) for q in rows[0]}
+    mean = {q: d.mean(axis=0) for q, d in draws.items()}
     var = {q: np.var([r[q] for r in rows], axis=0, ddof=1) if len(rows) > 1 else 0 * mean[q] for q in mean}
     failed = 1.0 - len(rows) / n_draws
-    return Prediction(mean, var, _stack(kind, point, False), failed), point
+    return Prediction(mean, var, _stack(kind, point, False), failed, draws), point
 
 
 def limits(kind: str, sample, frames, point: list[dict]) -> str | None:

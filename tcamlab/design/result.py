@@ -54,6 +54,11 @@ class CandidateProtocol:
     max_difference: dict
     feasible: bool = True
     limit: str = ""
+    separation_refit: float = float("nan")
+    """min over pairs of R_ij [-]: the separation with each hypothesis refitted to the new
+    runs under its current posterior (:func:`tcamlab.design.score.refit_separation`)."""
+    refit: dict = field(default_factory=dict)
+    """"A vs B" -> R_ij [-]."""
 
     def to_dict(self) -> dict:
         return to_jsonable(dict(self.__dict__))

@@ -27,7 +27,10 @@ def design_lines(result) -> list[str]:
     if not result.candidates:
         return lines
     lines.append("hypotheses: " + "; ".join(_hypothesis(h) for h in result.hypotheses))
-    head = f"{'protocol':30s} {'separation':>10s} {'log BF':>7s} {'runs':>4s} {'min':>6s} {'per h':>6s}  max difference"
+    head = (
+        f"{'protocol':30s} {'separation':>10s} {'log BF':>7s} {'refitted':>8s} {'runs':>4s} {'min':>6s} "
+        f"{'per h':>6s}  max difference"
+    )
     lines += [head, "-" * len(head)]
     for c in result.candidates:
         mark = "*" if result.best is not None and c.name == result.best.name else " "
@@ -36,7 +39,7 @@ def design_lines(result) -> list[str]:
             continue
         sep = "inf" if math.isinf(c.separation) else f"{c.separation:.1f}"
         lines.append(
-            f"{mark}{c.name:29s} {sep:>10s} {c.log_bayes_factor:7.1f} {c.runs:4d} {c.minutes:6.0f} "
+            f"{mark}{c.name:29s} {sep:>10s} {c.log_bayes_factor:7.1f} {c.separation_refit:8.2f} {c.runs:4d} {c.minutes:6.0f} "
             f"{c.per_hour:6.2f}  {_diff(c)}"
         )
     return lines
