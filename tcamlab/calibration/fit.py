@@ -17,11 +17,11 @@ from tcamlab.calibration.problem import CalibrationProblem
 
 __all__ = ["CHI2_95", "MapFit", "Profile", "map_fit", "solve", "laplace_covariance", "profile_interval"]
 
-CHI2_95 = 3.841458820694124
-"""95 % quantile of chi-square with one degree of freedom."""
-
 Z95 = 1.959963984540054
-"""sqrt(CHI2_95): the signed-root target of the profile search."""
+"""norm.ppf(0.975): the signed-root target of the profile search and the Laplace intervals' z."""
+
+CHI2_95 = Z95**2
+"""95 % quantile of chi-square with one degree of freedom (Z95 squared, so the two cannot drift)."""
 
 PROFILE_TOL = 0.05
 """Stop the profile search when the signed root is within this of :data:`Z95`."""

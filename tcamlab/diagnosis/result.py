@@ -195,7 +195,8 @@ class CandidateResult:
     ``*_noise`` are the same in noise-floor multiples; ``by_quantity`` gives
     each quantity in its own display unit. ``shrinkage`` = 1 - after/before
     (noise-normalised), ``fraction_closed`` = (before^2 - after^2) /
-    (before^2 - 1) in noise units.
+    (before^2 - floor^2) in noise units, where floor^2 = (N - R) / N is the squared
+    RMSE/noise that N points leave after R fitted zeros (1 without zeros).
     """
 
     effect: str
