@@ -198,3 +198,22 @@ def test_cli_refuses_to_overwrite_the_protocol_file(tmp_path):
     assert result.exit_code == 2
     assert len(result.output.strip().splitlines()) == 1 and "exists" in result.output
     assert target.read_text() == "# mine\n"
+
+
+def test_cli_writes_the_protocol_file_and_design_json(tmp_path):
+    exp = simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path).experiment_path
+    diag = tmp_path / "diagnosis.json"
+    diag.write_text(json.dumps(ALIASED), encoding="utf-8")
+    result = CliRunner().invoke(
+        app, ["design", str(exp), "--diagnosis", str(diag), "--out", str(tmp_path / "rep")]
+    )
+    assert result.exit_code == 0, result.output
+    assert "separation" in result.output and "out of bounds" in result.output
+    written = load_experiment(exp.with_name(exp.stem + ".next.toml"))
+    assert len(written.raw["protocol"]["loads_g"]) == 2 and written.runs == load_experiment(exp).runs
+    saved = json.loads((tmp_path / "rep" / exp.stem / "design.json").read_text())
+    assert (
+        saved["status"] == "ambiguous"
+        and saved["best"]
+        == result.output.split(":")[1].split(" separates")[0].split(" is expected")[0].strip()
+    )
