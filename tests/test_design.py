@@ -212,8 +212,4 @@ def test_cli_writes_the_protocol_file_and_design_json(tmp_path):
     written = load_experiment(exp.with_name(exp.stem + ".next.toml"))
     assert len(written.raw["protocol"]["loads_g"]) == 2 and written.runs == load_experiment(exp).runs
     saved = json.loads((tmp_path / "rep" / exp.stem / "design.json").read_text())
-    assert (
-        saved["status"] == "ambiguous"
-        and saved["best"]
-        == result.output.split(":")[1].split(" separates")[0].split(" is expected")[0].strip()
-    )
+    assert saved["status"] == "ambiguous" and f"*{saved['best']}" in result.output
