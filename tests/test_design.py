@@ -168,6 +168,8 @@ def test_clear_diagnosis_needs_no_experiment():
     exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
     res = design(exp, {**ALIASED, "verdict": "attributed", "effect": "glass-transition", "aliased_with": []})
     assert res.status == "clear" and res.best is None and "no further experiment" in res.message
+    res = design(exp, {**ALIASED, "verdict": "unexplained", "aliased_with": []})
+    assert res.status == "unexplained" and res.best is None and "outside the library" in res.message
 
 
 def test_protocol_file_round_trips_through_the_rig(tmp_path):

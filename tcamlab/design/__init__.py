@@ -104,6 +104,8 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
 def _clear_message(diagnosis: dict, st: str) -> str:
     if st == "none":
         return "the thesis model fits within the noise: no further experiment is needed"
+    if st == "unexplained":
+        return "no candidate explains the gap, so there are no hypotheses to separate: an effect outside the library is needed, not another protocol"
     what = diagnosis.get("effect") or diagnosis.get("verdict")
     return f"the diagnosis is clear ({diagnosis.get('verdict')}: {what}); no further experiment is needed to tell hypotheses apart"
 

@@ -81,11 +81,14 @@ def _to_u(value: float, prior_sd: float, positive: bool) -> float:
 
 
 def status(diagnosis: dict) -> str:
-    """``"ambiguous"`` when the diagnosis left hypotheses it could not tell apart, ``"clear"``
-    when it named one explanation (or the model has no gap: ``"none"``)."""
-    if diagnosis.get("verdict") == "none":
-        return "none"
-    return "ambiguous" if diagnosis.get("aliased_with") else "clear"
+    """``"ambiguous"`` when the diagnosis left hypotheses it could not tell apart (aliases or
+    stand-ins), ``"clear"`` when it named one explanation, ``"none"`` (no gap) or
+    ``"unexplained"`` (no candidate explains the gap: nothing to separate)."""
+    verdict = diagnosis.get("verdict")
+    if verdict in ("none", "unexplained"):
+        return str(verdict)
+    stand_ins = (diagnosis.get("recalibration") or {}).get("stand_ins")
+    return "ambiguous" if diagnosis.get("aliased_with") or stand_ins else "clear"
 
 
 def _names(diagnosis: dict) -> list[str]:

@@ -74,7 +74,8 @@ class DesignResult:
     experiment : str
         The experiment's name.
     status : str
-        ``ambiguous`` (hypotheses to separate), ``clear`` or ``none`` (nothing to separate).
+        ``ambiguous`` (hypotheses to separate), ``clear``, ``none`` or ``unexplained`` (nothing
+        to separate).
     verdict : str
         The diagnosis's verdict.
     hypotheses : list of dict
