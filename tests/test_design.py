@@ -164,10 +164,15 @@ def test_design_ranks_a_second_load_above_a_repeat_on_an_aliased_static_case():
         assert by["second load 1.5x"].separation > by[other].separation
 
 
-def test_clear_diagnosis_needs_no_experiment():
+def test_clear_diagnosis_needs_no_separating_experiment():
     exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
-    res = design(exp, {**ALIASED, "verdict": "attributed", "effect": "glass-transition", "aliased_with": []})
-    assert res.status == "clear" and res.best is None and "no further experiment" in res.message
+    clear = {**ALIASED, "verdict": "miscalibrated", "aliased_with": []}
+    res = design(exp, clear, n_draws=12)
+    assert res.status == "clear" and "no further experiment" in res.message
+    # for precision: every feasible protocol narrows the recalibrated parameters, more runs more
+    by = {c.name: c for c in res.candidates if c.feasible}
+    assert all(0 < c.information_gain and max(c.sd_ratio.values()) <= 1.0 + 1e-9 for c in by.values())
+    assert by["second load 1.5x"].information_gain > by["repeat (same protocol)"].information_gain
     res = design(exp, {**ALIASED, "verdict": "unexplained", "aliased_with": []})
     assert res.status == "unexplained" and res.best is None and "outside the library" in res.message
 

@@ -22,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
-from tcamlab.design.predict import N_DRAWS, limits, predictive
+from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive
 from tcamlab.design.protocols import Protocol, cost_minutes, menu, protocol_frames
 from tcamlab.design.result import CandidateProtocol, DesignResult
-from tcamlab.design.score import refit_separation, separation
+from tcamlab.design.score import information_gain, refit_separation, separation
 from tcamlab.design.toml import protocol_toml
 from tcamlab.kinds import get_kind
 from tcamlab.units import display
@@ -86,6 +86,8 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
         criterion=CRITERION,
         settings={"n_draws": n_draws, "seed": seed, "decisive": DECISIVE},
     )
+    if st == "clear":
+        return _precision(experiment, diagnosis, base, n_draws, seed)
     if st != "ambiguous":
         base.message = _clear_message(diagnosis, st)
         return base
@@ -174,4 +176,57 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
     out.separation = float(min(out.pairs.values())) if pairs else float("inf")
     out.log_bayes_factor = out.separation / 2.0
     out.per_hour = out.separation / (minutes / 60.0)
+    return out
+
+
+def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, seed: int) -> DesignResult:
+    """A clear diagnosis: nothing to separate; the protocols ranked by what they would add to the
+    precision of its explanation's parameters (expected information gain per hour)."""
+    kind = experiment.kind
+    h = hypotheses(diagnosis, kind)[0]
+    base.hypotheses = [{"name": h.name, "parameters": h.intervals}]
+    protos = menu(kind, experiment.sample, experiment.rig)
+    cands = [_score_precision(experiment, p, h, base.noise, n_draws, seed) for p in protos]
+    cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
+    base.candidates = cands
+    ok = [c for c in cands if c.feasible and c.information_gain > 0]
+    base.best = max(ok, key=lambda c: c.per_hour) if ok else None
+    base.message = _clear_message(diagnosis, "clear")
+    if base.best is not None:
+        b = base.best
+        base.message += (
+            f"; for more precise parameters, {b.name} adds {b.information_gain:.1f} nats "
+            f"({b.runs} runs, {b.minutes:.0f} min)"
+        )
+    return base
+
+
+def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: int) -> CandidateProtocol:
+    """One protocol scored by the expected information gain about ``h``'s parameters and each
+    parameter's expected sd after / before."""
+    kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
+    frames = protocol_frames(kind, rig, proto.table, seed)
+    minutes = cost_minutes(frames, kind)
+    nan = float("nan")
+    out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
+    pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed)
+    why = (
+        point
+        if pred is None
+        else limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
+    )
+    if why:
+        out.feasible, out.limit = False, why if pred is None else f"{h.name}: {why}"
+        return out
+    y = np.hstack([pred.draws[q] / noise[q] for q in get_kind(kind).outputs])
+    gain, post = information_gain(y, pred.z, 1.0)
+    root, p = covariance_root(h), h.u().size
+    prior_u = np.diag(root @ root.T)
+    after = np.concatenate([np.diag(root @ post[:p, :p] @ root.T), np.diag(post)[p:]])
+    before = np.concatenate([prior_u, np.ones(post.shape[0] - p)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt(after / before)
+    out.sd_ratio = {n: float(r) for n, r in zip(h.intervals, ratio)}
+    out.information_gain = gain
+    out.per_hour = gain / (minutes / 60.0)
     return out

@@ -45,6 +45,8 @@ class Prediction:
         Share of the draws where the model has no solution on the protocol [-].
     draws : dict
         Quantity -> every successful draw's predictions [SI], shape (draws, rows).
+    z : ndarray
+        The standard normal deviates behind each successful draw, shape (draws, parameters).
     """
 
     mean: dict
@@ -52,20 +54,29 @@ class Prediction:
     point: dict
     failed: float
     draws: dict
+    z: np.ndarray
 
 
-def _draws(h: Hypothesis, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
+def _draws(h: Hypothesis, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(u, theta, z) of each draw: z the standard normal deviates behind it (0 for the fit)."""
     rng = np.random.default_rng(seed)
     u0 = h.u()
-    # the covariance's square root by eigendecomposition, rounding's negative eigenvalues clipped
-    w, vecs = np.linalg.eigh((h.cov_u + h.cov_u.T) / 2.0) if u0.size else (np.zeros(0), np.zeros((0, 0)))
-    root = vecs * np.sqrt(np.clip(w, 0.0, None))
-    out = [(u0, h.effect_values)]
+    root = covariance_root(h)
+    out = [(u0, h.effect_values, np.zeros(u0.size + h.effect_values.size))]
     for _ in range(n - 1):
-        u = u0 + root @ rng.standard_normal(u0.size)
-        theta = h.effect_values + h.effect_sd * rng.standard_normal(h.effect_values.size)
-        out.append((u, theta))
+        zu = rng.standard_normal(u0.size)
+        zt = rng.standard_normal(h.effect_values.size)
+        out.append((u0 + root @ zu, h.effect_values + h.effect_sd * zt, np.concatenate([zu, zt])))
     return out
+
+
+def covariance_root(h: Hypothesis) -> np.ndarray:
+    """A square root of the covariance of ``u`` (eigendecomposition; rounding's negative
+    eigenvalues clipped)."""
+    if h.cov_u.size == 0:
+        return np.zeros((0, 0))
+    w, vecs = np.linalg.eigh((h.cov_u + h.cov_u.T) / 2.0)
+    return vecs * np.sqrt(np.clip(w, 0.0, None))
 
 
 def run_outputs(kind: str, sample, rig, mods, frames) -> list[dict]:
@@ -98,7 +109,8 @@ def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_D
     """(:class:`Prediction`, the fit's per-run outputs) of hypothesis ``h`` on ``frames``, or
     (None, reason) when the model has no solution at the fit itself."""
     rows, point = [], None
-    for j, (u, theta) in enumerate(_draws(h, n_draws, seed)):
+    zs = []
+    for j, (u, theta, z) in enumerate(_draws(h, n_draws, seed)):
         s, r, mods = h.at(u, theta, sample, rig, kind)
         try:
             preds = run_outputs(kind, s, r, mods, frames)
@@ -109,11 +121,12 @@ def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_D
         if j == 0:
             point = preds
         rows.append(_stack(kind, preds, True))
+        zs.append(z)
     draws = {q: np.array([r[q] for r in rows]) for q in rows[0]}
     mean = {q: d.mean(axis=0) for q, d in draws.items()}
     var = {q: np.var([r[q] for r in rows], axis=0, ddof=1) if len(rows) > 1 else 0 * mean[q] for q in mean}
     failed = 1.0 - len(rows) / n_draws
-    return Prediction(mean, var, _stack(kind, point, False), failed, draws), point
+    return Prediction(mean, var, _stack(kind, point, False), failed, draws, np.array(zs)), point
 
 
 def limits(kind: str, sample, frames, point: list[dict]) -> str | None:

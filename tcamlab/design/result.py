@@ -59,6 +59,11 @@ class CandidateProtocol:
     runs under its current posterior (:func:`tcamlab.design.score.refit_separation`)."""
     refit: dict = field(default_factory=dict)
     """"A vs B" -> R_ij [-]."""
+    information_gain: float = float("nan")
+    """A clear diagnosis: expected information gain about its explanation's parameters [nats]
+    (:func:`tcamlab.design.score.information_gain`); ``per_hour`` is then this per hour."""
+    sd_ratio: dict = field(default_factory=dict)
+    """A clear diagnosis: each parameter's expected sd after the new runs over its sd now [-]."""
 
     def to_dict(self) -> dict:
         return to_jsonable(dict(self.__dict__))

@@ -27,6 +27,8 @@ def design_lines(result) -> list[str]:
     if not result.candidates:
         return lines
     lines.append("hypotheses: " + "; ".join(_hypothesis(h) for h in result.hypotheses))
+    if result.status == "clear":
+        return lines + _precision_lines(result)
     head = (
         f"{'protocol':30s} {'separation':>10s} {'log BF':>7s} {'refitted':>8s} {'runs':>4s} {'min':>6s} "
         f"{'per h':>6s}  max difference"
@@ -54,3 +56,19 @@ def _hypothesis(h: dict) -> str:
         ci = f" ({lo:.3g} to {hi:.3g})" if lo is not None and hi is not None else ""
         parts.append(f"{name} {p['value']:.3g}{ci} {p.get('unit') or ''}".rstrip())
     return f"{h['name']}: " + ", ".join(parts)
+
+
+def _precision_lines(result) -> list[str]:
+    """One line per protocol of a clear diagnosis: information gain and the sds it leaves."""
+    head = f"{'protocol':30s} {'gain':>6s} {'runs':>4s} {'min':>6s} {'per h':>6s}  sd after / before"
+    out = [head, "-" * len(head)]
+    for c in result.candidates:
+        mark = "*" if result.best is not None and c.name == result.best.name else " "
+        if not c.feasible:
+            out.append(f"{mark}{c.name:29s} {'out of bounds':>13s}  {c.limit}")
+            continue
+        ratios = ", ".join(f"{n} {r:.2f}" for n, r in c.sd_ratio.items())
+        out.append(
+            f"{mark}{c.name:29s} {c.information_gain:6.2f} {c.runs:4d} {c.minutes:6.0f} {c.per_hour:6.2f}  {ratios}"
+        )
+    return out
