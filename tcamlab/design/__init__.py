@@ -22,11 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
-from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive
+from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive, sensitivity
 from tcamlab.design.protocols import Protocol, cost_minutes, menu, protocol_frames
 from tcamlab.design.result import CandidateProtocol, DesignResult
 from tcamlab.design.score import information_gain, refit_separation, separation
 from tcamlab.design.toml import protocol_toml
+from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
 from tcamlab.units import display
 
@@ -218,8 +219,12 @@ def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: 
     if why:
         out.feasible, out.limit = False, why if pred is None else f"{h.name}: {why}"
         return out
-    y = np.hstack([pred.draws[q] / noise[q] for q in get_kind(kind).outputs])
-    gain, post = information_gain(y, pred.z, 1.0)
+    try:
+        sens = sensitivity(kind, sample, rig, frames, h)
+    except (*MODEL_ERRORS, ValueError) as exc:
+        out.feasible, out.limit = False, f"{h.name}: no solution near the fit ({str(exc)[:80]})"
+        return out
+    gain, post = information_gain(np.vstack([sens[q] / noise[q] for q in get_kind(kind).outputs]))
     root, p = covariance_root(h), h.u().size
     prior_u = np.diag(root @ root.T)
     after = np.concatenate([np.diag(root @ post[:p, :p] @ root.T), np.diag(post)[p:]])

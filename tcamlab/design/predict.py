@@ -21,7 +21,7 @@ from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
 from tcamlab.models import static as _static
 
-__all__ = ["Prediction", "predictive", "limits", "TEMPERATURE_LIMIT_C", "N_DRAWS"]
+__all__ = ["Prediction", "predictive", "sensitivity", "limits", "TEMPERATURE_LIMIT_C", "N_DRAWS"]
 
 N_DRAWS = 30
 """Parameter draws per hypothesis and protocol (the first is the fit itself)."""
@@ -127,6 +127,30 @@ def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_D
     var = {q: np.var([r[q] for r in rows], axis=0, ddof=1) if len(rows) > 1 else 0 * mean[q] for q in mean}
     failed = 1.0 - len(rows) / n_draws
     return Prediction(mean, var, _stack(kind, point, False), failed, draws, np.array(zs)), point
+
+
+SENSITIVITY_STEP = 0.1
+"""Step of the central differences of :func:`sensitivity`, in posterior sds of each parameter."""
+
+
+def sensitivity(kind: str, sample, rig, frames, h: Hypothesis) -> dict:
+    """Quantity -> d(predicted rows) / d(z) [SI per posterior sd], shape (rows, parameters), at
+    the fit, by central differences of :data:`SENSITIVITY_STEP` posterior sds along each
+    standardised parameter (u = u0 + root z; theta = theta0 + sd z). Each run's zero removed
+    as in :func:`predictive`. Raises where the model has no solution."""
+    u0, root = h.u(), covariance_root(h)
+    p, k = u0.size, h.effect_values.size
+    cols: dict = {}
+    for m in range(p + k):
+        ys = []
+        for sgn in (1.0, -1.0):
+            z = np.zeros(p + k)
+            z[m] = sgn * SENSITIVITY_STEP
+            s, r, mods = h.at(u0 + root @ z[:p], h.effect_values + h.effect_sd * z[p:], sample, rig, kind)
+            ys.append(_stack(kind, run_outputs(kind, s, r, mods, frames), True))
+        for q in ys[0]:
+            cols.setdefault(q, []).append((ys[0][q] - ys[1][q]) / (2.0 * SENSITIVITY_STEP))
+    return {q: np.array(c).T for q, c in cols.items()}
 
 
 def limits(kind: str, sample, frames, point: list[dict]) -> str | None:

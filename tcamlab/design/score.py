@@ -97,27 +97,15 @@ def refit_separation(draws_i: np.ndarray, draws_j: np.ndarray, noise_sd) -> floa
     return float(z @ z - b @ np.linalg.solve(inner, b))
 
 
-def information_gain(draws: np.ndarray, z: np.ndarray, noise_sd) -> tuple[float, np.ndarray]:
+def information_gain(B: np.ndarray) -> tuple[float, np.ndarray]:
     """Expected information gain of new runs about one hypothesis's parameters [nats], and the
-    posterior covariance of its standardised parameters.
+    posterior covariance of its standardised parameters after them.
 
-    The draws' predictions are regressed on the standard normal deviates behind them,
-    Y = m + z B^T (B: the predictions' sensitivity to one prior sd of each standardised
-    parameter, rows normalised by the noise); the new runs then update the prior I to
-    (I + B^T B)^-1, and the gain is 0.5 log det(I + B^T B) (D-optimality, Bayesian form).
-
-    Parameters
-    ----------
-    draws : ndarray
-        Predictions of each draw [SI], shape (draws, rows).
-    z : ndarray
-        Standard normal deviates of each draw, shape (draws, parameters).
-    noise_sd : array_like or float
-        Noise floor per row [SI].
+    ``B`` (rows x parameters, rows normalised by the noise) is the predictions' sensitivity to
+    one current posterior sd of each standardised parameter (the current posterior is then
+    the identity). Linearised, the new runs update it to (I + B^T B)^-1, and the gain is
+    0.5 log det(I + B^T B) (D-optimality, Bayesian form).
     """
-    y = np.atleast_2d(draws) / np.asarray(noise_sd, float)
-    X = np.hstack([np.ones((z.shape[0], 1)), z])
-    coef = np.linalg.lstsq(X, y, rcond=None)[0]
-    B = coef[1:].T
-    info = np.eye(z.shape[1]) + B.T @ B
+    B = np.atleast_2d(np.asarray(B, float))
+    info = np.eye(B.shape[1]) + B.T @ B
     return 0.5 * float(np.linalg.slogdet(info)[1]), np.linalg.inv(info)
