@@ -201,7 +201,8 @@ def test_calibrated_file_carries_the_joint_posterior(withheld):
         ("sample", "radial_cte"),
         ("sample", "shear_modulus_slope"),
     )
-    assert exp.calibration.log == (True,) * 5
+    # C_th, lambda, b in log coordinates; rho and the G_t slope linear (0 is a legitimate value)
+    assert exp.calibration.log == (True, True, True, False, False)
     c = np.asarray(exp.calibration.correlation)
     # displacement alone ties C_th to rho (only their ratio is pinned): a strong correlation
     assert np.allclose(c, c.T) and abs(c[0, 3]) > 0.9
@@ -219,10 +220,17 @@ def test_prediction_band_covers_95_percent_of_withheld_runs(withheld):
         rows = sum(r["rows"] for r in runs)
         covered = sum(r["coverage"] * r["rows"] for r in runs) / rows
         assert 0.90 <= covered <= 0.98, (seed, covered)
-        # after calibration on three full runs the band is the noise-and-zero band: the
-        # parameter part stays below half the noise part, and the report says so
-        assert all(r["informative_rows"] == 0 and r["coverage_informative"] is None for r in runs)
-        assert any("no informative rows" in n for n in res.notes)
+        # after calibration on three full runs the band is mostly the noise-and-zero band; where
+        # the parameter part exceeds half the noise part (informative rows: rho and the G_t
+        # slope are drawn in linear coordinates, so the C_th/rho ridge is not a straight line
+        # there), those rows are covered too, and the report says how many there are
+        for r in runs:
+            assert r["informative_rows"] < 0.3 * r["rows"], (seed, r["informative_rows"])
+            if r["informative_rows"]:
+                assert 0.90 <= r["coverage_informative"] <= 1.0, (seed, r["coverage_informative"])
+            else:
+                assert r["coverage_informative"] is None
+        assert all(("informative rows" in n) for n in res.notes if "prediction band covers" in n)
         # the band is not zero-width before the pulse
         p = res.predictions[0]
         assert np.all(
