@@ -293,17 +293,11 @@ def invert(
         If S f11(alpha0) >= 1 (no physical root: see :func:`conditioning`) or
         a resistance lies below what the coil can reach in compression.
     """
-    cond = conditioning(
-        spring_constant,
-        fiber_diameter,
-        fiber_length,
-        coil_length,
-        coil_diameter,
-        twists,
-        youngs_modulus,
-        thread_plies,
-        max_volume_fraction,
-    )
+    geo = (
+        fiber_diameter, fiber_length, coil_length, coil_diameter,
+        twists, youngs_modulus, thread_plies, max_volume_fraction,
+    )  # fmt: skip
+    cond = conditioning(spring_constant, *geo)
     if cond.status == "no-physical-root":
         raise ModelDomainError(
             "sensing model: " + cond.describe(), hint="check the spring constant and the sample geometry"
@@ -311,16 +305,7 @@ def invert(
     r = np.asarray(resistance, float)
     shape = np.broadcast_shapes(r.shape, np.shape(initial_resistance))
     d = np.broadcast_to(diameter_from_resistance(r, initial_resistance, fiber_diameter), shape).ravel()
-    g_t, n = _geometry(
-        fiber_diameter,
-        fiber_length,
-        coil_length,
-        coil_diameter,
-        twists,
-        youngs_modulus,
-        thread_plies,
-        max_volume_fraction,
-    )
+    g_t, n = _geometry(*geo)
     tau = torque(d, fiber_diameter, twists, fiber_length, g_t)
     l = float(fiber_length)
     s0 = float(coil_length) / l
@@ -341,21 +326,9 @@ def invert(
     res = None
     if np.any(stretched):
         idx = np.flatnonzero(stretched)
-        # h(0) = f12 tau < 0 and h(l (1 - s0)) > 0 while m0 > 0: the physical
-        # root is bracketed, and h increases on the bracket, so it is unique.
-        hi = np.full(idx.size, l * (1.0 - s0) * (1.0 - 1e-12))
         f11_0, _, f12_0, _ = compliance_terms(s0, a[idx], b[idx], c[idx], g_t, E)
-        guess = np.clip(-f12_0 * tau[idx] / (1.0 - S * f11_0), 0.0, hi)
-        res = bracketed_newton(
-            lambda x, j: h(x, idx[j]),
-            np.zeros(idx.size),
-            hi,
-            guess,
-            xtol=xtol,
-            rtol=rtol,
-            maxiter=maxiter,
-            what="sensing delta",
-        )
+        guess = -f12_0 * tau[idx] / (1.0 - S * f11_0)  # linearised: delta ~ -f12 tau / (1 - S f11)
+        res = _invert_stretched(h, idx, guess, l, s0, (xtol, rtol, maxiter))
         delta[idx] = res.root
     compressed = tau > 0
     if np.any(compressed):
@@ -364,6 +337,26 @@ def invert(
     if full_output:
         return delta, S * delta, res
     return delta, S * delta
+
+
+def _invert_stretched(h, idx, guess, l, s0, tolerances):
+    """Physical root for R > R0 (stretch): the :class:`RootResult` on (0, l (1 - s0)).
+
+    h(0) = f12 tau < 0 and h(l (1 - s0)) > 0 while m0 > 0: the physical root is
+    bracketed, and h increases on the bracket, so it is unique.
+    """
+    xtol, rtol, maxiter = tolerances
+    hi = np.full(idx.size, l * (1.0 - s0) * (1.0 - 1e-12))
+    return bracketed_newton(
+        lambda x, j: h(x, idx[j]),
+        np.zeros(idx.size),
+        hi,
+        np.clip(guess, 0.0, hi),
+        xtol=xtol,
+        rtol=rtol,
+        maxiter=maxiter,
+        what="sensing delta",
+    )
 
 
 def _invert_compressed(h, idx, l, s0, xtol, rtol, maxiter):

@@ -497,25 +497,12 @@ def displacement(
     ConvergenceError
         If the iteration limit is reached.
     """
-    raw = [
-        np.asarray(v, float)
-        for v in (
-            delta_T,
-            force,
-            fiber_diameter,
-            fiber_length,
-            coil_length,
-            coil_diameter,
-            twists,
-            youngs_modulus,
-            thread_plies,
-            max_volume_fraction,
-            radial_cte,
-            shear_modulus_slope,
-            youngs_modulus_slope,
-            coil_shear_slope,
-        )
-    ]
+    given = (
+        delta_T, force, fiber_diameter, fiber_length, coil_length, coil_diameter, twists,
+        youngs_modulus, thread_plies, max_volume_fraction, radial_cte, shear_modulus_slope,
+        youngs_modulus_slope, coil_shear_slope,
+    )  # fmt: skip
+    raw = [np.asarray(v, float) for v in given]
     shape = np.broadcast_shapes(*(a.shape for a in raw))
     # Scalars stay scalars (the common case: one sample, arrays of dT and F),
     # so the iteration indexes only what varies.
@@ -537,27 +524,19 @@ def displacement(
     n = n_coils(l, L, D)
     if method == "jit":
         return _displacement_jit(
-            shape,
-            size,
-            dT,
-            F,
-            g_t,
-            g_tau,
-            d0,
-            l,
-            s0,
-            n,
-            N,
-            rho,
-            E_fab,
-            e_slope,
-            xtol,
-            rtol,
-            maxiter,
-            full_output,
-        )
+            shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fab, e_slope,
+            xtol, rtol, maxiter, full_output,
+        )  # fmt: skip
     if method != "numpy":
         raise ValueError(f"unknown method {method!r}; use 'jit' or 'numpy'")
+    return _displacement_numpy(
+        shape, size, dT, F, g_t, E, tau, d0, l, s0, n, rho, (xtol, rtol, maxiter), full_output
+    )
+
+
+def _displacement_numpy(shape, size, dT, F, g_t, E, tau, d0, l, s0, n, rho, tolerances, full_output):
+    """The numpy solve of (2.10) = (2.11) for s = sin(alpha), bracketed in [0, 1] (SI)."""
+    xtol, rtol, maxiter = tolerances
     d = d0 * (1.0 + rho * dT)
     a, b, c = compliance_coefficients(d, l, n)
 
