@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tcamlab import progress
 from tcamlab.calibration.fit import Z95, laplace_covariance, map_fit, profile_interval
 from tcamlab.calibration.identify import directions, identifiability_text, tier
 from tcamlab.calibration.problem import CalibrationProblem
@@ -239,12 +240,15 @@ def calibrate(
     runs = [e.read_runs(drop_na=drop_na) for e in exps]
     with one_numba_thread():
         problem = CalibrationProblem(exps, runs, params)
-        fit = map_fit(problem)
-        cov, jac = laplace_covariance(problem, fit.u)
-        estimates = []
-        for k in range(len(problem.specs)):
-            sides = [profile_interval(problem, fit, cov, k, side, jac) for side in (-1, 1)]
-            estimates.append(_estimate(problem, k, fit.u, cov, sides))
+        with progress.task("calibrating: best fit", total=1 + len(problem.specs)) as step:
+            fit = map_fit(problem)
+            cov, jac = laplace_covariance(problem, fit.u)
+            estimates = []
+            for k, spec in enumerate(problem.specs):
+                step(description=f"calibrating: profile interval of {spec.name}")
+                sides = [profile_interval(problem, fit, cov, k, side, jac) for side in (-1, 1)]
+                estimates.append(_estimate(problem, k, fit.u, cov, sides))
+            step()
         zeros = _zeros(problem, fit.u, cov)
         quality = _quality(problem, fit.u)
         curves = _curves(problem, fit.u)

@@ -89,6 +89,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from tcamlab import progress
 from tcamlab.diagnosis.candidates import CI_LEVEL, fit_candidates, score_folds
 from tcamlab.diagnosis.noise import (
     GAP_LEVEL,
@@ -168,17 +169,22 @@ def _diagnose(experiment, runs, effects, n_boot: int, seed: int, workers) -> Dia
         if effects is not None
         else effects_for(experiment.kind)
     )
-    problem = Problem(experiment, runs)
-    base = baseline_fit(problem)
-    noise = estimate_noise(problem, base)
-    rec = Recalibration(problem, experiment, runs)
-    if problem.k.noisy_inputs:
-        noise = _noise_at_recalibration(problem, rec, base, noise)
-    base, baseline, gap = check_gap(problem, base, noise)
-    labels = label_rows(problem, base)
-    scores = score_folds(problem, base, n_boot, seed)
-    ranking, fits = fit_candidates(problem, rec, cands, scores, base, workers=workers)
-    decision = decide(problem, rec, cands, ranking, fits, scores, base, gap, workers)
+    with progress.task(f"{experiment.path.name}: baseline fit", total=4) as step:
+        problem = Problem(experiment, runs)
+        base = baseline_fit(problem)
+        step(description=f"{experiment.path.name}: noise floor")
+        noise = estimate_noise(problem, base)
+        rec = Recalibration(problem, experiment, runs)
+        if problem.k.noisy_inputs:
+            noise = _noise_at_recalibration(problem, rec, base, noise)
+        base, baseline, gap = check_gap(problem, base, noise)
+        labels = label_rows(problem, base)
+        step(description=f"{experiment.path.name}: held-out folds")
+        scores = score_folds(problem, base, n_boot, seed)
+        step(description=f"{experiment.path.name}: candidate effects")
+        ranking, fits = fit_candidates(problem, rec, cands, scores, base, workers=workers)
+        step(description=f"{experiment.path.name}: verdict")
+        decision = decide(problem, rec, cands, ranking, fits, scores, base, gap, workers)
     names = [str(getattr(r, "path", i)).rsplit("/", 1)[-1] for i, r in enumerate(runs)]
     return DiagnosisResult(
         kind=experiment.kind,

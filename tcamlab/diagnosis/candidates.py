@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from tcamlab import progress
 from tcamlab.diagnosis.noise import BaselineFit, all_rows
 from tcamlab.diagnosis.problem import FAIL_RESIDUAL, Problem, complement, fit_effect, folds, serial_kernels
 from tcamlab.diagnosis.recalibration import (
@@ -253,8 +254,18 @@ def _run_jobs(problem: Problem, rec, effects, scores: FoldScores, baseline: Base
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(max_workers=n_work, mp_context=mp.get_context("spawn")) as pool:
-            return list(pool.map(candidate_job, jobs))
-    return [candidate_job(j) for j in jobs]
+            return _counted(pool.map(candidate_job, jobs), effects)
+    return _counted((candidate_job(j) for j in jobs), effects)
+
+
+def _counted(outcomes, effects) -> list:
+    """The candidates' outcomes in order, each shown as a step of a progress bar."""
+    out = []
+    with progress.task("fitting candidate effects", total=len(effects)) as step:
+        for eff, outcome in zip(effects, outcomes):
+            out.append(outcome)
+            step(description=f"fitted {eff.name}")
+    return out
 
 
 def _by_quantity(problem: Problem, scores: FoldScores, after_q: np.ndarray) -> dict:
