@@ -48,7 +48,7 @@ def fake_calibrate(written, monkeypatch):
     """Skip the fit in tests of the writing: calibrate returns the module's result."""
     result = written[2].result
 
-    def fake(exps, params=None):
+    def fake(exps, params=None, *, drop_na=False):
         # the inputs name the experiment given, as a real calibration's do (its output
         # folder belongs to that file: pipeline.output_folder)
         inputs = [{**i, "path": str(exps[0].path)} if i["role"] == "experiment" else i for i in result.inputs]
