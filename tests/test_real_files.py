@@ -221,3 +221,21 @@ def test_join_drops_and_the_mapping_are_recorded_and_shown(tmp_path):
     html = next((tmp_path / "out").rglob("*.html")).read_text()
     assert "20 (20 outside the joined file&#39;s time span)" in html
     assert "Position (mm)" in html and "[columns] mapping" in html
+
+
+# --- no library warning reaches the console ------------------------------------------------
+
+
+def test_report_and_spring_plot_raise_no_library_warning(tmp_path, monkeypatch):
+    """A guard: every warning turned into an error while the bundled report and a plot are made."""
+    import warnings
+
+    monkeypatch.chdir(ROOT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = runner.invoke(app, ["report", "--out", str(tmp_path / "r")])
+        assert res.exit_code in (0, 1), res.output
+        assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+        plot = tmp_path / "s.png"
+        res = runner.invoke(app, ["fit-spring", str(ROOT / "raw" / "sensing_run1.csv"), "--plot", str(plot)])
+        assert res.exit_code == 0 and res.exception is None, res.output
