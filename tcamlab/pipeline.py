@@ -560,8 +560,9 @@ def _pull_runs(frames: list) -> list:
 
 def _figure_bytes(fig, suffix: str) -> bytes:
     """A figure as PNG, SVG or PDF bytes, without dates (same input, same bytes)."""
-    from tcamlab.report.figures import figure_to_png, figure_to_svg
+    from tcamlab.report.figures import figure_to_png, figure_to_svg, replace_missing_glyphs
 
+    replace_missing_glyphs(fig)
     if suffix == ".png":
         return figure_to_png(fig)
     if suffix == ".svg":

@@ -239,3 +239,24 @@ def test_report_and_spring_plot_raise_no_library_warning(tmp_path, monkeypatch):
         plot = tmp_path / "s.png"
         res = runner.invoke(app, ["fit-spring", str(ROOT / "raw" / "sensing_run1.csv"), "--plot", str(plot)])
         assert res.exit_code == 0 and res.exception is None, res.output
+
+
+def test_a_run_named_in_cjk_draws_without_a_missing_glyph_warning(tmp_path):
+    """Run names come from file names; a glyph the report font lacks is drawn as its code point."""
+    import warnings
+
+    csv = tmp_path / "試験1.csv"
+    csv.write_bytes((ROOT / "raw" / "sensing_run1.csv").read_bytes())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for suffix in (".png", ".svg", ".pdf"):
+            res = runner.invoke(app, ["fit-spring", str(csv), "--plot", str(tmp_path / f"p{suffix}")])
+            assert res.exit_code == 0 and res.exception is None, (suffix, res.exception)
+    assert (tmp_path / "p.svg").stat().st_size > 0
+
+
+def test_drawable_keeps_what_the_font_has():
+    from tcamlab.report.figures import drawable
+
+    assert drawable("run 1 µm ± °C") == "run 1 µm ± °C"
+    assert drawable("試験1") == "U+8A66U+9A131"

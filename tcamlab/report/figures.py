@@ -142,6 +142,34 @@ def _prefix_ids(svg: str, prefix: str) -> str:
     return svg
 
 
+_CHARMAP: list[frozenset[int]] = []
+
+
+def drawable(text: str) -> str:
+    """``text`` with each character the report font lacks written as its code point
+    (a run file named in CJK: ``試験1`` -> ``U+8A66U+9A131``), so no glyph goes missing
+    (matplotlib would warn and draw an empty box)."""
+    if text.isascii():
+        return text
+    if not _CHARMAP:
+        from matplotlib import font_manager, ft2font
+
+        path = font_manager.findfont(font_manager.FontProperties(family=STYLE["font.sans-serif"]))
+        _CHARMAP.append(frozenset(ft2font.FT2Font(path).get_charmap()))
+    known = _CHARMAP[0]
+    return "".join(c if c.isascii() or ord(c) in known else f"U+{ord(c):04X}" for c in text)
+
+
+def replace_missing_glyphs(fig: Figure) -> None:
+    """Every text of ``fig`` made :func:`drawable`."""
+    from matplotlib.text import Text
+
+    for t in fig.findobj(Text):
+        text = t.get_text()
+        if isinstance(text, str) and drawable(text) != text:
+            t.set_text(drawable(text))
+
+
 def _freeze_layout(fig: Figure) -> None:
     """Run the figure's layout engine once, then keep that layout.
 
@@ -152,6 +180,7 @@ def _freeze_layout(fig: Figure) -> None:
     """
     if getattr(fig, "_tcamlab_layout_frozen", False):
         return
+    replace_missing_glyphs(fig)
     compact_figure(fig)
     engine = fig.get_layout_engine()
     if engine is not None and type(engine).__name__ != "PlaceHolderLayoutEngine":
