@@ -176,6 +176,14 @@ def _run(fn, *args, **kwargs):
     raise typer.Exit(code=code)
 
 
+def _run_shown(as_json: bool, fn, *args, **kwargs):
+    """:func:`_run` with the library's progress shown on a terminal (never under --json)."""
+    from tcamlab import progress
+
+    with progress.display(progress.wanted(as_json)):
+        return _run(fn, *args, **kwargs)
+
+
 def _print_json(obj) -> None:
     from tcamlab.jsonutil import dumps_json
 
@@ -281,7 +289,8 @@ def _make_validate(kind: str, example: str):
         from tcamlab.pipeline import validate_experiment
         from tcamlab.text import validate_command
 
-        outcome = _run(
+        outcome = _run_shown(
+            as_json,
             validate_experiment,
             experiment,
             out,
@@ -683,8 +692,8 @@ def calibrate(
     """
     from tcamlab.pipeline import calibrate_experiment
 
-    outcome = _run(
-        calibrate_experiment, experiments, params=params, out_dir=out, force=force, drop_na=drop_na
+    outcome = _run_shown(
+        as_json, calibrate_experiment, experiments, params=params, out_dir=out, force=force, drop_na=drop_na
     )
     doc = outcome.result.to_dict()
     if as_json:
@@ -780,8 +789,15 @@ def diagnose(
     from tcamlab.pipeline import diagnose_experiment
     from tcamlab.report.diagnosis_report import diagnosis_lines
 
-    outcome = _run(
-        diagnose_experiment, experiment, effects=effects, seed=seed, out_dir=out, force=force, drop_na=drop_na
+    outcome = _run_shown(
+        as_json,
+        diagnose_experiment,
+        experiment,
+        effects=effects,
+        seed=seed,
+        out_dir=out,
+        force=force,
+        drop_na=drop_na,
     )
     if as_json:
         _print_json(outcome.result.to_dict())
@@ -823,7 +839,8 @@ def design(
     from tcamlab.design.text import design_lines
     from tcamlab.pipeline import design_experiment
 
-    outcome = _run(
+    outcome = _run_shown(
+        as_json,
         design_experiment,
         experiment,
         diagnosis=diagnosis,

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from tcamlab import progress
 from tcamlab.config import Experiment
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.io import RunData, input_files, sha256_file
@@ -594,27 +595,35 @@ def _training(runs, names, i):
 def _predict_runs(exp: Experiment, kind: Kind, runs, names) -> list[RunPrediction]:
     """Every model variant of the kind on every run, with the kind's per-run constants."""
     preds = []
-    for i, (r, name) in enumerate(zip(runs, names)):
-        training, training_runs = _training(runs, names, i)
-        ro = _in_run(
-            exp,
-            name,
-            kind.run_options,
-            exp.sample,
-            exp.rig,
-            r.data,
-            training=training,
-            training_runs=training_runs,
-            where=exp.path.name,
-            provenance=exp.provenance,
-            for_report=True,
-        )
-        predicted = {
-            v: _in_run(exp, name, kind.predict, exp.sample, exp.rig, r.data, **ro.options, **extra)
-            for v, extra in kind.variants.items()
-        }
-        preds.append(RunPrediction(name, r.data, predicted, info=dict(ro.info)))
+    with progress.task(f"{exp.path.name}: model on each run", total=len(runs)) as step:
+        for i, name in enumerate(names):
+            preds.append(_predict_run(exp, kind, runs, names, i))
+            step(description=f"{exp.path.name}: model on {name}")
     return preds
+
+
+def _predict_run(exp: Experiment, kind: Kind, runs, names, i: int) -> RunPrediction:
+    """Every model variant of the kind on run ``i``, with its per-run constants."""
+    r, name = runs[i], names[i]
+    training, training_runs = _training(runs, names, i)
+    ro = _in_run(
+        exp,
+        name,
+        kind.run_options,
+        exp.sample,
+        exp.rig,
+        r.data,
+        training=training,
+        training_runs=training_runs,
+        where=exp.path.name,
+        provenance=exp.provenance,
+        for_report=True,
+    )
+    predicted = {
+        v: _in_run(exp, name, kind.predict, exp.sample, exp.rig, r.data, **ro.options, **extra)
+        for v, extra in kind.variants.items()
+    }
+    return RunPrediction(name, r.data, predicted, info=dict(ro.info))
 
 
 def validate(

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tcamlab import progress
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
 from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive, sensitivity
 from tcamlab.design.protocols import Protocol, cost_minutes, menu, protocol_frames
@@ -94,10 +95,12 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
         return base
     hyps = hypotheses(diagnosis, kind)
     base.hypotheses = [{"name": h.name, "parameters": h.intervals} for h in hyps]
-    cands = [
-        _score(experiment, p, hyps, noise, n_draws, seed)
-        for p in menu(kind, experiment.sample, experiment.rig)
-    ]
+    protocols = menu(kind, experiment.sample, experiment.rig)
+    cands = []
+    with progress.task("designing: scoring protocols", total=len(protocols)) as step:
+        for p in protocols:
+            cands.append(_score(experiment, p, hyps, noise, n_draws, seed))
+            step()
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates, base.best = cands, _best(cands)
     base.message = _message(base, hyps)

@@ -264,7 +264,7 @@ def _counted(outcomes, effects) -> list:
     with progress.task("fitting candidate effects", total=len(effects)) as step:
         for eff, outcome in zip(effects, outcomes):
             out.append(outcome)
-            step(description=f"fitted {eff.name}")
+            step(description=f"candidate effects: {eff.name} fitted")
     return out
 
 
