@@ -137,7 +137,9 @@ def test_validate_kind_mismatch_is_a_one_line_error(lab):
 
 def test_threshold_failure_exits_1(lab):
     exp = lab / "experiments/static.toml"
-    exp.write_text(exp.read_text() + "\n[thresholds]\nrmse_mm = 1e-6\n")
+    text = exp.read_text()
+    assert "\nrmse_mm = 0.02\n" in text  # the bundled file's limit, made impossible
+    exp.write_text(text.replace("\nrmse_mm = 0.02\n", "\nrmse_mm = 1e-6\n"))
     result = runner.invoke(app, ["validate", "static", str(exp), "--out", str(lab / "r"), "--format", "html"])
     assert result.exit_code == 1
     assert "FAIL" in result.output

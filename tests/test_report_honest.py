@@ -89,9 +89,30 @@ def test_three_statuses_and_nothing_checked_is_not_a_pass():
     assert threshold_status(check_thresholds(metrics, {"rmse_N": 0.1})) == STATUS_NO_LIMITS
 
 
+def without_thresholds(text: str) -> str:
+    """An experiment file's text without its [thresholds] table (and the comment above it)."""
+    return re.sub(r"\n(#[^\n]*\n)?\[thresholds\]\n([^\[\n][^\n]*\n?)*", "", text)
+
+
 @pytest.fixture(scope="module")
-def static_result():
-    return validate(load_experiment(ROOT / "experiments" / "static.toml"))
+def unlimited(tmp_path_factory) -> Path:
+    """A copy of the bundled experiments without their [thresholds] (status: no limits set)."""
+    root = tmp_path_factory.mktemp("unlimited")
+    shutil.copytree(ROOT / "raw", root / "raw")
+    (root / "experiments").mkdir()
+    for path in (ROOT / "experiments").glob("*.toml"):
+        (root / "experiments" / path.name).write_text(without_thresholds(path.read_text()))
+    return root / "experiments"
+
+
+def test_without_thresholds_removes_the_table_only():
+    text = 'kind = "static"\n\n# limits\n[thresholds]\nrmse_mm = 0.02\nr2_min = 0.99\n\n[rig]\nload_g = 50\n'
+    assert without_thresholds(text) == 'kind = "static"\n\n[rig]\nload_g = 50\n'
+
+
+@pytest.fixture(scope="module")
+def static_result(unlimited):
+    return validate(load_experiment(unlimited / "static.toml"))
 
 
 def test_metrics_json_says_no_limits_and_passed_null(static_result):
@@ -101,8 +122,8 @@ def test_metrics_json_says_no_limits_and_passed_null(static_result):
     assert static_result.failed is False
 
 
-def test_validate_without_thresholds_exits_0_and_says_no_limits(tmp_path):
-    exp = ROOT / "experiments" / "static.toml"
+def test_validate_without_thresholds_exits_0_and_says_no_limits(tmp_path, unlimited):
+    exp = unlimited / "static.toml"
     out = runner.invoke(app, ["validate", "static", str(exp), "--out", str(tmp_path), "--format", "html"])
     assert out.exit_code == 0, out.output
     assert "status: no limits set" in out.output
@@ -186,7 +207,7 @@ def sensor45(tmp_path_factory):
         df = pd.read_csv(ROOT / "raw" / f"sensing_run{i}.csv", comment="#")
         df["resistance_ohm"] *= 1.5
         df.to_csv(root / "raw" / f"sensing_run{i}.csv", index=False)
-    text = (ROOT / "experiments" / "sensing.toml").read_text()
+    text = without_thresholds((ROOT / "experiments" / "sensing.toml").read_text())
     assert "initial_resistance_ohm = 30.0" in text
     (root / "experiments" / "s45.toml").write_text(text.replace("initial_resistance_ohm = 30.0\n", ""))
     return root / "experiments" / "s45.toml"
@@ -324,10 +345,10 @@ def test_residuals_one_panel_per_quantity_against_the_physical_input():
 
 
 @pytest.mark.slow
-def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, tmp_path):
+def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, tmp_path, unlimited):
     """Two kinds with different quantities still give 7 columns (no per-quantity columns full
     of dashes); the synthetic banner is on the index and the combined PDF's first page."""
-    exps = [str(ROOT / "experiments" / "static.toml"), str(sensor45)]
+    exps = [str(unlimited / "static.toml"), str(sensor45)]
     out = runner.invoke(app, ["report", *exps, "--out", str(tmp_path / "r"), "--mc-draws", "0"])
     assert out.exit_code == 0, out.output
     assert "no limits set static" in out.output and "  WARNING: sensing_run1: R0 = 30 ohm" in out.output
@@ -353,7 +374,8 @@ def test_report_index_is_headline_only_and_strict_exits_1_on_warnings(sensor45, 
 
 def _beside(tmp_path, name: str, *, c_th: float) -> Path:
     """``dynamic.toml`` (bundled, synthetic) and ``dynamic.calibrated.toml`` with C_th = c_th."""
-    text = (ROOT / "experiments" / "dynamic.toml").read_text()
+    # without the bundled limits: a warning alone leaves the status "no limits set", exit 0
+    text = without_thresholds((ROOT / "experiments" / "dynamic.toml").read_text())
     text = text.replace('"../raw/', f'"{ROOT}/raw/')
     (tmp_path / "dynamic.toml").write_text(text)
     assert "thermal_mass_J_per_K = 0.0266\n" in text
