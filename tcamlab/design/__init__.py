@@ -107,6 +107,16 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
     return base
 
 
+def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int):
+    """``(prediction, None)`` of hypothesis ``h`` under a protocol's ``frames``, or
+    ``(None or prediction, why)`` where it has no solution there or breaks a limit."""
+    pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed)
+    if pred is None:
+        return None, point
+    why = limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
+    return pred, (f"{h.name}: {why}" if why else None)
+
+
 def _clear_message(diagnosis: dict, st: str) -> str:
     if st == "none":
         return "the thesis model fits within the noise: no further experiment is needed"
@@ -148,14 +158,9 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
     )
     preds = []
     for h in hyps:
-        pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed)
-        why = (
-            point
-            if pred is None
-            else limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
-        )
+        pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed)
         if why:
-            out.feasible, out.limit = False, why if pred is None else f"{h.name}: {why}"
+            out.feasible, out.limit = False, why
             return out
         preds.append(pred)
     D = sum(
@@ -213,14 +218,9 @@ def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: 
     minutes = cost_minutes(frames, kind)
     nan = float("nan")
     out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
-    pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed)
-    why = (
-        point
-        if pred is None
-        else limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
-    )
+    pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed)
     if why:
-        out.feasible, out.limit = False, why if pred is None else f"{h.name}: {why}"
+        out.feasible, out.limit = False, why
         return out
     try:
         sens = sensitivity(kind, sample, rig, frames, h)
