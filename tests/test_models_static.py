@@ -221,3 +221,13 @@ def test_property_temperature_dependent_model_finite_in_range(dT, force):
     s = THESIS_TCA.build_sample()
     d = static.displacement(dT, force, **s.model_kwargs())
     assert np.isfinite(d) and -s.coil_length < d < s.fiber_length - s.coil_length
+
+
+def test_no_equilibrium_names_the_point_its_inputs_and_the_stated_values():
+    """A load no coil of this sample can hold: the message names the equation, the point's
+    temperature rise and force, and G_t and rho (it gave only an index before)."""
+    kw = THESIS_TCA.build_sample().model_kwargs()
+    with pytest.raises(
+        ModelDomainError, match=r"\(2.10\)-\(2.11\).* at dT = 10 K, F = 200 N \(point 1; 1 of 2"
+    ):
+        static.displacement(np.array([0.0, 10.0]), np.array([0.5, 200.0]), **kw)

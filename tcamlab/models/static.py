@@ -595,6 +595,12 @@ def pitch_residual(sin_alpha, fiber_length, sin_alpha0, force, torque, f11, df11
     return h, fiber_length - force * df11 + torque * df12
 
 
+def _at(a, k: int) -> float:
+    """Element ``k`` of a flattened argument that may be a scalar."""
+    a = np.asarray(a, float)
+    return float(a) if a.ndim == 0 or a.size == 1 else float(a.ravel()[k])
+
+
 def _displacement_jit(
     shape, size, dT, F, g_t, g_tau, d0, l, s0, n, N, rho, E_fab, e_slope, xtol, rtol, maxiter, full_output
 ):
@@ -628,10 +634,11 @@ def _displacement_jit(
     if np.any(status == K.NO_BRACKET):
         k = int(np.flatnonzero(status == K.NO_BRACKET)[0])
         raise ModelDomainError(
-            "static model: no equilibrium pitch angle in [0, 90] deg for "
-            f"{int((status == K.NO_BRACKET).sum())} of {size} (temperature, force) points "
-            f"(first at index {k})",
-            hint="the coil would close or straighten completely; check load and sample",
+            "static model (2.10)-(2.11): no equilibrium pitch angle in [0, 90] deg at "
+            f"dT = {_at(dT, k):.4g} K, F = {_at(F, k):.4g} N (point {k}; "
+            f"{int((status == K.NO_BRACKET).sum())} of {size} points) for G_t = {_at(g_tau, k):.4g} Pa "
+            f"and rho = {_at(rho, k):.4g} /K",
+            hint="the coil would close or straighten completely; check load_g and the sample",
         )
     if np.any(status == K.NO_CONVERGENCE):
         raise ConvergenceError(
