@@ -169,7 +169,8 @@ def error_metrics(measured, predicted) -> dict[str, float]:
         return out
     e = p - m
     abs_e = np.abs(e)
-    ss_res = float(np.dot(e, e))
+    with np.errstate(over="ignore"):  # errors beyond 1e154 give an infinite RMSE, as they should
+        ss_res = float(np.dot(e, e))
     rmse = float(np.sqrt(ss_res / n))
     span = float(np.ptp(m))
     if span > 0.0:

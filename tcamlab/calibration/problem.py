@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from tcamlab.errors import InputError, TcamlabError
+from tcamlab.errors import InputError, ModelDomainError, TcamlabError
 from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 from tcamlab.text import did_you_mean
@@ -56,6 +56,10 @@ noise floor: no row weighs more than four times as much as under one sd."""
 EFFECT_STEP = 1e-4
 """Relative step of a sample field for the random-effect columns of a run (its departures
 are about 5e-4: the model is linear over them)."""
+
+RESIDUAL_OVERFLOW = 1e100
+"""Largest residual [SI] the noise floor squares and sums without overflow (any physical
+quantity of these rigs is many orders of magnitude below it)."""
 
 MAX_LOG_SPAN = math.log(1e3)
 """Largest excursion of a positive parameter from its stated value, in log space."""
@@ -310,6 +314,7 @@ class CalibrationProblem:
             slopes = [self._input_slopes(i, j, p) for j, p in enumerate(preds)]
             for q in qs:
                 resid = [self.measured(i, j, q) - p[q] for j, p in enumerate(preds)]
+                self._check_finite(i, q, resid)
                 rows = self.row_noise(resid, [{x: g[x][q] for x in g} for g in slopes])
                 if rows is None:
                     raise InputError(
@@ -319,6 +324,23 @@ class CalibrationProblem:
                     self.row_sigma[(i, j, q)] = sd
                 out[(i, q)] = float(np.sqrt(np.mean(np.concatenate(rows) ** 2)))
         return out
+
+    def _check_finite(self, i: int, q: str, resid: list[np.ndarray]) -> None:
+        """Refuse stated values at which the model's residuals of ``q`` are not finite, or so
+        large that their squares overflow (e.g. a sensor offset so small that (4.1) divides
+        by almost 0): no noise floor or fit is defined there."""
+        for j, r in enumerate(resid):
+            r = np.asarray(r, float)
+            bad = ~np.isfinite(r) | (np.abs(r) > RESIDUAL_OVERFLOW)
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                raise ModelDomainError(
+                    f"{self.experiments[i].path}: at the stated values the {self.kinds[i].name} model "
+                    f"predicts no usable {q} on {int(bad.sum())} of {bad.size} rows of run {j + 1} "
+                    f"(first at row {k}: {r[k]:.3g} from the measurement)",
+                    "check the stated [sample] and [rig] values (a value far outside the sample's "
+                    "physical range, e.g. in the wrong unit)",
+                )
 
     def _input_slopes(self, i: int, j: int, pred: dict) -> dict[str, dict[str, np.ndarray]]:
         """{noisy input: {quantity: d predicted / d input, per row}} of run ``j`` at the stated

@@ -171,10 +171,11 @@ def _diagnose(experiment, runs, effects, n_boot: int, seed: int, workers) -> Dia
     )
     with progress.task(f"{experiment.path.name}: baseline fit", total=4) as step:
         problem = Problem(experiment, runs)
+        # first: it refuses stated values at which the model's residuals are unusable
+        rec = Recalibration(problem, experiment, runs)
         base = baseline_fit(problem)
         step(description=f"{experiment.path.name}: noise floor")
         noise = estimate_noise(problem, base)
-        rec = Recalibration(problem, experiment, runs)
         if problem.k.noisy_inputs:
             noise = _noise_at_recalibration(problem, rec, base, noise)
         base, baseline, gap = check_gap(problem, base, noise)
