@@ -162,7 +162,8 @@ def _property(kind: str, examples: int):
 def test_legitimate_statements_run_every_command(bases, kind, table, key, value):
     folder, doc = bases[kind]
     codes = _every_command(kind, folder, doc, {(table, key): value})
-    assert codes == [0, 0, 0, 0], (
+    # validate may fail the bundled file's limits (exit 1: the stated model is off), an honest result
+    assert codes[0] == 0 and codes[1] in (0, 1) and codes[2:] == [0, 0], (
         f"{key} = {value}: exit codes of check, validate, calibrate, diagnose {codes}"
     )
 

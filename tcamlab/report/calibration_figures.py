@@ -300,7 +300,8 @@ def _profile_panel(ax, p, label: str) -> list:
             fontsize=7.5,
             color=COLOURS["stated"],
         )
-    ax.set_xlim(left, right)
+    if right > left:  # a degenerate profile (one point) keeps matplotlib's own limits
+        ax.set_xlim(left, right)
     ax.set_ylim(-3.2, 3.2)
     ax.set_xlabel(f"{pretty_symbol(label)} [{unit}]")
     ax.ticklabel_format(axis="x", useOffset=False, style="plain")
