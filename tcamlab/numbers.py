@@ -221,7 +221,8 @@ def shift_text(p: dict) -> str:
 
 def reading_text(p: dict, factor: float = 1.0, unit: str = "") -> str:
     """``"; read at rest 10 ohm (sd 0.0013)"`` for a recalibrated parameter the logs read
-    directly (``p["reading"]`` = [mean, sd] [SI], shown times ``factor`` in ``unit``), else ''."""
+    directly (``p["reading"]`` holds its mean and sd in SI units, shown times ``factor`` in
+    ``unit``), else ''."""
     reading = p.get("reading")
     if not reading:
         return ""

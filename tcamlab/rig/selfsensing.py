@@ -84,7 +84,7 @@ def _mechanics(sample: Sample):
 
 
 def internal_force(x, dT, sample: Sample, gt: float, n: float):
-    """F_i of (2.15) at extension x [m] and temperature rise dT [K] [N]."""
+    """F_i of (2.15) [N] at extension x [m] and temperature rise dT [K]."""
     l, d0 = sample.fiber_length, sample.fiber_diameter
     g_tau = static.softened_modulus(dT, gt, sample.shear_modulus_slope)
     if g_tau <= 0:
