@@ -23,9 +23,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tcamlab import control as ct  # noqa: E402
-from tcamlab import selfsensing_observer as so  # noqa: E402
 from tcamlab.config import load_experiment  # noqa: E402
+from tcamlab.estimation import control as ct  # noqa: E402
+from tcamlab.estimation import observer as so  # noqa: E402
 
 
 def _log(config, n, seed=1):
@@ -40,7 +40,7 @@ def _python_reference(n):
     code = (
         f"import time,sys; sys.path.insert(0, {str(ROOT)!r})\n"
         "from bench.bench_observer import _config, _log\n"
-        "from tcamlab import selfsensing_observer as so\n"
+        "from tcamlab.estimation import observer as so\n"
         f"c=_config(); t,v,i=_log(c,{n}); t0=time.perf_counter(); so.estimate(t,v,i,c); "
         "print(time.perf_counter()-t0)"
     )

@@ -741,7 +741,7 @@ def closed_loop(
 
     Example: tcamlab closed-loop experiments/dynamic.calibrated.toml --out reports
     """
-    from tcamlab.control import closed_loop_experiment
+    from tcamlab.estimation.control import closed_loop_experiment
 
     outcome = _run(closed_loop_experiment, experiment, out, seed=seed, duration=duration, force=force)
     for label, r in outcome.summary["regimes"].items():

@@ -114,8 +114,14 @@ def _coil_problems(s: Sample) -> list[str]:
     out = []
     if isinstance(s.twists, (int, float)) and s.twists == 0:
         out.append(_key("twists", s.twists))
-    if _finite_positive(s.coil_length) and _finite_positive(s.fiber_length) and s.coil_length >= s.fiber_length:
-        out.append(f"{_key('coil_length', s.coil_length)} not shorter than {_key('fiber_length', s.fiber_length)}")
+    if (
+        _finite_positive(s.coil_length)
+        and _finite_positive(s.fiber_length)
+        and s.coil_length >= s.fiber_length
+    ):
+        out.append(
+            f"{_key('coil_length', s.coil_length)} not shorter than {_key('fiber_length', s.fiber_length)}"
+        )
     if (
         _finite_positive(s.coil_diameter)
         and _finite_positive(s.fiber_diameter)
@@ -157,7 +163,8 @@ def validate_sample(s: Sample, where: str = "[sample]") -> None:
             "coil_diameter_mm > fiber_diameter_mm",
         )
     problems = bad + [
-        p.replace("does not exceed", "must exceed") + (", so sin(alpha0) = L/l >= 1" if "shorter" in p else "")
+        p.replace("does not exceed", "must exceed")
+        + (", so sin(alpha0) = L/l >= 1" if "shorter" in p else "")
         for p in coil
     ]
     if problems:

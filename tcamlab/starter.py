@@ -564,16 +564,26 @@ def _strain_sign(kind: str, layout: CsvLayout, i: int) -> tuple[str, str]:
         if abs(r) >= 0.5:
             rises = "rises" if r > 0 else "falls"
             what = f"it {rises} as the {_DRIVERS[kind]} rises"
-            return ("-", f"{what}: it counts contraction as positive") if r > 0 else ("", f"{what}: shorter is negative")
+            return (
+                ("-", f"{what}: it counts contraction as positive")
+                if r > 0
+                else ("", f"{what}: shorter is negative")
+            )
     v = _values(_cells(layout, i))
     if kind in _DRIVERS and v.size >= 3:
         d = v - v[0]
         if (d < 0).sum() > 2 * (d > 0).sum():
             return "", "it falls from its first row, as a TCA contracting: shorter is negative"
         if (d > 0).sum() > 2 * (d < 0).sum() and "contract" in layout.headers[i].lower():
-            return "-", "it rises from its first row and its header says contraction: it counts contraction as positive"
+            return (
+                "-",
+                "it rises from its first row and its header says contraction: it counts contraction as positive",
+            )
     if "contract" in layout.headers[i].lower():
-        return "-", "its header says contraction (not checked against the data): it counts contraction as positive"
+        return (
+            "-",
+            "its header says contraction (not checked against the data): it counts contraction as positive",
+        )
     return "", "assumed to read longer as positive (not checked against the data)"
 
 

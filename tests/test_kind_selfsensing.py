@@ -204,7 +204,7 @@ def test_no_current_is_one_line_input_error(setup, exact):
 
 
 def test_the_ekf_reads_r_through_the_contact_term_and_tracks_exact_inputs(setup):
-    from tcamlab import selfsensing_observer
+    from tcamlab.estimation import observer as selfsensing_observer
 
     sample, rig = setup
     mods = get_effect("inter-coil-contact", "selfsensing").mods([30.0])

@@ -107,10 +107,10 @@ def test_kernels_compile_the_package_equations():
     # and the scipy reference path call.
     import inspect
 
+    from tcamlab.estimation import observer_kernel as OK
     from tcamlab.models import _dynamic_kernel as DK
     from tcamlab.models import _static_kernel as SK
     from tcamlab.models import coil, compiled, thermal
-    from tcamlab.selfsensing_observer import kernel as OK
 
     assert compiled.heating_rate.py_func is thermal.heating_rate
     assert compiled.torque_from_strain.py_func is static.torque_from_strain

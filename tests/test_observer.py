@@ -1,4 +1,4 @@
-"""The self-sensing estimator on the virtual rig (synthetic: tcamlab.control, seeds in the tests)."""
+"""The self-sensing estimator on the virtual rig (synthetic: tcamlab.estimation.control, seeds in the tests)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tcamlab import control as ct
-from tcamlab import selfsensing_observer as so
 from tcamlab.config import load_experiment
+from tcamlab.estimation import control as ct
+from tcamlab.estimation import observer as so
 
 ROOT = Path(__file__).resolve().parents[1]
 

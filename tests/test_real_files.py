@@ -65,7 +65,14 @@ def test_fit_spring_refuses_a_negative_spring_constant(tmp_path):
     path = _release(tmp_path, sign=-1.0)  # the force column's sign as exported
     res = runner.invoke(
         app,
-        ["fit-spring", str(path), "--column", "displacement_mm=Gap (mm)", "--column", "force_N=Normal force (N)"],
+        [
+            "fit-spring",
+            str(path),
+            "--column",
+            "displacement_mm=Gap (mm)",
+            "--column",
+            "force_N=Normal force (N)",
+        ],
     )
     assert res.exit_code == 2, res.output
     lines = res.output.strip().splitlines()
@@ -186,7 +193,9 @@ def test_init_checks_a_strain_sign_against_the_data(tmp_path, sign, scale):
 
 def test_a_straight_fiber_gets_one_message_naming_its_scope_and_every_key(tmp_path):
     text = (ROOT / "experiments" / "static.toml").read_text().replace('"../raw/', f'"{ROOT}/raw/')
-    text = text.replace("twists = 150.0", "twists = 0").replace("coil_length_mm = 20.0", "coil_length_mm = 95.0")
+    text = text.replace("twists = 150.0", "twists = 0").replace(
+        "coil_length_mm = 20.0", "coil_length_mm = 95.0"
+    )
     text = text.replace("coil_diameter_mm = 0.36", "coil_diameter_mm = 0.17")
     (tmp_path / "straight.toml").write_text(text)
     res = runner.invoke(app, ["check", str(tmp_path / "straight.toml")])

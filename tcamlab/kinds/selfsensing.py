@@ -5,7 +5,7 @@ A TCA is heated by its own current under a hanging load; the rig logs
 weight, when logged) and a reference laser ``displacement_mm`` used only to
 validate. The prediction is the self-sensed displacement, made in one place,
 :func:`predict_displacement` ("open-loop inversion"; the causal EKF of
-:mod:`tcamlab.selfsensing_observer` is the estimator for live use and closed loop): R = V / I and P = V I from the logged channels; T from the electro-thermal
+:mod:`tcamlab.estimation.observer` is the estimator for live use and closed loop): R = V / I and P = V I from the logged channels; T from the electro-thermal
 model (2.18) driven by P, starting at the steady temperature of the rest rows'
 probe power; delta from inverting the combined model R(T, delta)
 (:mod:`tcamlab.models.selfsensing`) at that T; the displacement is delta minus
@@ -205,7 +205,7 @@ def predict(
     ``estimator="inversion"`` (the primary model, :func:`predict_displacement`) is the
     open-loop inversion: the rig's effect strengths, the calibration and the diagnosis compare
     a model with the logs, and a filter's lag after an unannounced load step is not a model
-    error. ``"ekf"`` is the causal EKF of :mod:`tcamlab.selfsensing_observer` (the load as a
+    error. ``"ekf"`` is the causal EKF of :mod:`tcamlab.estimation.observer` (the load as a
     measurement where ``load_N`` is logged, else unknown), which ``validate`` reports beside
     it as the variant "EKF (causal)" (README "Self-sensing").
 
@@ -213,7 +213,7 @@ def predict(
     (a TCR other than the stated one).
     """
     if estimator == "ekf":
-        from tcamlab.selfsensing_observer import predict_displacement as ekf_displacement
+        from tcamlab.estimation.observer import predict_displacement as ekf_displacement
 
         _readable(data["current"].to_numpy(float))  # the same one-line error as the inversion
         return ekf_displacement(sample, rig, data, mods, initial_resistance=initial_resistance)

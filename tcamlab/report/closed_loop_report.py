@@ -1,6 +1,6 @@
 """The closed-loop report (``closed_loop.html`` / ``.pdf``) as a :class:`Document`.
 
-Renders only: every number comes from the :class:`~tcamlab.control.ClosedLoopStudy`
+Renders only: every number comes from the :class:`~tcamlab.estimation.control.ClosedLoopStudy`
 objects (one with the load unknown to the estimator, one with it logged by a
 load cell). Displacements are shown in mm, as the rig logs them.
 """
@@ -148,6 +148,6 @@ def closed_loop_document(studies: dict, experiment_name: str, metadata: dict) ->
         subtitle="virtual rig: open-loop voltage, laser feedback and self-sensing feedback",
         sections=sections,
         metadata=metadata,
-        synthetic_banner="SYNTHETIC DATA: virtual rig (tcamlab.control), seed "
+        synthetic_banner="SYNTHETIC DATA: virtual rig (tcamlab.estimation.control), seed "
         f"{first.scenario.seed}; not a measurement",
     )

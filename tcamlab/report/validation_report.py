@@ -89,7 +89,12 @@ def input_table(runs, start=None) -> Table:
     return Table(
         ["file", "rows", "dropped rows", "SHA-256"],
         [
-            [shown(path), len(r.data) if role == "run" else f"joined to {shown(r.path)}", _dropped(r, role), sha]
+            [
+                shown(path),
+                len(r.data) if role == "run" else f"joined to {shown(r.path)}",
+                _dropped(r, role),
+                sha,
+            ]
             for r in runs
             for role, path, sha in input_files(r)
         ],

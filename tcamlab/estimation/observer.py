@@ -184,9 +184,9 @@ class ObserverConfig:
 
 
 def parameter_vector(sample: Sample, rig: Rig) -> np.ndarray:
-    """Parameter vector of :mod:`tcamlab.selfsensing_observer.kernel` [SI]."""
+    """Parameter vector of :mod:`tcamlab.estimation.observer_kernel` [SI]."""
+    from tcamlab.estimation import observer_kernel as K
     from tcamlab.models import static
-    from tcamlab.selfsensing_observer import kernel as K
 
     p = np.zeros(K.N_PARAMS)
     p[K.P_TA], p[K.P_CTH], p[K.P_LAM] = rig.ambient, rig.thermal_mass, rig.heat_loss
@@ -211,7 +211,7 @@ def parameter_vector(sample: Sample, rig: Rig) -> np.ndarray:
 
 def rest_extension(sample: Sample, rig: Rig, temperature=None, force=None) -> float:
     """Static extension x under the rig's load at ambient (or the given T [degC], F [N]) [m]."""
-    from tcamlab.selfsensing_observer import kernel as K
+    from tcamlab.estimation import observer_kernel as K
 
     p = parameter_vector(sample, rig)
     t = rig.ambient if temperature is None else temperature
@@ -500,7 +500,7 @@ def estimate(
     -------
     EstimateResult
     """
-    from tcamlab.selfsensing_observer import kernel as K
+    from tcamlab.estimation import observer_kernel as K
 
     t = np.ascontiguousarray(time, float)
     v = np.ascontiguousarray(voltage, float)
@@ -537,7 +537,7 @@ class SelfSensingObserver:
     """
 
     def __init__(self, config: ObserverConfig, dt: float = 1e-3, initial_temperature=None):
-        from tcamlab.selfsensing_observer import kernel as K
+        from tcamlab.estimation import observer_kernel as K
 
         self._k = K
         self.config = config

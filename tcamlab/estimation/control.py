@@ -17,7 +17,7 @@ V = sqrt(P R(T_ff, x_ref)).
 
 Three feedbacks are compared with the same feedforward and gains: none
 (open-loop voltage), the laser (what a lab would use), and the self-sensing
-estimate (:mod:`tcamlab.selfsensing_observer`), all scored against the TRUE
+estimate (:mod:`tcamlab.estimation.observer`), all scored against the TRUE
 displacement of the plant, which runs with the TRUE parameters while the
 controller and the estimator use the calibrated (perturbed) ones.
 """
@@ -30,8 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tcamlab.params import Rig, Sample
-from tcamlab.selfsensing_observer import (
+from tcamlab.estimation.observer import (
     CURRENT_NOISE_SD,
     CURRENT_QUANTUM,
     MAX_STEP_S,
@@ -43,6 +42,7 @@ from tcamlab.selfsensing_observer import (
     parameter_vector,
     rest_extension,
 )
+from tcamlab.params import Rig, Sample
 
 __all__ = [
     "Instruments",
@@ -65,7 +65,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Instruments:
-    """The rig's measurement chains [SI] (see :data:`tcamlab.selfsensing_observer.DEFAULT_NOISE`)."""
+    """The rig's measurement chains [SI] (see :data:`tcamlab.estimation.observer.DEFAULT_NOISE`)."""
 
     sd_voltage: float = VOLTAGE_NOISE_SD
     sd_current: float = CURRENT_NOISE_SD
@@ -174,7 +174,7 @@ def perturbed_truth(config: ObserverConfig, seed: int, relative=None) -> tuple[S
 
 def feedforward_table(config: ObserverConfig, n=200, span=150.0):
     """(displacement [m] ascending, T_ff [degC]) of the static model under the stated load."""
-    from tcamlab.selfsensing_observer import kernel as K
+    from tcamlab.estimation import observer_kernel as K
 
     p = parameter_vector(config.sample, config.rig)
     ta = config.rig.ambient
@@ -227,7 +227,7 @@ MODES = {"open-loop": 0, "laser": 1, "self-sensing": 2, "voltage": 3}
 
 
 def _truth_config(model: ObserverConfig, sample, rig, tcr, resistance_factory):
-    from tcamlab.selfsensing_observer import ResistanceTable
+    from tcamlab.estimation.observer import ResistanceTable
 
     fn = resistance_factory(sample, rig, model.initial_resistance, tcr)
     g = model.table.grid
@@ -255,7 +255,7 @@ def simulate_loop(
     ``load_logged``: a load cell (sd ``model.noise["sd_load"]``) reads the load force
     and the estimator takes it as a measurement; otherwise the load is unknown.
     """
-    from tcamlab import control_kernel as CK
+    from tcamlab.estimation import control_kernel as CK
 
     if load_logged:  # theta is observable only with the load known (README)
         model = model.with_noise(**THETA_NOISE)
@@ -397,6 +397,7 @@ def closed_loop_experiment(path, out_dir, *, seed: int = 1, duration: float = 12
     """
     from tcamlab import __version__
     from tcamlab.config import load_experiment
+    from tcamlab.estimation.observer import combined_resistance, observer_config
     from tcamlab.io import sha256_file
     from tcamlab.jsonutil import dumps_json
     from tcamlab.report.atomic import write_all_or_nothing
@@ -404,7 +405,6 @@ def closed_loop_experiment(path, out_dir, *, seed: int = 1, duration: float = 12
     from tcamlab.report.html import render_html
     from tcamlab.report.pdf import render_pdf
     from tcamlab.rig.writers import refuse_overwrite
-    from tcamlab.selfsensing_observer import combined_resistance, observer_config
 
     exp = load_experiment(path, require_runs=False)
     target = Path(out_dir) / exp.name

@@ -10,7 +10,7 @@ One loop per sample k (period dt), in the order a real controller runs:
    resistance R(T, x)) integrates over [t_k, t_k+1] with V_k held, heated by
    V_k^2 / R, under the TRUE load force of the interval.
 
-Numba's disk cache does not notice edits to :mod:`tcamlab.selfsensing_observer.kernel`
+Numba's disk cache does not notice edits to :mod:`tcamlab.estimation.observer_kernel`
 (whose functions and constants, NX among them, are compiled in here): touch this file
 after changing that one.
 """
@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from tcamlab.selfsensing_observer import kernel as K
+from tcamlab.estimation import observer_kernel as K
 
 MODE_OPEN, MODE_LASER, MODE_SELF, MODE_VOLTAGE = 0, 1, 2, 3
 """Feedback: none (feedforward only), laser, self-sensing estimate; or a given voltage profile."""
