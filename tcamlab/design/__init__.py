@@ -228,10 +228,8 @@ def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: 
         out.feasible, out.limit = False, f"{h.name}: no solution near the fit ({str(exc)[:80]})"
         return out
     gain, post = information_gain(np.vstack([sens[q] / noise[q] for q in get_kind(kind).outputs]))
-    root, p = covariance_root(h), h.u().size
-    prior_u = np.diag(root @ root.T)
-    after = np.concatenate([np.diag(root @ post[:p, :p] @ root.T), np.diag(post)[p:]])
-    before = np.concatenate([prior_u, np.ones(post.shape[0] - p)])
+    root = covariance_root(h)
+    after, before = np.diag(root @ post @ root.T), np.diag(root @ root.T)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.sqrt(after / before)
     out.sd_ratio = {n: float(r) for n, r in zip(h.intervals, ratio)}

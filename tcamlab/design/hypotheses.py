@@ -41,6 +41,10 @@ class Hypothesis:
         Covariance of their fitted coordinates [-, or (value / prior sd)^2].
     effect_values, effect_sd : ndarray
         The effect's parameters and standard errors [SI] (empty for recalibration).
+    cov_joint : ndarray
+        Covariance of (``u``, the effect's parameters [SI]) from the joint fit, so that a draw
+        keeps the trade-off between an effect and the parameters it aliases with; without it
+        (an older diagnosis.json) the block-diagonal of ``cov_u`` and ``effect_sd``.
     """
 
     name: str
@@ -50,6 +54,7 @@ class Hypothesis:
     cov_u: np.ndarray
     effect_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
     effect_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cov_joint: np.ndarray | None = None
     intervals: dict = field(default_factory=dict)
     """Every fitted parameter -> {value, ci95, unit} [SI], as the diagnosis reported it."""
 
@@ -59,6 +64,17 @@ class Hypothesis:
             return None
         parts = [get_effect(n, kind) for n in self.name.split("+")]
         return parts[0] if len(parts) == 1 else combine(*parts)
+
+    def joint(self) -> np.ndarray:
+        """Covariance of (u, effect parameters [SI]) (see ``cov_joint``)."""
+        p, k = self.values.size, self.effect_values.size
+        c = self.cov_joint
+        if c is not None and c.shape == (p + k, p + k) and np.all(np.isfinite(c)):
+            return c
+        out = np.zeros((p + k, p + k))
+        out[:p, :p] = self.cov_u
+        out[p:, p:] = np.diag(self.effect_sd**2)
+        return out
 
     def u(self) -> np.ndarray:
         """Fitted coordinates of ``values``."""
@@ -121,11 +137,20 @@ def _hypothesis(c: dict, cal: dict) -> Hypothesis:
     prior_sd = np.array([rec[n]["prior_sd"] for n in rec], float)
     shift = c.get("recalibrated_shift") or {}
     cov = np.asarray(shift.get("covariance") or np.zeros((len(rec), len(rec))), float)
+    joint = shift.get("joint_covariance")
     params = c.get("parameters") or {}
     ev = np.array([p["value"] for p in params.values()], float)
     esd = np.array([p.get("stderr") or 0.0 for p in params.values()], float)
     intervals = {n: {k: rec[n].get(k) for k in ("value", "ci95", "unit")} for n in rec}
     intervals.update({n: {k: p.get(k) for k in ("value", "ci95", "unit")} for n, p in params.items()})
     return Hypothesis(
-        c["effect"], fields, values, prior_sd, np.nan_to_num(cov), ev, np.nan_to_num(esd), intervals
+        c["effect"],
+        fields,
+        values,
+        prior_sd,
+        np.nan_to_num(cov),
+        ev,
+        np.nan_to_num(esd),
+        None if joint is None else np.asarray(joint, float),
+        intervals,
     )

@@ -2,10 +2,10 @@
 
 The kind's public model (:func:`tcamlab.kinds.predict`, with an effect's
 :class:`~tcamlab.effects.Mods`) is evaluated on the protocol's exact inputs at draws of the
-hypothesis's parameters: its recalibrated parameters from the Gaussian of their fitted
-coordinates (:attr:`Hypothesis.cov_u`), its effect parameters from independent Gaussians of
-their standard errors (the diagnosis reports no effect-recalibration covariance), with a
-fixed seed. The first draw is the fit itself. A quantity whose zero each run profiles out
+hypothesis's parameters, drawn from the Gaussian of the joint fit (its recalibrated
+parameters' fitted coordinates and its effect's parameters, :meth:`Hypothesis.joint`), with a
+fixed seed: the correlation matters, since on a heating-only run a drift and a shift of rho
+trade off, and independent draws would spread predictions the fit has pinned. The first draw is the fit itself. A quantity whose zero each run profiles out
 (:attr:`tcamlab.kinds.Kind.nuisance_zeros`) has each run's mean removed, as the diagnosis
 scores it: a constant offset per run tells nothing.
 """
@@ -60,22 +60,23 @@ class Prediction:
 def _draws(h: Hypothesis, n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(u, theta, z) of each draw: z the standard normal deviates behind it (0 for the fit)."""
     rng = np.random.default_rng(seed)
-    u0 = h.u()
+    u0, theta0 = h.u(), h.effect_values
     root = covariance_root(h)
-    out = [(u0, h.effect_values, np.zeros(u0.size + h.effect_values.size))]
+    out = [(u0, theta0, np.zeros(root.shape[1]))]
     for _ in range(n - 1):
-        zu = rng.standard_normal(u0.size)
-        zt = rng.standard_normal(h.effect_values.size)
-        out.append((u0 + root @ zu, h.effect_values + h.effect_sd * zt, np.concatenate([zu, zt])))
+        z = rng.standard_normal(root.shape[1])
+        x = root @ z
+        out.append((u0 + x[: u0.size], theta0 + x[u0.size :], z))
     return out
 
 
 def covariance_root(h: Hypothesis) -> np.ndarray:
-    """A square root of the covariance of ``u`` (eigendecomposition; rounding's negative
-    eigenvalues clipped)."""
-    if h.cov_u.size == 0:
+    """A square root of the joint covariance of (u, effect parameters) (eigendecomposition;
+    rounding's negative eigenvalues clipped)."""
+    c = h.joint()
+    if c.size == 0:
         return np.zeros((0, 0))
-    w, vecs = np.linalg.eigh((h.cov_u + h.cov_u.T) / 2.0)
+    w, vecs = np.linalg.eigh((c + c.T) / 2.0)
     return vecs * np.sqrt(np.clip(w, 0.0, None))
 
 
@@ -136,7 +137,7 @@ SENSITIVITY_STEP = 0.1
 def sensitivity(kind: str, sample, rig, frames, h: Hypothesis) -> dict:
     """Quantity -> d(predicted rows) / d(z) [SI per posterior sd], shape (rows, parameters), at
     the fit, by central differences of :data:`SENSITIVITY_STEP` posterior sds along each
-    standardised parameter (u = u0 + root z; theta = theta0 + sd z). Each run's zero removed
+    standardised parameter ((u, theta) = (u0, theta0) + root z). Each run's zero removed
     as in :func:`predictive`. Raises where the model has no solution."""
     u0, root = h.u(), covariance_root(h)
     p, k = u0.size, h.effect_values.size
@@ -146,7 +147,8 @@ def sensitivity(kind: str, sample, rig, frames, h: Hypothesis) -> dict:
         for sgn in (1.0, -1.0):
             z = np.zeros(p + k)
             z[m] = sgn * SENSITIVITY_STEP
-            s, r, mods = h.at(u0 + root @ z[:p], h.effect_values + h.effect_sd * z[p:], sample, rig, kind)
+            x = root @ z
+            s, r, mods = h.at(u0 + x[:p], h.effect_values + x[p:], sample, rig, kind)
             ys.append(_stack(kind, run_outputs(kind, s, r, mods, frames), True))
         for q in ys[0]:
             cols.setdefault(q, []).append((ys[0][q] - ys[1][q]) / (2.0 * SENSITIVITY_STEP))

@@ -81,6 +81,19 @@ def effect_parameters(effect: Effect, fit: JointFit, cov: np.ndarray) -> dict:
     return out
 
 
+def joint_covariance(effect: Effect | None, cov: np.ndarray, p: int) -> np.ndarray:
+    """Laplace covariance of (fitted coordinates u of the recalibrated parameters, the effect's
+    parameters [SI]): the joint fit's covariance with the effect's scaled coordinates turned
+    into SI, so that draws keep the correlation between an effect and the parameters it trades
+    off against (a drift against rho on a heating-only run)."""
+    cov = np.array(cov, float)
+    if effect is None or cov.size == 0:
+        return cov[:p, :p] if cov.size else cov
+    k = len(effect.params)
+    scale = np.concatenate([np.ones(p), [q.scale for q in effect.params]])
+    return cov[: p + k, : p + k] * np.outer(scale, scale)
+
+
 AT_BOUND = 1.0e-6
 """A fitted effect parameter this close to an edge of the box its fit respected (in units of
 its scale) is at that bound: its Laplace interval is then no interval (the Jacobian column
@@ -337,6 +350,7 @@ def _score(
         term_rms=rec.term_rms(full, eff),
         shift_u=np.asarray(full.u, float) - rec.cal.stated_u0,
         shift_cov=np.asarray(cov, float)[: rec.p, : rec.p],
+        joint_cov=joint_covariance(eff, cov, rec.p),
     )
 
 

@@ -233,6 +233,9 @@ class CandidateResult:
     (log value, or value over prior sd), in the order of ``recalibrated``."""
     shift_cov: np.ndarray | None = field(default=None, repr=False)
     """Posterior covariance of ``shift_u`` (the effect's parameters marginalised out)."""
+    joint_cov: np.ndarray | None = field(default=None, repr=False)
+    """Posterior covariance of (``shift_u``, the effect's parameters [SI]), in the order of
+    ``recalibrated`` then ``parameters``."""
 
     def to_dict(self) -> dict:
         return to_jsonable(
@@ -258,7 +261,8 @@ class CandidateResult:
                 "recalibration_plausible": self.recalibration_plausible,
                 "term_rms_noise": self.term_rms,
                 "recalibrated_shift": (
-                    {"u": self.shift_u, "covariance": self.shift_cov} if self.shift_u is not None else None
+                    {"u": self.shift_u, "covariance": self.shift_cov, "joint_covariance": self.joint_cov}
+                    if self.shift_u is not None else None
                 ),
             }
         )
