@@ -53,6 +53,9 @@ __all__ = [
     "rest_extension",
     "DEFAULT_NOISE",
     "THETA_NOISE",
+    "UNKNOWN_LOAD_NOISE",
+    "LOAD_PRIOR_REL",
+    "LOAD_PRIOR_SD",
     "chain_sd",
     "VOLTAGE_NOISE_SD",
     "VOLTAGE_QUANTUM",
@@ -89,6 +92,9 @@ DEFAULT_NOISE = {
     "sd_load": 2e-3,
     "q_theta": 0.0,
     "sd_theta": 0.0,
+    "jump_drift": 0.0,
+    "jump_threshold": 0.0,
+    "jump_sd": 0.0,
 }
 """Noise of the filter, SI.
 
@@ -109,7 +115,26 @@ DEFAULT_NOISE = {
   filter's correction to the thermal part of R, R = R(T, x) (1 + theta (T - T_a)).
   Off (0) by default; :data:`THETA_NOISE` when the load is logged (README: with the load
   unknown, theta and the load trade off and the estimate gets worse, not better).
+* ``jump_drift`` [-], ``jump_threshold`` [-], ``jump_sd`` [N]: the load-jump detector
+  (a two-sided CUSUM of the normalised current innovation,
+  :func:`tcamlab.estimation.observer_kernel.jump_detector`); on an alarm the load's
+  variance grows by ``jump_sd^2``. Off (threshold 0) by default; :data:`UNKNOWN_LOAD_NOISE`
+  when no load is logged.
 """
+
+UNKNOWN_LOAD_NOISE = {"q_force": 1e-6, "jump_drift": 0.5, "jump_threshold": 12.0, "jump_sd": 0.05}
+"""The load unknown: a slow random walk of 1e-6 N^2/s (sd 1 mN after 1 s) between steps, and a
+step of the load found by the jump detector (drift 0.5, alarm at 12 sds of summed innovation:
+a false alarm about once in 10^5 noise-only samples) with a 50 mN sd, the 5 g rider of the
+virtual rig's protocol."""
+
+LOAD_PRIOR_SD = 1e-3
+"""Prior sd of the stated load (load_g) at the first row when no load is logged [N]: a hanging
+mass weighed to 0.1 g."""
+
+LOAD_PRIOR_REL = 0.1
+"""Prior sd of the stated load at the first row when a load IS logged, as a fraction of it [-]:
+the file's load_g is then a nominal value and the first logged row (sd ``sd_load``) decides."""
 
 
 THETA_NOISE = {"sd_theta": 1e-4, "q_theta": 1e-12}
@@ -161,8 +186,12 @@ class ObserverConfig:
         As :data:`DEFAULT_NOISE`.
     initial_temperature_sd : float
         Prior sd of T at the start [K].
-    initial_load_sd : float
-        Prior sd of the load force at the start [N].
+    initial_load_sd : float, optional
+        Prior sd of the load force at the first row [N]; default :meth:`load_prior_sd`.
+    lead_resistance : float
+        R_lead of the leads and contacts in series, unheated [ohm] (in ``table`` too).
+    stretch_factor : float
+        k_s, the stretch sensitivity relative to chapter 3's map [-] (in ``table`` too).
     """
 
     sample: Sample
@@ -172,19 +201,28 @@ class ObserverConfig:
     table: ResistanceTable
     noise: dict = field(default_factory=lambda: dict(DEFAULT_NOISE))
     initial_temperature_sd: float = 2.0
-    initial_load_sd: float = 1e-3
+    initial_load_sd: float | None = None
+    lead_resistance: float = 0.0
+    stretch_factor: float = 1.0
+
+    def load_prior_sd(self) -> float:
+        """Prior sd of the load force at the first row [N] (:data:`LOAD_PRIOR_SD` unless set)."""
+        return LOAD_PRIOR_SD if self.initial_load_sd is None else float(self.initial_load_sd)
 
     def noise_vector(self) -> np.ndarray:
-        n = self.noise
-        keys = ("sd_voltage", "sd_current", "q_temperature", "q_velocity", "q_force", "sd_load", "q_theta")
+        n = {**DEFAULT_NOISE, **self.noise}
+        keys = (
+            "sd_voltage", "sd_current", "q_temperature", "q_velocity", "q_force", "sd_load", "q_theta",
+            "jump_drift", "jump_threshold", "jump_sd",
+        )  # fmt: skip
         return np.array([float(n[k]) for k in keys])
 
     def with_noise(self, **changes) -> ObserverConfig:
         return replace(self, noise={**self.noise, **changes})
 
 
-def parameter_vector(sample: Sample, rig: Rig) -> np.ndarray:
-    """Parameter vector of :mod:`tcamlab.estimation.observer_kernel` [SI]."""
+def parameter_vector(sample: Sample, rig: Rig, lead_resistance: float = 0.0) -> np.ndarray:
+    """Parameter vector of :mod:`tcamlab.estimation.observer_kernel` [SI]; R_lead [ohm]."""
     from tcamlab.estimation import observer_kernel as K
     from tcamlab.models import static
 
@@ -206,6 +244,7 @@ def parameter_vector(sample: Sample, rig: Rig) -> np.ndarray:
     p[K.P_PHI0] = 2.0 * np.pi * sample.twists
     p[K.P_NCOIL] = float(static.n_coils(sample.fiber_length, sample.coil_length, sample.coil_diameter))
     p[K.P_S0] = sample.coil_length / sample.fiber_length
+    p[K.P_LEAD] = float(lead_resistance)
     return p
 
 
@@ -224,11 +263,21 @@ TCS_STIFFNESS_RATIO = 0.6
 (the ratio of the sensing template, README "Presets and assumed values")."""
 
 
-def combined_resistance(sample: Sample, rig: Rig, initial_resistance: float, resistance_tc: float):
+def combined_resistance(
+    sample: Sample,
+    rig: Rig,
+    initial_resistance: float,
+    resistance_tc: float,
+    lead_resistance: float = 0.0,
+    stretch_factor: float = 1.0,
+):
     """R(T, x) of :mod:`tcamlab.models.selfsensing` as a function of (T [degC], x [m]) -> R [ohm].
 
     ``initial_resistance`` is chapter 3's R0: unloaded, at ambient. S is
-    ``rig.spring_constant``, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0).
+    ``rig.spring_constant``, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0). The two
+    nuisances of a real rig: R = R_lead + R0 (1 + k_s (g(x) - 1)) heat(T), with
+    ``lead_resistance`` R_lead [ohm] (unheated, in series) and ``stretch_factor`` k_s [-]
+    (1: chapter 3's map).
     """
     from tcamlab.models import selfsensing
 
@@ -236,10 +285,11 @@ def combined_resistance(sample: Sample, rig: Rig, initial_resistance: float, res
     s_c = spring_constant(sample, rig)
 
     def resistance(temperature, extension):
-        return selfsensing.resistance(
-            temperature, extension, initial_resistance=initial_resistance, reference_temperature=rig.ambient,
-            tcr=resistance_tc, radial_cte=sample.radial_cte, spring_constant=s_c, **kw,
-        )  # fmt: skip
+        g = selfsensing.geometric_ratio(extension, spring_constant=s_c, **kw)
+        heat = selfsensing.coating_factor(
+            temperature, rig.ambient, resistance_tc
+        ) * selfsensing.swelling_factor(temperature, rig.ambient, sample.radial_cte)
+        return lead_resistance + initial_resistance * (1.0 + stretch_factor * (g - 1.0)) * heat
 
     return resistance
 
@@ -335,20 +385,35 @@ def defined_extensions(resistance, rig: Rig, x0: float, span: tuple[float, float
 
 
 def config_from(
-    sample: Sample, rig: Rig, *, initial_resistance=None, resistance=None, noise=None, temperature_span=160.0
+    sample: Sample,
+    rig: Rig,
+    *,
+    initial_resistance=None,
+    resistance=None,
+    noise=None,
+    temperature_span=160.0,
+    lead_resistance=0.0,
+    stretch_factor=1.0,
 ) -> ObserverConfig:
-    """As :func:`observer_config`, from a sample and a rig; ``initial_resistance`` overrides R0 [ohm]."""
+    """As :func:`observer_config`, from a sample and a rig; ``initial_resistance`` overrides R0 [ohm].
+
+    ``lead_resistance`` [ohm] and ``stretch_factor`` [-] are the resistance law's nuisances
+    (:func:`combined_resistance`); a given ``resistance`` must include them itself.
+    """
     r0 = unloaded_resistance(sample, rig) if initial_resistance is None else float(initial_resistance)
     tcr = float(getattr(rig, "tcr", SILVER_TCR))
-    fn = resistance or combined_resistance(sample, rig, r0, tcr)
+    fn = resistance or combined_resistance(sample, rig, r0, tcr, lead_resistance, stretch_factor)
     x0 = rest_extension(sample, rig)
     half = 0.3 * x0 + 2e-3  # loads from about 70% to 130% of the stated one
     x_range = defined_extensions(fn, rig, x0, (x0 - half, x0 + half))
     table = ResistanceTable.build(fn, (rig.ambient - 20.0, rig.ambient + temperature_span), x_range)
-    return ObserverConfig(sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})})
+    return ObserverConfig(
+        sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})},
+        lead_resistance=float(lead_resistance), stretch_factor=float(stretch_factor),
+    )  # fmt: skip
 
 
-def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods):
+def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods, law=(0.0, 1.0)):
     """R(T, x) with the inter-coil contact term of ``mods``, or None when there is none.
 
     The filter then reads R through the same contact factor the effect library puts on
@@ -360,7 +425,7 @@ def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods):
     from tcamlab.models import selfsensing
 
     r0 = unloaded_resistance(sample, rig) if initial_resistance is None else float(initial_resistance)
-    base = combined_resistance(sample, rig, r0, float(getattr(rig, "tcr", SILVER_TCR)))
+    base = combined_resistance(sample, rig, r0, float(getattr(rig, "tcr", SILVER_TCR)), *law)
     contact = replace(mods, r0_drift=0.0)
     x0 = rest_extension(sample, rig)
 
@@ -371,7 +436,16 @@ def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods):
 
 
 def predict_displacement(
-    sample: Sample, rig: Rig, data, mods=None, *, initial_resistance=None, use_load=True
+    sample: Sample,
+    rig: Rig,
+    data,
+    mods=None,
+    *,
+    initial_resistance=None,
+    use_load=True,
+    lead_resistance=0.0,
+    stretch_factor=1.0,
+    noise=None,
 ):
     """The self-sensed displacement and temperature of a logged run, by the EKF (causal).
 
@@ -389,12 +463,21 @@ def predict_displacement(
         ``r0_drift`` and ``tcr_extra`` are undone (the drift by scaling I back).
     initial_resistance : float, optional
         Chapter 3's R0 [ohm]; default :func:`unloaded_resistance`.
+    use_load : bool
+        Read a logged load as a measurement (sd ``sd_load``); the stated ``rig.load`` is
+        then only the prior at the first row.
+    lead_resistance, stretch_factor : float
+        R_lead [ohm] and k_s [-] of :func:`combined_resistance` (calibrated nuisances).
+    noise : dict, optional
+        Overrides of the filter's noise; default :data:`THETA_NOISE` with a logged load,
+        :data:`UNKNOWN_LOAD_NOISE` without.
 
     Returns
     -------
     dict
         ``displacement`` [m] from the static rest extension at the rest rows' steady
-        temperature (leading rows at the first voltage), ``temperature`` [degC].
+        temperature (leading rows at the first voltage) under the first row's load
+        (logged, else stated), ``temperature`` [degC], ``load_force`` [N].
     """
     t = data["time"].to_numpy(float)
     v = data["voltage"].to_numpy(float)
@@ -406,23 +489,31 @@ def predict_displacement(
     # "load" is the selfsensing kind's logged load_N column; "load_force" the simulations'
     column = next((c for c in ("load_force", "load") if c in data), None)
     load = data[column].to_numpy(float) if use_load and column else None
+    law = (float(lead_resistance), float(stretch_factor))
     config = config_from(
         sample,
         rig,
         initial_resistance=initial_resistance,
-        resistance=_contact_resistance(sample, rig, initial_resistance, mods),
-        noise=THETA_NOISE if load is not None else None,
+        resistance=_contact_resistance(sample, rig, initial_resistance, mods, law),
+        noise=noise if noise is not None else (THETA_NOISE if load is not None else UNKNOWN_LOAD_NOISE),
+        lead_resistance=law[0],
+        stretch_factor=law[1],
     )
+    if load is not None:
+        config = replace(config, initial_load_sd=max(LOAD_PRIOR_SD, LOAD_PRIOR_REL * abs(rig.force)))
     moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))
     rest = slice(0, max(int(moved[0]) if moved.size else v.size, 1))
-    t0 = rig.ambient + float(np.mean(v[rest] * i[rest])) / rig.heat_loss  # steady at the probe power
+    p_rest = float(np.mean(v[rest] * i[rest] - law[0] * i[rest] ** 2))
+    t0 = rig.ambient + p_rest / rig.heat_loss  # steady at the probe power
     est = estimate(t, v, i, config, load=load, initial_temperature=t0)
-    # from the statics' rest extension at the rest temperature, as the kind does: the rest
-    # rows' mean of the estimate would cancel a common error and hide it
-    x_rest = rest_extension(sample, rig, t0)
+    # from the statics' rest extension at the rest temperature under the first row's load, as
+    # the kind does: the rest rows' mean of the estimate would cancel a common error and hide it
+    f_rest = float(load[0]) if load is not None and np.isfinite(load[0]) else rig.force
+    x_rest = rest_extension(sample, rig, t0, f_rest)
     return {
         "displacement": est.displacement + est.extension0 - x_rest,
         "temperature": est.temperature,
+        "load_force": est.load_force,
     }
 
 
@@ -466,10 +557,11 @@ def initial_state(config: ObserverConfig, temperature=None):
     s0 = np.array([t0, x0, 0.0, rig.force, 0.0])
     # The load's prior spreads x too: dx = f11 dF with f11 = dx/dF at rest.
     f11 = (rest_extension(config.sample, rig, t0, rig.force + 1e-3) - x0) / 1e-3
-    c0 = np.diag([config.initial_temperature_sd**2, (f11 * config.initial_load_sd) ** 2, 1e-8, 0.0, 0.0])
+    sd_f = config.load_prior_sd()
+    c0 = np.diag([config.initial_temperature_sd**2, (f11 * sd_f) ** 2, 1e-8, 0.0, 0.0])
     c0[4, 4] = config.noise["sd_theta"] ** 2
-    c0[3, 3] = config.initial_load_sd**2
-    c0[1, 3] = c0[3, 1] = f11 * config.initial_load_sd**2
+    c0[3, 3] = sd_f**2
+    c0[1, 3] = c0[3, 1] = f11 * sd_f**2
     return s0, c0
 
 
@@ -510,7 +602,7 @@ def estimate(
     out_s = np.empty((n, K.NX))
     out_var = np.empty((n, K.NX))
     out_nis = np.empty(n)
-    p = parameter_vector(config.sample, config.rig)
+    p = parameter_vector(config.sample, config.rig, config.lead_resistance)
     K.ekf_batch(
         t, v, i, _as_load(load, n), s0, c0, p, config.noise_vector(), config.table.values,
         config.table.grid, MAX_STEP_S, out_s, out_var, out_nis,
@@ -544,9 +636,9 @@ class SelfSensingObserver:
         self.dt = float(dt)
         self.state, self.covariance = initial_state(config, initial_temperature)
         self.extension0 = rest_extension(config.sample, config.rig)
-        self._p = parameter_vector(config.sample, config.rig)
+        self._p = parameter_vector(config.sample, config.rig, config.lead_resistance)
         self._noise = config.noise_vector()
-        self._carry = np.zeros(2)
+        self._carry = np.zeros(4)  # V, I of the last sample; the load-jump detector's two sums
         self._nsub = max(1, int(np.ceil(self.dt / MAX_STEP_S)))
         self._first = True
         self.nis = float("nan")
@@ -567,6 +659,8 @@ class SelfSensingObserver:
         if self._first:  # the first sample only starts the power held over the next interval
             self._carry[0], self._carry[1] = voltage, current
             self._first = False
+            if lf == lf:
+                self._k.first_load_update(self.state, self.covariance, lf, self._noise[5], self._p)
         else:
             h = self.dt if dt is None else float(dt)
             nsub = self._nsub if dt is None else max(1, int(np.ceil(h / MAX_STEP_S)))

@@ -28,7 +28,11 @@ from tcamlab.models import compiled
 # Parameter vector layout.
 P_TA, P_CTH, P_LAM, P_MASS, P_DAMP, P_L, P_D0, P_RHO = 0, 1, 2, 3, 4, 5, 6, 7
 P_GT, P_SLOPE, P_E, P_PHI0, P_NCOIL, P_S0 = 8, 9, 10, 11, 12, 13
-N_PARAMS = 14
+P_LEAD = 14
+"""Lead resistance [ohm]: in series with the muscle, unheated; it takes I^2 R_lead of the power."""
+N_PARAMS = 15
+# Noise vector layout (ObserverConfig.noise_vector).
+N_SDV, N_SDI, N_QT, N_QV, N_QF, N_SDLOAD, N_QTHETA, N_JUMP_K, N_JUMP_H, N_JUMP_SD = range(10)
 # Grid layout of the resistance table: T_first, dT_step, x_first, x_step.
 G_T0, G_DT, G_X0, G_DX = 0, 1, 2, 3
 NX = 5
@@ -154,13 +158,15 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     """One causal EKF step from the previous sample's (V, I) to this sample's (V, I).
 
     ``noise`` = (sd_V [V], sd_I [A], q_T [K^2/s], q_v [m^2/s^3], q_F [N^2/s],
-    sd_load [N]). The power held over the last interval is the previous
-    sample's V I (``out[0]``, ``out[1]`` carry V and I between calls).
+    sd_load [N], q_theta [1/K^2/s][, jump_k [-], jump_h [-], jump_sd [N]]). The power
+    held over the last interval is the previous sample's V I less I^2 R_lead
+    (``out[0]``, ``out[1]`` carry V and I between calls; ``out[2]``, ``out[3]`` the
+    load-jump detector's sums when ``out`` has them, :func:`jump_detector`).
     Updates ``s`` and ``c`` in place; returns the normalised innovation
     squared of the current measurement (NaN when it carried no information).
     """
     v_prev, i_prev = out[0], out[1]
-    power = v_prev * i_prev
+    power = max(v_prev * i_prev - p[P_LEAD] * i_prev * i_prev, 0.0)
     sd_v, sd_i = noise[0], noise[1]
     sd_p = math.sqrt((i_prev * sd_v) ** 2 + (v_prev * sd_i) ** 2)
     q = (
@@ -174,18 +180,40 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     work = np.empty((3, NX, NX))
     _predict(s, c, power, dt, p, nsub, q, s_new, work)
     out[0], out[1] = volt, cur
-    nis = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, p[P_TA])
+    z = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, p[P_TA])
     if load_force == load_force:  # a logged load is a second measurement
-        _update_load(s, c, load_force, noise[5])
-    return nis
+        update_load(s, c, load_force, noise[5])
+    elif noise.size > N_JUMP_SD and out.size > 3 and noise[N_JUMP_H] > 0.0 and z == z:
+        if jump_detector(out, z, noise[N_JUMP_K], noise[N_JUMP_H]):
+            c[3, 3] += noise[N_JUMP_SD] ** 2
+    return z * z
+
+
+@njit(cache=True)
+def jump_detector(sums, z, drift, threshold):
+    """Two-sided CUSUM of the normalised current innovation ``z``; True when it alarms.
+
+    A load step moves R within the mechanics' settling time, which the held power cannot
+    (T changes at most at P / C_th): a run of same-sign innovations is the load's, and on
+    an alarm the caller widens the load's variance. ``sums[2]``, ``sums[3]`` hold the
+    upper and lower sums; both restart after an alarm.
+    """
+    sums[2] = max(0.0, sums[2] + z - drift)
+    sums[3] = max(0.0, sums[3] - z - drift)
+    if sums[2] > threshold or sums[3] > threshold:
+        sums[2] = 0.0
+        sums[3] = 0.0
+        return True
+    return False
 
 
 @njit(cache=True)
 def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, ta):
-    """Measurement update on the current I = V / (R(T, x) (1 + theta (T - T_a))); returns the NIS.
+    """Measurement update on the current I = V / (R(T, x) (1 + theta (T - T_a))).
 
     theta [1/K] absorbs a thermal part of R the calibrated model gets wrong (a TCR
     off, or a temperature off in proportion to the rise, as a lambda off makes it).
+    Returns the normalised innovation (innovation / its sd; NaN without information).
     """
     r_tab, drdt, drdx = table_resistance(s[0], s[1], table, grid)
     dT = s[0] - ta
@@ -209,11 +237,21 @@ def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, ta):
     for i in range(NX):
         for j in range(NX):
             c[i, j] -= ch[i] * ch[j] / sv
-    return innov * innov / sv
+    return innov / math.sqrt(sv)
 
 
 @njit(cache=True)
-def _update_load(s, c, load_force, sd):
+def first_load_update(s, c, load_force, sd, p):
+    """:func:`update_load` at the first row, where the prior holds x in equilibrium with F: x is
+    then re-solved at the updated F (the prior's linear x-F link is off by the curvature of
+    x(F) over a load far from the stated one)."""
+    update_load(s, c, load_force, sd)
+    s[1] = equilibrium(s[0], s[3], p, s[1])
+
+
+@njit(cache=True)
+def update_load(s, c, load_force, sd):
+    """Measurement update on a logged load force [N] of sd ``sd`` [N] (a measurement, not a reset)."""
     sv = c[3, 3] + sd * sd
     innov = load_force - s[3]
     k = c[:, 3].copy() / sv
@@ -229,8 +267,10 @@ def ekf_batch(time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_st
     """The EKF over a whole log (sample by sample, exactly as :func:`ekf_step`)."""
     s = s0.copy()
     c = c0.copy()
-    carry = np.empty(2)
+    carry = np.zeros(4)
     carry[0], carry[1] = volt[0], cur[0]
+    if load_force[0] == load_force[0]:  # the stated load was the prior; the first logged row updates it
+        first_load_update(s, c, load_force[0], noise[5], p)
     out_s[0, :] = s
     for i in range(NX):
         out_var[0, i] = c[i, i]
