@@ -22,6 +22,7 @@ from tcamlab import rig
 from tcamlab.cli import app
 from tcamlab.config import load_experiment
 from tcamlab.diagnosis import diagnose
+from tcamlab.diagnosis.paired import paired_tests
 from tcamlab.numbers import lab_unit, rmse_unit
 from tcamlab.report.diagnosis_figures import (
     MAX_LEGEND_ENTRIES,
@@ -29,8 +30,13 @@ from tcamlab.report.diagnosis_figures import (
     regime_figure,
     residual_figure,
 )
-from tcamlab.report.diagnosis_report import diagnosis_document, diagnosis_lines, verdict_text
-from tcamlab.report.diagnosis_tests import paired_sentence, paired_tests
+from tcamlab.report.diagnosis_report import (
+    diagnosis_document,
+    diagnosis_lines,
+    next_experiment_section,
+    verdict_text,
+)
+from tcamlab.report.diagnosis_tests import paired_lines, paired_sentence, paired_table
 from tcamlab.report.html import render_html
 from tcamlab.report.pdf import render_pdf
 
@@ -142,7 +148,8 @@ def _cand(effect, folds_mse, ci):
 
 
 def _result(best, others, rows=(100, 100, 100, 100, 200), n_boot=500):
-    return SimpleNamespace(
+    """A result stand-in with its paired tests stored, as the diagnosis stores them."""
+    res = SimpleNamespace(
         effect=best.effect,
         combination=None,
         ranking=[best, *others],
@@ -152,34 +159,65 @@ def _result(best, others, rows=(100, 100, 100, 100, 200), n_boot=500):
             "fold_details": [{"held_out": [{"run": i, "rows": [0, r - 1]}]} for i, r in enumerate(rows)],
         },
     )
+    res.paired_tests = paired_tests(res)
+    return res
 
 
-def test_paired_test_statistic_is_the_row_weighted_mse_difference():
+def test_paired_sentence_prints_the_stored_tests():
     best = _cand("a", [1.0, 1.1, 0.9, 1.0, 1.2], (0.5, 0.6))
     worse = _cand("b", [2.0, 2.1, 1.9, 2.2, 2.0], (0.2, 0.3))
     tied = _cand("c", [1.2, 0.9, 1.1, 0.8, 1.1], (0.45, 0.58))
-    tests = {t["candidate"]: t for t in paired_tests(_result(best, [worse, tied]))}
-    rows = np.array([100, 100, 100, 100, 200.0])
-    diff_b = float(
-        np.sum((np.array([2.0, 2.1, 1.9, 2.2, 2.0]) - [1.0, 1.1, 0.9, 1.0, 1.2]) * rows) / rows.sum()
-    )
-    assert tests["b"]["diff"] == pytest.approx(diff_b)
-    assert tests["b"]["worse_folds"] == 5 and tests["b"]["p_sign"] == pytest.approx(1 / 32)
-    assert tests["b"]["clearly_worse"] and tests["b"]["ci95"][0] > 0
-    assert tests["c"]["ci95"][0] <= 0 <= tests["c"]["ci95"][1] and not tests["c"]["clearly_worse"]
     text = paired_sentence(_result(best, [worse, tied]))
     assert "Not every other candidate is clearly worse" in text and "cannot tell it from c" in text
     assert "Every other candidate is clearly worse" not in text
-    # only b: clearly worse, with the statistic and p shown
+    # only b: clearly worse, with the statistic and p shown; b's pooled difference is
+    # (1 x 300 + 1.2 x 100 + 0.8 x 200) / 600 = 0.967 noise sd²
     text = paired_sentence(_result(best, [worse]))
     assert text.startswith("Every other candidate is clearly worse")
-    assert "p < 0.002" in text and "worse on 5 of 5 folds" in text
+    assert "b, 0.967 noise sd²" in text
+    assert "p < 0.002" in text and "worse on 5 of 5 folds" in text and "seed 0" in text
+
+
+def test_the_report_prints_what_is_stored_and_computes_nothing():
+    # tests stored by hand, not what the folds would give: the report prints these
+    stored = [
+        {
+            "candidate": "b",
+            "best": "a",
+            "diff": 0.25,
+            "ci95": [0.125, 0.5],
+            "p_boot": 0.004,
+            "n_boot": 250,
+            "seed": 7,
+            "worse_folds": 4,
+            "folds": 5,
+            "p_sign": 0.1875,
+            "intervals_overlap": True,
+            "clearly_worse": False,
+        }
+    ]
+    res = SimpleNamespace(settings={}, ranking=[], effect="a", combination=None, paired_tests=stored)
+    text = paired_sentence(res)
+    assert "Not every other candidate is clearly worse" in text and "250 resamples, seed 7" in text
+    assert "b is worse by the paired test (closest: b, 0.25 noise sd² (95 % 0.125 to 0.5" in text
+    assert "p = 0.004" in text and "worse on 4 of 5 folds" in text
+    table = paired_table(res)
+    assert table.caption.startswith("Paired tests against a ")
+    assert table.rows == [["b", "0.25", "0.125 to 0.5", "p = 0.004", "4 of 5", "0.19", "yes", "no"]]
+    assert paired_lines(res)[1].endswith("sign test p = 0.19) - NOT clearly worse")
+    # the same from the diagnosis.json mapping
+    as_json = {"paired_tests": stored}
+    assert paired_sentence(as_json) == text and paired_table(as_json).rows == table.rows
+    # nothing stored: no table and no claim
+    assert paired_table({"paired_tests": []}) is None
+    assert "no candidate is called clearly worse" in paired_sentence(SimpleNamespace(paired_tests=None))
 
 
 def test_overlapping_shrinkage_intervals_never_read_clearly_worse(glass):
     result, exp = glass
-    tests = paired_tests(result)
+    tests = result.paired_tests
     assert tests, "the glass case has other candidates"
+    assert result.to_dict()["paired_tests"] == tests  # in diagnosis.json
     text = verdict_text(result)
     # shrinkage 82-86 % for glass-transition against 80-84 % for the rest: the intervals overlap
     assert any(t["intervals_overlap"] for t in tests)
@@ -356,17 +394,14 @@ def test_verdict_text_of_miscalibrated_names_the_stand_ins_and_how_to_separate_t
         "shift_in_stated_sds": 0.2,
         "shift_in_prior_sds": 0.2,
     }
-    result = SimpleNamespace(
-        gap={"rmse_over_noise": 1.9, "limit": 1.2, "level": 0.99},
-        verdict="miscalibrated",
-        ranking=[],
-        effect=None,
-        recalibration={
-            "named": ["resistivity"],
-            "parameters": {"resistivity": entry},
-            "fraction_closed": 0.9,
-            "stand_ins": {"youngs-modulus-temperature": ["resistivity"], "glass-transition": []},
-        },
+    recalibration = {
+        "named": ["resistivity"],
+        "parameters": {"resistivity": entry},
+        "fraction_closed": 0.9,
+        "stand_ins": {"youngs-modulus-temperature": ["resistivity"], "glass-transition": []},
+    }
+    result = _miscalibrated(
+        recalibration,
         aliased_with=["youngs-modulus-temperature", "glass-transition"],
         separate_by={"recalibration": "a second load", "glass-transition": "a slower oven ramp"},
     )
@@ -378,8 +413,33 @@ def test_verdict_text_of_miscalibrated_names_the_stand_ins_and_how_to_separate_t
         "runs as well" in text
     )
     assert "recalibration: a second load; glass-transition: a slower oven ramp." in text
-    result.aliased_with, result.separate_by = [], {}
-    assert "withheld runs as well" not in verdict_text(result)
+    assert "withheld runs as well" not in verdict_text(_miscalibrated(recalibration, [], {}))
+    # the words are the result's: the report prints them as stored
+    stored = SimpleNamespace(**{**vars(result), "stand_ins_words": "x (with y at its stated value)"})
+    assert "But x (with y at its stated value) fit the withheld runs as well" in verdict_text(stored)
+
+
+def _miscalibrated(recalibration, aliased_with, separate_by):
+    """A ``miscalibrated`` diagnosis result with only what its verdict text reads."""
+    from tcamlab.diagnosis.result import DiagnosisResult
+
+    return DiagnosisResult(
+        kind="static",
+        experiment={},
+        verdict="miscalibrated",
+        effect=None,
+        ranking=[],
+        aliased_with=aliased_with,
+        separate_by=separate_by,
+        noise_floor={},
+        baseline={},
+        regimes=[],
+        runs=[],
+        gap={"rmse_over_noise": 1.9, "limit": 1.2, "level": 0.99},
+        reason="",
+        settings={},
+        recalibration=recalibration,
+    )
 
 
 def test_a_parameter_at_a_bound_of_its_fit_is_printed_without_an_interval():
@@ -401,3 +461,69 @@ def test_a_parameter_at_a_bound_of_its_fit_is_printed_without_an_interval():
     text = diagnosis_lines(SimpleNamespace(reason="something", to_dict=lambda: doc))[-1]
     assert "lag_tau = 3.6e-06 s (at a bound of its fitted range, so no interval)" in text
     assert "3.6e-06 to 3.6e-06" not in text and "(95 % " in text
+
+
+def _design() -> dict:
+    """A design's JSON (:meth:`tcamlab.design.DesignResult.to_dict`), made by hand."""
+    protocol = {"table": {}, "log_bayes_factor": 3.0, "pairs": {}, "max_difference": {}}
+    return {
+        "schema_version": 1,
+        "status": "ambiguous",
+        "message": "Run the slow oven ramp next: it tells glass-transition from recalibration.",
+        "best": "slow oven ramp",
+        "candidates": [
+            {
+                **protocol,
+                "name": "slow oven ramp",
+                "separation": 12.5,
+                "separation_refit": 9.25,
+                "runs": 3,
+                "minutes": 45.0,
+                "per_hour": 16.7,
+                "feasible": True,
+                "limit": "",
+            },
+            {
+                **protocol,
+                "name": "second load",
+                "separation": 4.5,
+                "separation_refit": None,  # NaN in the design, null in its JSON
+                "runs": 2,
+                "minutes": 30.0,
+                "per_hour": 9.0,
+                "feasible": False,
+                "limit": "load above the thread's rating",
+            },
+        ],
+    }
+
+
+def test_next_experiment_section_lists_the_protocols_with_the_best_marked():
+    sec = next_experiment_section(_design())
+    assert sec.heading == "Next experiment"
+    assert sec.paragraphs == [_design()["message"]]
+    (table,) = sec.tables
+    assert table.columns == ["protocol", "separation", "refitted separation", "runs", "minutes", "feasible"]
+    rows = [[c.text for c in row] for row in table.formatted_rows()]
+    assert rows[0] == ["slow oven ramp (best)", "12.5", "9.25", "3", "45", "yes"]
+    assert rows[1] == ["second load", "4.5", "\u2013", "2", "30", "load above the thread's rating"]
+    # nothing to separate: the message alone, no empty table
+    none = next_experiment_section({"status": "none", "message": "Nothing to separate.", "candidates": []})
+    assert none.paragraphs == ["Nothing to separate."] and list(none.tables) == []
+    assert next_experiment_section(None) is None and next_experiment_section({}) is None
+
+
+def test_diagnosis_report_renders_the_next_experiment_only_when_present(glass):
+    result, exp = glass
+    assert [s.heading for s in diagnosis_document(result, exp).sections] == ["Sim-to-real gap diagnosis"]
+    doc = diagnosis_document(result, exp, next_experiment=_design())
+    assert [s.heading for s in doc.sections] == ["Sim-to-real gap diagnosis", "Next experiment"]
+    html = render_html(doc)
+    assert "Next experiment" in html and "slow oven ramp (best)" in html and "9.25" in html
+    pdf = " ".join(
+        " ".join(p.extract_text() for p in pypdf.PdfReader(io.BytesIO(render_pdf(doc))).pages).split()
+    )
+    assert "Next experiment" in pdf and "slow oven ramp (best)" in pdf
+    # stored on the result (as diagnosis.json's next_experiment), the report finds it there
+    stored = SimpleNamespace(**{**vars(result), "next_experiment": _design()})
+    assert diagnosis_document(stored, exp).sections[-1].heading == "Next experiment"

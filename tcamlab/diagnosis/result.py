@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from tcamlab.diagnosis.paired import paired_tests
 from tcamlab.jsonutil import to_jsonable
 from tcamlab.units import display
 
@@ -31,6 +32,7 @@ __all__ = [
     "Settings",
     "CandidateResult",
     "DiagnosisResult",
+    "stand_ins_text",
 ]
 
 
@@ -262,10 +264,42 @@ class CandidateResult:
                 "term_rms_noise": self.term_rms,
                 "recalibrated_shift": (
                     {"u": self.shift_u, "covariance": self.shift_cov, "joint_covariance": self.joint_cov}
-                    if self.shift_u is not None else None
+                    if self.shift_u is not None
+                    else None
                 ),
             }
         )
+
+
+def _and(words) -> str:
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} and {words[-1]}"
+
+
+def stand_ins_text(stand_ins: dict) -> str:
+    """Stand-ins and the moved parameters each takes over, in words.
+
+    Parameters
+    ----------
+    stand_ins : dict
+        ``{effect: [parameters]}``, or ``{effect: None}`` when that is not known.
+
+    Returns
+    -------
+    str
+        "E (with P at its stated value) and F"; an effect with no parameters takes over
+        the combination the data fix (:func:`tcamlab.diagnosis.verdict.restores_combination`).
+    """
+
+    def one(effect, params):
+        if params is None:
+            return effect
+        if not params:
+            return f"{effect} (with the combination of parameters the data fix at its stated value)"
+        if len(params) == 1:
+            return f"{effect} (with {params[0]} at its stated value)"
+        return f"{effect} (with {_and(params)} at their stated values)"
+
+    return _and([one(e, p) for e, p in stand_ins.items()])
 
 
 @dataclass
@@ -290,7 +324,31 @@ class DiagnosisResult:
     recalibration: dict | None = None
     """The recalibration behind a ``miscalibrated`` (or parameter-aliased) verdict:
     {parameters {name: ...}, named [names], plausible, prior_chi2}; else None."""
+    paired_tests: list[dict] | None = None
+    """The paired tests of every other candidate against the named one on the withheld folds
+    (:func:`tcamlab.diagnosis.paired.paired_tests`, computed from ``ranking`` and ``settings``
+    when the result is made), one dict per other candidate in ranking order: ``candidate``,
+    ``best`` (the candidate it is tested against), ``diff`` (pooled held-out mean squared
+    normalised residual of it minus the best's [noise sd²], each fold weighted by its
+    held-out rows), ``ci95`` ([lo, hi], 95 % paired bootstrap over folds), ``p_boot``
+    (one-sided: share of resamples with ``diff`` <= 0), ``n_boot``, ``seed`` (the bootstrap's),
+    ``worse_folds``, ``folds``, ``p_sign`` (one-sided sign test over folds),
+    ``intervals_overlap`` (its shrinkage interval overlaps the best's) and ``clearly_worse``
+    (``ci95`` above 0 and no overlap). Empty without a named candidate or per-fold scores."""
+    stand_ins_words: str | None = None
+    """For ``miscalibrated`` with effects in ``aliased_with``: those effects with the
+    parameters each takes over, in words (:func:`stand_ins_text`, from
+    ``recalibration["stand_ins"]``; filled when the result is made); else ""."""
+    next_experiment: dict | None = None
+    """The protocol to run next, when the design was run on this diagnosis
+    (:meth:`tcamlab.design.DesignResult.to_dict`); None otherwise (then not in :meth:`to_dict`)."""
     _series: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.paired_tests is None:
+            self.paired_tests = paired_tests(self)
+        if self.stand_ins_words is None:
+            self.stand_ins_words = _stand_ins_words(self.verdict, self.aliased_with, self.recalibration)
 
     # -- export --------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -314,7 +372,10 @@ class DiagnosisResult:
                 "regimes": self.regimes,
                 "runs": self.runs,
                 "settings": self.settings,
+                "paired_tests": self.paired_tests,
+                "stand_ins_words": self.stand_ins_words,
             }
+            | ({"next_experiment": self.next_experiment} if self.next_experiment is not None else {})
         )
 
     def to_pandas(self) -> pd.DataFrame:
@@ -406,6 +467,15 @@ class DiagnosisResult:
         ax.set_ylabel(f"{q} [{unit}]")
         ax.legend()
         return ax
+
+
+def _stand_ins_words(verdict: str, aliased_with: list, recalibration: dict | None) -> str:
+    """:attr:`DiagnosisResult.stand_ins_words` of a result ("" unless ``miscalibrated`` with
+    effects in ``aliased_with``)."""
+    if verdict != "miscalibrated" or not aliased_with:
+        return ""
+    takes = (recalibration or {}).get("stand_ins") or {}
+    return stand_ins_text({e: takes.get(e) for e in aliased_with})
 
 
 def _axes(ax):

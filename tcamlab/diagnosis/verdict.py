@@ -15,7 +15,7 @@ from tcamlab.diagnosis.candidates import CandidateFit, FoldScores, ci, fit_candi
 from tcamlab.diagnosis.noise import BaselineFit
 from tcamlab.diagnosis.problem import Problem
 from tcamlab.diagnosis.recalibration import RECALIBRATION
-from tcamlab.diagnosis.result import CandidateResult, Gap
+from tcamlab.diagnosis.result import CandidateResult, Gap, stand_ins_text
 from tcamlab.effects import combine
 from tcamlab.numbers import fmt, fmt_interval, reading_text, shift_text
 
@@ -36,7 +36,6 @@ __all__ = [
     "aliased_parameters",
     "stands_in",
     "taken_over",
-    "stand_ins_text",
     "JOINT_LEVEL",
     "joint_shift_chi2",
     "moved_jointly",
@@ -351,27 +350,6 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
         )
         return "miscalibrated", None, stand_ins, closes
     return "miscalibrated", None, [], closes + "; no effect fitted with recalibration beats it"
-
-
-def _and(words) -> str:
-    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} and {words[-1]}"
-
-
-def stand_ins_text(stand_ins: dict) -> str:
-    """Stand-ins and the moved parameters each takes over (``{effect: [parameters]}``, or
-    ``{effect: None}`` when that is not known), in words: "E (with P at its stated value)
-    and F"; no parameters: the combination the data fix (:func:`restores_combination`)."""
-
-    def one(effect, params):
-        if params is None:
-            return effect
-        if not params:
-            return f"{effect} (with the combination of parameters the data fix at its stated value)"
-        if len(params) == 1:
-            return f"{effect} (with {params[0]} at its stated value)"
-        return f"{effect} (with {_and(params)} at their stated values)"
-
-    return _and([one(e, p) for e, p in stand_ins.items()])
 
 
 def pair_verdict(combos, after_folds, boot_idx, b_n, order):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 
-from tcamlab.diagnosis.verdict import stand_ins_text
 from tcamlab.numbers import (
     MISSING,
     fmt,
@@ -20,11 +19,17 @@ from tcamlab.numbers import (
 )
 
 from .diagnosis_figures import MIN_REGIME_POINTS, forest_figure, regime_figure, residual_figure
-from .diagnosis_tests import paired_lines, paired_sentence, paired_table, paired_tests
+from .diagnosis_tests import paired_lines, paired_sentence, paired_table, stored_tests
 from .document import Document, Section, Table
 from .validation_report import synthetic_banner
 
-__all__ = ["diagnosis_section", "diagnosis_document", "verdict_text", "diagnosis_lines"]
+__all__ = [
+    "diagnosis_section",
+    "diagnosis_document",
+    "next_experiment_section",
+    "verdict_text",
+    "diagnosis_lines",
+]
 
 
 def _pct(x, decimals: int = 0) -> str:
@@ -138,15 +143,16 @@ def _miscalibrated_text(rec: dict) -> str:
 
 
 def _stand_ins_text(result) -> str:
-    """The effects that fit the withheld runs as well as a ``miscalibrated`` shift, with the
-    experiments that tell them apart (empty without any)."""
-    if not result.aliased_with:
+    """The effects that fit the withheld runs as well as a ``miscalibrated`` shift (the
+    result's ``stand_ins_words``), with the experiments that tell them apart (empty without
+    any)."""
+    words = getattr(result, "stand_ins_words", None)
+    if not result.aliased_with or not words:
         return ""
     many = len(result.aliased_with) > 1
-    takes = (result.recalibration or {}).get("stand_ins") or {}
     return (
         " But "
-        + stand_ins_text({e: takes.get(e) for e in result.aliased_with})
+        + words
         + (" fit" if many else " fits")
         + " the withheld runs as well; these data cannot tell the shift from "
         + ("them" if many else "it")
@@ -303,8 +309,68 @@ def diagnosis_section(result) -> Section:
     )
 
 
-def diagnosis_document(result, experiment=None) -> Document:
-    """A full report Document of a diagnosis."""
+def _finite(x):
+    """``x`` as a float, or None (shown as a dash) when missing or not finite."""
+    return float(x) if isinstance(x, (int, float)) and math.isfinite(x) else None
+
+
+def next_experiment_section(design) -> Section | None:
+    """The "Next experiment" section of a diagnosis's ``next_experiment``, or None.
+
+    Parameters
+    ----------
+    design : dict or None
+        :meth:`tcamlab.design.DesignResult.to_dict` of the design run on the diagnosis
+        (``message``, ``best``, ``candidates`` with ``name``, ``separation``,
+        ``separation_refit``, ``runs``, ``minutes``, ``feasible``, ``limit``).
+
+    Returns
+    -------
+    Section or None
+        The message and a table of the candidate protocols, the best one marked; None
+        without a design.
+    """
+    if not design:
+        return None
+    best = design.get("best")
+    rows = [
+        [
+            c.get("name", "") + (" (best)" if best is not None and c.get("name") == best else ""),
+            _finite(c.get("separation")),
+            _finite(c.get("separation_refit")),
+            c.get("runs"),
+            _finite(c.get("minutes")),
+            "yes" if c.get("feasible", True) else (c.get("limit") or "no"),
+        ]
+        for c in design.get("candidates") or []
+    ]
+    table = Table(
+        ["protocol", "separation", "refitted separation", "runs", "minutes", "feasible"],
+        rows,
+        caption="Candidate protocols, best first (separation: smallest over pairs of "
+        "hypotheses; refitted: each hypothesis refitted to the new runs; feasible, or the "
+        "limit it breaks)",
+    )
+    return Section(
+        heading="Next experiment",
+        paragraphs=[design.get("message") or ""] if design.get("message") else [],
+        tables=[table] if rows else [],
+    )
+
+
+def diagnosis_document(result, experiment=None, next_experiment=None) -> Document:
+    """A full report Document of a diagnosis.
+
+    Parameters
+    ----------
+    result : DiagnosisResult
+        The diagnosis.
+    experiment : Experiment, optional
+        Its experiment (title, synthetic banner).
+    next_experiment : dict, optional
+        The design's :meth:`~tcamlab.design.DesignResult.to_dict`; by default the result's
+        ``next_experiment``. Rendered as a "Next experiment" section when present.
+    """
     title = getattr(experiment, "title", None) or result.experiment.get("title") or "Experiment"
     synthetic = getattr(experiment, "synthetic", None)
     meta = {
@@ -318,10 +384,13 @@ def diagnosis_document(result, experiment=None) -> Document:
     }
     for entry in result.experiment.get("inputs", []):
         meta[f"sha256 {entry['path']}"] = entry["sha256"]
+    if next_experiment is None:
+        next_experiment = getattr(result, "next_experiment", None)
+    following = next_experiment_section(next_experiment)
     return Document(
         title=f"Gap diagnosis: {title}",
         subtitle=result.kind,
-        sections=[diagnosis_section(result)],
+        sections=[diagnosis_section(result)] + ([following] if following is not None else []),
         metadata=meta,
         synthetic_banner=synthetic_banner(experiment) if synthetic else None,
     )
@@ -345,7 +414,7 @@ def _reason(result) -> str:
     cut = reason.find(", and every other candidate is clearly worse")
     if cut < 0:
         return reason
-    tests = paired_tests(result)
+    tests = stored_tests(result)
     if tests and all(t["clearly_worse"] for t in tests):
         return (
             reason[:cut]

@@ -1,14 +1,10 @@
-"""The paired test behind "every other candidate is clearly worse", recomputed and shown.
+"""The paired tests behind "every other candidate is clearly worse", shown.
 
-The diagnosis result carries each candidate's held-out score per fold (``folds``:
-``rmse_after_noise``) and each fold's held-out rows (``settings.fold_details``), not the
-test itself. From them, for the best candidate B and every other candidate C:
-
-- the paired bootstrap over folds the verdict uses: resample the folds (``n_boot``
-  resamples, the diagnosis's ``seed``), and take the pooled held-out mean squared
-  normalised residual of C minus B's; its 95 % percentile interval, and p = the share of
-  resamples where C is not worse (one-sided);
-- a sign test: on how many withheld folds C is worse, and its one-sided binomial p.
+The diagnosis computes them (:mod:`tcamlab.diagnosis.paired`) and stores them in its result
+(``paired_tests``: for every other candidate against the best, the paired bootstrap over
+withheld folds the verdict uses, with its 95 % interval and one-sided p, and a sign test over
+folds); this module only prints what is stored, from a
+:class:`tcamlab.diagnosis.DiagnosisResult` or from its ``diagnosis.json`` mapping.
 
 "Clearly worse" is printed only when every other candidate's bootstrap interval lies above
 0 *and* its shrinkage interval does not overlap the best's; otherwise the text says which
@@ -17,94 +13,33 @@ candidates the withheld data cannot tell apart from the best.
 
 from __future__ import annotations
 
-import numpy as np
-from scipy import stats
+from collections.abc import Mapping
 
 from tcamlab.numbers import fmt
 
 from .document import Table
 
-__all__ = ["paired_tests", "paired_sentence", "paired_lines", "paired_table", "best_candidate"]
+__all__ = ["stored_tests", "paired_sentence", "paired_lines", "paired_table"]
 
 
-def best_candidate(result):
-    """The named candidate's scores (the pair for a pair verdict), or None."""
-    combo = getattr(result, "combination", None)
-    if combo is not None:
-        return combo
-    return next((c for c in result.ranking if c.effect == result.effect), None)
+def stored_tests(result) -> list[dict]:
+    """The paired tests stored in a diagnosis result (its ``paired_tests``), or [].
 
-
-def _get(c, key):
-    return c[key] if isinstance(c, dict) else getattr(c, key)
-
-
-def _name(c) -> str:
-    return " + ".join(c["effects"]) if isinstance(c, dict) and "effects" in c else _get(c, "effect")
-
-
-def _fold_rows(result) -> np.ndarray:
-    """Held-out rows of each fold (contiguous row ranges, ``settings.fold_details``)."""
-    details = result.settings["fold_details"]
-    return np.array([sum(h["rows"][1] - h["rows"][0] + 1 for h in d["held_out"]) for d in details], float)
-
-
-def _fold_mse(c) -> np.ndarray:
-    return np.array([f["rmse_after_noise"] ** 2 for f in _get(c, "folds")], float)
-
-
-def _overlap(a, b) -> bool:
-    (alo, ahi), (blo, bhi) = _get(a, "shrinkage_ci95"), _get(b, "shrinkage_ci95")
-    return bool(alo <= bhi and blo <= ahi)
-
-
-def paired_tests(result) -> list[dict]:
-    """Paired tests of every other candidate against the best (module docstring); [] when
-    there is no best or the folds are missing.
+    Parameters
+    ----------
+    result
+        A :class:`tcamlab.diagnosis.DiagnosisResult`, or its ``diagnosis.json`` mapping.
 
     Returns
     -------
     list of dict
-        ``candidate``, ``diff`` (pooled held-out MSE of it minus the best's [noise sd²]),
-        ``ci95``, ``p_boot``, ``worse_folds``, ``folds``, ``p_sign``, ``intervals_overlap``,
-        ``clearly_worse``.
+        The stored tests (keys as :attr:`tcamlab.diagnosis.DiagnosisResult.paired_tests`);
+        [] when the result has none.
     """
-    best = best_candidate(result)
-    try:
-        n, mse_b = _fold_rows(result), _fold_mse(best)
-    except (AttributeError, KeyError, TypeError):  # no best, or a result without per-fold scores
-        return []
-    if n.size != mse_b.size:
-        return []
-    s = result.settings
-    boot = np.random.default_rng(s["seed"]).integers(0, n.size, size=(max(int(s["n_boot"]), 1), n.size))
-    out = []
-    for c in result.ranking:
-        if _name(c) == _name(best):
-            continue
-        mse_c = _fold_mse(c)
-        if mse_c.size != n.size:
-            continue
-        d = (mse_c - mse_b) * n
-        samples = d[boot].sum(axis=1) / n[boot].sum(axis=1)
-        lo, hi = (float(v) for v in np.quantile(samples, [0.025, 0.975]))
-        worse = int(np.sum(mse_c > mse_b))
-        overlap = _overlap(c, best)
-        out.append(
-            {
-                "candidate": _name(c),
-                "diff": float(d.sum() / n.sum()),
-                "ci95": [lo, hi],
-                "p_boot": float(np.mean(samples <= 0.0)),
-                "n_boot": int(boot.shape[0]),
-                "worse_folds": worse,
-                "folds": int(n.size),
-                "p_sign": float(stats.binomtest(worse, int(n.size), 0.5, alternative="greater").pvalue),
-                "intervals_overlap": overlap,
-                "clearly_worse": bool(lo > 0.0 and not overlap),
-            }
-        )
-    return out
+    tests = (
+        result.get("paired_tests") if isinstance(result, Mapping) else getattr(result, "paired_tests", None)
+    )
+    return list(tests or [])
 
 
 def _p(p: float, n_boot: int) -> str:
@@ -132,15 +67,15 @@ def _closest(tests: list[dict]) -> str:
 def paired_sentence(result) -> str:
     """The claim about the other candidates, with the test that supports it (the table of
     :func:`paired_table` gives every candidate's)."""
-    tests = paired_tests(result)
+    tests = stored_tests(result)
     if not tests:
         return (
-            "The paired test against the other candidates cannot be recomputed from this result "
+            "The paired test against the other candidates cannot be computed from this result "
             "(no per-fold scores), so no candidate is called clearly worse."
         )
     how = (
         f"in a paired bootstrap over the {tests[0]['folds']} withheld folds ({tests[0]['n_boot']} "
-        f"resamples, seed {result.settings['seed']}), the held-out mean squared residual minus the best's"
+        f"resamples, seed {tests[0]['seed']}), the held-out mean squared residual minus the best's"
     )
     if all(t["clearly_worse"] for t in tests):
         return (
@@ -169,22 +104,21 @@ def paired_sentence(result) -> str:
 
 def paired_lines(result) -> list[str]:
     """One line per other candidate for the text output (the test named on the first)."""
-    tests = paired_tests(result)
+    tests = stored_tests(result)
     if not tests:
         return []
     head = (
         f"held-out mean squared residual minus the best's [noise sd²], paired bootstrap over "
-        f"{tests[0]['folds']} folds ({tests[0]['n_boot']} resamples, seed {result.settings['seed']}):"
+        f"{tests[0]['folds']} folds ({tests[0]['n_boot']} resamples, seed {tests[0]['seed']}):"
     )
     return [head] + [_one(t) + ("" if t["clearly_worse"] else " - NOT clearly worse") for t in tests]
 
 
 def paired_table(result) -> Table | None:
     """The paired tests as a table, or None without them."""
-    tests = paired_tests(result)
+    tests = stored_tests(result)
     if not tests:
         return None
-    best = best_candidate(result)
     rows = [
         [
             t["candidate"],
@@ -210,6 +144,6 @@ def paired_table(result) -> Table | None:
             "clearly worse",
         ],
         rows,
-        caption=f"Paired tests against {_name(best)} on the withheld folds (paired bootstrap as "
-        "the verdict uses, one-sided; recomputed from the per-fold scores)",
+        caption=f"Paired tests against {tests[0]['best']} on the withheld folds (paired bootstrap as "
+        "the verdict uses, one-sided; computed from the per-fold scores)",
     )
