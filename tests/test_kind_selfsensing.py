@@ -218,3 +218,33 @@ def test_the_ekf_reads_r_through_the_contact_term_and_tracks_exact_inputs(setup)
     assert np.max(np.abs(out - truth)[t < 5.9]) < 3e-6
     assert np.max(np.abs(out - truth)[t > 7.5]) < 3e-6
     assert np.max(np.abs(out - truth)[(t > 6.0) & (t < 6.5)]) > 10e-6  # the step is a real test
+
+
+def test_the_rigs_resistance_law_option_changes_r_as_its_formula_says(setup):
+    """SYNTHETIC law (leads, quadratic TCR, stretch factor) on a 3 s powered run of the virtual rig."""
+    from tcamlab.models import selfsensing as ssm
+    from tcamlab.rig.selfsensing import ResistanceLaw, powered_run
+
+    sample, rig = setup
+    t = np.arange(300) / 100.0
+    v = np.where(t >= 0.5, 6.0, ss.PROBE_V)
+    mass = np.full(t.size, rig.load)
+    law = ResistanceLaw(lead_ohm=0.4, tcr2_per_K2=-2e-6, stretch_factor=1.3)
+    base = powered_run(sample, rig, t, v, mass)
+    run = powered_run(sample, rig, t, v, mass, law=law)
+    dT = run.temperature - rig.ambient
+    g = ssm.geometric_ratio(run.extension, spring_constant=rig.spring_constant, **sample.sensor_kwargs())
+    heat = (1.0 + rig.tcr * dT - 2e-6 * dT**2) / (1.0 + sample.radial_cte * dT) ** 2
+    expected = 0.4 + rig.initial_resistance * (1.0 + 1.3 * (g - 1.0)) * heat
+    np.testing.assert_allclose(run.resistance, expected, rtol=1e-12)
+    np.testing.assert_allclose(run.current, v / expected, rtol=1e-12)
+    # the default law is tcamlab's model exactly
+    kw = dict(reference_temperature=rig.ambient, tcr=rig.tcr, radial_cte=sample.radial_cte)
+    own = ssm.resistance(
+        base.temperature, base.extension, initial_resistance=rig.initial_resistance,
+        spring_constant=rig.spring_constant, **kw, **sample.sensor_kwargs(),
+    )  # fmt: skip
+    np.testing.assert_allclose(base.resistance, own, rtol=1e-12)
+    # the lead takes its share of the power: the heated muscle ends cooler than without a lead
+    assert run.resistance[0] - base.resistance[0] > 0.35
+    assert run.temperature[-1] < base.temperature[-1] - 0.5

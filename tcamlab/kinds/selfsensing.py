@@ -471,11 +471,15 @@ def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
     return pd.DataFrame({"time": t, "voltage": np.round(v, 3), "load_mass": mass})
 
 
-def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
+def exact_inputs(
+    sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS, *, law=None
+) -> pd.DataFrame:
     """The exact logged inputs and the true displacement of a powered run.
 
     :func:`tcamlab.rig.selfsensing.powered_run` with the rig's true R0, S and TCR
-    and the effects in ``mods`` (they act on the true R).
+    and the effects in ``mods`` (they act on the true R); ``law``, a
+    :class:`tcamlab.rig.selfsensing.ResistanceLaw`, makes the true R a law other than
+    tcamlab's (SYNTHETIC: leads, a quadratic TCR, another stretch sensitivity).
 
     Returns
     -------
@@ -487,9 +491,9 @@ def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_
     t = proto["time"].to_numpy(float)
     v = proto["voltage"].to_numpy(float)
     mass = proto["load_mass"].to_numpy(float)
-    from tcamlab.rig.selfsensing import powered_run  # the rig package imports the registry
+    from tcamlab.rig.selfsensing import TCAMLAB_LAW, powered_run  # the rig package imports the registry
 
-    run = powered_run(sample, rig, t, v, mass, mods)
+    run = powered_run(sample, rig, t, v, mass, mods, law=law or TCAMLAB_LAW)
     return pd.DataFrame(
         {
             "time": t,

@@ -12,6 +12,10 @@ changes the self-sensing run needs:
 Effects of the library act on the true R (:func:`effect_factor`):
 inter-coil contact, R0 drift and a TCR other than the stated one.
 
+A :class:`ResistanceLaw` makes the true R differ from tcamlab's model as a real rig's
+does (SYNTHETIC, an option of :func:`powered_run`): a lead resistance in series, a
+quadratic TCR term and a different stretch sensitivity.
+
 The ODE is integrated by :func:`scipy.integrate.solve_ivp` (RK45) piece by piece
 between changes of the held voltage and load, as the dynamic model's reference path.
 g(x) = R / R0 of chapter 3 is tabulated once per run on a fine grid (cubic spline,
@@ -35,10 +39,52 @@ from tcamlab.models.coil import compliance_coefficients, compliance_terms, resto
 from tcamlab.models.dynamic import acceleration
 from tcamlab.params import G_ACCEL, Rig, Sample
 
-__all__ = ["PoweredRun", "powered_run", "rest_state", "internal_force", "GRID_HALF_WIDTH_M"]
+__all__ = [
+    "PoweredRun",
+    "ResistanceLaw",
+    "TCAMLAB_LAW",
+    "powered_run",
+    "rest_state",
+    "internal_force",
+    "law_resistance",
+    "GRID_HALF_WIDTH_M",
+]
 
 GRID_HALF_WIDTH_M = 15e-3
 """Half-width of the tabulated g(x) around the rest extension [m] (strokes are a few mm)."""
+
+
+@dataclass(frozen=True)
+class ResistanceLaw:
+    """A true resistance law other than tcamlab's (SYNTHETIC; the virtual rig's option).
+
+    R = R_lead + R0 (1 + k_s (g(x) - 1)) (1 + tcr dT + tcr2 dT^2) / (1 + rho dT)^2,
+    dT = T - T_a; the voltage is read across leads and muscle, so only I^2 R_muscle heats.
+
+    Attributes
+    ----------
+    lead_ohm : float
+        R_lead, leads and contacts in series, unheated [ohm] (a real rig: 0.2-0.5).
+    tcr2_per_K2 : float
+        Quadratic temperature coefficient of the coating [1/K^2].
+    stretch_factor : float
+        k_s, the stretch sensitivity relative to chapter 3's map [-].
+    """
+
+    lead_ohm: float = 0.0
+    tcr2_per_K2: float = 0.0
+    stretch_factor: float = 1.0
+
+
+TCAMLAB_LAW = ResistanceLaw()
+"""tcamlab's own law: no lead, linear TCR, chapter 3's stretch sensitivity."""
+
+
+def law_resistance(g, dT, r0, tcr, rho, law: ResistanceLaw = TCAMLAB_LAW):
+    """(R_total, R_muscle) of :class:`ResistanceLaw` [ohm] from g(x) [-] and dT [K]; vectorised."""
+    heat = (1.0 + tcr * dT + law.tcr2_per_K2 * dT * dT) / (1.0 + rho * dT) ** 2
+    muscle = r0 * (1.0 + law.stretch_factor * (g - 1.0)) * heat
+    return law.lead_ohm + muscle, muscle
 
 
 @dataclass(frozen=True)
@@ -52,7 +98,7 @@ class PoweredRun:
     extension : ndarray
         x, extension from the unloaded length at ambient [m].
     resistance : ndarray
-        True R [ohm] (effects included).
+        True R [ohm] (effects included), leads included: what V / I reads.
     current : ndarray
         I = V / R [A].
     rest_extension : float
@@ -103,26 +149,27 @@ def _g_table(sample: Sample, spring_constant: float, x_rest: float) -> CubicSpli
     )
 
 
-def rest_state(sample: Sample, rig: Rig, voltage: float, mass: float, tcr: float) -> tuple[float, float]:
+def rest_state(
+    sample: Sample, rig: Rig, voltage: float, mass: float, tcr: float, law: ResistanceLaw = TCAMLAB_LAW
+) -> tuple[float, float]:
     """Temperature [degC] and extension [m] at rest under a held probe voltage and mass.
 
-    (2.18) at steady state with P = V^2 / R(T, x) and the statics at that T, solved
+    (2.18) at steady state with P = V^2 R_muscle / R^2 and the statics at that T, solved
     together by fixed-point passes (the probe heats by a few kelvin, so they converge fast).
     """
     ta, r0 = rig.ambient, float(rig.initial_resistance)
     t0, x0 = ta, float(static.displacement(0.0, mass * G_ACCEL, **sample.model_kwargs()))
     for _ in range(20):
-        heat = ssm.coating_factor(t0, ta, tcr) * ssm.swelling_factor(t0, ta, sample.radial_cte)
         g0 = float(ssm.geometric_ratio(x0, spring_constant=rig.spring_constant, **sample.sensor_kwargs()))
-        t0 = ssm.rest_temperature(voltage**2 / (r0 * g0 * heat), rig.heat_loss, ta)
+        total, muscle = law_resistance(g0, t0 - ta, r0, tcr, sample.radial_cte, law)
+        t0 = ssm.rest_temperature(voltage**2 * muscle / total**2, rig.heat_loss, ta)
         x0 = float(static.displacement(t0 - ta, mass * G_ACCEL, **sample.model_kwargs()))
     return float(t0), x0
 
 
-def _scalar_resistance(g: CubicSpline, r0, tcr, ta, rho, x0, t0, mods: Mods):
-    """R(t, T, x) in float arithmetic for the ODE's right-hand side (same terms as the arrays'
-    :func:`tcamlab.models.selfsensing.resistance` and ``effect_factor``; numpy scalar calls
-    cost ten times more)."""
+def _scalar_resistance(g: CubicSpline, r0, tcr, ta, rho, x0, t0, mods: Mods, law: ResistanceLaw):
+    """(R_total, R_muscle)(t, T, x) in float arithmetic for the ODE's right-hand side (the terms
+    of :func:`law_resistance` and ``effect_factor``; numpy scalar calls cost ten times more)."""
     xs = g.x.tolist()
     c3, c2, c1, c0 = (row.tolist() for row in g.c)
     last = len(xs) - 2
@@ -132,15 +179,26 @@ def _scalar_resistance(g: CubicSpline, r0, tcr, ta, rho, x0, t0, mods: Mods):
         dx = x - xs[i]
         gx = ((c3[i] * dx + c2[i]) * dx + c1[i]) * dx + c0[i]
         dT = temp - ta
-        heat = (1.0 + tcr * dT) / (1.0 + rho * dT) ** 2
+        heat = (1.0 + tcr * dT + law.tcr2_per_K2 * dT * dT) / (1.0 + rho * dT) ** 2
         contact = 1.0 - mods.contact_slope * max(0.0, x0 - x - mods.contact_onset)
-        return r0 * gx * heat * (1.0 + mods.r0_drift * (tt - t0)) * contact
+        muscle = (
+            r0 * (1.0 + law.stretch_factor * (gx - 1.0)) * heat * (1.0 + mods.r0_drift * (tt - t0)) * contact
+        )
+        return law.lead_ohm + muscle, muscle
 
     return r
 
 
 def powered_run(
-    sample: Sample, rig: Rig, time, voltage, load_mass, mods: Mods = NO_MODS, *, rtol: float = 1e-8
+    sample: Sample,
+    rig: Rig,
+    time,
+    voltage,
+    load_mass,
+    mods: Mods = NO_MODS,
+    *,
+    rtol: float = 1e-8,
+    law: ResistanceLaw = TCAMLAB_LAW,
 ) -> PoweredRun:
     """Integrate a powered run: T, x, R and I at the sample times.
 
@@ -160,6 +218,8 @@ def powered_run(
         contact_slope, contact_onset, r0_drift, tcr_extra.
     rtol : float
         Relative tolerance of the integrator.
+    law : ResistanceLaw
+        The true resistance law (SYNTHETIC option; default tcamlab's own).
 
     Returns
     -------
@@ -173,21 +233,22 @@ def powered_run(
     _, gt, n = _mechanics(sample)
     r0, tcr, ta = float(rig.initial_resistance), rig.tcr + mods.tcr_extra, rig.ambient
     cth, lam, b = rig.thermal_mass, rig.heat_loss, rig.damping
-    t0, x0 = rest_state(sample, rig, float(v[0]), float(m[0]), tcr)
+    t0, x0 = rest_state(sample, rig, float(v[0]), float(m[0]), tcr, law)
     g = _g_table(sample, rig.spring_constant, x0)
 
     def r_of(tt, temp, x):
-        heat = ssm.coating_factor(temp, ta, tcr) * ssm.swelling_factor(temp, ta, sample.radial_cte)
-        return r0 * g(x) * heat * ssm.effect_factor(tt - t[0], x0 - x, mods)
+        bare = law_resistance(g(x), temp - ta, r0, tcr, sample.radial_cte, law)[1]
+        return law.lead_ohm + bare * ssm.effect_factor(tt - t[0], x0 - x, mods)
 
-    r_scalar = _scalar_resistance(g, r0, tcr, ta, sample.radial_cte, x0, float(t[0]), mods)
+    r_scalar = _scalar_resistance(g, r0, tcr, ta, sample.radial_cte, x0, float(t[0]), mods, law)
 
     def rhs(tt, y, volt, mass):
         temp, x, vel = y
         if abs(x - x0) > GRID_HALF_WIDTH_M:
             raise ModelDomainError("self-sensing rig: the stroke left the tabulated range")
         dT = temp - ta
-        tdot = (volt * volt / r_scalar(tt, temp, x) - lam * dT) / cth
+        total, muscle = r_scalar(tt, temp, x)
+        tdot = (volt * volt * muscle / (total * total) - lam * dT) / cth
         acc = acceleration(vel, internal_force(x, dT, sample, gt, n), mass, b, mass * G_ACCEL)
         return [tdot, vel, acc]
 
