@@ -612,6 +612,14 @@ def simulate(
         help="2: alternate the runs between the stated condition and a second one "
         "(static: 1.5 x the load, logged as load_N; dynamic: 0.8 x the voltage).",
     ),
+    truth: Path | None = typer.Option(
+        None,
+        "--truth",
+        metavar="NAME.truth.json",
+        help="Measure the same muscle as an earlier simulation: its effects, true parameters, "
+        "zeros and scatter (new noise from --seed); with a protocol file from tcamlab design, "
+        "the experiment written lists the runs so far and the new ones.",
+    ),
     force: bool = typer.Option(
         False, "--force", help="Replace files that exist (default: refuse and write nothing)."
     ),
@@ -642,6 +650,7 @@ def simulate(
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
         conditions=conditions,
+        truth=truth,
         force=force,
     )
     typer.echo(f"wrote {res.experiment_path} and {len(res.run_paths)} runs")

@@ -9,6 +9,7 @@ identical inputs (no timestamps, no absolute paths).
 from __future__ import annotations
 
 import io as _stdio
+import json
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -623,6 +624,7 @@ def simulate_experiment(
     parameter_error: float = 0.0,
     noisy_zero: bool = False,
     conditions: int = 1,
+    truth=None,
     force: bool = False,
 ):
     """Virtual rig: write ``out_dir/{experiments,raw,truth}/`` for one simulated experiment.
@@ -635,8 +637,11 @@ def simulate_experiment(
     options): effect strengths in noise RMS, relative scatter of Sample/Rig
     fields. ``parameter_error`` and ``noisy_zero`` make the rig lie like a
     real lab (:func:`tcamlab.rig.simulate`); ``conditions`` 2 alternates the runs between
-    the stated condition and the kind's second (:data:`tcamlab.rig.CONDITIONS`). Returns
-    :class:`tcamlab.rig.SimulationResult`.
+    the stated condition and the kind's second (:data:`tcamlab.rig.CONDITIONS`). ``truth``,
+    the truth file of an earlier simulation, measures the same muscle again
+    (:func:`tcamlab.rig.same_truth`: its effects, true parameters, zeros and scatter; new noise);
+    it replaces ``effects``, ``parameter_error``, ``noisy_zero``, ``scatter`` and ``noise_scale``.
+    Returns :class:`tcamlab.rig.SimulationResult`.
     """
     from tcamlab import rig
     from tcamlab.templates import resolve_template
@@ -659,25 +664,50 @@ def simulate_experiment(
         parameter_error=parameter_error,
         noisy_zero=noisy_zero,
         conditions=conditions,
+        truth=truth,
     )
     template = resolve_template(experiment)
     _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force)
+    opts = dict(effects=effects or {}, scatter=scatter, noise_scale=noise_scale)
+    opts.update(parameter_error=parameter_error, noisy_zero=noisy_zero)
+    if truth is not None:
+        opts = _same_truth(kind, truth, effects, parameter_error, noisy_zero)
     return rig.simulate(
         kind,
         template,
         seed=seed,
         out_dir=out_dir,
-        effects=effects or {},
         n_runs=runs,
         name=name,
-        scatter=scatter,
-        noise_scale=noise_scale,
         oven=oven,
         command=command,
-        parameter_error=parameter_error,
-        noisy_zero=noisy_zero,
         conditions=conditions,
+        **opts,
     )
+
+
+def _same_truth(kind: str, path, effects, parameter_error, noisy_zero) -> dict:
+    """simulate's arguments from a truth file (:func:`tcamlab.rig.same_truth`); refuses the
+    options the truth file sets."""
+    from tcamlab import rig
+
+    given = [o for o, v in (("--effect", effects), ("--parameter-error", parameter_error)) if v]
+    given += ["--noisy-zero"] if noisy_zero else []
+    if given:
+        raise ConfigError(
+            f"--truth sets the effects and the rig's lies; {', '.join(given)} would contradict it",
+            hint=f"drop {', '.join(given)}, or drop --truth",
+        )
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ConfigError(
+            f"{path}: cannot read the truth file ({exc})", hint="truth/NAME.truth.json"
+        ) from None
+    if doc.get("kind") != kind:
+        raise ConfigError(f"{path}: a truth file of a {doc.get('kind')!r} simulation, not {kind!r}")
+    return rig.same_truth(doc)
 
 
 def _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force) -> None:

@@ -98,6 +98,7 @@ def simulate_command(
     parameter_error: float = 0.0,
     noisy_zero: bool = False,
     conditions: int = 1,
+    truth=None,
 ) -> str:
     """The simulate command line recorded in experiment and truth files (defaults left out)."""
     options = [
@@ -111,13 +112,14 @@ def simulate_command(
         ("--conditions", None if conditions == 1 else int(conditions)),
         ("--parameter-error", _number(parameter_error) if parameter_error else None),
         ("--noisy-zero", bool(noisy_zero)),
+        ("--truth", truth),
     ]
     options += [("--scatter", f"{k}={_number(v)}") for k, v in (scatter or {}).items()]
     options += [("--effect", f"{k}={_number(v)}") for k, v in (effects or {}).items()]
     return command_line("simulate", kind, options=options)
 
 
-HIDDEN_SIMULATE_OPTIONS = {"--effect": 1, "-e": 1, "--parameter-error": 1, "--noisy-zero": 0}
+HIDDEN_SIMULATE_OPTIONS = {"--effect": 1, "-e": 1, "--parameter-error": 1, "--noisy-zero": 0, "--truth": 1}
 """simulate options the experiment file must not show (option -> values it takes): the
 effects and the rig's lies (true parameters off the stated ones, noisy zeros)."""
 

@@ -4,6 +4,7 @@ static case, the protocol file through the virtual rig, and the CLI's refusal to
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,106 +19,47 @@ from tcamlab.models import static as static_model
 from tcamlab.rig import simulate
 from tcamlab.templates import TEMPLATES
 
-# A static diagnosis as tcamlab diagnose wrote it (3 heating runs at one load, the true
-# effect youngs-modulus-temperature withheld): recalibration and shear-modulus-temperature
-# fit the withheld runs alike. Only the fields design reads, covariances to 4 digits.
-ALIASED = {
-    "kind": "static",
-    "verdict": "miscalibrated",
-    "effect": None,
-    "aliased_with": ["shear-modulus-temperature"],
-    "noise_floor": {"by_quantity": {"displacement": {"sigma": 0.00576, "unit": "mm"}}},
-    "ranking": [
-        {
-            "effect": "recalibration",
-            "recalibrated": {
-                "radial_cte": {
-                    "value": 7.913e-05,
-                    "ci95": [6.633e-05, 9.194e-05],
-                    "unit": "1/K",
-                    "prior_sd": 2.43e-05,
-                },
-                "shear_modulus_slope": {
-                    "value": 1.1976e6,
-                    "ci95": [9.803e5, 1.415e6],
-                    "unit": "Pa/K",
-                    "prior_sd": 3.33e5,
-                },
-                "youngs_modulus": {
-                    "value": 3.3764e9,
-                    "ci95": [2.357e9, 4.836e9],
-                    "unit": "Pa",
-                    "prior_sd": 6.9e8,
-                },
-            },
-            "recalibrated_shift": {
-                "covariance": [
-                    [0.07229, -0.07296, -0.04872],
-                    [-0.07296, 0.1109, 0.05435],
-                    [-0.04872, 0.05435, 0.0336],
-                ]
-            },
-            "parameters": {},
-        },
-        {
-            "effect": "shear-modulus-temperature",
-            "recalibrated": {
-                "radial_cte": {
-                    "value": 8.310e-05,
-                    "ci95": [5.019e-05, 1.160e-04],
-                    "unit": "1/K",
-                    "prior_sd": 2.43e-05,
-                },
-                "shear_modulus_slope": {
-                    "value": 1.1385e6,
-                    "ci95": [6.598e5, 1.617e6],
-                    "unit": "Pa/K",
-                    "prior_sd": 3.33e5,
-                },
-                "youngs_modulus": {
-                    "value": 3.4501e9,
-                    "ci95": [2.331e9, 5.106e9],
-                    "unit": "Pa",
-                    "prior_sd": 6.9e8,
-                },
-            },
-            "recalibrated_shift": {
-                "covariance": [
-                    [0.4774, -0.4902, -0.0003524],
-                    [-0.4902, 0.538, -0.0003208],
-                    [-0.0003524, -0.0003208, 0.04],
-                ]
-            },
-            "parameters": {
-                "coil_shear_slope": {
-                    "value": 4109.4,
-                    "ci95": [-27555.0, 35774.0],
-                    "stderr": 16155.7,
-                    "unit": "Pa/K",
-                }
-            },
-        },
-    ],
-}
+# A static diagnosis as tcamlab diagnose wrote it (synthetic, seed 1: three heating runs at one
+# load, a temperature-dependent Young's modulus at 3x withheld): recalibration,
+# youngs-modulus-temperature and shear-modulus-temperature fit the withheld runs alike. Made by
+# tests/data/design/make_aliased.py; only the fields design reads.
+ALIASED = json.loads(
+    (Path(__file__).parent / "data" / "design" / "static_aliased.diagnosis.json").read_text()
+)
 
 
 def test_pair_separation_by_hand():
-    # rows: (0 - 1)^2 / (1 + 0.1 + 0.1) + (2 - 0)^2 / (1 + 0.5 + 0.5) = 1/1.2 + 4/2
+    # equal variances: per row r^2 / (s^2 + v): 1 / 1.1 + 4 / 1.5
     d = pair_separation([0.0, 2.0], [0.1, 0.5], [1.0, 0.0], [0.1, 0.5], 1.0)
-    assert d == pytest.approx(1 / 1.2 + 2.0)
+    assert d == pytest.approx(1 / 1.1 + 4 / 1.5)
+    # same mean, spreads 3 and 0 over a noise of 1: a = 4, b = 1, 1/2 (a - b)^2 / (a b) = 9/8
+    assert pair_separation([0.0], [3.0], [0.0], [0.0], 1.0) == pytest.approx(9 / 8)
     # three hypotheses: the hardest pair is the closest (a vs c: 0.25 / 1)
     worst, D = separation([np.array([0.0]), np.array([3.0]), np.array([0.5])], [np.zeros(1)] * 3, 1.0)
     assert worst == pytest.approx(0.25) and D[0, 1] == pytest.approx(9.0) and D[1, 2] == pytest.approx(6.25)
 
 
 def test_refit_separation_by_hand():
-    # i: two rows at 1, no spread; j: rows at 0 with draws 0 +- 1 moving both rows together.
-    # R = z^T (I + A A^T)^-1 z with z = (1, 1), A = [[1, -1], [1, -1]]: 2 / (1 + 4) = 0.4;
-    # the diagonal D sees only var_j = 2 per row: 2 x 1 / (1 + 2)
+    # i: two rows at 1, no spread (C_i = I); j: rows at 0 with draws 0 +- 1 moving both rows
+    # together (C_j = I + 2 [[1, 1], [1, 1]], eigenvalues 5 along (1, 1) and 1).
+    # Traces: tr(C_j^-1) - 2 = 1/5 + 1 - 2 = -0.8; tr(C_j) - 2 = 4. Means: z = (1, 1),
+    # z^T C_i^-1 z = 2, z^T C_j^-1 z = 2/5. J = (-0.8 + 4) / 2 + (2 + 0.4) / 2 = 2.8.
     i = np.array([[1.0, 1.0]])
     j = np.array([[1.0, 1.0], [-1.0, -1.0]])
-    assert refit_separation(i, j, 1.0) == pytest.approx(0.4)
-    assert pair_separation(i.mean(0), 0.0, j.mean(0), j.var(0, ddof=1), 1.0) == pytest.approx(2 / 3)
+    assert refit_separation(i, j, 1.0) == pytest.approx(2.8)
+    assert refit_separation(j, i, 1.0) == pytest.approx(2.8)
+    # rows independent: a = 1, b = 3 per row: 1/2 (4/3 + 1 + 1/3) = 4/3 per row
+    assert pair_separation(i.mean(0), 0.0, j.mean(0), j.var(0, ddof=1), 1.0) == pytest.approx(8 / 3)
+
+
+def test_refit_separation_matches_the_dense_formula():
+    rng = np.random.default_rng(3)
+    di, dj, s = rng.normal(size=(6, 9)), rng.normal(size=(5, 9)) + 0.3, 0.7
+    n = di.shape[1]
+    ci, cj = s**2 * np.eye(n) + np.cov(di.T), s**2 * np.eye(n) + np.cov(dj.T)
+    ii, jj, r = np.linalg.inv(ci), np.linalg.inv(cj), di.mean(0) - dj.mean(0)
+    dense = 0.5 * (np.trace(jj @ ci) + np.trace(ii @ cj) - 2 * n) + 0.5 * r @ (ii + jj) @ r
+    assert refit_separation(di, dj, s) == pytest.approx(dense, rel=1e-10)
 
 
 def test_static_menu_stays_where_g_is_positive():
@@ -154,7 +96,7 @@ def test_dynamic_menu_has_second_voltages_and_a_train():
 
 def test_design_ranks_a_second_load_above_a_repeat_on_an_aliased_static_case():
     exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
-    res = design(exp, ALIASED, n_draws=8)
+    res = design(exp, ALIASED, n_draws=16)
     by = {c.name: c for c in res.candidates}
     assert res.status == "ambiguous" and res.best is not None
     assert len(res.best.table["loads_g"]) == 2
@@ -166,14 +108,14 @@ def test_design_ranks_a_second_load_above_a_repeat_on_an_aliased_static_case():
 
 def test_clear_diagnosis_needs_no_separating_experiment():
     exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
-    clear = {**ALIASED, "verdict": "miscalibrated", "aliased_with": []}
+    clear = {**ALIASED, "verdict": "miscalibrated", "aliased_with": [], "recalibration": {}}
     res = design(exp, clear, n_draws=12)
     assert res.status == "clear" and "no further experiment" in res.message
     # for precision: every feasible protocol narrows the recalibrated parameters, more runs more
     by = {c.name: c for c in res.candidates if c.feasible}
     assert all(0 < c.information_gain and max(c.sd_ratio.values()) <= 1.0 + 1e-9 for c in by.values())
     assert by["second load 1.5x"].information_gain > by["repeat (same protocol)"].information_gain
-    res = design(exp, {**ALIASED, "verdict": "unexplained", "aliased_with": []})
+    res = design(exp, {**ALIASED, "verdict": "unexplained", "aliased_with": [], "recalibration": {}})
     assert res.status == "unexplained" and res.best is None and "outside the library" in res.message
 
 
@@ -220,3 +162,40 @@ def test_cli_writes_the_protocol_file_and_design_json(tmp_path):
     assert len(written.raw["protocol"]["loads_g"]) == 2 and written.runs == load_experiment(exp).runs
     saved = json.loads((tmp_path / "rep" / exp.stem / "design.json").read_text())
     assert saved["status"] == "ambiguous" and f"*{saved['best']}" in result.output
+
+
+@pytest.mark.slow
+def test_the_loop_names_a_drift_that_one_heating_program_could_not(tmp_path):
+    # Synthetic (virtual rig, seeds 5 and 6): a laser drifting at 3x the noise, three heating
+    # runs at one load. Recalibration absorbs the drift there; design must propose a program
+    # that runs the temperature back down (heat-cool), and with its runs added, measured on the
+    # same muscle, the diagnosis must name the drift.
+    from tcamlab.diagnosis import diagnose
+    from tcamlab.pipeline import simulate_experiment
+
+    first = simulate(
+        "static",
+        TEMPLATES / "static.toml",
+        seed=5,
+        out_dir=tmp_path,
+        effects={"displacement-drift": 3.0},
+        name="drift",
+    )
+    d1 = diagnose(load_experiment(first.experiment_path), seed=0).to_dict()
+    assert d1["verdict"] == "miscalibrated"
+    assert "displacement-drift" in set(d1["aliased_with"]) | set(d1["recalibration"]["stand_ins"])
+    res = design(load_experiment(first.experiment_path), d1)
+    assert res.best is not None and res.best.table["oven"] == "heat-cool"
+    assert res.best.separation_refit >= 2 * np.log(100)
+    nxt = tmp_path / "experiments" / "drift.next.toml"
+    nxt.write_text(protocol_toml(load_experiment(first.experiment_path).raw, res.best.table, "t"))
+    second = simulate_experiment(
+        "static", str(nxt), seed=6, out_dir=tmp_path, name="drift2", truth=first.truth_path
+    )
+    both = load_experiment(second.experiment_path)
+    assert len(both.runs) == 3 + res.best.runs
+    d2 = diagnose(both, seed=0).to_dict()
+    assert d2["verdict"] == "attributed" and d2["effect"] == "displacement-drift"
+    true = first.truth["effects"]["displacement-drift"]["parameters"]["drift"]
+    lo, hi = d2["ranking"][0]["parameters"]["drift"]["ci95"]
+    assert lo < true < hi

@@ -35,18 +35,22 @@ from tcamlab.units import display
 __all__ = ["design", "DesignResult", "CandidateProtocol", "Hypothesis", "protocol_toml", "DECISIVE"]
 
 DECISIVE = 2.0 * float(np.log(100.0))
-"""Separation [-] at which a protocol is expected to decide: an expected log Bayes factor of
-ln 100 ("decisive" on Jeffreys' scale). The best protocol is the one with the most separation
-D per hour among those whose refitted separation R (:func:`~tcamlab.design.score.refit_separation`)
-reaches it, else the one with the largest R: on a static case with E(T) withheld, D was 17.5
-and R 0.65 for a second load, and the diagnosis with the designed runs added stayed aliased."""
+"""Separation J [-] at which a protocol is expected to decide: an expected log Bayes factor of
+ln 100 ("decisive" on Jeffreys' scale). The best protocol is the one with the most J per hour
+among those whose J (:func:`~tcamlab.design.score.refit_separation`, rows correlated) reaches
+it, else the one with the largest J. The rows-independent D is shown beside it but not used:
+on a static case with E(T) withheld, D was 17.5 and the correlated criterion 0.65 for a second
+load, and the diagnosis with the designed runs added stayed aliased."""
 
 CRITERION = (
-    "D_ij = sum over predicted rows of (mean_i - mean_j)^2 / (sigma_noise^2 + var_i + var_j) for each "
-    "pair of hypotheses (T-optimality with predictive variance, Atkinson & Fedorov 1975); a protocol's "
-    "separation is the hardest pair's D, D/2 its expected log Bayes factor; ranked per hour of rig time. "
-    "R_ij = r^T (sigma_noise^2 I + S_i + S_j)^-1 r keeps the draws' correlation between rows (each "
-    "hypothesis refitted to the new runs under its posterior); the choice needs R >= 2 ln 100"
+    "J_ij = KL(i||j) + KL(j||i), the symmetric Kullback-Leibler divergence between two hypotheses' "
+    "Gaussian predictive distributions of the new runs (mean over draws of the fitted parameters; "
+    "covariance sigma_noise^2 I plus the draws' covariance over rows): the Box-Hill criterion, whose "
+    "mean term is the T-criterion (Atkinson & Fedorov 1975) with predictive variance and whose "
+    "variance term sees a nested hypothesis (a drift fitted near zero) that predicts a spread where "
+    "its rival predicts none. J/2 is the expected log Bayes factor for the true one of the pair. "
+    "A protocol separates as well as its hardest pair; it decides when J >= 2 ln 100, and the "
+    "deciding protocols are ranked by J per hour of rig time"
 )
 
 
@@ -131,7 +135,7 @@ def _best(cands: list[CandidateProtocol]) -> CandidateProtocol | None:
     decisive = [c for c in ok if c.separation_refit >= DECISIVE]
     if decisive:
         return max(decisive, key=lambda c: c.per_hour)
-    return max(ok, key=lambda c: (round(c.separation_refit, 1), c.separation)) if ok else None
+    return max(ok, key=lambda c: (round(c.separation_refit, 1), -c.runs, c.separation)) if ok else None
 
 
 def _message(res: DesignResult, hyps) -> str:
@@ -143,8 +147,8 @@ def _message(res: DesignResult, hyps) -> str:
         "is expected to decide" if b.separation_refit >= DECISIVE else "separates best, but not decisively,"
     )
     return (
-        f"{b.name} {verdict} between {names}: separation {b.separation:.1f}, "
-        f"{b.separation_refit:.2f} with the hypotheses refitted ({b.runs} runs, {b.minutes:.0f} min)"
+        f"{b.name} {verdict} between {names}: separation J {b.separation_refit:.3g} (expected log Bayes "
+        f"factor {b.log_bayes_factor:.3g}; decisive from {DECISIVE:.1f}), {b.runs} runs, {b.minutes:.0f} min"
     )
 
 
@@ -175,17 +179,21 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
         }
         for i, j in pairs
     }
+    stacked = [_normalised_draws(p, noise, get_kind(kind).outputs) for p in preds]
     out.refit = {
-        f"{hyps[i].name} vs {hyps[j].name}": sum(
-            refit_separation(preds[i].draws[q], preds[j].draws[q], noise[q]) for q in get_kind(kind).outputs
-        )
-        for i, j in pairs
+        f"{hyps[i].name} vs {hyps[j].name}": refit_separation(stacked[i], stacked[j], 1.0) for i, j in pairs
     }
     out.separation_refit = float(min(out.refit.values())) if pairs else float("inf")
     out.separation = float(min(out.pairs.values())) if pairs else float("inf")
-    out.log_bayes_factor = out.separation / 2.0
-    out.per_hour = out.separation / (minutes / 60.0)
+    out.log_bayes_factor = out.separation_refit / 2.0
+    out.per_hour = out.separation_refit / (minutes / 60.0)
     return out
+
+
+def _normalised_draws(pred, noise: dict, outputs) -> np.ndarray:
+    """Every quantity's draws over its noise floor, side by side (draws, rows of all quantities):
+    the quantities share each draw's parameters, so they are one vector, not independent."""
+    return np.hstack([pred.draws[q] / noise[q] for q in outputs])
 
 
 def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, seed: int) -> DesignResult:

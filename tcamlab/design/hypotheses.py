@@ -43,8 +43,9 @@ class Hypothesis:
         The effect's parameters and standard errors [SI] (empty for recalibration).
     cov_joint : ndarray
         Covariance of (``u``, the effect's parameters [SI]) from the joint fit, so that a draw
-        keeps the trade-off between an effect and the parameters it aliases with; without it
-        (an older diagnosis.json) the block-diagonal of ``cov_u`` and ``effect_sd``.
+        keeps the trade-off between an effect and the parameters it aliases with (required for
+        an effect: independent draws would spread predictions the fit has pinned, and the
+        criterion would read that spread as separation).
     """
 
     name: str
@@ -69,12 +70,14 @@ class Hypothesis:
         """Covariance of (u, effect parameters [SI]) (see ``cov_joint``)."""
         p, k = self.values.size, self.effect_values.size
         c = self.cov_joint
-        if c is not None and c.shape == (p + k, p + k) and np.all(np.isfinite(c)):
-            return c
-        out = np.zeros((p + k, p + k))
-        out[:p, :p] = self.cov_u
-        out[p:, p:] = np.diag(self.effect_sd**2)
-        return out
+        if c is not None and c.shape == (p + k, p + k):
+            return np.nan_to_num(c)
+        if k:
+            raise ConfigError(
+                f"diagnosis: the fit of {self.name!r} has no joint covariance of its parameters",
+                hint="diagnose again with this version of tcamlab (diagnosis.json then records it)",
+            )
+        return self.cov_u
 
     def u(self) -> np.ndarray:
         """Fitted coordinates of ``values``."""

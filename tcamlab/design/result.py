@@ -27,12 +27,13 @@ class CandidateProtocol:
     minutes : float
         Rig time [min].
     separation : float
-        min over pairs of hypotheses of D_ij [-] (:mod:`tcamlab.design.score`); NaN when
-        out of bounds.
+        min over pairs of hypotheses of J_ij with every row independent [-] (D, an upper
+        bound shown beside the criterion; :func:`tcamlab.design.score.pair_separation`);
+        NaN when out of bounds.
     log_bayes_factor : float
-        Expected log Bayes factor of the hardest pair, separation / 2 [-].
+        Expected log Bayes factor of the hardest pair, ``separation_refit`` / 2 [-].
     per_hour : float
-        Separation per hour of rig time [1/h].
+        ``separation_refit`` per hour of rig time [1/h].
     pairs : dict
         "A vs B" -> D_ij [-].
     max_difference : dict
@@ -55,10 +56,11 @@ class CandidateProtocol:
     feasible: bool = True
     limit: str = ""
     separation_refit: float = float("nan")
-    """min over pairs of R_ij [-]: the separation with each hypothesis refitted to the new
-    runs under its current posterior (:func:`tcamlab.design.score.refit_separation`)."""
+    """min over pairs of J_ij [-], the criterion: the symmetric KL divergence of the pair's
+    predictive distributions with the rows' correlation kept
+    (:func:`tcamlab.design.score.refit_separation`)."""
     refit: dict = field(default_factory=dict)
-    """"A vs B" -> R_ij [-]."""
+    """"A vs B" -> J_ij [-]."""
     information_gain: float = float("nan")
     """A clear diagnosis: expected information gain about its explanation's parameters [nats]
     (:func:`tcamlab.design.score.information_gain`); ``per_hour`` is then this per hour."""
@@ -88,7 +90,7 @@ class DesignResult:
     noise : dict
         Quantity -> noise floor sd [SI] used in the criterion.
     candidates : list of CandidateProtocol
-        Best first (separation per hour; out-of-bounds last).
+        Best first (J per hour; out-of-bounds last).
     best : CandidateProtocol or None
         The protocol to run next (None when nothing needs separating).
     criterion : str

@@ -1,28 +1,29 @@
 """Expected separation of hypotheses under a protocol.
 
-Criterion: for each pair of hypotheses (i, j),
+Criterion (Box & Hill 1967, in its multivariate form): the symmetric Kullback-Leibler
+divergence between two hypotheses' predictive distributions of the new runs,
 
-    D_ij = sum over predicted rows and quantities of (m_i - m_j)^2 / (s^2 + v_i + v_j)
+    J_ij = KL(i || j) + KL(j || i),
 
-with m and v the mean and variance of a hypothesis's predictions over draws of its fitted
-parameters, and s the diagnosis's noise floor of that quantity. It is the T-optimality
-criterion of Atkinson & Fedorov (1975) for discriminating between rival models (the squared
-distance of one model's predictions from the other's), with each model's predictive variance
-added to the noise in the denominator so that a difference the current fits cannot pin down
-counts for less. For two Gaussian predictive distributions that differ mainly in the mean,
-D_ij / 2 is the expected log Bayes factor in favour of the true one after the new runs. A
-protocol separates as well as its hardest pair: min over pairs of D_ij.
+with each hypothesis's predictive distribution Gaussian: mean m_i (over draws of its fitted
+parameters) and covariance C_i = s^2 I + S_i (the noise floor s of each quantity plus the
+covariance over rows S_i of the draws' predictions). KL(i || j) is the expected log Bayes factor
+for i over j when i is true, so J_ij / 2 is the expected log Bayes factor for the true one of
+the pair when either is equally likely a priori. Written out,
 
-D_ij treats the rows as independent. :func:`refit_separation` keeps the draws' correlation
-between rows: with S_i the covariance over rows of hypothesis i's draws,
+    J_ij = 1/2 [tr(C_j^-1 C_i) + tr(C_i^-1 C_j) - 2 n] + 1/2 r^T (C_i^-1 + C_j^-1) r,   r = m_i - m_j.
 
-    R_ij = r^T (sigma^2 I + S_i + S_j)^-1 r,    r = mean_i - mean_j,
+The second term is the T-criterion of Atkinson & Fedorov (1975) with each rival's predictive
+covariance (for predictions linear in the parameters, the least squared normalised distance
+between the two after refitting both to the new runs under what the old runs say). The first
+term is what the mean misses when one hypothesis nests the other: a drift fitted at about zero
+on a heating-only run predicts the same mean as recalibration under a heat-cool program, but
+a spread of hundreds of micrometres where recalibration predicts a few; the new runs settle
+which, and only the variance term sees it. :func:`refit_separation` is J_ij with the draws'
+correlation between rows kept (the criterion the design decides on); :func:`pair_separation`
+the same with every row independent (an upper bound when rows are correlated, kept as D).
 
-which, for predictions linear in the parameters near the fits, is the least over shifts of
-both hypotheses' parameters (each penalised by its posterior from the runs so far) of the
-squared normalised distance between them: the T-criterion with each rival refitted to the new
-runs under what the old runs say. R_ij <= D_ij is not guaranteed row by row, but a smooth
-shift of one hypothesis's curve towards the other's counts against R and not against D.
+A protocol separates as well as its hardest pair: min over pairs.
 """
 
 from __future__ import annotations
@@ -35,7 +36,9 @@ __all__ = ["pair_separation", "separation", "refit_separation", "information_gai
 
 
 def pair_separation(mean_i, var_i, mean_j, var_j, noise_var) -> float:
-    """D_ij of two hypotheses' predictions [-].
+    """J_ij of two hypotheses' predictions with every row independent [-] (the module's
+    docstring): per row, with a = s^2 + v_i and b = s^2 + v_j,
+    1/2 [(a - b)^2 / (a b) + r^2 (1/a + 1/b)].
 
     Parameters
     ----------
@@ -46,9 +49,10 @@ def pair_separation(mean_i, var_i, mean_j, var_j, noise_var) -> float:
     noise_var : array_like or float
         Noise floor variance per row [SI^2].
     """
-    d2 = (np.asarray(mean_i, float) - np.asarray(mean_j, float)) ** 2
-    den = np.asarray(noise_var, float) + np.asarray(var_i, float) + np.asarray(var_j, float)
-    return float(np.sum(d2 / den))
+    r2 = (np.asarray(mean_i, float) - np.asarray(mean_j, float)) ** 2
+    a = np.asarray(noise_var, float) + np.asarray(var_i, float)
+    b = np.asarray(noise_var, float) + np.asarray(var_j, float)
+    return float(np.sum(0.5 * ((a - b) ** 2 / (a * b) + r2 * (1.0 / a + 1.0 / b))))
 
 
 def separation(means: list, variances: list, noise_var) -> tuple[float, np.ndarray]:
@@ -66,8 +70,17 @@ def separation(means: list, variances: list, noise_var) -> tuple[float, np.ndarr
     return float(min(D[i, j] for i, j in itertools.combinations(range(k), 2))), D
 
 
+def _spread(draws: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, A) of draws normalised by the noise: C / s^2 = I + A A^T (A rows x draws)."""
+    d = np.atleast_2d(np.asarray(draws, float))
+    m = d.mean(axis=0)
+    if d.shape[0] < 2:
+        return m / s, np.zeros((d.shape[1], 0))
+    return m / s, ((d - m) / s).T / np.sqrt(d.shape[0] - 1)
+
+
 def refit_separation(draws_i: np.ndarray, draws_j: np.ndarray, noise_sd) -> float:
-    """R_ij of two hypotheses from their draws [-] (the module's docstring).
+    """J_ij of two hypotheses from their draws, rows correlated [-] (the module's docstring).
 
     Parameters
     ----------
@@ -78,23 +91,22 @@ def refit_separation(draws_i: np.ndarray, draws_j: np.ndarray, noise_sd) -> floa
 
     Notes
     -----
-    Computed with the Woodbury identity in the draws' space: with A the centred draws of both
-    hypotheses over sqrt(n - 1), normalised by the noise, (I + A A^T)^-1 = I - A (I + A^T A)^-1 A^T.
+    Computed in the draws' space (k draws, n rows, O(n k^2)): with M = I + A A^T and
+    W = (I + A^T A)^-1, M^-1 = I - A W A^T (Woodbury), so
+    tr(M_j^-1 M_i) - n = |A_i|^2 - tr(W_j A_j^T A_j) - tr(W_j A_j^T A_i A_i^T A_j) and
+    z^T M^-1 z = z^T z - (A^T z)^T W (A^T z).
     """
     s = np.asarray(noise_sd, float)
-    parts, means = [], []
-    for d in (np.atleast_2d(draws_i), np.atleast_2d(draws_j)):
-        m = d.mean(axis=0)
-        means.append(m)
-        if d.shape[0] > 1:
-            parts.append(((d - m) / s).T / np.sqrt(d.shape[0] - 1))
-    z = (means[0] - means[1]) / s
-    if not parts:
-        return float(z @ z)
-    A = np.hstack(parts)
-    b = A.T @ z
-    inner = np.eye(A.shape[1]) + A.T @ A
-    return float(z @ z - b @ np.linalg.solve(inner, b))
+    (mi, Ai), (mj, Aj) = _spread(draws_i, s), _spread(draws_j, s)
+    z = mi - mj
+    Wi = np.linalg.inv(np.eye(Ai.shape[1]) + Ai.T @ Ai)
+    Wj = np.linalg.inv(np.eye(Aj.shape[1]) + Aj.T @ Aj)
+    Gij = Ai.T @ Aj
+    tr_ji = np.sum(Ai * Ai) - np.trace(Wj @ (Aj.T @ Aj)) - np.trace(Wj @ Gij.T @ Gij)
+    tr_ij = np.sum(Aj * Aj) - np.trace(Wi @ (Ai.T @ Ai)) - np.trace(Wi @ Gij @ Gij.T)
+    bi, bj = Ai.T @ z, Aj.T @ z
+    quad = 2.0 * float(z @ z) - float(bi @ Wi @ bi) - float(bj @ Wj @ bj)
+    return float(0.5 * (tr_ji + tr_ij) + 0.5 * quad)
 
 
 def information_gain(B: np.ndarray) -> tuple[float, np.ndarray]:

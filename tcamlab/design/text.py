@@ -21,6 +21,10 @@ def _diff(c) -> str:
     return ", ".join(parts)
 
 
+def _num(x: float) -> str:
+    return "inf" if math.isinf(x) else (f"{x:.3g}" if abs(x) < 100 else f"{x:.0f}")
+
+
 def design_lines(result) -> list[str]:
     """Headline, hypotheses, then one line per protocol (best first)."""
     lines = [f"{result.experiment}: {result.message}"]
@@ -30,19 +34,18 @@ def design_lines(result) -> list[str]:
     if result.status == "clear":
         return lines + _precision_lines(result)
     head = (
-        f"{'protocol':30s} {'separation':>10s} {'log BF':>7s} {'refitted':>8s} {'runs':>4s} {'min':>6s} "
-        f"{'per h':>6s}  max difference"
+        f"{'protocol':30s} {'J':>8s} {'log BF':>7s} {'D rows':>8s} {'runs':>4s} {'min':>6s} "
+        f"{'J per h':>7s}  max difference"
     )
     lines += [head, "-" * len(head)]
     for c in result.candidates:
         mark = "*" if result.best is not None and c.name == result.best.name else " "
         if not c.feasible:
-            lines.append(f"{mark}{c.name:29s} {'out of bounds':>10s}  {c.limit}")
+            lines.append(f"{mark}{c.name:29s} {'out of bounds':>8s}  {c.limit}")
             continue
-        sep = "inf" if math.isinf(c.separation) else f"{c.separation:.1f}"
         lines.append(
-            f"{mark}{c.name:29s} {sep:>10s} {c.log_bayes_factor:7.1f} {c.separation_refit:8.2f} {c.runs:4d} {c.minutes:6.0f} "
-            f"{c.per_hour:6.2f}  {_diff(c)}"
+            f"{mark}{c.name:29s} {_num(c.separation_refit):>8s} {c.log_bayes_factor:7.1f} {_num(c.separation):>8s} "
+            f"{c.runs:4d} {c.minutes:6.0f} {c.per_hour:7.2f}  {_diff(c)}"
         )
     return lines
 

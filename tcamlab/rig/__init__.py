@@ -145,6 +145,7 @@ along their ``scale`` vector (:func:`scale_effect`).
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -181,6 +182,7 @@ __all__ = [
     "CONDITIONS",
     "SimulationResult",
     "simulate",
+    "same_truth",
     "noise_sd",
     "instrument_sd",
     "protocol",
@@ -531,8 +533,50 @@ def _scale_forms(plan: _Plan, offlibrary: Mapping[str, float], runs: list[_Run],
         opts = true_options(plan.kind, sample, rig, inputs)
         outputs = predict(plan.kind, sample, rig, inputs, mods, **opts)
         out.append(
-            (form, scale_form(form, float(strength), plan.kind, sample, rig, inputs, outputs, opts, sd))
+            (form, scale_form(form, _strength(strength), plan.kind, sample, rig, inputs, outputs, opts, sd))
         )
+    return out
+
+
+def _strength(strength):
+    return strength if isinstance(strength, Mapping) else float(strength)
+
+
+def same_truth(truth: Mapping[str, Any]) -> dict[str, Any]:
+    """:func:`simulate`'s arguments that rebuild the muscle of an earlier simulation from its
+    truth file: its effects at their parameter values [SI] and its out-of-library forms at
+    their amplitudes (not at a strength, which depends on the protocol), its true parameters as
+    exact offsets from the stated ones, its zeros, scatter and noise. A designed protocol
+    simulated with them is the same muscle measured again (new noise from the new seed).
+
+    Parameters
+    ----------
+    truth : mapping
+        A truth file's content (``truth/NAME.truth.json``).
+    """
+    try:
+        kind = truth["kind"]
+        effects = {
+            name: {"value": [info["parameters"][p.field] for p in resolve_effect(name, kind).params]}
+            for name, info in (truth.get("effects") or {}).items()
+        }
+        out: dict[str, Any] = {
+            "effects": effects,
+            "offlibrary": {
+                n: {"amplitude": f["amplitude"]} for n, f in (truth.get("offlibrary") or {}).items()
+            },
+            "scatter": dict(truth.get("scatter") or {}),
+            "noise_scale": float(truth.get("noise_scale", 1.0)),
+            "noisy_zero": bool(truth.get("noisy_zero", False)),
+        }
+        if truth.get("true_parameters"):
+            out["parameter_offsets"] = {f: v["offset_sd"] for f, v in truth["true_parameters"].items()}
+            out["uncertainty"] = dict(truth.get("stated_sd") or {})
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise ConfigError(
+            f"truth file: no {exc} where a truth file of tcamlab simulate has one",
+            hint="pass the truth/NAME.truth.json that tcamlab simulate wrote",
+        ) from None
     return out
 
 
@@ -566,6 +610,10 @@ def _write_experiment(plan: _Plan, run_paths: list[Path]) -> Path:
     path = plan.out / "experiments" / f"{plan.name}.toml"
     names = [p.name for p in run_paths]
     doc = experiment_doc(plan.kind, plan.exp, names, plan.seed, public_command(plan.command))
+    if plan.designed and plan.exp.runs and not plan.exp.raw.get("columns"):
+        # A protocol file lists the runs so far: the experiment to diagnose again is them and these.
+        here = path.parent.resolve()
+        doc["runs"] = [Path(os.path.relpath(r, here)).as_posix() for r in plan.exp.runs] + doc["runs"]
     tconfig.write_experiment(path, doc)
     return path
 

@@ -457,9 +457,10 @@ def scale_form(
     Parameters
     ----------
     form : OffLibraryForm
-    strength : float
+    strength : float or {"amplitude": a}
         Target RMS gap in noise sds of the kind's strength quantities (or the
-        output the form moves most).
+        output the form moves most); or the amplitude itself [SI] (the same muscle under
+        another protocol, :func:`tcamlab.rig.same_truth`).
     kind, sample, rig, inputs, outputs, opts :
         The first run: its true sample and rig [SI], exact inputs, the thesis
         model's exact outputs and predict options.
@@ -479,6 +480,10 @@ def scale_form(
 
     trial = gap(form.scale)
     quantities = k.strength_quantities or (max(k.outputs, key=lambda q: _rms(trial, sd, (q,))),)
+    if isinstance(strength, Mapping):
+        a = float(strength["amplitude"])
+        achieved = _rms(gap(a), sd, quantities)
+        return _form_info(form, float("nan"), a, achieved, quantities, None)
 
     def f(a):
         return _rms(gap(a), sd, quantities) - float(strength)
@@ -497,13 +502,17 @@ def scale_form(
             break
         lo, hi = hi, min(2.0 * hi, form.upper)
     a = hi if limited else float(brentq(f, lo, hi, xtol=1e-12 * form.scale, rtol=1e-10))
+    return _form_info(form, float(strength), a, _rms(gap(a), sd, quantities), quantities, limited)
+
+
+def _form_info(form: OffLibraryForm, requested, a, achieved, quantities, limited) -> dict[str, Any]:
     return {
         "form": form.name,
         "nearest": form.nearest,
         "description": form.form,
-        "requested_strength": float(strength),
+        "requested_strength": requested,
         "amplitude": float(a),
-        "achieved_strength": _rms(gap(a), sd, quantities),
+        "achieved_strength": achieved,
         "quantities": list(quantities),
         "limited_by": limited,
     }
