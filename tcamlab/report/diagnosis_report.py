@@ -353,7 +353,7 @@ def next_experiment_section(design) -> Section | None:
     )
     return Section(
         heading="Next experiment",
-        paragraphs=[design.get("message") or ""] if design.get("message") else [],
+        paragraphs=[str(design["message"])] if design.get("message") else [],
         tables=[table] if rows else [],
     )
 
