@@ -56,6 +56,8 @@ __all__ = [
     "UNKNOWN_LOAD_NOISE",
     "LOAD_PRIOR_REL",
     "LOAD_PRIOR_SD",
+    "LAW_PRIORS",
+    "calibrate_resistance_law",
     "chain_sd",
     "VOLTAGE_NOISE_SD",
     "VOLTAGE_QUANTUM",
@@ -501,8 +503,7 @@ def predict_displacement(
     )
     if load is not None:
         config = replace(config, initial_load_sd=max(LOAD_PRIOR_SD, LOAD_PRIOR_REL * abs(rig.force)))
-    moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))
-    rest = slice(0, max(int(moved[0]) if moved.size else v.size, 1))
+    rest = slice(0, _rest_count(data))
     p_rest = float(np.mean(v[rest] * i[rest] - law[0] * i[rest] ** 2))
     t0 = rig.ambient + p_rest / rig.heat_loss  # steady at the probe power
     est = estimate(t, v, i, config, load=load, initial_temperature=t0)
@@ -515,6 +516,79 @@ def predict_displacement(
         "temperature": est.temperature,
         "load_force": est.load_force,
     }
+
+
+LAW_PRIORS = {"lead_resistance": (0.35, 0.15), "stretch_factor": (1.0, 0.2)}
+"""Stated priors (mean, sd) of the resistance law's nuisances: R_lead [ohm], leads and contacts
+of a bench rig (0.2-0.5 ohm); k_s [-], chapter 3's stretch sensitivity within 20 %."""
+
+LAW_FIT_ERROR_SD = 50e-6
+"""sd of one thinned row's displacement error in :func:`calibrate_resistance_law` [m]."""
+LAW_FIT_THIN = 10
+"""Every LAW_FIT_THIN-th row enters the fit: neighbouring errors are correlated (the filter's
+memory), so the thinned rows weigh the priors about right."""
+
+
+def calibrate_resistance_law(sample: Sample, rig: Rig, runs, *, use_load=True, priors=None) -> dict:
+    """R0, TCR, R_lead and k_s that make the EKF match the laser on training runs (MAP).
+
+    The calibrated nuisances of the resistance law (:func:`combined_resistance`): the laser
+    of the training runs is the reference, the EKF (:func:`predict_displacement`) the model,
+    each run after its rest-row zero. R0 and the TCR start from the rig (a calibrated file's)
+    with its stated sds, when given, else 1 % and 5 %; R_lead and k_s from :data:`LAW_PRIORS`.
+
+    Parameters
+    ----------
+    sample, rig :
+        Calibrated parameters [SI]; C_th, lambda and b are held.
+    runs : sequence of DataFrame
+        ``time`` [s], ``voltage`` [V], ``current`` [A], ``displacement`` [m] (laser, zeroed at
+        the first row), optional ``load`` [N].
+    use_load : bool
+        Read a logged load as the EKF would in use.
+    priors : dict, optional
+        Overrides of :data:`LAW_PRIORS`.
+
+    Returns
+    -------
+    dict
+        ``initial_resistance`` [ohm], ``tcr`` [1/K], ``lead_resistance`` [ohm], ``stretch_factor`` [-],
+        and ``cost`` (half the sum of squared normalised residuals at the optimum).
+    """
+    from scipy.optimize import least_squares
+
+    pri = {**LAW_PRIORS, **(priors or {})}
+    unc = getattr(rig, "uncertainty", None) or {}
+    r0, tcr = float(rig.initial_resistance), float(rig.tcr)
+    mu = np.array([r0, tcr, pri["lead_resistance"][0], pri["stretch_factor"][0]])
+    sd = np.array([unc.get("initial_resistance", 0.01 * r0), unc.get("tcr", 0.05 * tcr),
+                   pri["lead_resistance"][1], pri["stretch_factor"][1]])  # fmt: skip
+
+    def residuals(u):
+        theta = mu + sd * u
+        fitted = replace(rig, initial_resistance=theta[0], tcr=theta[1])
+        out = [u]
+        for data in runs:
+            pred = predict_displacement(
+                sample, fitted, data, initial_resistance=theta[0], use_load=use_load,
+                lead_resistance=theta[2], stretch_factor=theta[3],
+            )["displacement"]  # fmt: skip
+            e = pred - data["displacement"].to_numpy(float)
+            e = e - e[: _rest_count(data)].mean()
+            out.append(e[::LAW_FIT_THIN] / LAW_FIT_ERROR_SD)
+        return np.concatenate(out)
+
+    fit = least_squares(residuals, np.zeros(4), diff_step=1e-3, x_scale=1.0, max_nfev=40)
+    theta = mu + sd * fit.x
+    keys = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor")
+    return {**dict(zip(keys, map(float, theta))), "cost": float(fit.cost)}
+
+
+def _rest_count(data) -> int:
+    """Number of leading rows at the first voltage (the rest rows)."""
+    v = data["voltage"].to_numpy(float)
+    moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))
+    return max(int(moved[0]) if moved.size else v.size, 1)
 
 
 @dataclass
