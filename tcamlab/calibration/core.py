@@ -140,6 +140,25 @@ def _zeros(problem, u: np.ndarray, cov: np.ndarray) -> list[ZeroEstimate]:
     return out
 
 
+def _chi2(problem, u: np.ndarray, fitted: float) -> float:
+    """The penalised chi-square at ``u`` over every row (``fitted`` when no run was reduced)."""
+    if not any(r is not None for r in problem.reductions.values()):
+        return fitted
+    r = problem.residuals(u)
+    return float(r @ r)
+
+
+def _full_zeros(problem, u: np.ndarray, zeros: list[ZeroEstimate]) -> list[ZeroEstimate]:
+    """``zeros`` with each value the profiled zero of every row at ``u`` (the sds stay)."""
+    if not zeros or not any(r is not None for r in problem.reductions.values()):
+        return zeros
+    out = []
+    for z, value in zip(zeros, problem.zeros(u)):
+        ci = (value - Z95 * z.sd, value + Z95 * z.sd)
+        out.append(ZeroEstimate(z.experiment, z.run, z.quantity, float(value), z.sd, ci))
+    return out
+
+
 def _rms(x: np.ndarray, sigma: float) -> float:
     return float(np.sqrt(np.mean(x * x)) / sigma)
 
@@ -250,7 +269,12 @@ def calibrate(
                 estimates.append(_estimate(problem, k, fit.u, cov, sides))
             step()
         zeros = _zeros(problem, fit.u, cov)
-        quality = _quality(problem, fit.u)
+        # a long log was fitted on its blocks' moments (tcamlab.reduction): the chi-square,
+        # the zeros and the fit quality are of every row
+        with problem.full_rows():
+            chi2 = _chi2(problem, fit.u, fit.chi2)
+            zeros = _full_zeros(problem, fit.u, zeros)
+            quality = _quality(problem, fit.u)
         curves = _curves(problem, fit.u)
     names = [s.name for s in problem.specs]
     dirs = directions(names, problem.stated_sd_u, cov)
@@ -267,7 +291,7 @@ def calibrate(
             for d in dirs
         ],
         identifiability=identifiability_text(estimates, dirs, _describe_logs(problem)),
-        chi2=fit.chi2,
+        chi2=chi2,
         n_points=problem.size,
         inputs=_inputs(exps, runs),
         curves=curves,

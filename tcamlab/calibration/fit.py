@@ -136,7 +136,7 @@ def map_fit(problem: CalibrationProblem) -> MapFit:
     where the optimiser's steps leave the domain, although the chi-square falls along it."""
     free = list(range(len(problem.specs)))
     u, chi2, nfev = solve(problem, problem.u0, free)
-    n = len(problem.u0) + problem.size
+    n = len(problem.u0) + problem.n_resid
     # an acceptable fit (chi-square within RESTART_Z of its expectation) needs no restarts
     if not free or chi2 <= n + RESTART_Z * np.sqrt(2.0 * n):
         return MapFit(u, chi2, nfev, "ok")

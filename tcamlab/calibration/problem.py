@@ -15,12 +15,14 @@ from __future__ import annotations
 import math
 import warnings
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize
 
+from tcamlab import reduction
 from tcamlab.errors import InputError, ModelDomainError, TcamlabError
 from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
@@ -235,7 +237,15 @@ class CalibrationProblem:
         self.quantities = [self._quantities(i) for i in range(len(self.experiments))]
         self.sigma = self._noise()
         self.size = sum(len(r.data) * len(q) for rs, q in zip(self.runs, self.quantities) for r in rs)
+        self.reductions, self._active = {}, False
         self.run_effects = self._run_effects()
+        # a long run is fitted on its blocks' moments (tcamlab.reduction); see full_rows()
+        self.reductions = self._reductions()
+        self._active = any(r is not None for r in self.reductions.values())
+        self.n_reduced = sum(
+            len(self.runs[i][j].data) * len(self.quantities[i]) if red is None else red.size * len(self.quantities[i])
+            for (i, j), red in self.reductions.items()
+        )
 
     # construction ----------------------------------------------------------------------
     def _filled_rig(self, i: int):
@@ -452,6 +462,59 @@ class CalibrationProblem:
         n = sum(len(self.runs[i][j].data) for _ in self.quantities[i])
         return np.column_stack(cols) if cols else np.zeros((n, 0))
 
+    def _reductions(self) -> dict:
+        """Each run's :class:`~tcamlab.reduction.Reduction`, or None (scored row by row): runs
+        of at least :data:`~tcamlab.reduction.MIN_ROWS` rows, none where a run has a random
+        effect (its columns are laid out row by row)."""
+        out = {}
+        for i, qs in enumerate(self.quantities):
+            held = [c for c in self.kinds[i].inputs if c != "time"]
+            for j, run in enumerate(self.runs[i]):
+                red = None
+                if reduction.enabled(len(run.data)) and not self.run_effects:
+                    stated = self.predict_run(i, j, self.u0)
+                    red = reduction.checked_reduction(
+                        run.data,
+                        [c for c in held if c in run.data],
+                        {q: stated[q] for q in qs},
+                        {q: self.measured(i, j, q) for q in qs},
+                        {q: self.sigma[(i, q)] for q in qs},
+                        lambda f, i=i, j=j: self.predict_run(i, j, self.u0, frame=f),
+                    )
+                out[(i, j)] = red
+        return out
+
+    @property
+    def n_resid(self) -> int:
+        """Data residuals of :meth:`data_residuals`: rows times quantities, or the moments of
+        the reduced runs while the reduction is on."""
+        return self.n_reduced if self._active else self.size
+
+    @contextmanager
+    def full_rows(self) -> Iterator[None]:
+        """Residuals of every row inside the block, whatever the runs' length (the final
+        residuals and the fit quality of a long log)."""
+        before = self._active
+        self._active = False
+        try:
+            yield
+        finally:
+            self._active = before
+
+    def _reduced(self, i: int, j: int):
+        """Run j of experiment i's reduction while the reduction is on, else None."""
+        return self.reductions.get((i, j)) if self._active else None
+
+    def _block_sd(self, i: int, j: int, q: str) -> np.ndarray:
+        """Sd [SI] of each moment of a reduced run: its block's RMS row sd."""
+        key = (i, j, q, "blocks")
+        if key not in self._measured:
+            red = self.reductions[(i, j)]
+            var = np.add.reduceat(self.row_sigma[(i, j, q)] ** 2, red.starts) / red.counts
+            sd = np.sqrt(var)
+            self._measured[key] = np.concatenate([sd, sd[red.two]])
+        return self._measured[key]
+
     # evaluation ------------------------------------------------------------------------
     def values(self, u: np.ndarray) -> dict[str, float]:
         """Calibrated values [SI] by spec name."""
@@ -465,26 +528,30 @@ class CalibrationProblem:
                 (sample_kw if s.param.where == "sample" else rig_kw)[s.param.field] = s.from_u(float(x))
         return self.samples[i].replace(**sample_kw), self.rigs[i].replace(**rig_kw)
 
-    def predict_run(self, i: int, j: int, u: np.ndarray, mods=None) -> dict[str, np.ndarray]:
+    def predict_run(self, i: int, j: int, u: np.ndarray, mods=None, frame=None) -> dict[str, np.ndarray]:
         """Predictions [SI] of run ``j`` of experiment ``i`` at ``u`` (raises outside the domain).
 
         ``mods`` (a :class:`tcamlab.effects.Mods`) adds effect terms; the diagnosis fits an
-        effect together with the calibrated parameters through it."""
+        effect together with the calibrated parameters through it. ``frame`` (some of the
+        run's rows, :mod:`tcamlab.reduction`) is predicted instead of every row, with the
+        run's own per-run constants."""
         sample, rig = self.models(i, u)
-        return self.predict_with(i, j, sample, rig, mods)
+        return self.predict_with(i, j, sample, rig, mods, frame)
 
-    def predict_with(self, i: int, j: int, sample, rig, mods=None) -> dict[str, np.ndarray]:
-        """Predictions [SI] of run ``j`` of experiment ``i`` with the given sample and rig."""
+    def predict_with(self, i: int, j: int, sample, rig, mods=None, frame=None) -> dict[str, np.ndarray]:
+        """Predictions [SI] of run ``j`` of experiment ``i`` with the given sample and rig
+        (on the rows of ``frame`` where given)."""
         kind = self.kinds[i]
         data = self.runs[i][j].data
         opts = dict(kind.run_options(sample, rig, data, where=str(self.experiments[i].path)).options)
         opts.update(kind.variants[kind.primary])
+        rows = data if frame is None else frame
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
             out = (
-                kind.predict(sample, rig, data, **opts)
+                kind.predict(sample, rig, rows, **opts)
                 if mods is None
-                else kind.predict(sample, rig, data, mods, **opts)
+                else kind.predict(sample, rig, rows, mods, **opts)
             )
         for q, v in out.items():
             if not np.all(np.isfinite(v)):
@@ -502,7 +569,7 @@ class CalibrationProblem:
         """``(run, quantity, measured - predicted [SI])`` of experiment ``i``, or None outside the
         domain. The last few are cached by the coordinates that reach experiment ``i``, so a
         Jacobian column of another experiment's rig parameter costs no prediction here."""
-        key = np.asarray(u, float)[self._reach[i]].tobytes()
+        key = (np.asarray(u, float)[self._reach[i]].tobytes(), self._active)
         cache = self._cache[i]
         if key in cache:
             cache.move_to_end(key)
@@ -510,8 +577,15 @@ class CalibrationProblem:
         out = []
         try:
             for j in range(len(self.runs[i])):
-                pred = self.predict_run(i, j, u)
-                out.extend((j, q, self.measured(i, j, q) - pred[q]) for q in self.quantities[i])
+                red = self._reduced(i, j)
+                if red is None:
+                    pred = self.predict_run(i, j, u)
+                    out.extend((j, q, self.measured(i, j, q) - pred[q]) for q in self.quantities[i])
+                    continue
+                pred = self.predict_run(i, j, u, frame=self.runs[i][j].data.iloc[red.grid])
+                for q in self.quantities[i]:
+                    (m0, m1), (p0, p1) = red.measured[q], red.predicted(q, pred[q])
+                    out.append((j, q, np.concatenate([m0 - p0, (m1 - p1)[red.two]])))
         except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError, ValueError):
             out = None
         cache[key] = out
@@ -543,6 +617,11 @@ class CalibrationProblem:
     def zero_of(self, i: int, j: int, q: str, r: np.ndarray) -> float:
         """The profiled zero of one run's residuals ``r`` [SI]: their mean weighted by
         1 / row_sigma^2 (the exact minimiser of the chi-square over the zero)."""
+        red = self._reduced(i, j)
+        if red is not None:  # a block's level moment carries sqrt(rows) of the zero, its slope none
+            load = np.sqrt(red.counts)
+            w = self._block_sd(i, j, q)[: red.counts.size] ** -2.0
+            return float(np.sum(w * load * r[: red.counts.size]) / np.sum(w * red.counts))
         w = self.row_sigma[(i, j, q)] ** -2.0
         return float(np.sum(w * r) / np.sum(w))
 
@@ -559,11 +638,16 @@ class CalibrationProblem:
         """Normalised data residuals (measured - predicted - zero) / sigma, stacked."""
         raw = self.raw_residuals(u)
         if raw is None:
-            return np.full(self.size, FAIL_RESIDUAL)
+            return np.full(self.n_resid, FAIL_RESIDUAL)
         parts = []
         for i, j, q, r in raw:
             zero = self.zero_of(i, j, q, r) if self.is_zeroed(i, q) else 0.0
-            parts.append((r - zero) / self.row_sigma[(i, j, q)])
+            red = self._reduced(i, j)
+            if red is None:
+                parts.append((r - zero) / self.row_sigma[(i, j, q)])
+                continue
+            load = np.concatenate([np.sqrt(red.counts), np.zeros(int(red.two.sum()))])
+            parts.append((r - load * zero) / self._block_sd(i, j, q))
         out = np.concatenate(parts)
         # per-run random effects profiled out (see _run_effects)
         for rows, u_mat, shrink in self.run_effects:
@@ -572,7 +656,7 @@ class CalibrationProblem:
 
     def failed(self, chi2: float) -> bool:
         """Whether a chi-square comes from :data:`FAIL_RESIDUAL` (the model has no solution)."""
-        return chi2 >= 0.5 * self.size * FAIL_RESIDUAL**2
+        return chi2 >= 0.5 * self.n_resid * FAIL_RESIDUAL**2
 
     def residuals(self, u: np.ndarray) -> np.ndarray:
         """Data residuals followed by the prior residuals (u - u0) / sd_u."""
@@ -599,7 +683,7 @@ class CalibrationProblem:
 
     def _outside(self, f: np.ndarray) -> bool:
         """Whether ``f`` comes from outside the model's domain (no solution, or non-finite)."""
-        return not np.all(np.isfinite(f)) or bool(np.all(f[: self.size] == FAIL_RESIDUAL))
+        return not np.all(np.isfinite(f)) or bool(np.all(f[: self.n_resid] == FAIL_RESIDUAL))
 
     def _difference(self, fn, u: np.ndarray, f0: np.ndarray, k: int, central: bool) -> np.ndarray:
         """One Jacobian column. Next to the edge of the model's domain (e.g. G_t' = 0) a step

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from tcamlab import reduction
 from tcamlab.calibration.problem import CalibrationProblem
 from tcamlab.diagnosis.problem import (
     FAIL_RESIDUAL,
@@ -32,6 +33,7 @@ from tcamlab.diagnosis.problem import (
     best_least_squares,
     bounded_gauss_newton_step,
     domain_bounds,
+    folds,
     inner_box,
 )
 from tcamlab.effects import Effect, Mods
@@ -119,6 +121,10 @@ class JointFit:
     """Data and prior residuals at the fit (data: run by run, quantities stacked)."""
     box: tuple | None = None
     """Bounds of (u, theta) the fit respected."""
+    sizes: list | None = None
+    """Data residuals of each run in ``fun`` and ``jac`` where the fit ran on the runs'
+    reduced representation (:mod:`tcamlab.reduction`; ``sse`` and ``n`` are then of every
+    row at the fit); None: one per row and quantity."""
 
     @property
     def x(self) -> np.ndarray:
@@ -157,6 +163,75 @@ class Recalibration:
         self.specs = self.cal.specs
         self.p = len(self.specs)
         self.lo, self.hi = self.cal.bounds()
+        self._reductions = None
+        self._coarse_last = None
+
+    def reductions(self) -> list:
+        """Each run's :class:`~tcamlab.reduction.Reduction` (None: scored row by row), made on
+        first use from the stated prediction and the noise floor, with the folds' edges."""
+        if self._reductions is not None:
+            return self._reductions
+        frames, problem = self.problem.frames, self.problem
+        out = [None] * len(frames)
+        if any(reduction.enabled(len(d)) for d in frames):
+            edges = [set() for _ in frames]
+            for held in folds(problem):
+                for i, m in held:
+                    edges[i].update((np.flatnonzero(np.diff(m.astype(np.int8))) + 1).tolist())
+            held_inputs = [c for c in problem.k.inputs if c != "time"]
+            for i, d in enumerate(frames):
+                if not reduction.enabled(len(d)):
+                    continue
+                stated = self.cal.predict_run(0, i, self.cal.u0, Mods())
+                out[i] = reduction.checked_reduction(
+                    d,
+                    held_inputs,
+                    {q: stated[q] for q in problem.quantities},
+                    {q: problem.measured(i, q) for q in problem.quantities},
+                    dict(problem.sigma),
+                    lambda f, i=i: self.cal.predict_run(0, i, self.cal.u0, Mods(), f),
+                    sorted(edges[i]),
+                )
+        self._reductions = out
+        return out
+
+    def _coarse(self, i: int, u: np.ndarray, mods: Mods) -> dict:
+        """Predictions [SI] at run i's grid rows (the last one kept: a fold's fit asks for the
+        held-out run's, to check the model's domain, right after the training residuals)."""
+        key = (i, np.asarray(u, float).tobytes(), mods)
+        if self._coarse_last is not None and self._coarse_last[0] == key:
+            return self._coarse_last[1]
+        red = self.reductions()[i]
+        pred = self.cal.predict_run(0, i, u, mods, self.problem.frames[i].iloc[red.grid])
+        self._coarse_last = (key, pred)
+        return pred
+
+    def reducible(self, rows) -> bool:
+        """Whether every (run, mask) of ``rows`` is scored on its reduced representation."""
+        reds = self.reductions()
+        return all(reds[i] is not None and reds[i].blocks_in(m) is not None for i, m in rows)
+
+    def reduced_resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
+        """Normalised moments of run i's residuals over the blocks in ``mask``
+        (:mod:`tcamlab.reduction`), quantities stacked, each run's zero profiled out over
+        those blocks as :meth:`Problem.resid` does over the rows; or FAIL_RESIDUAL."""
+        red = self.reductions()[i]
+        sel = red.blocks_in(mask)
+        counts, two = red.counts[sel], red.two[sel]
+        try:
+            pred = self._coarse(i, u, mods)
+        except MODEL_ERRORS:
+            return np.full(len(self.problem.quantities) * (counts.size + int(two.sum())), FAIL_RESIDUAL)
+        parts = []
+        for q in self.problem.quantities:
+            p0, p1 = red.predicted(q, pred[q])
+            d0 = (red.measured[q][0] - p0)[sel]
+            d1 = (red.measured[q][1] - p1)[sel][two]
+            if q in self.problem.zeroed:  # the mean of the rows' residuals, as Problem.resid
+                root = np.sqrt(counts)
+                d0 = d0 - root * (float(root @ d0) / float(counts.sum()))
+            parts += [d0 / self.problem.sigma[q], d1 / self.problem.sigma[q]]
+        return np.concatenate(parts)
 
     def resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
         """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``."""
@@ -166,11 +241,15 @@ class Recalibration:
             return self.problem.failed(i, mask)
         return self.problem.scaled(i, pred, mask)
 
-    def outside(self, i: int, u: np.ndarray, mods: Mods) -> float:
+    def outside(self, i: int, u: np.ndarray, mods: Mods, coarse: bool = False) -> float:
         """:data:`~tcamlab.diagnosis.problem.FAIL_RESIDUAL` when the model has no solution on
-        run i's inputs at ``u`` with ``mods``, else 0 (a wall, not a residual)."""
+        run i's inputs at ``u`` with ``mods``, else 0 (a wall, not a residual); ``coarse``:
+        on run i's grid rows (:mod:`tcamlab.reduction`), where it has them."""
         try:
-            self.cal.predict_run(0, i, u, mods)
+            if coarse and self.reductions()[i] is not None:
+                self._coarse(i, u, mods)
+            else:
+                self.cal.predict_run(0, i, u, mods)
         except MODEL_ERRORS:
             return FAIL_RESIDUAL
         return 0.0
@@ -263,13 +342,16 @@ class Recalibration:
         lo = np.concatenate([self.lo, box[0]])
         hi = np.concatenate([self.hi, box[1]])
         u0, sd_u = self.cal.u0, self.cal.sd_u
+        # a long log is fitted on its blocks' moments (tcamlab.reduction), scored on every row
+        reduced = self.reducible(rows)
+        resid = self.reduced_resid if reduced else self.resid
 
         def fun(x):
             u = x[:p]
             mods = effect.mods(x[p:] * scales) if k else Mods()
-            data = [self.resid(i, u, mods, m) for i, m in rows]
+            data = [resid(i, u, mods, m) for i, m in rows]
             pins = [PIN_WEIGHT * (u[pin] - u0[pin]) / sd_u[pin]]
-            walls = [self.outside(i, u, mods) for i, _ in defined_on]
+            walls = [self.outside(i, u, mods, reduced) for i, _ in defined_on]
             return np.concatenate(data + [self.cal.prior_residuals(u)] + pins + [np.array(walls, float)])
 
         x_scale = np.concatenate([sd_u, np.ones(k)])
@@ -277,11 +359,15 @@ class Recalibration:
         starts = [np.concatenate([np.where(np.isin(np.arange(p), pin), u0, x0[:p]), x0[p:]]) for x0 in starts]
         extra = p + pin.size + len(defined_on)
         best = best_least_squares(fun, starts, lo, hi, x_scale, max_nfev)
+        x = np.clip(np.asarray(starts[0], float), *inner_box(lo, hi)) if best is None else best.x
+        r = fun(x)[: -extra or None] if best is None else best.fun[: best.fun.size - extra]
+        sizes = None
+        if reduced:  # the chi-square of every row at the fit, and the moments' layout
+            mods = effect.mods(x[p:] * scales) if k else Mods()
+            sizes = [resid(i, x[:p], mods, m).size for i, m in rows]
+            r = np.concatenate([self.resid(i, x[:p], mods, m) for i, m in rows])
         if best is None:
-            x = np.clip(np.asarray(starts[0], float), *inner_box(lo, hi))
-            r = fun(x)[: -extra or None]
             return JointFit(x[:p], x[p:], x[p:] * scales, float(r @ r), r.size, None, False)
-        r = best.fun[: best.fun.size - extra]
         return JointFit(
             best.x[:p],
             best.x[p:],
@@ -292,6 +378,7 @@ class Recalibration:
             bool(best.success),
             fun=best.fun,
             box=(lo, hi),
+            sizes=sizes,
         )
 
     def refit_without(self, fit: JointFit, effect: Effect | None, held: set[int]) -> JointFit:
@@ -304,17 +391,19 @@ class Recalibration:
         what makes the fold fits cost nothing beside the all-runs fit. ``fit`` must be a
         fit on all rows (:meth:`fit` with every row of every run) with its Jacobian.
         """
-        sizes = [len(d) * len(self.problem.quantities) for d in self.problem.frames]
+        rows = [len(d) * len(self.problem.quantities) for d in self.problem.frames]
+        sizes = rows if fit.sizes is None else fit.sizes
         priors = self.p + self.pinned(effect).size
         keep = np.concatenate(
             [np.full(n, i not in held, bool) for i, n in enumerate(sizes)] + [np.ones(priors, bool)]
         )
+        n_rows = sum(n for i, n in enumerate(rows) if i not in held)
         J = np.asarray(fit.jac, float)[keep]
         x = fit.x + bounded_gauss_newton_step(J, fit.fun[keep], fit.x, fit.box[0], fit.box[1])
         p = self.p
         scales = np.array([q.scale for q in effect.params], float) if effect is not None else np.zeros(0)
         return JointFit(
-            x[:p], x[p:], x[p:] * scales, float("nan"), int(keep.sum()) - priors, None, fit.success
+            x[:p], x[p:], x[p:] * scales, float("nan"), n_rows, None, fit.success
         )
 
     def starts(self, effect: Effect | None, u: np.ndarray, box) -> list[np.ndarray]:
