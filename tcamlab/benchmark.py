@@ -247,6 +247,23 @@ def make_tasks(
     return [{**t, "conditions": conditions} for t in tasks] if conditions != 1 else tasks
 
 
+def loop_tasks(tasks: list[dict], quick: bool) -> list[dict]:
+    """The closed loop's tasks: the cases of kinds with a protocol menu, each marked
+    ``closed_loop``; quick: the first case of each family and kind."""
+    from tcamlab.design.protocols import kind_module
+
+    out, seen = [], set()
+    for t in tasks:
+        if not hasattr(kind_module(t["kind"]), "design_menu"):
+            continue
+        key = (t["kind"], CASE_FAMILY.get(t["case"], t["case"]))
+        if quick and key in seen:
+            continue
+        seen.add(key)
+        out.append({**t, "closed_loop": True})
+    return out
+
+
 def _condition_kinds(kinds, conditions: int) -> tuple:
     """The kinds a benchmark of ``conditions`` runs (two: those with a second condition)."""
     from tcamlab.errors import ConfigError
@@ -487,6 +504,15 @@ def run_task(task: dict) -> dict:
             truth = json.loads(Path(sim.truth_path).read_text())
             exp = load_experiment(sim.experiment_path)
             res = diagnose(exp, n_boot=task.get("n_boot", 500), seed=0, workers=1)
+            if task.get("closed_loop"):
+                from tcamlab.loop import close_loop
+
+                stage = "loop"
+                loop, second = close_loop(
+                    exp, res.to_dict(), truth, tmp, seed=task["seed"], n_boot=task.get("n_boot", 500)
+                )
+                out["loop"] = loop
+                out["after"] = _digest(second, truth, kind, task) if second is not None else None
         except Exception as exc:  # a failed case is recorded, not fatal
             out.update(
                 {
@@ -906,6 +932,7 @@ def score(results: list[dict]) -> dict:
         "confusion": _confusion(singles + nulls),
         "families": family_scores(results),
         "confusion_by_family": _family_confusion(results),
+        **({"closed_loop": closed_loop_scores(results)} if any("loop" in r for r in results) else {}),
         "seconds_by_family": _seconds_by_family(results),
         "errors": [
             {"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
@@ -917,6 +944,49 @@ def score(results: list[dict]) -> dict:
             {"task": {k: r[k] for k in ("case", "kind", "effects", "seed")}, "error": r["error"]}
             for r in skipped
         ],
+    }
+
+
+def closed_loop_scores(results: list[dict]) -> dict:
+    """The closed loop's figures (:mod:`tcamlab.loop`): every family's scores on the first
+    diagnosis and on the diagnosis with the designed runs added (a case whose design proposed
+    nothing keeps its first), how often the chosen protocol separates at least as well as the
+    fixed default with no more runs, and one row per case."""
+    rows = [r for r in results if "loop" in r]
+    after = [{**r, **r["after"]} if r.get("after") else r for r in rows]
+    flags = [r["loop"]["at_least_default"] for r in rows if r["loop"]["at_least_default"] is not None]
+    return {
+        "n": len(rows),
+        "before": family_scores(rows),
+        "after": family_scores(after),
+        "at_least_default": {
+            "k": int(sum(flags)),
+            "n": len(flags),
+            "rate": _rate(int(sum(flags)), len(flags)),
+        },
+        "cases": [_loop_row(r, a) for r, a in zip(rows, after)],
+    }
+
+
+def _loop_row(r: dict, a: dict) -> dict:
+    loop = r["loop"]
+    chosen, default = loop.get("chosen") or {}, loop.get("default") or {}
+    truth = ", ".join(r.get("effects") or {}) or ", ".join(r.get("offlibrary") or {}) or "-"
+    return {
+        "kind": r["kind"],
+        "family": CASE_FAMILY.get(r["case"], r["case"]),
+        "truth": truth,
+        "strength": _strength(r) if r.get("effects") or r.get("offlibrary") else None,
+        "before": _label(r),
+        "after": _label(a),
+        "right_before": right(r) if r.get("effects") else None,
+        "right_after": right(a) if r.get("effects") else None,
+        "protocol": chosen.get("protocol"),
+        "separation": chosen.get("separation"),
+        "runs": chosen.get("runs"),
+        "default_separation": default.get("separation"),
+        "default_runs": default.get("runs"),
+        "at_least_default": loop.get("at_least_default"),
     }
 
 
@@ -1013,6 +1083,7 @@ def run_benchmark(
     families=None,
     conditions: int = 1,
     templates=None,
+    closed_loop: bool = False,
 ) -> BenchmarkResult:
     """Run the withheld-effect benchmark and write benchmark.json, benchmark.md and a report.
 
@@ -1043,6 +1114,9 @@ def run_benchmark(
     templates : dict, optional
         {kind: experiment file}: benchmark that sample and rig instead of the bundled
         template's (:func:`make_tasks`).
+    closed_loop : bool
+        Close the loop on every case (:mod:`tcamlab.loop`; kinds with a protocol menu only;
+        quick: one case per family and kind): design, run the design, diagnose again.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -1058,6 +1132,8 @@ def run_benchmark(
             conditions=conditions,
             templates=templates,
         )
+        if closed_loop:
+            tasks = loop_tasks(tasks, quick)
     t0 = time.perf_counter()
     results = execute_tasks(tasks, scheduler, workers)
     wall = time.perf_counter() - t0
@@ -1071,6 +1147,7 @@ def run_benchmark(
         "strengths": [3.0] if quick else list(STRENGTHS),
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
         **({"lies": True} if lies else {}),
+        **({"closed_loop": True} if closed_loop else {}),
         "conditions": max((int(t.get("conditions", 1)) for t in tasks), default=1),
         **({"templates": {k: str(v) for k, v in templates.items()}} if templates else {}),
         "families": list(families)
@@ -1309,10 +1386,85 @@ def _family_tables(s: dict) -> list:
     return tabs
 
 
+LOOP_TARGETS = {
+    "top-1": ">= 0.9",
+    "false attribution": "<= 5%",
+    "none": ">= 90%",
+    "attributed to an effect": "<= 5%",
+    "miscalibrated naming a moved parameter": ">= 90%",
+}
+"""Targets of the closed loop after one designed experiment, by figure (off-library top-1: 0.8)."""
+
+
+def _loop_target(fam: str, figure: str) -> str:
+    if figure.startswith("top-1 at") and "where" not in figure:
+        return ">= 0.8" if fam == "off-library" else LOOP_TARGETS["top-1"]
+    return LOOP_TARGETS.get(figure, "-")
+
+
+def _loop_tables(c: dict) -> list:
+    """The closed loop's tables: every family before and after, and one row per case."""
+    before = {(r[0], r[1]): r for r in _family_rows(c["before"])}
+    rows = [
+        [fam, fig, n, before.get((fam, fig), ["", "", "", "-"])[3], val, _loop_target(fam, fig)]
+        for fam, fig, n, val, _ in _family_rows(c["after"])
+    ]
+    d = c["at_least_default"]
+    rows.append(
+        [
+            "all",
+            "designed separates at least as well as the default, no more runs",
+            str(d["n"]),
+            "-",
+            _fmt(d["rate"], True),
+            ">= 80%",
+        ]
+    )
+    cases = [
+        [
+            x["kind"],
+            x["family"],
+            x["truth"],
+            "-" if x["strength"] is None else f"{x['strength']:g}x",
+            x["before"],
+            x["after"],
+            x["protocol"] or "-",
+            _fmt(x["separation"]),
+            _fmt(x["default_separation"]),
+            f"{x['runs'] or '-'} / {x['default_runs'] or '-'}",
+        ]
+        for x in c["cases"]
+    ]
+    return [
+        (
+            "Closed loop: the first diagnosis and the one with the designed runs added",
+            ["family", "figure", "cases", "before", "after", "target"],
+            rows,
+        ),
+        (
+            "Closed loop: each case",
+            [
+                "kind",
+                "family",
+                "truth",
+                "strength",
+                "before",
+                "after",
+                "protocol",
+                "J",
+                "J default",
+                "runs / default",
+            ],
+            cases,
+        ),
+    ]
+
+
 def _tables(res: BenchmarkResult) -> list[tuple[str, list[str], list[list[str]]]]:
     """(title, columns, rows) of every table of the benchmark's markdown and report."""
     s = res.scores
-    tabs = _family_tables(s) + _accuracy_tables(s) + [_null_table(s["null"])]
+    tabs = (_loop_tables(s["closed_loop"]) if s.get("closed_loop") else []) + _family_tables(s)
+    tabs += _accuracy_tables(s) + [_null_table(s["null"])]
     if s.get("null_miscalibrated"):
         tabs.append(_null_table(s["null_miscalibrated"], LYING_NULL_TITLE))
     if s.get("shrinkage_by_strength"):

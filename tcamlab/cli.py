@@ -873,7 +873,19 @@ def design(
 # -- benchmark --------------------------------------------------------------------------
 
 
+def _print_loop(c: dict) -> None:
+    for x in c["cases"]:
+        typer.echo(
+            f"loop {x['kind']} {x['family']} {x['truth']}: {x['before']} -> {x['after']} "
+            f"after {x['protocol'] or 'no protocol'}"
+        )
+    d = c["at_least_default"]
+    typer.echo(f"designed at least as good as the default with no more runs: {d['k']} of {d['n']}")
+
+
 def _print_scores(sc: dict) -> None:
+    if sc.get("closed_loop"):
+        _print_loop(sc["closed_loop"])
     for strength, acc in sorted(sc["accuracy_by_strength"].items(), key=lambda kv: float(kv[0])):
         if acc.get("n"):
             typer.echo(
@@ -955,6 +967,13 @@ def benchmark_diagnose(
         help="Benchmark this experiment file's sample and rig instead of its kind's bundled "
         "template (repeatable, one per kind; default kinds: theirs).",
     ),
+    closed_loop: bool = typer.Option(
+        False,
+        "--closed-loop",
+        help="Close the loop on each case: design the next protocol, run it on the virtual rig "
+        "(same muscle, new noise) and diagnose again; scores before and after (kinds with a "
+        "protocol menu; --quick: one case per family and kind).",
+    ),
 ):
     """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
 
@@ -978,6 +997,7 @@ def benchmark_diagnose(
         families=family or None,
         conditions=conditions,
         templates=template or None,
+        closed_loop=closed_loop,
     )
     _print_scores(res.scores)
     plan = res.settings.get("full_run_estimate") or {}

@@ -42,6 +42,13 @@ it, else the one with the largest J. The rows-independent D is shown beside it b
 on a static case with E(T) withheld, D was 17.5 and the correlated criterion 0.65 for a second
 load, and the diagnosis with the designed runs added stayed aliased."""
 
+MAX_FAILED_DRAWS = 0.05
+"""Largest share of a hypothesis's parameter draws for which the model may have no solution
+under a protocol (G_t' <= 0 in the oven, the coil closed) beyond the share under the protocol
+already run (the menu's first entry, its repeat): above it the protocol is out of bounds,
+since a sample as uncertain as the fit says may not survive it. The share under the repeat is
+the Gaussian's tail the runs already exclude (the sample survived them)."""
+
 CRITERION = (
     "J_ij = KL(i||j) + KL(j||i), the symmetric Kullback-Leibler divergence between two hypotheses' "
     "Gaussian predictive distributions of the new runs (mean over draws of the fitted parameters; "
@@ -105,6 +112,7 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
         for p in protocols:
             cands.append(_score(experiment, p, hyps, noise, n_draws, seed))
             step()
+    _mark_risky(cands)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates, base.best = cands, _best(cands)
     base.message = _message(base, hyps)
@@ -119,6 +127,20 @@ def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int):
         return None, point
     why = limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
     return pred, (f"{h.name}: {why}" if why else None)
+
+
+def _mark_risky(cands: list[CandidateProtocol]) -> None:
+    """Out of bounds: a protocol under which more of a hypothesis's draws have no solution than
+    under the repeat (the first candidate) by :data:`MAX_FAILED_DRAWS`."""
+    base = cands[0].failed_draws if cands else {}
+    for c in cands[1:]:
+        for name, f in c.failed_draws.items():
+            if c.feasible and f > base.get(name, 0.0) + MAX_FAILED_DRAWS:
+                c.feasible = False
+                c.limit = (
+                    f"{name}: the model has no solution for {f:.0%} of its parameter draws "
+                    f"({base.get(name, 0.0):.0%} under the repeat): the sample may not survive it"
+                )
 
 
 def _clear_message(diagnosis: dict, st: str) -> str:
@@ -166,6 +188,7 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
         if why:
             out.feasible, out.limit = False, why
             return out
+        out.failed_draws[h.name] = pred.failed
         preds.append(pred)
     D = sum(
         separation([p.mean[q] for p in preds], [p.var[q] for p in preds], noise[q] ** 2)[1]
@@ -204,6 +227,7 @@ def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, se
     base.hypotheses = [{"name": h.name, "parameters": h.intervals}]
     protos = menu(kind, experiment.sample, experiment.rig)
     cands = [_score_precision(experiment, p, h, base.noise, n_draws, seed) for p in protos]
+    _mark_risky(cands)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates = cands
     ok = [c for c in cands if c.feasible and c.information_gain > 0]
@@ -230,6 +254,7 @@ def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: 
     if why:
         out.feasible, out.limit = False, why
         return out
+    out.failed_draws[h.name] = pred.failed
     try:
         sens = sensitivity(kind, sample, rig, frames, h)
     except (*MODEL_ERRORS, ValueError) as exc:

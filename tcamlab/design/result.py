@@ -64,6 +64,8 @@ class CandidateProtocol:
     information_gain: float = float("nan")
     """A clear diagnosis: expected information gain about its explanation's parameters [nats]
     (:func:`tcamlab.design.score.information_gain`); ``per_hour`` is then this per hour."""
+    failed_draws: dict = field(default_factory=dict)
+    """Hypothesis -> share of its parameter draws with no solution under this protocol [-]."""
     sd_ratio: dict = field(default_factory=dict)
     """A clear diagnosis: each parameter's expected sd after the new runs over its sd now [-]."""
 
