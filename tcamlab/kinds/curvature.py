@@ -24,6 +24,8 @@ effects.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 
@@ -160,16 +162,137 @@ def figures(result) -> list[Figure]:
 # --- virtual rig ---------------------------------------------------------------------------
 
 
-def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+def protocol(
+    rig: Rig,
+    rng: np.random.Generator,
+    *,
+    cable_max_m: float = CABLE_MAX_M,
+    cable_step_m: float = CABLE_STEP_M,
+    pose_s: float | None = None,
+) -> pd.DataFrame:
     """The exact cable program of one run (deterministic; ``rig`` and ``rng`` are unused).
+
+    Without options it is the default program: 0 to :data:`CABLE_MAX_M` in
+    :data:`CABLE_STEP_M` steps. A designed protocol (:func:`protocol_runs`) sets the options.
+
+    Only positive pulls: the robot has one cable, on one side of the neutral axis, and a
+    cable cannot push. A negative pull would not bend the robot the other way, and the
+    sensor would be compressed, where the chapter-3 inversion has two roots or none
+    (:mod:`tcamlab.models.sensing`) and the cable sharing of (4.1)
+    (:func:`tcamlab.models.curvature.cable_lengths`) is not established; the model is not
+    valid symmetrically, so no design offers both directions.
+
+    Parameters
+    ----------
+    cable_max_m : float
+        Largest cable pull [m], a whole number of steps.
+    cable_step_m : float
+        Cable pull step [m].
+    pose_s : float, optional
+        Time per pose (settle and photograph) [s]: when given, a ``time`` column [s] is
+        added (a designed run's rig time); None keeps the untimed program.
 
     Returns
     -------
     pandas.DataFrame
-        ``cable`` [m]: 0 to :data:`CABLE_MAX_M` in :data:`CABLE_STEP_M` steps.
+        ``cable`` [m]: 0 to ``cable_max_m`` in ``cable_step_m`` steps; ``time`` [s] with ``pose_s``.
     """
-    n = int(round(CABLE_MAX_M / CABLE_STEP_M)) + 1
-    return pd.DataFrame({"cable": np.arange(n) * CABLE_STEP_M})
+    n = int(round(cable_max_m / cable_step_m)) + 1
+    out = pd.DataFrame({"cable": np.arange(n) * cable_step_m})
+    if pose_s is not None:
+        out["time"] = np.arange(n) * float(pose_s)
+    return out
+
+
+PROTOCOL_KEYS = ("kind", "cable_mm", "cable_step_mm", "runs", "channels")
+"""Keys of a curvature ``[protocol]`` table (docs/design.md)."""
+
+POSE_S = 60.0
+"""Rig time per pose of a designed run [s]: the actuator steps, the silicone settles and
+the camera photographs the robot."""
+
+CABLE_LIMIT_MARGIN = 0.8
+"""A design's largest cable pull stays below this share of :func:`cable_limit` [-]."""
+
+
+def cable_limit(sample: Sample, rig: Rig) -> float:
+    """Largest cable pull the model admits at the stated values [m].
+
+    Under the virtual rig's bending (module docstring) segment i's sensor stretches by
+    w_i c, w_i = r_i L_i / sum_j r_j L_j (r the curvature ratio). The pull must keep every
+    segment's elongation inside its sensor's chapter-3 map
+    (:func:`tcamlab.kinds.sensing.elongation_limit` of the sensor cut to L_i) and its cable
+    length C_i = L_i - w_i c of (4.1) positive.
+    """
+    from tcamlab.kinds.sensing import elongation_limit
+
+    lengths = np.asarray(rig.segment_lengths, float)
+    ratio = np.ones(lengths.size)
+    ratio[0] = TIP_TO_BASE_CURVATURE
+    share = ratio * lengths / float(np.sum(ratio * lengths))
+    limits = []
+    for length, w in zip(lengths, share):
+        part = length / sample.coil_length
+        seg = replace(
+            sample, fiber_length=sample.fiber_length * part, coil_length=length, twists=sample.twists * part
+        )
+        limits.append(min(elongation_limit(seg, rig), length) / w)
+    return float(min(limits))
+
+
+def protocol_runs(table: dict, rig: Rig) -> list[dict]:
+    """Each run's :func:`protocol` options from a ``[protocol]`` table (docs/design.md): the
+    largest pull ``cable_mm`` in ``cable_step_mm`` steps (mm converted to m here), every run
+    timed at :data:`POSE_S` per pose. Unknown keys and bad values raise ConfigError naming the key."""
+    unknown = sorted(set(table) - set(PROTOCOL_KEYS))
+    if unknown:
+        raise ConfigError(
+            f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
+        )
+    values = {}
+    for key, default, hint in (
+        ("cable_mm", CABLE_MAX_M * 1e3, "the default program pulls to 10 mm"),
+        ("cable_step_mm", CABLE_STEP_M * 1e3, "the default program steps 1 mm"),
+    ):
+        v = table.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < np.inf:
+            raise ConfigError(f"[protocol]: {key} must be a positive number, got {v!r}", hint)
+        values[key] = float(v) * 1e-3
+    top, step = values["cable_mm"], values["cable_step_mm"]
+    if abs(top / step - round(top / step)) > 1e-6:
+        raise ConfigError(
+            f"[protocol]: cable_mm ({top * 1e3:g}) is not a whole number of cable_step_mm ({step * 1e3:g})",
+            "e.g. cable_mm = 10.0 with cable_step_mm = 0.5",
+        )
+    n = table.get("runs", 1)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ConfigError(f"[protocol]: runs must be a positive integer, got {n!r}", "e.g. runs = 2")
+    return [{"cable_max_m": top, "cable_step_m": step, "pose_s": POSE_S} for _ in range(n)]
+
+
+def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
+    """Candidate protocols of a camera curvature test [(name, ``[protocol]`` table)].
+
+    The default program (0-10 mm in 1 mm steps) repeated, finer bending levels (0.5 mm
+    steps) and a larger range (1.5 x, kept below :data:`CABLE_LIMIT_MARGIN` of
+    :func:`cable_limit` at the stated values). Two runs each. Both directions are not
+    offered: the model is not valid for negative pulls (:func:`protocol`).
+    """
+    step_mm = CABLE_STEP_M * 1e3
+    top = CABLE_LIMIT_MARGIN * cable_limit(sample, rig) * 1e3
+    larger = round(float(step_mm * np.floor(min(1.5 * CABLE_MAX_M * 1e3, top) / step_mm)), 3)
+    base = {
+        "kind": "curvature",
+        "cable_mm": round(CABLE_MAX_M * 1e3, 3),
+        "cable_step_mm": step_mm,
+        "runs": 2,
+        "channels": ["cable_mm", "r1_ohm", "r2_ohm", "kappa1_per_mm", "kappa2_per_mm"],
+    }
+    menu = [("repeat (same protocol)", base)]
+    menu.append(("finer levels 0.5 mm", {**base, "cable_step_mm": 0.5}))
+    if larger > base["cable_mm"]:
+        menu.append((f"larger range 1.5x, to {larger:g} mm", {**base, "cable_mm": larger}))
+    return menu
 
 
 def segment_curvatures(cable: np.ndarray, rig: Rig) -> np.ndarray:
@@ -339,7 +462,7 @@ KIND = Kind(
     # 10 % of E; 0.3 mm of d1 (a mould tolerance on 9 mm)
     benchmark_uncertainty={"youngs_modulus": 0.345e9, "sensor_offset": 0.3e-3},
     benchmark_pairs=(("camera-placement", "axial-compression"),),
-    program_options=(),
+    program_options=("cable_max_m", "cable_step_m", "pose_s"),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,

@@ -26,7 +26,7 @@ import pandas as pd
 
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, SLACK_RAMP, Mods
-from tcamlab.errors import ConfigError, InputError
+from tcamlab.errors import ConfigError, InputError, ModelDomainError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
 from tcamlab.models import sensing as _sens
 from tcamlab.params import SILVER_TCR, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT, Rig, Sample
@@ -247,8 +247,34 @@ def extras_section(result) -> Section:
 # --- virtual rig ---------------------------------------------------------------------------
 
 
-def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
+def protocol(
+    rig: Rig,
+    rng: np.random.Generator,
+    *,
+    pull_max_m: float = PULL_MAX_M,
+    step_m: float = PULL_STEP_M,
+    speed_m_per_s: float = PULL_SPEED_M_PER_S,
+    dwell_s: float = PULL_DWELL_S,
+    cycles: int = 1,
+) -> pd.DataFrame:
     """The exact pull program of one run (deterministic; ``rig`` and ``rng`` are unused).
+
+    Without options it is the thesis's program: 0 to :data:`PULL_MAX_M` and back in
+    :data:`PULL_STEP_M` steps at :data:`PULL_SPEED_M_PER_S`, dwelling :data:`PULL_DWELL_S`
+    at each level. A designed protocol (:func:`protocol_runs`) sets the options.
+
+    Parameters
+    ----------
+    pull_max_m : float
+        Largest elongation [m], a whole number of steps.
+    step_m : float
+        Actuator step [m].
+    speed_m_per_s : float
+        Actuator speed between levels [m/s].
+    dwell_s : float
+        Dwell at each level [s].
+    cycles : int
+        Loading-unloading cycles, each from 0 up to ``pull_max_m`` and back to 0.
 
     Returns
     -------
@@ -256,18 +282,149 @@ def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
         ``time`` [s], ``elongation`` [m]: the sensor elongation programmed by
         the actuator, on its encoder grid, so the logged position is exact.
     """
-    n_up = int(round(PULL_MAX_M / PULL_STEP_M))
-    levels = np.concatenate([np.arange(n_up + 1), np.arange(n_up - 1, -1, -1)]) * PULL_STEP_M
-    move = PULL_STEP_M / PULL_SPEED_M_PER_S
+    n_up = int(round(pull_max_m / step_m))
+    down = np.concatenate([np.arange(1, n_up + 1), np.arange(n_up - 1, -1, -1)])
+    levels = np.concatenate([[0], *[down] * int(cycles)]) * step_m
+    move = step_m / speed_m_per_s
     # Knots of the piecewise-linear program: dwell at level 0, then move + dwell.
-    kt, kx = [0.0, PULL_DWELL_S], [levels[0], levels[0]]
+    kt, kx = [0.0, dwell_s], [levels[0], levels[0]]
     for x in levels[1:]:
-        kt += [kt[-1] + move, kt[-1] + move + PULL_DWELL_S]
+        kt += [kt[-1] + move, kt[-1] + move + dwell_s]
         kx += [x, x]
     n = int(round(kt[-1] * PULL_RATE_HZ)) + 1
     t = np.arange(n) / PULL_RATE_HZ
     x = np.interp(t, kt, kx)
     return pd.DataFrame({"time": t, "elongation": instruments.encoder(x)})
+
+
+PROTOCOL_KEYS = (
+    "kind",
+    "pull_mm",
+    "step_mm",
+    "speeds_mm_per_s",
+    "dwell_s",
+    "cycles",
+    "runs",
+    "channels",
+)
+"""Keys of a sensing ``[protocol]`` table (docs/design.md). The model has no temperature
+input (only the ``ambient-temperature`` effect's constant offset), so a logged temperature
+is not a protocol option."""
+
+MAX_CYCLES = 10
+"""Most loading-unloading cycles a run may program [-]."""
+
+PULL_LIMIT_MARGIN = 0.8
+"""A design's largest pull stays below this share of :func:`elongation_limit` [-]."""
+
+LIMIT_TOLERANCE_M = 1e-5
+"""Resolution of :func:`elongation_limit`'s bisection [m]."""
+
+RUN_OVERHEAD_S = 0.0
+"""Rig time per run beyond its logged span and setup [s]: none, the sensor is at rest again."""
+
+
+def elongation_limit(sample: Sample, rig: Rig) -> float:
+    """Largest elongation the chapter-3 map (3.1)-(3.7) admits at the stated values [m].
+
+    The forward map has a physical coil diameter only while the fiber has thinned by less
+    than half (:func:`tcamlab.models.sensing.forward`), and the coil straightens at l - L;
+    the limit is found by bisection on (0, l - L). It grows with S, so where the rig does
+    not state S it is taken at S = 0 (the conservative side).
+    """
+    kw = sample.sensor_kwargs()
+    s_val = 0.0 if rig.spring_constant is None else float(rig.spring_constant)
+    lo, hi = 0.0, float(kw["fiber_length"] - kw["coil_length"])
+    while hi - lo > LIMIT_TOLERANCE_M:
+        mid = 0.5 * (lo + hi)
+        try:
+            _sens.forward(np.array([mid]), 1.0, s_val, **kw)
+            lo = mid
+        except ModelDomainError:
+            hi = mid
+    return lo
+
+
+def _positive(table: dict, key: str, default: float, hint: str) -> float:
+    """A positive finite number from the table (or the default), else ConfigError naming the key."""
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < np.inf:
+        raise ConfigError(f"[protocol]: {key} must be a positive number, got {value!r}", hint)
+    return float(value)
+
+
+def _whole(table: dict, key: str, default: int, top: int, hint: str) -> int:
+    """An integer 1..top from the table (or the default), else ConfigError naming the key."""
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
+        raise ConfigError(f"[protocol]: {key} must be an integer from 1 to {top}, got {value!r}", hint)
+    return int(value)
+
+
+def protocol_runs(table: dict, rig: Rig) -> list[dict]:
+    """Each run's :func:`protocol` options from a ``[protocol]`` table (docs/design.md).
+
+    Runs cycle through ``speeds_mm_per_s`` (the thesis's 10 mm/s when absent), all with the
+    table's largest pull ``pull_mm``, ``step_mm``, ``dwell_s`` and ``cycles``; mm are
+    converted to m here. Unknown keys and bad values raise ConfigError naming the key.
+    """
+    unknown = sorted(set(table) - set(PROTOCOL_KEYS))
+    if unknown:
+        raise ConfigError(
+            f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
+        )
+    pull = _positive(table, "pull_mm", PULL_MAX_M * 1e3, "the thesis pulls to 50 mm") * 1e-3
+    step = _positive(table, "step_mm", PULL_STEP_M * 1e3, "the thesis steps 2 mm") * 1e-3
+    if abs(pull / step - round(pull / step)) > 1e-6:
+        raise ConfigError(
+            f"[protocol]: pull_mm ({pull * 1e3:g}) is not a whole number of step_mm ({step * 1e3:g})",
+            "e.g. pull_mm = 50.0 with step_mm = 2.0",
+        )
+    speeds = table.get("speeds_mm_per_s", [PULL_SPEED_M_PER_S * 1e3])
+    if not isinstance(speeds, list) or not speeds:
+        raise ConfigError("[protocol]: speeds_mm_per_s must be a list of speeds [mm/s]", "e.g. [10.0, 2.5]")
+    speeds = [_positive({"speeds_mm_per_s": v}, "speeds_mm_per_s", 0, "e.g. [10.0, 2.5]") for v in speeds]
+    common = {
+        "pull_max_m": pull,
+        "step_m": step,
+        "dwell_s": _positive(table, "dwell_s", PULL_DWELL_S, "the thesis dwells 5 s per step"),
+        "cycles": _whole(table, "cycles", 1, MAX_CYCLES, "1 is up to the largest pull and back once"),
+    }
+    n = _whole(table, "runs", len(speeds), 1000, "runs to make, e.g. 2")
+    return [{**common, "speed_m_per_s": speeds[k % len(speeds)] * 1e-3} for k in range(n)]
+
+
+def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
+    """Candidate protocols of a sensing pull test [(name, ``[protocol]`` table)].
+
+    The thesis's pull (0-50 mm and back in 2 mm steps at 10 mm/s, 5 s dwell) repeated, and
+    its changes: a larger pull (1.5 x in whole steps, kept below :data:`PULL_LIMIT_MARGIN` of
+    :func:`elongation_limit` at the stated values), three loading-unloading cycles, a
+    second pull rate (0.25 x), a finer step (1 mm) and a longer dwell (4 x). Two runs each,
+    two per speed for the second rate.
+    """
+    step_mm = PULL_STEP_M * 1e3
+    top = PULL_LIMIT_MARGIN * elongation_limit(sample, rig) * 1e3
+    pull = round(float(step_mm * np.floor(min(1.5 * PULL_MAX_M * 1e3, top) / step_mm)), 3)
+    v0 = round(PULL_SPEED_M_PER_S * 1e3, 3)
+    base = {
+        "kind": "sensing",
+        "pull_mm": round(PULL_MAX_M * 1e3, 3),
+        "step_mm": step_mm,
+        "speeds_mm_per_s": [v0],
+        "dwell_s": PULL_DWELL_S,
+        "cycles": 1,
+        "runs": 2,
+        "channels": ["time_s", "displacement_mm", "force_N", "resistance_ohm"],
+    }
+    menu = [("repeat (same protocol)", base)]
+    if pull > base["pull_mm"]:
+        menu.append((f"larger pull 1.5x, to {pull:g} mm", {**base, "pull_mm": pull}))
+    menu.append(("3 loading-unloading cycles", {**base, "cycles": 3}))
+    menu.append(("second pull rate 0.25x", {**base, "speeds_mm_per_s": [v0, round(0.25 * v0, 3)], "runs": 4}))
+    menu.append(("finer step 1 mm", {**base, "step_mm": 1.0}))
+    menu.append(("longer dwell 4x", {**base, "dwell_s": 4.0 * PULL_DWELL_S}))
+    return menu
 
 
 def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:
@@ -369,7 +526,7 @@ KIND = Kind(
     # 10 % of E (the issue's E x0.85 and x1.15)
     benchmark_uncertainty={"youngs_modulus": 0.345e9},
     benchmark_pairs=(("initial-slack", "stress-relaxation"), ("hysteresis", "stiffening-spring")),
-    program_options=(),
+    program_options=("pull_max_m", "step_m", "speed_m_per_s", "dwell_s", "cycles"),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,
