@@ -813,6 +813,9 @@ def diagnose(
         return
     for line in diagnosis_lines(outcome.result):
         typer.echo(line)
+    nxt = outcome.result.next_experiment
+    if nxt and nxt.get("best"):
+        typer.echo(f"next experiment: {nxt['message']} (tcamlab design writes its protocol file)")
     for f in outcome.files:
         typer.echo(f"wrote {f}")
 

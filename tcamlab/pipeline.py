@@ -755,8 +755,20 @@ def diagnose_experiment(
     if isinstance(effects, str):
         effects = [e.strip() for e in effects.split(",") if e.strip()]
     result = diagnose(exp, exp.read_runs(drop_na=drop_na), effects=effects or None, seed=seed)
+    result.next_experiment = next_experiment(exp, result.to_dict(), seed=seed)
     files = _write_diagnosis(result, exp, folder) if folder is not None else []
     return DiagnoseOutcome(result, exp, files)
+
+
+def next_experiment(experiment: Experiment, diagnosis: dict, *, seed: int = 0) -> dict | None:
+    """The design of the next experiment for a diagnosis (:func:`tcamlab.design.design`, in its
+    JSON layout), or None for a kind without a menu of protocols."""
+    from tcamlab.design import design
+    from tcamlab.design.protocols import kind_module
+
+    if not hasattr(kind_module(experiment.kind), "design_menu"):
+        return None
+    return design(experiment, diagnosis, seed=seed).to_dict()
 
 
 def _write_diagnosis(result, experiment: Experiment, folder) -> list[Path]:

@@ -96,3 +96,48 @@ def test_parameters_the_data_fix_only_together_are_named_together():
     }
     words = describe_parameter("spring_constant", params["spring_constant"])
     assert "only together with youngs_modulus: r = -0.95" in words
+
+
+def test_largest_shift_reads_stated_sds_and_falls_back_to_prior_sds():
+    from types import SimpleNamespace
+
+    from tcamlab.diagnosis.verdict import largest_shift
+
+    c = SimpleNamespace(
+        recalibrated={
+            "radial_cte": {"shift_in_stated_sds": -3.2, "shift_in_prior_sds": -1.0},
+            "youngs_modulus": {"shift_in_stated_sds": None, "shift_in_prior_sds": 4.0},
+            "shear_modulus_slope": {"shift_in_stated_sds": 1.0, "shift_in_prior_sds": 9.0},
+        }
+    )
+    assert largest_shift(c) == ("youngs_modulus", 4.0)
+    assert largest_shift(c, ["radial_cte", "shear_modulus_slope"]) == ("radial_cte", -3.2)
+    assert largest_shift(SimpleNamespace(recalibrated={})) == (None, 0.0)
+
+
+@pytest.mark.slow
+def test_a_stated_value_five_sds_off_is_not_plain_miscalibration(tmp_path):
+    # Synthetic (virtual rig, seed 3): rho truly 5 stated sds above its stated value, no effect.
+    # Recalibration fits, but needs rho wrong by more than 3 stated sds: the verdict must say
+    # so and keep recalibration among the explanations of an effect that fits as well.
+    from tcamlab.benchmark import stated_template
+    from tcamlab.config import load_experiment
+    from tcamlab.diagnosis import diagnose
+    from tcamlab.diagnosis.verdict import IMPLAUSIBLE_SHIFT_SD
+    from tcamlab.rig import simulate
+
+    sim = simulate(
+        "static",
+        stated_template("static"),
+        seed=3,
+        out_dir=tmp_path,
+        effects={},
+        parameter_offsets={"radial_cte": 5.0},
+    )
+    d = diagnose(load_experiment(sim.experiment_path), seed=0).to_dict()
+    rho = next(c for c in d["ranking"] if c["effect"] == "recalibration")["recalibrated"]["radial_cte"]
+    assert rho["shift_in_stated_sds"] > IMPLAUSIBLE_SHIFT_SD
+    assert d["verdict"] != "miscalibrated"
+    assert "would have to be wrong by" in d["reason"]
+    if d["verdict"] == "aliased":
+        assert "recalibration" in d["aliased_with"]

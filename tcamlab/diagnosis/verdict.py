@@ -304,6 +304,30 @@ def stands_in(c: CandidateResult, recal: CandidateResult, named) -> bool:
     return bool(taken_over(c, recal, named))
 
 
+IMPLAUSIBLE_SHIFT_SD = 3.0
+"""A recalibration that moves a parameter more than this many stated sds from its stated value
+(prior sds where none is stated) is not reported as plain ``miscalibrated``: the stated value
+would have to be that wrong, so an effect that fits the withheld runs as well with plausible
+parameters is an equal explanation (``aliased``, recalibration among the alternatives) and
+the design treats both as live hypotheses; with none, the verdict says how wrong the stated
+value would have to be. Three sds: a stated value wrong by more happens about once in 370."""
+
+
+def largest_shift(c, names=None) -> tuple[str | None, float]:
+    """(parameter, shift) of a candidate's recalibrated parameter farthest from its stated
+    value, in stated sds (prior sds where none is stated); (None, 0.0) without one.
+    ``names`` restricts the parameters looked at."""
+    out: tuple[str | None, float] = (None, 0.0)
+    for n, p in (c.recalibrated or {}).items():
+        if names is not None and n not in names:
+            continue
+        s = p.get("shift_in_stated_sds")
+        s = p.get("shift_in_prior_sds") if s is None else s
+        if s is not None and np.isfinite(s) and abs(s) > abs(out[1]):
+            out = (n, float(s))
+    return out
+
+
 def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_errors):
     """``miscalibrated``, or ``aliased`` when the shift is implausible and an effect with
     plausible parameters fits the withheld runs as well.
@@ -322,18 +346,28 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
     as_well = [
         c for c in effects if qualifies(c) and not beats(after_folds, RECALIBRATION, c.effect, boot_idx, b_n)
     ]
-    if not recal.recalibration_plausible:
-        rivals = [c.effect for c in as_well if c.recalibration_plausible]
+    far, shift = largest_shift(recal, named)
+    if not recal.recalibration_plausible or abs(shift) > IMPLAUSIBLE_SHIFT_SD:
+        wrong_by = (
+            f"the stated {far} would have to be wrong by {abs(shift):.1f} stated sds"
+            if abs(shift) > IMPLAUSIBLE_SHIFT_SD
+            else "that shift is beyond the stated uncertainties"
+        )
+        rivals = [
+            c.effect
+            for c in as_well
+            if c.recalibration_plausible and abs(largest_shift(c)[1]) <= IMPLAUSIBLE_SHIFT_SD
+        ]
         if rivals:
             return (
                 "aliased",
                 rivals[0],
-                [RECALIBRATION],
-                closes + f"; but that shift is beyond the stated uncertainties, and {rivals[0]} "
-                "with plausible parameters fits the withheld runs as well: this data cannot tell "
-                "a parameter error from the effect",
+                [RECALIBRATION, *rivals[1:]],
+                closes + f"; but {wrong_by}, and {', '.join(rivals)} with plausible parameters "
+                f"fit{'s' if len(rivals) == 1 else ''} the withheld runs as well: this data cannot "
+                "tell a parameter error from the effect",
             )
-        closes += "; the shift is beyond the stated uncertainties (the stated values are in doubt)"
+        closes += f"; {wrong_by} (the stated values are in doubt, or an effect outside the library acts)"
     # an effect that is a named parameter's own error is that shift, not an alternative to it
     stand_ins = [
         c.effect
