@@ -503,10 +503,16 @@ def test_next_experiment_section_lists_the_protocols_with_the_best_marked():
     assert sec.heading == "Next experiment"
     assert sec.paragraphs == [_design()["message"]]
     (table,) = sec.tables
-    assert table.columns == ["protocol", "separation", "refitted separation", "runs", "minutes", "feasible"]
+    assert table.columns == ["protocol", "separation J", "J, rows independent", "runs", "minutes", "feasible"]
     rows = [[c.text for c in row] for row in table.formatted_rows()]
-    assert rows[0] == ["slow oven ramp (best)", "12.5", "9.25", "3", "45", "yes"]
-    assert rows[1] == ["second load", "4.5", "\u2013", "2", "30", "load above the thread's rating"]
+    assert rows[0] == ["slow oven ramp (best)", "9.25", "12.5", "3", "45", "yes"]
+    assert rows[1] == ["second load", "\u2013", "4.5", "2", "30", "load above the thread's rating"]
+    # a clear diagnosis: ranked by the information the protocols add
+    clear = {**_design(), "status": "clear"}
+    clear["candidates"] = [{**c, "information_gain": 2.5} for c in clear["candidates"]]
+    (table,) = next_experiment_section(clear).tables
+    assert table.columns[1] == "information gain [nats]"
+    assert [c.text for c in table.formatted_rows()[0]][:2] == ["slow oven ramp (best)", "2.5"]
     # nothing to separate: the message alone, no empty table
     none = next_experiment_section({"status": "none", "message": "Nothing to separate.", "candidates": []})
     assert none.paragraphs == ["Nothing to separate."] and list(none.tables) == []

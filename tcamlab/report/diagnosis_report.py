@@ -333,28 +333,39 @@ def next_experiment_section(design) -> Section | None:
     if not design:
         return None
     best = design.get("best")
+    precision = design.get("status") == "clear"
     rows = [
-        [
-            c.get("name", "") + (" (best)" if best is not None and c.get("name") == best else ""),
-            _finite(c.get("separation")),
-            _finite(c.get("separation_refit")),
+        [c.get("name", "") + (" (best)" if best is not None and c.get("name") == best else "")]
+        + (
+            [_finite(c.get("information_gain"))]
+            if precision
+            else [_finite(c.get("separation_refit")), _finite(c.get("separation"))]
+        )
+        + [
             c.get("runs"),
             _finite(c.get("minutes")),
             "yes" if c.get("feasible", True) else (c.get("limit") or "no"),
         ]
         for c in design.get("candidates") or []
     ]
-    table = Table(
-        ["protocol", "separation", "refitted separation", "runs", "minutes", "feasible"],
-        rows,
-        caption="Candidate protocols, best first (separation: smallest over pairs of "
-        "hypotheses; refitted: each hypothesis refitted to the new runs; feasible, or the "
-        "limit it breaks)",
-    )
+    if precision:
+        columns = ["protocol", "information gain [nats]", "runs", "minutes", "feasible"]
+        caption = (
+            "Candidate protocols, best first: what each adds to the precision of the explanation's "
+            "parameters (expected information gain); feasible, or the limit it breaks"
+        )
+    else:
+        columns = ["protocol", "separation J", "J, rows independent", "runs", "minutes", "feasible"]
+        caption = (
+            "Candidate protocols, best first: separation J of the hardest pair of hypotheses (symmetric "
+            "KL divergence of their predictive distributions, J/2 the expected log Bayes factor; "
+            "decisive from 9.2), the same with the rows taken as independent, and whether the "
+            "sample's limits allow it"
+        )
     return Section(
         heading="Next experiment",
         paragraphs=[str(design["message"])] if design.get("message") else [],
-        tables=[table] if rows else [],
+        tables=[Table(columns, rows, caption=caption)] if rows else [],
     )
 
 
