@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from tcamlab.config import load_experiment
@@ -137,3 +138,48 @@ def test_a_logged_load_is_a_measurement_not_a_reset():
         assert out["load_force"][-1] == pytest.approx(data["load"].iloc[-1], abs=3e-3)
     assert abs(np.mean(errors[60.0])) < 10e-6  # measured -4.3 um; -145 um before
     assert abs(np.mean(errors[60.0]) - np.mean(errors[50.0])) < 2e-6
+
+
+def test_a_logged_load_moves_the_estimate_by_the_kalman_gain():
+    from tcamlab.estimation import observer_kernel as K
+
+    s = np.array([30.0, 0.04, 0.0, 0.49, 0.0])
+    c = np.diag([1.0, 1e-8, 1e-8, 1e-6, 0.0])  # the load known to 1 mN
+    K.update_load(s, c, 0.50, 2e-3)  # a reading 10 mN off with a 2 mN sd
+    assert s[3] == pytest.approx(0.49 + 0.01 * 1e-6 / (1e-6 + 4e-6), rel=1e-12)  # a fifth of the way
+    assert c[3, 3] == pytest.approx(1e-6 * 4e-6 / 5e-6, rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def rider_run():
+    """12 s of the selfsensing kind's virtual rig (synthetic, seed 4): 1.5 V probe, a 6 V step
+    from 1 s to 4 s, the probe again; the 5 g rider goes on at 7 s, told to nobody."""
+    from tcamlab.kinds import selfsensing as ss
+
+    exp = load_experiment(ROOT / "experiments" / "selfsensing.toml")
+    t = np.arange(1200) / 100.0
+    v = np.where((t >= 1.0) & (t < 4.0), 6.0, ss.PROBE_V)
+    mass = np.where(t >= 7.0, exp.rig.load + ss.RIDER_KG, exp.rig.load)
+    proto = pd.DataFrame({"time": t, "voltage": v, "load_mass": mass})
+    exact = ss.exact_inputs(exp.sample, exp.rig, proto)
+    logged = ss.measure(exact, {}, np.random.default_rng(4), 1.0)
+    return exp, logged.drop(columns=["load"]), exact["true_displacement"].to_numpy()
+
+
+def test_the_unknown_load_filter_finds_a_load_step_it_is_not_told_about(rider_run):
+    exp, data, truth = rider_run
+    t = data["time"].to_numpy()
+    out = so.predict_displacement(exp.sample, exp.rig, data)  # no load column: the jump detector is on
+    err = out["displacement"] - truth
+    rider = 5e-3 * 9.80665
+    late = t > 9.0
+    assert np.ptp(truth[late]) < 0.1e-3 and truth[late].mean() > 1e-3  # the rider stretched it by > 1 mm
+    found = out["load_force"][late].mean() - out["load_force"][t < 7.0].mean()
+    assert found == pytest.approx(rider, rel=0.1)  # measured 47.2 mN of 49.0 mN
+    move = truth[late].mean() - truth[t < 7.0].mean()
+    assert abs(err[late].mean()) < 0.06 * move  # measured 54 um of 1.5 mm, 3.6 %
+    # the same filter without the detector follows the rider only through its slow random walk
+    slow = so.predict_displacement(
+        exp.sample, exp.rig, data, noise={**so.UNKNOWN_LOAD_NOISE, "jump_threshold": 0.0}
+    )
+    assert abs((slow["displacement"] - truth)[late].mean()) > 10 * abs(err[late].mean())

@@ -32,7 +32,7 @@ P_LEAD = 14
 """Lead resistance [ohm]: in series with the muscle, unheated; it takes I^2 R_lead of the power."""
 N_PARAMS = 15
 # Noise vector layout (ObserverConfig.noise_vector).
-N_SDV, N_SDI, N_QT, N_QV, N_QF, N_SDLOAD, N_QTHETA, N_JUMP_K, N_JUMP_H, N_JUMP_SD = range(10)
+N_SDV, N_SDI, N_QT, N_QV, N_QF, N_SDLOAD, N_QTHETA, N_JUMP_K, N_JUMP_H, N_JUMP_SD, N_JUMP_HOLD = range(11)
 # Grid layout of the resistance table: T_first, dT_step, x_first, x_step.
 G_T0, G_DT, G_X0, G_DX = 0, 1, 2, 3
 NX = 5
@@ -158,10 +158,13 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     """One causal EKF step from the previous sample's (V, I) to this sample's (V, I).
 
     ``noise`` = (sd_V [V], sd_I [A], q_T [K^2/s], q_v [m^2/s^3], q_F [N^2/s],
-    sd_load [N], q_theta [1/K^2/s][, jump_k [-], jump_h [-], jump_sd [N]]). The power
-    held over the last interval is the previous sample's V I less I^2 R_lead
+    sd_load [N], q_theta [1/K^2/s][, jump_k [-], jump_h [-], jump_sd [N], jump_hold [s]]).
+    The power held over the last interval is the previous sample's V I less I^2 R_lead
     (``out[0]``, ``out[1]`` carry V and I between calls; ``out[2]``, ``out[3]`` the
-    load-jump detector's sums when ``out`` has them, :func:`jump_detector`).
+    load-jump detector's sums and ``out[4]`` the time left of its hold when ``out`` has
+    them, :func:`jump_detector`: on an alarm the load's variance grows by jump_sd^2 and,
+    for jump_hold, its random walk by jump_sd^2 / jump_hold per second, so the load
+    follows the mechanics' transient instead of the temperature taking it).
     Updates ``s`` and ``c`` in place; returns the normalised innovation
     squared of the current measurement (NaN when it carried no information).
     """
@@ -169,11 +172,16 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     power = max(v_prev * i_prev - p[P_LEAD] * i_prev * i_prev, 0.0)
     sd_v, sd_i = noise[0], noise[1]
     sd_p = math.sqrt((i_prev * sd_v) ** 2 + (v_prev * sd_i) ** 2)
+    jumps = noise.size > N_JUMP_HOLD and out.size > 4 and noise[N_JUMP_H] > 0.0
+    q_f = noise[4]
+    if jumps and out[4] > 0.0:
+        q_f += noise[N_JUMP_SD] ** 2 / noise[N_JUMP_HOLD]
+        out[4] -= dt
     q = (
         (sd_p * dt / p[P_CTH]) ** 2 + noise[2] * dt,
         0.0,
         noise[3] * dt,
-        noise[4] * dt,
+        q_f * dt,
         noise[6] * dt,
     )
     s_new = np.empty(NX)
@@ -183,9 +191,10 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     z = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, p[P_TA])
     if load_force == load_force:  # a logged load is a second measurement
         update_load(s, c, load_force, noise[5])
-    elif noise.size > N_JUMP_SD and out.size > 3 and noise[N_JUMP_H] > 0.0 and z == z:
+    elif jumps and z == z:
         if jump_detector(out, z, noise[N_JUMP_K], noise[N_JUMP_H]):
             c[3, 3] += noise[N_JUMP_SD] ** 2
+            out[4] = noise[N_JUMP_HOLD]
     return z * z
 
 
@@ -267,7 +276,7 @@ def ekf_batch(time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_st
     """The EKF over a whole log (sample by sample, exactly as :func:`ekf_step`)."""
     s = s0.copy()
     c = c0.copy()
-    carry = np.zeros(4)
+    carry = np.zeros(5)
     carry[0], carry[1] = volt[0], cur[0]
     if load_force[0] == load_force[0]:  # the stated load was the prior; the first logged row updates it
         first_load_update(s, c, load_force[0], noise[5], p)
