@@ -17,7 +17,7 @@ from tcamlab.design import design, protocol_toml
 from tcamlab.design.hypotheses import hypotheses
 from tcamlab.design.protocols import protocol_frames
 from tcamlab.design.toml import KEY_DOCS
-from tcamlab.errors import ConfigError, ModelDomainError
+from tcamlab.errors import ConfigError, InputError, ModelDomainError
 from tcamlab.kinds import curvature, get_kind, sensing
 from tcamlab.models import sensing as sensing_model
 from tcamlab.rig import simulate
@@ -338,3 +338,26 @@ def test_design_ranks_the_menu_on_an_aliased_diagnosis(kind, diagnosis, monkeypa
     # more of the same separates more than the repeat: every change beats it in separation
     repeat = next(c for c in res.candidates if c.name == "repeat (same protocol)")
     assert all(c.separation_refit > repeat.separation_refit for c in res.candidates if c is not repeat)
+
+
+@pytest.mark.parametrize("kind", ["sensing", "curvature"])
+def test_a_program_is_not_a_log(kind):
+    # the model reads resistances: on a bare program it says so in a model error the design
+    # catches (the protocol out of bounds), where a KeyError would stop a diagnosis
+    exp = template(kind)
+    f = MODULES[kind].protocol(exp.rig, None)
+    opts = dict(
+        get_kind(kind)
+        .run_options(exp.sample, exp.rig, get_kind(kind).exact_inputs(exp.sample, exp.rig, f))
+        .options
+    )
+    with pytest.raises(InputError, match="program, not a log"):
+        get_kind(kind).predict(exp.sample, exp.rig, f, **opts)
+    inputs = get_kind(kind).exact_inputs(exp.sample, exp.rig, f)
+    out = get_kind(kind).predict(exp.sample, exp.rig, inputs, **opts)
+    if kind == "sensing":  # on its exact inputs the model gives back the programmed pull
+        assert out["displacement"] == pytest.approx(f["elongation"].to_numpy(), abs=1e-9)
+    else:  # straight at rest, then the softer tip bends more than the base, both growing
+        k1, k2 = out["kappa1"], out["kappa2"]
+        assert k1[0] == pytest.approx(0.0, abs=1e-9) and k2[0] == pytest.approx(0.0, abs=1e-9)
+        assert np.all(np.diff(k2) > 0) and np.all(k1[1:] > k2[1:])

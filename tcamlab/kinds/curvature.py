@@ -77,6 +77,11 @@ def predict(
     dict
         ``kappa1``, ``kappa2`` [1/m].
     """
+    if "r1" not in data or "r2" not in data:
+        raise InputError(
+            "curvature model: no r1, r2 columns (a cable program, not a log)",
+            hint="the resistances a program gives come from tcamlab.kinds.curvature.exact_inputs",
+        )
     kw = sample.sensor_kwargs()
     lengths = np.asarray(rig.segment_lengths, float)
     res = np.vstack([data["r1"].to_numpy(float), data["r2"].to_numpy(float)])

@@ -76,6 +76,11 @@ def predict(
     dict
         ``displacement`` [m], ``force`` [N].
     """
+    if "resistance" not in data:
+        raise InputError(
+            "sensing model: no resistance column (a pull program, not a log)",
+            hint="the resistance a program gives comes from tcamlab.kinds.sensing.exact_inputs",
+        )
     r = data["resistance"].to_numpy(float)
     if mods.temperature_offset:
         r = r / (1.0 + SILVER_TCR * mods.temperature_offset)
