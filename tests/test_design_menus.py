@@ -228,7 +228,7 @@ def test_the_elongation_limit_is_where_the_sensing_map_ends():
 def test_the_larger_pull_stays_inside_the_limit():
     exp = template("sensing")
     menu = dict(sensing.design_menu(exp.sample, exp.rig))
-    assert menu["larger pull 1.5x, to 74 mm"]["pull_mm"] == 74.0
+    assert menu["larger pull range 1.5x, to 74 mm"]["pull_mm"] == 74.0
     # a sample whose coil straightens after 60 mm: the map ends earlier, and so does the pull
     short = exp.sample.replace(fiber_length=exp.sample.coil_length + 0.06)
     top = sensing.elongation_limit(short, exp.rig)
@@ -245,6 +245,15 @@ def test_the_cable_limit_is_the_tip_cable_length():
     assert curvature.cable_limit(exp.sample, exp.rig) == pytest.approx(0.05, rel=1e-9)
     menu = dict(curvature.design_menu(exp.sample, exp.rig))
     assert menu["larger range 1.5x, to 15 mm"]["cable_mm"] == 15.0
+
+
+def test_the_closed_loop_finds_each_fixed_default():
+    from tcamlab.loop import DEFAULT_PROTOCOL
+
+    for kind in ("sensing", "curvature"):
+        exp = template(kind)
+        names = [n for n, _ in MODULES[kind].design_menu(exp.sample, exp.rig)]
+        assert sum(n.startswith(DEFAULT_PROTOCOL[kind]) for n in names) == 1, (kind, names)
 
 
 @pytest.mark.parametrize("kind", ["sensing", "curvature"])

@@ -424,7 +424,7 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     }
     menu = [("repeat (same protocol)", base)]
     if pull > base["pull_mm"]:
-        menu.append((f"larger pull 1.5x, to {pull:g} mm", {**base, "pull_mm": pull}))
+        menu.append((f"larger pull range 1.5x, to {pull:g} mm", {**base, "pull_mm": pull}))
     menu.append(("3 loading-unloading cycles", {**base, "cycles": 3}))
     menu.append(("second pull rate 0.25x", {**base, "speeds_mm_per_s": [v0, round(0.25 * v0, 3)], "runs": 4}))
     menu.append(("finer step 1 mm", {**base, "step_mm": 1.0}))
