@@ -189,6 +189,33 @@ def _scalar_resistance(g: CubicSpline, r0, tcr, ta, rho, x0, t0, mods: Mods, law
     return r
 
 
+def _integrate(rhs, t, v, m, y0, rtol) -> np.ndarray:
+    """(T, x, v) at the sample times by RK45, piece by piece between changes of V and m."""
+    out = np.empty((t.size, 3))
+    out[0] = y0
+    change = np.flatnonzero((np.diff(v[:-1]) != 0) | (np.diff(m[:-1]) != 0)) + 1
+    bounds = np.concatenate(([0], change, [t.size - 1]))
+    for i0, i1 in zip(bounds[:-1], bounds[1:]):
+        if i1 <= i0:
+            continue
+        sol = solve_ivp(
+            rhs,
+            (t[i0], t[i1]),
+            out[i0],
+            method="RK45",
+            t_eval=t[i0 : i1 + 1],
+            args=(v[i0], m[i0]),
+            rtol=rtol,
+            atol=(1e-6, 1e-10, 1e-9),
+        )
+        if not sol.success:
+            raise ModelDomainError(
+                f"self-sensing rig: integration failed at t = {t[i0]:.4g} s: {sol.message}"
+            )
+        out[i0 : i1 + 1] = sol.y.T
+    return out
+
+
 def powered_run(
     sample: Sample,
     rig: Rig,
@@ -252,28 +279,7 @@ def powered_run(
         acc = acceleration(vel, internal_force(x, dT, sample, gt, n), mass, b, mass * G_ACCEL)
         return [tdot, vel, acc]
 
-    out = np.empty((t.size, 3))
-    out[0] = (t0, x0, 0.0)
-    change = np.flatnonzero((np.diff(v[:-1]) != 0) | (np.diff(m[:-1]) != 0)) + 1
-    bounds = np.concatenate(([0], change, [t.size - 1]))
-    for i0, i1 in zip(bounds[:-1], bounds[1:]):
-        if i1 <= i0:
-            continue
-        sol = solve_ivp(
-            rhs,
-            (t[i0], t[i1]),
-            out[i0],
-            method="RK45",
-            t_eval=t[i0 : i1 + 1],
-            args=(v[i0], m[i0]),
-            rtol=rtol,
-            atol=(1e-6, 1e-10, 1e-9),
-        )
-        if not sol.success:
-            raise ModelDomainError(
-                f"self-sensing rig: integration failed at t = {t[i0]:.4g} s: {sol.message}"
-            )
-        out[i0 : i1 + 1] = sol.y.T
+    out = _integrate(rhs, t, v, m, (t0, x0, 0.0), rtol)
     temp, x = out[:, 0], out[:, 1]
     res = r_of(t, temp, x)
     return PoweredRun(temp, x, res, v / res, x0)
