@@ -24,7 +24,7 @@ import numpy as np
 from tcamlab import progress
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
 from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive, sensitivity
-from tcamlab.design.protocols import Protocol, cost_minutes, menu, protocol_frames
+from tcamlab.design.protocols import Protocol, cost_minutes, menu, model_inputs, protocol_frames
 from tcamlab.design.result import CandidateProtocol, DesignResult
 from tcamlab.design.score import information_gain, refit_separation, separation
 from tcamlab.design.toml import protocol_toml
@@ -143,6 +143,17 @@ def _mark_risky(cands: list[CandidateProtocol]) -> None:
                 )
 
 
+def _inputs(kind, sample, rig, frames, h):
+    """``(inputs, None)``: each run's model inputs under its program at ``h``'s fit, shared by
+    every hypothesis (the resistances a sensor reads; a static or dynamic program is its own
+    input), or ``(frames, why)`` where the fitted sensor gives no reading there."""
+    s, r, _ = h.at(h.u(), h.effect_values, sample, rig, kind)
+    try:
+        return model_inputs(kind, s, r, frames), None
+    except MODEL_ERRORS as exc:
+        return frames, f"{h.name}: no reading under this program ({str(exc).split(';')[0][:80]})"
+
+
 def _clear_message(diagnosis: dict, st: str) -> str:
     if st == "none":
         return "the thesis model fits within the noise: no further experiment is needed"
@@ -182,6 +193,10 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
     out = CandidateProtocol(
         proto.name, proto.table, len(frames), minutes, float("nan"), float("nan"), float("nan"), {}, {}
     )
+    frames, why = _inputs(kind, sample, rig, frames, hyps[0])
+    if why:
+        out.feasible, out.limit = False, why
+        return out
     preds = []
     for h in hyps:
         pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed)
@@ -250,6 +265,10 @@ def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: 
     minutes = cost_minutes(frames, kind)
     nan = float("nan")
     out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
+    frames, why = _inputs(kind, sample, rig, frames, h)
+    if why:
+        out.feasible, out.limit = False, why
+        return out
     pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed)
     if why:
         out.feasible, out.limit = False, why

@@ -16,7 +16,15 @@ import pandas as pd
 from tcamlab.errors import ConfigError
 from tcamlab.kinds import get_kind
 
-__all__ = ["Protocol", "menu", "kind_module", "protocol_frames", "cost_minutes", "RUN_SETUP_S"]
+__all__ = [
+    "Protocol",
+    "menu",
+    "kind_module",
+    "protocol_frames",
+    "model_inputs",
+    "cost_minutes",
+    "RUN_SETUP_S",
+]
 
 
 RUN_SETUP_S = 300.0
@@ -58,6 +66,14 @@ def protocol_frames(kind: str, rig, table: dict, seed: int = 0) -> list[pd.DataF
     mod = kind_module(kind)
     rng = np.random.default_rng(seed)
     return [mod.protocol(rig, rng, **opts) for opts in mod.protocol_runs(table, rig)]
+
+
+def model_inputs(kind: str, sample, rig, frames: list[pd.DataFrame]) -> list[pd.DataFrame]:
+    """Each run's exact model inputs under its program [SI, internal names]: the program itself
+    (static, dynamic) or the resistances the sensor reads under it (sensing, curvature), by the
+    kind's ``exact_inputs`` at ``sample`` and ``rig``, the same for every hypothesis."""
+    k = get_kind(kind)
+    return [k.exact_inputs(sample, rig, f) for f in frames]
 
 
 def cost_minutes(frames: list[pd.DataFrame], kind: str) -> float:
