@@ -6,13 +6,15 @@ Steps (one module each):
    (recalibration and each aliased or stand-in effect) with their fitted parameters.
 2. :mod:`~tcamlab.design.protocols` -- the kind's menu of protocol changes (static: a second
    load, heat-cool, a wider range, a longer dwell; dynamic: a second voltage, a shorter or
-   longer pulse, a pulse train), each with its runs and rig time.
+   longer pulse, a pulse train; sensing: a larger pull range, cycles, a second pull rate, a
+   finer step, a longer dwell; curvature: finer levels, a larger range), each with its runs
+   and rig time.
 3. :mod:`~tcamlab.design.predict` -- every hypothesis's predicted logs under each protocol,
    with their spread over draws of its parameters, and the protocol's limits (no G_t' <= 0,
    coil not closed, temperature under :data:`~tcamlab.design.predict.TEMPERATURE_LIMIT_C`).
-4. :mod:`~tcamlab.design.score` -- the expected separation of the hardest pair (a
-   T-optimality-like criterion, Atkinson & Fedorov 1975, with predictive variance), ranked
-   per hour of rig time.
+4. :mod:`~tcamlab.design.score` -- the expected separation J of the hardest pair (the
+   symmetric KL divergence of their predictive distributions, Box & Hill 1967), ranked per
+   hour of rig time among the protocols expected to decide.
 5. :mod:`~tcamlab.design.result` -- the typed result; :func:`protocol_toml` the file a lab
    follows and :func:`tcamlab.rig.simulate` runs.
 """
