@@ -1,0 +1,69 @@
+"""The closed loop's bookkeeping: the default comparison and the before/after scores."""
+
+from __future__ import annotations
+
+from tcamlab.benchmark import closed_loop_scores, loop_tasks
+from tcamlab.design import DECISIVE
+from tcamlab.loop import DEFAULT_PROTOCOL, at_least_default
+
+
+def _p(j, runs, feasible=True):
+    return {"protocol": "p", "separation": j, "runs": runs, "feasible": feasible}
+
+
+def test_designed_against_the_default():
+    assert at_least_default(_p(5.0, 2), _p(4.0, 2)) is True
+    assert at_least_default(_p(3.0, 2), _p(4.0, 2)) is False
+    # both decisive: both are expected to decide, the cheaper is not worse
+    assert at_least_default(_p(DECISIVE + 1, 2), _p(10 * DECISIVE, 4)) is True
+    assert at_least_default(_p(DECISIVE - 1, 2), _p(10 * DECISIVE, 4)) is False
+    # more runs than the default is worse even with more separation
+    assert at_least_default(_p(50.0, 6), _p(4.0, 4)) is False
+    # a default outside the sample's limits cannot be run: the design wins
+    assert at_least_default(_p(1.0, 2), _p(float("nan"), 4, feasible=False)) is True
+    assert at_least_default(None, _p(1.0, 2)) is None and at_least_default(_p(1.0, 2), None) is None
+    assert at_least_default(_p(float("nan"), 2), _p(1.0, 2)) is None
+
+
+def _case(verdict, effect, after_verdict, after_effect, flag):
+    digest = {"aliased_with": [], "ranking": [], "recalibrated": [], "recalibrated_aliases": []}
+    return {
+        "case": "single",
+        "kind": "static",
+        "effects": {"displacement-drift": 3.0},
+        "seed": 1,
+        "verdict": verdict,
+        "effect": effect,
+        **digest,
+        "loop": {"chosen": _p(30.0, 4), "default": _p(8.0, 4), "at_least_default": flag},
+        "after": {"verdict": after_verdict, "effect": after_effect, **digest},
+    }
+
+
+def test_closed_loop_scores_count_before_and_after():
+    rows = [
+        _case("miscalibrated", None, "attributed", "displacement-drift", True),
+        _case("miscalibrated", None, "miscalibrated", None, False),
+        {**_case("attributed", "displacement-drift", "x", None, None), "after": None},
+    ]
+    sc = closed_loop_scores(rows)
+    before, after = sc["before"]["effect-only"]["3.0"], sc["after"]["effect-only"]["3.0"]
+    assert before["n"] == after["n"] == 3
+    assert before["top1"] == 1 / 3  # only the third, attributed from the start
+    assert after["top1"] == 2 / 3  # the first now, the third keeps its first verdict
+    assert sc["at_least_default"] == {"k": 1, "n": 2, "rate": 0.5}
+    assert [c["after"] for c in sc["cases"]] == ["displacement-drift", "miscalibrated", "displacement-drift"]
+
+
+def test_loop_tasks_keep_kinds_with_a_menu_and_one_case_per_family_when_quick():
+    tasks = [
+        {"case": "single", "kind": "static", "effects": {"a": 3.0}, "seed": 1},
+        {"case": "single", "kind": "static", "effects": {"b": 3.0}, "seed": 1},
+        {"case": "null", "kind": "static", "effects": {}, "seed": 2},
+        {"case": "null", "kind": "selfsensing", "effects": {}, "seed": 2},
+    ]
+    quick = loop_tasks(tasks, quick=True)
+    assert [(t["case"], t["effects"]) for t in quick] == [("single", {"a": 3.0}), ("null", {})]
+    assert all(t["closed_loop"] for t in quick)
+    assert len(loop_tasks(tasks, quick=False)) == 3
+    assert set(DEFAULT_PROTOCOL) >= {"static", "dynamic", "sensing", "curvature"}
