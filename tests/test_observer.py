@@ -183,3 +183,27 @@ def test_the_unknown_load_filter_finds_a_load_step_it_is_not_told_about(rider_ru
         exp.sample, exp.rig, data, noise={**so.UNKNOWN_LOAD_NOISE, "jump_threshold": 0.0}
     )
     assert abs((slow["displacement"] - truth)[late].mean()) > 10 * abs(err[late].mean())
+
+
+def test_the_innovation_likelihood_peaks_at_the_true_law():
+    """The laser-free objective of calibrate_resistance_law on the sample data (synthetic,
+    seed 1, stated = true parameters): R0 2 % off or k_s 15 % off raise it, with the load
+    logged and without (measured: 58-85 and 510-1280 logged; 30-32 and 46-50 unknown)."""
+    from tcamlab.io import read_run
+
+    exp = load_experiment(ROOT / "experiments" / "selfsensing.toml")
+    data = read_run(exp.runs[0], "selfsensing", exp.columns).data
+    r0 = exp.rig.initial_resistance
+    for use_load, gap_r0, gap_ks in ((True, 40.0, 300.0), (False, 20.0, 30.0)):
+
+        def nll(use_load=use_load, **kw):
+            est, _ = so.filter_run(exp.sample, exp.rig, data, use_load=use_load, **kw)
+            return est.negative_log_likelihood()
+
+        best = nll(initial_resistance=r0)
+        assert min(nll(initial_resistance=0.98 * r0), nll(initial_resistance=1.02 * r0)) > best + gap_r0
+        assert min(nll(stretch_factor=0.85), nll(stretch_factor=1.15)) > best + gap_ks
+    est, _ = so.filter_run(exp.sample, exp.rig, data)
+    ok = np.isfinite(est.nis)
+    expected = 0.5 * np.sum(est.nis[ok] + np.log(2 * np.pi * est.innovation_variance[ok]))
+    assert est.negative_log_likelihood() == pytest.approx(expected, rel=1e-12)

@@ -47,6 +47,7 @@ __all__ = [
     "spring_constant",
     "unloaded_resistance",
     "predict_displacement",
+    "filter_run",
     "TCS_STIFFNESS_RATIO",
     "parameter_vector",
     "initial_state",
@@ -447,6 +448,57 @@ def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods, law=
     return resistance
 
 
+def filter_run(
+    sample: Sample,
+    rig: Rig,
+    data,
+    mods=None,
+    *,
+    initial_resistance=None,
+    use_load=True,
+    lead_resistance=0.0,
+    stretch_factor=1.0,
+    noise=None,
+) -> tuple[EstimateResult, float]:
+    """The EKF over a logged run and its rest reference: (EstimateResult, x_rest [m]).
+
+    Parameters as :func:`predict_displacement`, which is this plus the displacement from
+    x_rest, the static rest extension at the rest rows' steady temperature under the first
+    row's load (logged, else stated).
+    """
+    t = data["time"].to_numpy(float)
+    v = data["voltage"].to_numpy(float)
+    i = data["current"].to_numpy(float)
+    if mods is not None and getattr(mods, "tcr_extra", 0.0):
+        rig = replace(rig, tcr=rig.tcr + mods.tcr_extra)
+    if mods is not None and getattr(mods, "r0_drift", 0.0):
+        i = i * (1.0 + mods.r0_drift * (t - t[0]))
+    # "load" is the selfsensing kind's logged load_N column; "load_force" the simulations'
+    column = next((c for c in ("load_force", "load") if c in data), None)
+    load = data[column].to_numpy(float) if use_load and column else None
+    law = (float(lead_resistance), float(stretch_factor))
+    config = config_from(
+        sample,
+        rig,
+        initial_resistance=initial_resistance,
+        resistance=_contact_resistance(sample, rig, initial_resistance, mods, law),
+        noise=noise if noise is not None else (THETA_NOISE if load is not None else UNKNOWN_LOAD_NOISE),
+        lead_resistance=law[0],
+        stretch_factor=law[1],
+    )
+    if load is not None:
+        config = replace(config, initial_load_sd=max(LOAD_PRIOR_SD, LOAD_PRIOR_REL * abs(rig.force)))
+    rest = slice(0, _rest_count(data))
+    p_rest = float(np.mean(v[rest] * i[rest] - law[0] * i[rest] ** 2))
+    t0 = rig.ambient + p_rest / rig.heat_loss  # steady at the probe power
+    est = estimate(t, v, i, config, load=load, initial_temperature=t0)
+    # from the statics' rest extension at the rest temperature under the first row's load, as
+    # the kind does: the rest rows' mean of the estimate would cancel a common error and hide it
+    f_rest = float(load[0]) if load is not None and np.isfinite(load[0]) else rig.force
+    x_rest = rest_extension(sample, rig, t0, f_rest)
+    return est, x_rest
+
+
 def predict_displacement(
     sample: Sample,
     rig: Rig,
@@ -491,36 +543,10 @@ def predict_displacement(
         temperature (leading rows at the first voltage) under the first row's load
         (logged, else stated), ``temperature`` [degC], ``load_force`` [N].
     """
-    t = data["time"].to_numpy(float)
-    v = data["voltage"].to_numpy(float)
-    i = data["current"].to_numpy(float)
-    if mods is not None and getattr(mods, "tcr_extra", 0.0):
-        rig = replace(rig, tcr=rig.tcr + mods.tcr_extra)
-    if mods is not None and getattr(mods, "r0_drift", 0.0):
-        i = i * (1.0 + mods.r0_drift * (t - t[0]))
-    # "load" is the selfsensing kind's logged load_N column; "load_force" the simulations'
-    column = next((c for c in ("load_force", "load") if c in data), None)
-    load = data[column].to_numpy(float) if use_load and column else None
-    law = (float(lead_resistance), float(stretch_factor))
-    config = config_from(
-        sample,
-        rig,
-        initial_resistance=initial_resistance,
-        resistance=_contact_resistance(sample, rig, initial_resistance, mods, law),
-        noise=noise if noise is not None else (THETA_NOISE if load is not None else UNKNOWN_LOAD_NOISE),
-        lead_resistance=law[0],
-        stretch_factor=law[1],
-    )
-    if load is not None:
-        config = replace(config, initial_load_sd=max(LOAD_PRIOR_SD, LOAD_PRIOR_REL * abs(rig.force)))
-    rest = slice(0, _rest_count(data))
-    p_rest = float(np.mean(v[rest] * i[rest] - law[0] * i[rest] ** 2))
-    t0 = rig.ambient + p_rest / rig.heat_loss  # steady at the probe power
-    est = estimate(t, v, i, config, load=load, initial_temperature=t0)
-    # from the statics' rest extension at the rest temperature under the first row's load, as
-    # the kind does: the rest rows' mean of the estimate would cancel a common error and hide it
-    f_rest = float(load[0]) if load is not None and np.isfinite(load[0]) else rig.force
-    x_rest = rest_extension(sample, rig, t0, f_rest)
+    est, x_rest = filter_run(
+        sample, rig, data, mods, initial_resistance=initial_resistance, use_load=use_load,
+        lead_resistance=lead_resistance, stretch_factor=stretch_factor, noise=noise,
+    )  # fmt: skip
     return {
         "displacement": est.displacement + est.extension0 - x_rest,
         "temperature": est.temperature,
@@ -539,13 +565,19 @@ LAW_FIT_THIN = 10
 memory), so the thinned rows weigh the priors about right."""
 
 
-def calibrate_resistance_law(sample: Sample, rig: Rig, runs, *, use_load=True, priors=None) -> dict:
-    """R0, TCR, R_lead and k_s that make the EKF match the laser on training runs (MAP).
+def calibrate_resistance_law(
+    sample: Sample, rig: Rig, runs, *, use_load=True, priors=None, reference="laser"
+) -> dict:
+    """R0, TCR, R_lead and k_s of the resistance law from training runs (MAP).
 
-    The calibrated nuisances of the resistance law (:func:`combined_resistance`): the laser
-    of the training runs is the reference, the EKF (:func:`predict_displacement`) the model,
-    each run after its rest-row zero. R0 and the TCR start from the rig (a calibrated file's)
-    with its stated sds, when given, else 1 % and 5 %; R_lead and k_s from :data:`LAW_PRIORS`.
+    The calibrated nuisances of the resistance law (:func:`combined_resistance`). With
+    ``reference="laser"`` the EKF (:func:`predict_displacement`) is fitted to the laser of
+    the training runs, each run after its rest-row zero (least squares on every
+    :data:`LAW_FIT_THIN`-th row, sd :data:`LAW_FIT_ERROR_SD`). With ``"innovations"`` no laser
+    is used: the EKF's own innovation likelihood
+    (:meth:`EstimateResult.negative_log_likelihood`) is minimised (Powell). R0 and the TCR
+    start from the rig (a calibrated file's) with its stated sds, when given, else 1 % and
+    5 %; R_lead and k_s from :data:`LAW_PRIORS`.
 
     Parameters
     ----------
@@ -553,19 +585,20 @@ def calibrate_resistance_law(sample: Sample, rig: Rig, runs, *, use_load=True, p
         Calibrated parameters [SI]; C_th, lambda and b are held.
     runs : sequence of DataFrame
         ``time`` [s], ``voltage`` [V], ``current`` [A], ``displacement`` [m] (laser, zeroed at
-        the first row), optional ``load`` [N].
+        the first row; not read with ``"innovations"``), optional ``load`` [N].
     use_load : bool
         Read a logged load as the EKF would in use.
     priors : dict, optional
         Overrides of :data:`LAW_PRIORS`.
+    reference : {"laser", "innovations"}
 
     Returns
     -------
     dict
         ``initial_resistance`` [ohm], ``tcr`` [1/K], ``lead_resistance`` [ohm], ``stretch_factor`` [-],
-        and ``cost`` (half the sum of squared normalised residuals at the optimum).
+        and ``cost`` (the objective at the optimum [-]).
     """
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares, minimize
 
     pri = {**LAW_PRIORS, **(priors or {})}
     unc = getattr(rig, "uncertainty", None) or {}
@@ -574,24 +607,37 @@ def calibrate_resistance_law(sample: Sample, rig: Rig, runs, *, use_load=True, p
     sd = np.array([unc.get("initial_resistance", 0.01 * r0), unc.get("tcr", 0.05 * tcr),
                    pri["lead_resistance"][1], pri["stretch_factor"][1]])  # fmt: skip
 
-    def residuals(u):
+    def runs_of(u):
         theta = mu + sd * u
         fitted = replace(rig, initial_resistance=theta[0], tcr=theta[1])
-        out = [u]
         for data in runs:
-            pred = predict_displacement(
+            yield data, filter_run(
                 sample, fitted, data, initial_resistance=theta[0], use_load=use_load,
                 lead_resistance=theta[2], stretch_factor=theta[3],
-            )["displacement"]  # fmt: skip
-            e = pred - data["displacement"].to_numpy(float)
+            )  # fmt: skip
+
+    def residuals(u):
+        out = [u]
+        for data, (est, x_rest) in runs_of(u):
+            e = est.displacement + est.extension0 - x_rest - data["displacement"].to_numpy(float)
             e = e - e[: _rest_count(data)].mean()
             out.append(e[::LAW_FIT_THIN] / LAW_FIT_ERROR_SD)
         return np.concatenate(out)
 
-    fit = least_squares(residuals, np.zeros(4), diff_step=1e-3, x_scale=1.0, max_nfev=40)
-    theta = mu + sd * fit.x
+    def nll(u):
+        return 0.5 * float(u @ u) + sum(est.negative_log_likelihood() for _, (est, _) in runs_of(u))
+
+    if reference == "laser":
+        fit = least_squares(residuals, np.zeros(4), diff_step=1e-3, x_scale=1.0, max_nfev=40)
+        u, cost = fit.x, fit.cost
+    elif reference == "innovations":
+        fit = minimize(nll, np.zeros(4), method="Powell", options={"xtol": 1e-2, "ftol": 1e-3, "maxfev": 300})
+        u, cost = fit.x, fit.fun
+    else:
+        raise ValueError(f"reference {reference!r}: 'laser' or 'innovations'")
+    theta = mu + sd * u
     keys = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor")
-    return {**dict(zip(keys, map(float, theta))), "cost": float(fit.cost)}
+    return {**dict(zip(keys, map(float, theta))), "cost": float(cost)}
 
 
 def _rest_count(data) -> int:
@@ -618,6 +664,8 @@ class EstimateResult:
         Normalised innovation squared per sample (NaN where V carried no information).
     extension0 : float
         x at the start [m].
+    innovation_variance : ndarray
+        Variance of each row's current innovation [A^2] (NaN where V carried no information).
     """
 
     time: np.ndarray
@@ -627,6 +675,13 @@ class EstimateResult:
     variance: np.ndarray
     nis: np.ndarray
     extension0: float
+    innovation_variance: np.ndarray | None = None
+
+    def negative_log_likelihood(self) -> float:
+        """0.5 sum(nis + ln(2 pi S)) over the informative rows: the innovations' Gaussian
+        negative log-likelihood [-] (S in A^2; the prediction-error decomposition)."""
+        ok = np.isfinite(self.nis) & np.isfinite(self.innovation_variance)
+        return float(0.5 * np.sum(self.nis[ok] + np.log(2.0 * np.pi * self.innovation_variance[ok])))
 
     @property
     def displacement_sd(self) -> np.ndarray:
@@ -686,13 +741,16 @@ def estimate(
     out_s = np.empty((n, K.NX))
     out_var = np.empty((n, K.NX))
     out_nis = np.empty(n)
+    out_sv = np.empty(n)
     p = parameter_vector(config.sample, config.rig, config.lead_resistance)
     K.ekf_batch(
         t, v, i, _as_load(load, n), s0, c0, p, config.noise_vector(), config.table.values,
-        config.table.grid, MAX_STEP_S, out_s, out_var, out_nis,
+        config.table.grid, MAX_STEP_S, out_s, out_var, out_nis, out_sv,
     )  # fmt: skip
     x_start = rest_extension(config.sample, config.rig)
-    return EstimateResult(t, out_s[:, 1] - x_start, out_s[:, 0], out_s[:, 3], out_var, out_nis, x_start)
+    return EstimateResult(
+        t, out_s[:, 1] - x_start, out_s[:, 0], out_s[:, 3], out_var, out_nis, x_start, out_sv
+    )
 
 
 class SelfSensingObserver:
@@ -722,7 +780,7 @@ class SelfSensingObserver:
         self.extension0 = rest_extension(config.sample, config.rig)
         self._p = parameter_vector(config.sample, config.rig, config.lead_resistance)
         self._noise = config.noise_vector()
-        self._carry = np.zeros(5)  # V, I of the last sample; the load-jump detector's sums and hold
+        self._carry = np.zeros(6)  # V, I of the last sample; the jump detector's sums and hold; S
         self._nsub = max(1, int(np.ceil(self.dt / MAX_STEP_S)))
         self._first = True
         self.nis = float("nan")

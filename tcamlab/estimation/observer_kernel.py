@@ -188,7 +188,7 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     work = np.empty((3, NX, NX))
     _predict(s, c, power, dt, p, nsub, q, s_new, work)
     out[0], out[1] = volt, cur
-    z = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, p[P_TA])
+    z = _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, p[P_TA], out)
     if load_force == load_force:  # a logged load is a second measurement
         update_load(s, c, load_force, noise[5])
     elif jumps and z == z:
@@ -217,13 +217,16 @@ def jump_detector(sums, z, drift, threshold):
 
 
 @njit(cache=True)
-def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, ta):
+def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, ta, out):
     """Measurement update on the current I = V / (R(T, x) (1 + theta (T - T_a))).
 
     theta [1/K] absorbs a thermal part of R the calibrated model gets wrong (a TCR
     off, or a temperature off in proportion to the rise, as a lambda off makes it).
-    Returns the normalised innovation (innovation / its sd; NaN without information).
+    Returns the normalised innovation (innovation / its sd; NaN without information);
+    ``out[5]``, when ``out`` has it, gets the innovation's variance [A^2] (NaN without).
     """
+    if out.size > 5:
+        out[5] = np.nan
     r_tab, drdt, drdx = table_resistance(s[0], s[1], table, grid)
     dT = s[0] - ta
     scale = 1.0 + s[4] * dT
@@ -240,6 +243,8 @@ def _update_current(s, c, volt, cur, sd_v, sd_i, table, grid, ta):
     for i in range(NX):
         ch[i] = c[i, 0] * h0 + c[i, 1] * h1 + c[i, 4] * h4
     sv = h0 * ch[0] + h1 * ch[1] + h4 * ch[4] + var
+    if out.size > 5:
+        out[5] = sv
     innov = cur - pred
     for i in range(NX):
         s[i] += ch[i] * innov / sv
@@ -272,11 +277,12 @@ def update_load(s, c, load_force, sd):
 
 
 @njit(cache=True)
-def ekf_batch(time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_step, out_s, out_var, out_nis):
-    """The EKF over a whole log (sample by sample, exactly as :func:`ekf_step`)."""
+def ekf_batch(time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_step, out_s, out_var, out_nis, out_sv):
+    """The EKF over a whole log (sample by sample, exactly as :func:`ekf_step`); ``out_sv`` gets
+    each row's innovation variance [A^2] (NaN where the row carried no information)."""
     s = s0.copy()
     c = c0.copy()
-    carry = np.zeros(5)
+    carry = np.zeros(6)
     carry[0], carry[1] = volt[0], cur[0]
     if load_force[0] == load_force[0]:  # the stated load was the prior; the first logged row updates it
         first_load_update(s, c, load_force[0], noise[5], p)
@@ -284,10 +290,12 @@ def ekf_batch(time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_st
     for i in range(NX):
         out_var[0, i] = c[i, i]
     out_nis[0] = np.nan
+    out_sv[0] = np.nan
     for k in range(1, time.size):
         dt = time[k] - time[k - 1]
         nsub = max(1, int(math.ceil(dt / max_step)))
         out_nis[k] = ekf_step(s, c, volt[k], cur[k], load_force[k], dt, p, nsub, noise, table, grid, carry)
+        out_sv[k] = carry[5]
         out_s[k, :] = s
         for i in range(NX):
             out_var[k, i] = c[i, i]
