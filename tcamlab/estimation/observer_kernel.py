@@ -277,7 +277,9 @@ def update_load(s, c, load_force, sd):
 
 
 @njit(cache=True)
-def ekf_batch(time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_step, out_s, out_var, out_nis, out_sv):
+def ekf_batch(
+    time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_step, out_s, out_var, out_nis, out_sv
+):
     """The EKF over a whole log (sample by sample, exactly as :func:`ekf_step`); ``out_sv`` gets
     each row's innovation variance [A^2] (NaN where the row carried no information)."""
     s = s0.copy()
