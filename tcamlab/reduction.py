@@ -69,7 +69,7 @@ __all__ = [
 MIN_ROWS = 50_000
 """Rows of a run below which fits use every row (the bundled runs have a few thousand)."""
 
-SPREAD = 0.3
+SPREAD = 0.1
 """Largest departure of the stated prediction from a straight line within a block, in
 noise floors (see the module docstring)."""
 
@@ -173,6 +173,8 @@ class Reduction:
     t_grid: np.ndarray
     measured: dict = field(default_factory=dict)
     offset: dict = field(default_factory=dict)
+    frame: object = None
+    """The run's grid rows (a DataFrame), set by :func:`checked_reduction`."""
 
     @property
     def two(self) -> np.ndarray:
@@ -313,8 +315,9 @@ def checked_reduction(data, held, stated, measured, sigma, predict, breaks=()) -
         red = reduce_run(data, held, stated, measured, sigma, breaks, every)
         if red.grid.size * 2 > len(data):
             return None  # nothing to gain
+        red.frame = data.iloc[red.grid]
         try:
-            coarse = predict(data.iloc[red.grid])
+            coarse = predict(red.frame)
         except (TcamlabError, ArithmeticError, ValueError):  # a failed coarse step: finer grid
             continue
         worst = max(

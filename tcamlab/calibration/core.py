@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from tcamlab import progress
-from tcamlab.calibration.fit import Z95, laplace_covariance, map_fit, profile_interval
+from tcamlab.calibration.fit import Z95, every_row_chi2, laplace_covariance, map_fit, profile_interval
 from tcamlab.calibration.identify import directions, identifiability_text, tier
 from tcamlab.calibration.problem import CalibrationProblem
 from tcamlab.calibration.result import (
@@ -140,14 +140,6 @@ def _zeros(problem, u: np.ndarray, cov: np.ndarray) -> list[ZeroEstimate]:
     return out
 
 
-def _chi2(problem, u: np.ndarray, fitted: float) -> float:
-    """The penalised chi-square at ``u`` over every row (``fitted`` when no run was reduced)."""
-    if not any(r is not None for r in problem.reductions.values()):
-        return fitted
-    r = problem.residuals(u)
-    return float(r @ r)
-
-
 def _full_zeros(problem, u: np.ndarray, zeros: list[ZeroEstimate]) -> list[ZeroEstimate]:
     """``zeros`` with each value the profiled zero of every row at ``u`` (the sds stay)."""
     if not zeros or not any(r is not None for r in problem.reductions.values()):
@@ -271,8 +263,8 @@ def calibrate(
         zeros = _zeros(problem, fit.u, cov)
         # a long log was fitted on its blocks' moments (tcamlab.reduction): the chi-square,
         # the zeros and the fit quality are of every row
+        chi2 = every_row_chi2(problem, fit.u, fit.chi2)[0]
         with problem.full_rows():
-            chi2 = _chi2(problem, fit.u, fit.chi2)
             zeros = _full_zeros(problem, fit.u, zeros)
             quality = _quality(problem, fit.u)
         curves = _curves(problem, fit.u)

@@ -15,7 +15,16 @@ from scipy import optimize
 
 from tcamlab.calibration.problem import CalibrationProblem
 
-__all__ = ["CHI2_95", "MapFit", "Profile", "map_fit", "solve", "laplace_covariance", "profile_interval"]
+__all__ = [
+    "CHI2_95",
+    "MapFit",
+    "Profile",
+    "map_fit",
+    "solve",
+    "laplace_covariance",
+    "profile_interval",
+    "every_row_chi2",
+]
 
 Z95 = 1.959963984540054
 """norm.ppf(0.975): the signed-root target of the profile search and the Laplace intervals' z."""
@@ -127,6 +136,19 @@ def _restarts(problem: CalibrationProblem, lead: np.ndarray):
             yield start
 
 
+def every_row_chi2(problem: CalibrationProblem, u: np.ndarray, chi2: float) -> tuple[float, int]:
+    """The penalised chi-square at ``u`` over every row and its expectation (the residuals'
+    number), given the fitted ``chi2``: the same unless a long run was fitted on its blocks'
+    moments (:mod:`tcamlab.reduction`), where a misfit shared by a block's rows is summed
+    into a few moments and the moments' chi-square is no test of the fit."""
+    n = len(problem.u0) + problem.size
+    if problem.n_resid == problem.size:
+        return chi2, n
+    with problem.full_rows():
+        r = problem.residuals(u)
+    return float(r @ r), n
+
+
 def map_fit(problem: CalibrationProblem) -> MapFit:
     """The maximum a posteriori point: the best of fits from the stated values and from
     :data:`RESTART_SDS` prior sds along the leading eigenvector of the prior-whitened
@@ -136,9 +158,9 @@ def map_fit(problem: CalibrationProblem) -> MapFit:
     where the optimiser's steps leave the domain, although the chi-square falls along it."""
     free = list(range(len(problem.specs)))
     u, chi2, nfev = solve(problem, problem.u0, free)
-    n = len(problem.u0) + problem.n_resid
+    rows_chi2, n = every_row_chi2(problem, u, chi2)
     # an acceptable fit (chi-square within RESTART_Z of its expectation) needs no restarts
-    if not free or chi2 <= n + RESTART_Z * np.sqrt(2.0 * n):
+    if not free or rows_chi2 <= n + RESTART_Z * np.sqrt(2.0 * n):
         return MapFit(u, chi2, nfev, "ok")
     cov, _ = laplace_covariance(problem, u)
     white = cov / np.outer(problem.sd_u, problem.sd_u)

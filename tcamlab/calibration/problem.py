@@ -206,6 +206,9 @@ class CalibrationProblem:
     effect_params : bool
         Include parameters that are an effect of the library (``CalibrationParam.effect``,
         dynamic beta); the diagnosis's recalibration leaves them out.
+    reduce : bool
+        Fit a long run on its blocks' moments (:mod:`tcamlab.reduction`); the diagnosis
+        reduces its own (with its noise floor and folds) and passes False.
     """
 
     def __init__(
@@ -214,8 +217,10 @@ class CalibrationProblem:
         runs: Sequence[list],
         names: Sequence[str] | None = None,
         effect_params: bool = True,
+        reduce: bool = True,
     ):
         self.effect_params = effect_params
+        self._reduce = reduce
         self.experiments = list(experiments)
         self.runs = [list(r) for r in runs]
         self.kinds = [get_kind(e.kind) for e in self.experiments]
@@ -471,7 +476,7 @@ class CalibrationProblem:
             held = [c for c in self.kinds[i].inputs if c != "time"]
             for j, run in enumerate(self.runs[i]):
                 red = None
-                if reduction.enabled(len(run.data)) and not self.run_effects:
+                if self._reduce and reduction.enabled(len(run.data)) and not self.run_effects:
                     stated = self.predict_run(i, j, self.u0)
                     red = reduction.checked_reduction(
                         run.data,
@@ -488,7 +493,7 @@ class CalibrationProblem:
     def n_resid(self) -> int:
         """Data residuals of :meth:`data_residuals`: rows times quantities, or the moments of
         the reduced runs while the reduction is on."""
-        return self.n_reduced if self._active else self.size
+        return self.n_reduced if getattr(self, "_active", False) else self.size
 
     @contextmanager
     def full_rows(self) -> Iterator[None]:
@@ -582,7 +587,7 @@ class CalibrationProblem:
                     pred = self.predict_run(i, j, u)
                     out.extend((j, q, self.measured(i, j, q) - pred[q]) for q in self.quantities[i])
                     continue
-                pred = self.predict_run(i, j, u, frame=self.runs[i][j].data.iloc[red.grid])
+                pred = self.predict_run(i, j, u, frame=red.frame)
                 for q in self.quantities[i]:
                     (m0, m1), (p0, p1) = red.measured[q], red.predicted(q, pred[q])
                     out.append((j, q, np.concatenate([m0 - p0, (m1 - p1)[red.two]])))

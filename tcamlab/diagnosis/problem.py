@@ -317,10 +317,18 @@ def bounded_gauss_newton_step(J: np.ndarray, f: np.ndarray, x: np.ndarray, lo, h
     return np.clip(x + step, lo, hi) - x
 
 
-def best_least_squares(fun, starts, lo, hi, x_scale, max_nfev: int):
+def best_least_squares(fun, starts, lo, hi, x_scale, max_nfev: int, screen: int | None = None):
     """The best of bounded ``least_squares`` fits of ``fun`` from each distinct start (clipped
     into the box), or None when every start fails; one set of solver settings for the
-    diagnosis's effect fits and its joint recalibration fits."""
+    diagnosis's effect fits and its joint recalibration fits.
+
+    With ``screen``, several starts are each run for at most that many evaluations and the
+    best is then run to convergence (a long log's reduced fits, where the starts are
+    many and each evaluation is the model over hours of log)."""
+    if screen is not None and len(starts) > 1:
+        first = best_least_squares(fun, starts, lo, hi, x_scale, screen)
+        if first is not None:
+            starts = [first.x]
     lo_i, hi_i = inner_box(lo, hi)
     best, seen = None, []
     for x0 in starts:

@@ -98,6 +98,12 @@ MAX_NFEV_FOLD = 30
 """Most residual evaluations of a fold's fit, started from the fit on all rows."""
 
 
+SCREEN_NFEV = 12
+"""Most residual evaluations of each start of a reduced fit before the best start is run to
+convergence (:func:`~tcamlab.diagnosis.problem.best_least_squares`): two Jacobians of a
+recalibration with an effect, enough to tell the basins apart."""
+
+
 @dataclass
 class JointFit:
     """Recalibrated parameters (and an effect's) fitted on some rows."""
@@ -159,7 +165,8 @@ class Recalibration:
     def __init__(self, problem: Problem, experiment, runs):
         self.problem = problem
         # parameters that are an effect (dynamic beta) stay out: the effect is its own candidate
-        self.cal = CalibrationProblem([experiment], [runs], effect_params=False)
+        # reduced with the diagnosis's noise floor and folds, not the calibration's (reductions())
+        self.cal = CalibrationProblem([experiment], [runs], effect_params=False, reduce=False)
         self.specs = self.cal.specs
         self.p = len(self.specs)
         self.lo, self.hi = self.cal.bounds()
@@ -202,21 +209,21 @@ class Recalibration:
         if self._coarse_last is not None and self._coarse_last[0] == key:
             return self._coarse_last[1]
         red = self.reductions()[i]
-        pred = self.cal.predict_run(0, i, u, mods, self.problem.frames[i].iloc[red.grid])
+        pred = self.cal.predict_run(0, i, u, mods, red.frame)
         self._coarse_last = (key, pred)
         return pred
 
     def reducible(self, rows) -> bool:
         """Whether every (run, mask) of ``rows`` is scored on its reduced representation."""
         reds = self.reductions()
-        return all(reds[i] is not None and reds[i].blocks_in(m) is not None for i, m in rows)
+        return all(reds[i] is not None and self._blocks(reds[i], m) is not None for i, m in rows)
 
     def reduced_resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
         """Normalised moments of run i's residuals over the blocks in ``mask``
         (:mod:`tcamlab.reduction`), quantities stacked, each run's zero profiled out over
         those blocks as :meth:`Problem.resid` does over the rows; or FAIL_RESIDUAL."""
         red = self.reductions()[i]
-        sel = red.blocks_in(mask)
+        sel = self._blocks(red, mask)
         counts, two = red.counts[sel], red.two[sel]
         try:
             pred = self._coarse(i, u, mods)
@@ -236,10 +243,39 @@ class Recalibration:
     def resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
         """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``."""
         try:
-            pred = self.cal.predict_run(0, i, u, mods)
+            pred = self._rows_predicted(i, u, mods, mask)
         except MODEL_ERRORS:
             return self.problem.failed(i, mask)
         return self.problem.scaled(i, pred, mask)
+
+    def _rows_predicted(self, i: int, u: np.ndarray, mods: Mods, mask) -> dict:
+        """Predictions [SI] of run i for :meth:`resid`. On a reduced run (whose model reads its
+        rows in time order and steps over the grid rows as over every row: the reduction's
+        check) a fold's rows are predicted from the grid rows before them and every row of
+        the fold, filled in at the fold's rows only: the rest of the run is not scored."""
+        red = self.reductions()[i] if mask is not None else None
+        if red is None or self._blocks(red, mask) is None or mask.all():
+            return self.cal.predict_run(0, i, u, mods)
+        rows = np.flatnonzero(mask)
+        first, last = int(rows[0]), int(rows[-1])
+        take = np.concatenate([red.grid[red.grid < first], np.arange(first, last + 1)])
+        part = self.cal.predict_run(0, i, u, mods, self.problem.frames[i].iloc[take])
+        out = {}
+        for q, v in part.items():
+            full = np.zeros(len(mask))
+            full[first : last + 1] = np.asarray(v)[take.size - (last + 1 - first) :]
+            out[q] = full
+        return out
+
+    def _blocks(self, red, mask):
+        """``red.blocks_in(mask)``, kept per mask (the folds' masks recur in every fit)."""
+        if mask is None:
+            return red.blocks_in(None)
+        cache = self.__dict__.setdefault("_blocks_of", {})
+        key = (id(red), id(mask))
+        if key not in cache or cache[key][0] is not mask:
+            cache[key] = (mask, red.blocks_in(mask))
+        return cache[key][1]
 
     def outside(self, i: int, u: np.ndarray, mods: Mods, coarse: bool = False) -> float:
         """:data:`~tcamlab.diagnosis.problem.FAIL_RESIDUAL` when the model has no solution on
@@ -358,14 +394,14 @@ class Recalibration:
         x_scale[pin] /= PIN_WEIGHT
         starts = [np.concatenate([np.where(np.isin(np.arange(p), pin), u0, x0[:p]), x0[p:]]) for x0 in starts]
         extra = p + pin.size + len(defined_on)
-        best = best_least_squares(fun, starts, lo, hi, x_scale, max_nfev)
+        best = best_least_squares(fun, starts, lo, hi, x_scale, max_nfev, SCREEN_NFEV if reduced else None)
         x = np.clip(np.asarray(starts[0], float), *inner_box(lo, hi)) if best is None else best.x
         r = fun(x)[: -extra or None] if best is None else best.fun[: best.fun.size - extra]
         sizes = None
         if reduced:  # the chi-square of every row at the fit, and the moments' layout
             mods = effect.mods(x[p:] * scales) if k else Mods()
             sizes = [resid(i, x[:p], mods, m).size for i, m in rows]
-            r = np.concatenate([self.resid(i, x[:p], mods, m) for i, m in rows])
+            r = self._every_row(rows, x[:p], mods, r, defined_on)
         if best is None:
             return JointFit(x[:p], x[p:], x[p:] * scales, float(r @ r), r.size, None, False)
         return JointFit(
@@ -380,6 +416,17 @@ class Recalibration:
             box=(lo, hi),
             sizes=sizes,
         )
+
+    def _every_row(self, rows, u: np.ndarray, mods: Mods, moments: np.ndarray, defined_on) -> np.ndarray:
+        """The normalised residuals of every row of ``rows`` at a reduced fit's optimum; for a
+        fold's fit (``defined_on`` its held-out rows, which the caller scores row by row) the
+        moments stand in, padded with zeros to the rows' number (nothing reads a fold fit's
+        chi-square, and a model evaluation on every training row would double its cost)."""
+        if not defined_on:
+            return np.concatenate([self.resid(i, u, mods, m) for i, m in rows])
+        n = sum(int(np.count_nonzero(m)) if m is not None else len(self.problem.frames[i]) for i, m in rows)
+        pad = n * len(self.problem.quantities) - moments.size
+        return np.concatenate([moments, np.zeros(max(pad, 0))])
 
     def refit_without(self, fit: JointFit, effect: Effect | None, held: set[int]) -> JointFit:
         """The fit on every run but ``held``: one Gauss-Newton step from the all-runs ``fit``.
