@@ -1,11 +1,13 @@
 #!/usr/bin/env python
-"""``validate`` and ``report`` on a long 1 kHz dynamic log: time, peak RSS, report size.
+"""``validate``, ``report``, ``calibrate`` and ``diagnose`` on a long 1 kHz dynamic log: time,
+peak RSS, report size.
 
 Run from the repository root::
 
     python bench/bench_large_log.py            # 10,000,000 rows (about 2.8 h of logging)
-    python bench/bench_large_log.py --quick    # 1,000,000 rows (CI)
+    python bench/bench_large_log.py --quick    # 1,000,000 rows; fits on 142,100 (CI)
     python bench/bench_large_log.py --rows N --work DIR --json out.json
+    python bench/bench_large_log.py --fit-rows 142100,1000000 --ref-fit-rows 100000
     python bench/bench_large_log.py --check    # CI: 10,000,000 rows, exit 1 if a report is >= 5 MB
 
 The log is SYNTHETIC, made by :func:`make_log` (seed 12, vectorised): a 10 V, 1 s
@@ -22,6 +24,14 @@ long log, and, in the same run, the straightforward references:
 * read: a plain ``pandas.read_csv(path)`` against ``tcamlab.io.read_run``;
 * figure: the dynamic figure drawn at full resolution (every row a marker, plain
   matplotlib SVG) against the report's figure (min/max envelope per pixel column).
+
+``calibrate`` and ``diagnose`` run on logs of ``--fit-rows`` rows (default 142,100 -- the
+length of a real 1 kHz log joined with a thermal camera --, 1,000,000 and ``--rows``; quick:
+142,100), fitted on their reduced representation (:mod:`tcamlab.reduction`), against the
+goals of :func:`fit_goal`. The straightforward reference is the same command with the
+reduction switched off (``TCAMLAB_NO_REDUCTION=1``: every row in every fit) on a log of
+``--ref-fit-rows`` rows (default 100,000; quick 20,000), beside the reduced fit of that log
+(reduced from that length on: ``TCAMLAB_REDUCTION_MIN_ROWS``).
 
 Nothing asserts on time; each row prints PASS or FAIL against its goal. ``--check``
 (run by ``.ci/run``) measures ``validate`` and ``report`` only, at 10 million rows, and exits 1
@@ -53,6 +63,17 @@ TIME_GOAL_S = 60.0
 RSS_GOAL_MB = 4000.0
 HTML_GOAL_MB = 5.0
 MB = 1e6
+REAL_LOG_ROWS = 142_100
+"""Rows of the real 1 kHz log joined with a thermal camera the fit goals name."""
+
+
+def fit_goal(rows: int) -> tuple[float, float]:
+    """Goal of ``calibrate`` and ``diagnose`` on a ``rows``-row log: (seconds, peak MB)."""
+    if rows <= REAL_LOG_ROWS:
+        return 20.0, 2000.0
+    if rows <= 1_000_000:
+        return 60.0, 2000.0
+    return 600.0, 4000.0
 
 
 def make_log(rows: int, work: Path, seed: int = SEED) -> Path:
@@ -107,11 +128,15 @@ def make_log(rows: int, work: Path, seed: int = SEED) -> Path:
     return toml
 
 
-def run_measured(args: list[str]) -> dict:
-    """Run ``args`` from the repository root; wall time [s] and the child's peak RSS [MB]
-    (``os.wait4``'s ``ru_maxrss``; this parent stays small, so nothing of it is counted)."""
+def run_measured(args: list[str], env: dict | None = None) -> dict:
+    """Run ``args`` from the repository root (``env`` added to the environment); wall time [s]
+    and the child's peak RSS [MB] (``os.wait4``'s ``ru_maxrss``; this parent stays small, so
+    nothing of it is counted)."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    full_env = dict(os.environ, **(env or {}))
+    proc = subprocess.Popen(
+        args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=full_env
+    )
     out = proc.stdout.read().decode(errors="replace")
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -192,6 +217,60 @@ def measure(rows: int, work: Path, ref_rows: int, refs: bool = True) -> dict:
     return res
 
 
+def _log(rows: int, work: Path) -> Path:
+    """The experiment file of a ``rows``-row log, made in a subprocess (its memory not ours)."""
+    py = sys.executable
+    gen = f"import sys; sys.path.insert(0, 'bench'); import bench_large_log as b; from pathlib import Path; print(b.make_log({rows}, Path({str(work)!r})))"
+    made = run_measured([py, "-c", gen])
+    return Path(made["output"].strip().splitlines()[-1])
+
+
+def measure_fits(fit_rows: list[int], ref_rows: int, work: Path) -> dict:
+    """``calibrate`` and ``diagnose`` on a log of each of ``fit_rows`` rows (reduced fits), and
+    on a ``ref_rows``-row log both reduced and on every row (the reference); ``ref_rows`` 0:
+    no reference."""
+    py = sys.executable
+    out = {}
+
+    def both(toml: Path, env: dict) -> dict:
+        return {
+            "calibrate": run_measured([py, "-m", "tcamlab", "calibrate", str(toml), "--force"], env),
+            "diagnose": run_measured([py, "-m", "tcamlab", "diagnose", str(toml), "--json"], env),
+        }
+
+    for rows in fit_rows:
+        out[f"fit_{rows}"] = both(_log(rows, work), {})
+    if ref_rows:
+        toml = _log(ref_rows, work)
+        out["ref_reduced"] = both(toml, {"TCAMLAB_REDUCTION_MIN_ROWS": str(min(ref_rows, 50_000))})
+        out["ref_every_row"] = both(toml, {"TCAMLAB_NO_REDUCTION": "1"})
+    return out
+
+
+def print_fits(res: dict) -> None:
+    """One line per fit measurement, PASS/FAIL against :func:`fit_goal`."""
+    for key, pair in res.items():
+        if not key.startswith("fit_"):
+            continue
+        rows = int(key[4:])
+        goal_s, goal_mb = fit_goal(rows)
+        for name, r in pair.items():
+            ok = r["exit"] == 0 and r["wall_s"] <= goal_s and r["rss_mb"] <= goal_mb
+            print(
+                f"{name:9s} {rows:>10,} rows {r['wall_s']:7.1f} s (CPU {r['cpu_s']:.1f} s)  peak RSS "
+                f"{r['rss_mb']:6.0f} MB  exit {r['exit']}  goal <= {goal_s:.0f} s, <= {goal_mb:.0f} MB: "
+                + ("PASS" if ok else "FAIL")
+            )
+    if "ref_every_row" in res:
+        for name in ("calibrate", "diagnose"):
+            a, b = res["ref_reduced"][name], res["ref_every_row"][name]
+            print(
+                f"{name:9s} reference on {res['ref_rows']:,} rows: reduced {a['wall_s']:.1f} s "
+                f"({a['rss_mb']:.0f} MB, exit {a['exit']}) against every row {b['wall_s']:.1f} s "
+                f"({b['rss_mb']:.0f} MB, exit {b['exit']}): {b['wall_s'] / a['wall_s']:.1f}x faster"
+            )
+
+
 def print_table(res: dict) -> None:
     """One line per figure, PASS/FAIL against the goals."""
     rows = res["rows"]
@@ -257,6 +336,12 @@ def main(argv=None) -> int:
     parser.add_argument("--rows", type=int, default=10_000_000)
     parser.add_argument("--quick", action="store_true", help="1,000,000 rows (CI)")
     parser.add_argument("--ref-rows", type=int, default=1_000_000, help="rows of the plain figure")
+    parser.add_argument(
+        "--fit-rows", type=str, default=None, help="comma-separated rows of the calibrate/diagnose logs"
+    )
+    parser.add_argument(
+        "--ref-fit-rows", type=int, default=None, help="rows of the every-row fit reference (0: none)"
+    )
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "tcamlab-bench-biglog")
     parser.add_argument("--json", type=Path)
     parser.add_argument(
@@ -272,6 +357,14 @@ def main(argv=None) -> int:
     res = measure(rows, args.work, args.ref_rows, refs=not args.check)
     res["ref_rows"] = args.ref_rows
     print_table(res)
+    if not args.check:
+        default = [REAL_LOG_ROWS] if args.quick else sorted({REAL_LOG_ROWS, 1_000_000, rows})
+        fit_rows = [int(x) for x in args.fit_rows.split(",")] if args.fit_rows else default
+        ref = args.ref_fit_rows if args.ref_fit_rows is not None else (20_000 if args.quick else 100_000)
+        fits = measure_fits(fit_rows, ref, args.work)
+        fits["ref_rows"] = ref
+        print_fits(fits)
+        res["fits"] = fits
     if args.json:
         args.json.write_text(json.dumps(res, indent=1, default=str))
     if args.check:

@@ -56,6 +56,8 @@ from tcamlab.errors import TcamlabError
 
 __all__ = [
     "MIN_ROWS",
+    "MIN_ROWS_ENV",
+    "ENV",
     "SPREAD",
     "MAX_BLOCK",
     "GRID_TOLERANCE",
@@ -85,9 +87,15 @@ ENV = "TCAMLAB_NO_REDUCTION"
 straightforward reference of ``bench/bench_large_log.py`` and the agreement tests."""
 
 
+MIN_ROWS_ENV = "TCAMLAB_REDUCTION_MIN_ROWS"
+"""Set to a number of rows to reduce runs from that length on instead of :data:`MIN_ROWS`
+(the benchmark compares both fits on a log short enough for the every-row fit)."""
+
+
 def enabled(rows: int) -> bool:
     """Whether a run of ``rows`` rows is fitted on its reduced representation."""
-    return rows >= MIN_ROWS and os.environ.get(ENV, "") in ("", "0")
+    least = int(os.environ.get(MIN_ROWS_ENV, "") or MIN_ROWS)
+    return rows >= least and os.environ.get(ENV, "") in ("", "0")
 
 
 def block_edges(curv: np.ndarray, held: np.ndarray, breaks: np.ndarray, spread: float, max_block: int):
