@@ -3,12 +3,15 @@
 An extended Kalman filter (EKF) on the state (T, x, v, F):
 
 * time update: the electro-thermal model (2.18) driven by the *measured* power
-  P = V I held over the sample interval, and the dynamic model (2.14)-(2.19)
-  with the load force F as a random walk (unknown unless a ``load_N`` column
-  is logged, then it is a second measurement);
+  P = V I - I^2 R_lead held over the sample interval, and the dynamic model
+  (2.14)-(2.19) with the load force F as a random walk and a load-jump detector
+  (:data:`UNKNOWN_LOAD_NOISE`), unless a ``load_N`` column is logged: then it is a
+  second measurement, and the stated load only the first row's prior;
 * measurement update: the measured current I against V / R(T, x), the combined
   resistance model (temperature coefficient of the silver, fiber swelling and
-  the coil's geometry), tabulated on a (T, x) grid (:class:`ResistanceTable`).
+  the coil's geometry), tabulated on a (T, x) grid (:class:`ResistanceTable`), with a
+  lead resistance and a stretch factor as calibrated nuisances
+  (:func:`calibrate_resistance_law`).
 
 Why an EKF: the model is smooth, the state is small (4), and the per-sample
 cost must stay in microseconds for a 1 kHz loop; an unscented filter costs

@@ -1,11 +1,13 @@
 """Numba kernels of the self-sensing estimator and the closed-loop plant (SI throughout).
 
-State s = (T, x, v, F): actuator temperature [degC], extension from the
-unloaded length [m], its rate [m/s] and the external (load) force [N].
+State s = (T, x, v, F, theta): actuator temperature [degC], extension from the
+unloaded length [m], its rate [m/s], the external (load) force [N] and the
+filter's correction to the thermal part of R [1/K].
 
-  C_th dT/dt = P - lambda (T - T_a)          (2.18), P the measured power V I
+  C_th dT/dt = P - lambda (T - T_a)          (2.18), P the measured V I - I^2 R_lead
   m dv/dt    = F - b v - F_i(x, T)           (2.19), F_i of (2.15)
-  dF/dt      = w                             (random walk: the load is unknown)
+  dF/dt      = w                             (random walk: the load is unknown; its
+                                              variance widened when jump_detector alarms)
 
 The resistance R(T, x) enters through a table on a regular (T, x) grid,
 interpolated bilinearly, so any combined resistance model (a Python function)
