@@ -56,12 +56,13 @@ def dense_separation(draws_i, draws_j, noise_sd) -> float:
     di, dj = np.atleast_2d(draws_i) / s, np.atleast_2d(draws_j) / s
     n = di.shape[1]
 
-    def cov(d):
-        return np.eye(n) + (np.cov(d.T) if d.shape[0] > 1 else np.zeros((n, n)))
+    def cov(d):  # second moment about the first draw, the fit
+        e = d[1:] - d[0]
+        return np.eye(n) + (e.T @ e / (len(d) - 1) if len(d) > 1 else np.zeros((n, n)))
 
     ci, cj = cov(di), cov(dj)
     ii, jj = np.linalg.inv(ci), np.linalg.inv(cj)
-    r = di.mean(0) - dj.mean(0)
+    r = di[0] - dj[0]
     return float(0.5 * (np.trace(jj @ ci) + np.trace(ii @ cj) - 2 * n) + 0.5 * r @ (ii + jj) @ r)
 
 

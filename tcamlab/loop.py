@@ -104,6 +104,7 @@ def _protocol(c) -> dict | None:
     return {
         "protocol": c.name,
         "separation": float(c.separation_refit),
+        "beyond_repeat": float(c.beyond_repeat),
         "information_gain": float(c.information_gain),
         "runs": int(c.runs),
         "minutes": float(c.minutes),
@@ -122,7 +123,7 @@ def loop_summary(res, kind: str) -> dict:
         "chosen": best,
         "default": default,
         "at_least_default": at_least_default(best, default),
-        "decisive": bool(best is not None and best["separation"] >= DECISIVE),
+        "decisive": bool(best is not None and best["beyond_repeat"] >= DECISIVE),
     }
 
 
@@ -139,4 +140,5 @@ def at_least_default(best: dict | None, default: dict | None) -> bool | None:
     a, b = best["separation"], default["separation"]
     if not (np.isfinite(a) and np.isfinite(b)):
         return None
-    return bool((a >= b or min(a, b) >= DECISIVE) and best["runs"] <= default["runs"])
+    both = min(best.get("beyond_repeat", a), default.get("beyond_repeat", b)) >= DECISIVE
+    return bool((a >= b or both) and best["runs"] <= default["runs"])

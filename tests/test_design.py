@@ -40,24 +40,34 @@ def test_pair_separation_by_hand():
 
 
 def test_refit_separation_by_hand():
-    # i: two rows at 1, no spread (C_i = I); j: rows at 0 with draws 0 +- 1 moving both rows
-    # together (C_j = I + 2 [[1, 1], [1, 1]], eigenvalues 5 along (1, 1) and 1).
-    # Traces: tr(C_j^-1) - 2 = 1/5 + 1 - 2 = -0.8; tr(C_j) - 2 = 4. Means: z = (1, 1),
-    # z^T C_i^-1 z = 2, z^T C_j^-1 z = 2/5. J = (-0.8 + 4) / 2 + (2 + 0.4) / 2 = 2.8.
+    # i: two rows at 1, no spread (C_i = I); j: its fit at 0, draws 0 +- 1 moving both rows
+    # together; their second moment about the fit, (1 + 1) / 2 per row and between the rows:
+    # C_j = I + [[1, 1], [1, 1]], eigenvalues 3 along (1, 1) and 1.
+    # Traces: tr(C_j^-1) - 2 = 1/3 + 1 - 2 = -2/3; tr(C_j) - 2 = 2. Centres: z = (1, 1),
+    # z^T C_i^-1 z = 2, z^T C_j^-1 z = 2/3. J = (-2/3 + 2) / 2 + (2 + 2/3) / 2 = 2.
     i = np.array([[1.0, 1.0]])
-    j = np.array([[1.0, 1.0], [-1.0, -1.0]])
-    assert refit_separation(i, j, 1.0) == pytest.approx(2.8)
-    assert refit_separation(j, i, 1.0) == pytest.approx(2.8)
-    # rows independent: a = 1, b = 3 per row: 1/2 (4/3 + 1 + 1/3) = 4/3 per row
-    assert pair_separation(i.mean(0), 0.0, j.mean(0), j.var(0, ddof=1), 1.0) == pytest.approx(8 / 3)
+    j = np.array([[0.0, 0.0], [1.0, 1.0], [-1.0, -1.0]])
+    assert refit_separation(i, j, 1.0) == pytest.approx(2.0)
+    assert refit_separation(j, i, 1.0) == pytest.approx(2.0)
+    # rows independent: a = 1, b = 2 per row: 1/2 ((1/2) + 1 + 1/2) = 1 per row
+    assert pair_separation(i[0], 0.0, j[0], 1.0, 1.0) == pytest.approx(2.0)
+    # the centre is the fit, not the draws' mean: both fits at 0, j's draws all at (2, 2), so
+    # z = 0 and C_j = I + 4 [[1, 1], [1, 1]] (eigenvalue 9): J = ((1/9 - 1) + (10 - 2)) / 2
+    skew = np.array([[0.0, 0.0], [2.0, 2.0], [2.0, 2.0]])
+    assert refit_separation(np.zeros((1, 2)), skew, 1.0) == pytest.approx(32 / 9)
 
 
 def test_refit_separation_matches_the_dense_formula():
     rng = np.random.default_rng(3)
     di, dj, s = rng.normal(size=(6, 9)), rng.normal(size=(5, 9)) + 0.3, 0.7
     n = di.shape[1]
-    ci, cj = s**2 * np.eye(n) + np.cov(di.T), s**2 * np.eye(n) + np.cov(dj.T)
-    ii, jj, r = np.linalg.inv(ci), np.linalg.inv(cj), di.mean(0) - dj.mean(0)
+
+    def second_moment(d):  # about the first draw, the fit
+        e = d[1:] - d[0]
+        return e.T @ e / (len(d) - 1)
+
+    ci, cj = s**2 * np.eye(n) + second_moment(di), s**2 * np.eye(n) + second_moment(dj)
+    ii, jj, r = np.linalg.inv(ci), np.linalg.inv(cj), di[0] - dj[0]
     dense = 0.5 * (np.trace(jj @ ci) + np.trace(ii @ cj) - 2 * n) + 0.5 * r @ (ii + jj) @ r
     assert refit_separation(di, dj, s) == pytest.approx(dense, rel=1e-10)
 

@@ -57,6 +57,11 @@ class Hypothesis:
     effect_sd: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cov_joint: np.ndarray | None = None
     intervals: dict = field(default_factory=dict)
+    misfit: float = 1.0
+    """Its held-out RMSE on the withheld runs over the noise floor [-] (1 where it is not
+    stored): a pair of hypotheses is separated at the noise times the larger misfit of the
+    two, since a difference smaller than what either already misses the withheld runs by
+    cannot be trusted to decide between them (neither may be the truth)."""
     """Every fitted parameter -> {value, ci95, unit} [SI], as the diagnosis reported it."""
 
     def effect(self, kind: str):
@@ -156,4 +161,5 @@ def _hypothesis(c: dict, cal: dict) -> Hypothesis:
         np.nan_to_num(esd),
         None if joint is None else np.asarray(joint, float),
         intervals,
+        float(c.get("heldout_rmse_after_noise") or 1.0),
     )

@@ -38,7 +38,8 @@ class Prediction:
     Attributes
     ----------
     mean, var : dict
-        Quantity -> mean [SI] and variance [SI^2] over the draws, per row.
+        Quantity -> the fit's prediction [SI] and the draws' second moment about it [SI^2], per
+        row (each run's zero removed as the diagnosis scores it).
     point : dict
         Quantity -> the prediction at the fit itself [SI], per row (no zero removed).
     failed : float
@@ -124,8 +125,12 @@ def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_D
         rows.append(_stack(kind, preds, True))
         zs.append(z)
     draws = {q: np.array([r[q] for r in rows]) for q in rows[0]}
-    mean = {q: d.mean(axis=0) for q, d in draws.items()}
-    var = {q: np.var([r[q] for r in rows], axis=0, ddof=1) if len(rows) > 1 else 0 * mean[q] for q in mean}
+    # centred on the fit (the first draw), not on the draws' mean, which drifts where the model bends
+    mean = {q: d[0] for q, d in draws.items()}
+    var = {
+        q: np.sum((d[1:] - d[0]) ** 2, axis=0) / (len(d) - 1) if len(d) > 1 else 0 * d[0]
+        for q, d in draws.items()
+    }
     failed = 1.0 - len(rows) / n_draws
     return Prediction(mean, var, _stack(kind, point, False), failed, draws, np.array(zs)), point
 

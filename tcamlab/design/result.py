@@ -33,7 +33,7 @@ class CandidateProtocol:
     log_bayes_factor : float
         Expected log Bayes factor of the hardest pair, ``separation_refit`` / 2 [-].
     per_hour : float
-        ``separation_refit`` per hour of rig time [1/h].
+        ``beyond_repeat`` per hour of rig time [1/h] (the repeat's own J per hour).
     pairs : dict
         "A vs B" -> D_ij [-].
     max_difference : dict
@@ -61,6 +61,9 @@ class CandidateProtocol:
     (:func:`tcamlab.design.score.refit_separation`)."""
     refit: dict = field(default_factory=dict)
     """"A vs B" -> J_ij [-]."""
+    beyond_repeat: float = float("nan")
+    """``separation_refit`` minus the repeat's [-]: what the protocol adds beyond the protocol
+    already run (0 for the repeat itself); it decides when at least ``DECISIVE``."""
     information_gain: float = float("nan")
     """A clear diagnosis: expected information gain about its explanation's parameters [nats]
     (:func:`tcamlab.design.score.information_gain`); ``per_hour`` is then this per hour."""

@@ -5,9 +5,9 @@ divergence between two hypotheses' predictive distributions of the new runs,
 
     J_ij = KL(i || j) + KL(j || i),
 
-with each hypothesis's predictive distribution Gaussian: mean m_i (over draws of its fitted
-parameters) and covariance C_i = s^2 I + S_i (the noise floor s of each quantity plus the
-covariance over rows S_i of the draws' predictions). KL(i || j) is the expected log Bayes factor
+with each hypothesis's predictive distribution Gaussian: centred on its fit's prediction m_i,
+with covariance C_i = s^2 I + S_i (the noise floor s of each quantity plus S_i, the second
+moment over rows of its parameter draws' predictions about m_i). KL(i || j) is the expected log Bayes factor
 for i over j when i is true, so J_ij / 2 is the expected log Bayes factor for the true one of
 the pair when either is equally likely a priori. Written out,
 
@@ -71,12 +71,14 @@ def separation(means: list, variances: list, noise_var) -> tuple[float, np.ndarr
 
 
 def _spread(draws: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(mean, A) of draws normalised by the noise: C / s^2 = I + A A^T (A rows x draws)."""
+    """(centre, A) of draws normalised by the noise, C / s^2 = I + A A^T (A rows x draws): the
+    centre is the first draw (the hypothesis's fit), A the other draws' deviations from it
+    over sqrt(draws - 1), their second moment about the fit."""
     d = np.atleast_2d(np.asarray(draws, float))
-    m = d.mean(axis=0)
+    m = d[0]
     if d.shape[0] < 2:
         return m / s, np.zeros((d.shape[1], 0))
-    return m / s, ((d - m) / s).T / np.sqrt(d.shape[0] - 1)
+    return m / s, ((d[1:] - m) / s).T / np.sqrt(d.shape[0] - 1)
 
 
 def refit_separation(draws_i: np.ndarray, draws_j: np.ndarray, noise_sd) -> float:
@@ -85,7 +87,10 @@ def refit_separation(draws_i: np.ndarray, draws_j: np.ndarray, noise_sd) -> floa
     Parameters
     ----------
     draws_i, draws_j : ndarray
-        Predictions of each draw [SI], shape (draws, rows).
+        Predictions of each draw [SI], shape (draws, rows); the first is the fit itself, the
+        centre of the hypothesis's predictive distribution. (Not the draws' mean: where the
+        model bends, the mean of 30 draws drifts from the fit; on a curvature sensor near the
+        edge of its map it sat 4 noise sds from the fit, which both fit within the noise.)
     noise_sd : array_like or float
         Noise floor per row [SI].
 

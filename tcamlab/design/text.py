@@ -34,8 +34,8 @@ def design_lines(result) -> list[str]:
     if result.status == "clear":
         return lines + _precision_lines(result)
     head = (
-        f"{'protocol':30s} {'J':>8s} {'log BF':>7s} {'D rows':>8s} {'runs':>4s} {'min':>6s} "
-        f"{'J per h':>7s}  max difference"
+        f"{'protocol':30s} {'J':>8s} {'beyond':>8s} {'D rows':>8s} {'runs':>4s} {'min':>6s} "
+        f"{'per h':>7s}  max difference"
     )
     lines += [head, "-" * len(head)]
     for c in result.candidates:
@@ -44,7 +44,7 @@ def design_lines(result) -> list[str]:
             lines.append(f"{mark}{c.name:29s} {'out of bounds':>8s}  {c.limit}")
             continue
         lines.append(
-            f"{mark}{c.name:29s} {_num(c.separation_refit):>8s} {c.log_bayes_factor:7.1f} {_num(c.separation):>8s} "
+            f"{mark}{c.name:29s} {_num(c.separation_refit):>8s} {_num(c.beyond_repeat):>8s} {_num(c.separation):>8s} "
             f"{c.runs:4d} {c.minutes:6.0f} {c.per_hour:7.2f}  {_diff(c)}"
         )
     return lines
