@@ -1002,6 +1002,11 @@ def benchmark_diagnose(
         templates=template or None,
         closed_loop=closed_loop,
     )
+    _print_benchmark(res, out)
+
+
+def _print_benchmark(res, out) -> None:
+    """The benchmark's scores, its full-run estimate and where it wrote; exit 2 on failed cases."""
     _print_scores(res.scores)
     plan = res.settings.get("full_run_estimate") or {}
     if plan:
