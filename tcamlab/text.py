@@ -55,6 +55,8 @@ def shown_path(p) -> str:
 
 
 def _number(x) -> str:
+    if isinstance(x, (list, tuple)):  # an effect given by its parameter values
+        return ",".join(_number(v) for v in x)
     x = float(x)
     return str(int(x)) if x.is_integer() else repr(x)
 
