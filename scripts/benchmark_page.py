@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tcamlab.benchmark import BenchmarkResult, markdown  # noqa: E402
+from tcamlab.benchmark import BENCHMARK_KINDS, BenchmarkResult, markdown  # noqa: E402
 
 REFERENCE = ROOT / "bench" / "reference"
 PAGES = ROOT / "docs" / "benchmark"
@@ -35,6 +35,7 @@ TITLES = {
     "other_samples": "Other samples (bench/templates)",
     "one_condition": "Static and dynamic, one condition",
     "two_conditions": "Static and dynamic, two conditions",
+    "closed_loop": "Closed loop: diagnose, design, measure, diagnose (static and dynamic)",
 }
 
 
@@ -51,6 +52,8 @@ def stored_runs(folder: Path = REFERENCE) -> list[tuple[Path, dict[str, str]]]:
 def command(settings: dict) -> str:
     """The command line that repeats the run, as far as its settings record it."""
     parts = ["tcamlab benchmark diagnose"]
+    if settings.get("closed_loop"):
+        parts.append("--closed-loop")
     if settings.get("quick"):
         parts.append("--quick")
     parts.append(f"--seeds {settings.get('seeds')}")
@@ -58,6 +61,9 @@ def command(settings: dict) -> str:
         parts.append(f"--conditions {settings['conditions']}")
     for path in (settings.get("templates") or {}).values():
         parts.append(f"--template bench/templates/{Path(path).name}")
+    kinds = settings.get("kinds") or []
+    if kinds and set(kinds) != set(BENCHMARK_KINDS):
+        parts += [f"--kind {k}" for k in kinds]
     for family in settings.get("families") or []:
         parts.append(f"--family {family}")
     parts.append("--out reports/benchmark")

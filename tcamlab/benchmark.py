@@ -248,13 +248,16 @@ def make_tasks(
 
 
 def loop_tasks(tasks: list[dict], quick: bool) -> list[dict]:
-    """The closed loop's tasks: the cases of kinds with a protocol menu, each marked
-    ``closed_loop``; quick: the first case of each family and kind."""
+    """The closed loop's tasks: the cases of kinds with a protocol menu, single effects at
+    :data:`FAMILY_STRENGTHS` (its targets' strengths; no pairs), each marked ``closed_loop``;
+    quick: the first case of each family and kind."""
     from tcamlab.design.protocols import kind_module
 
     out, seen = [], set()
     for t in tasks:
-        if not hasattr(kind_module(t["kind"]), "design_menu"):
+        if not hasattr(kind_module(t["kind"]), "design_menu") or t["case"] == "pair":
+            continue
+        if t["case"] == "single" and _strength(t) < min(FAMILY_STRENGTHS):
             continue
         key = (t["kind"], CASE_FAMILY.get(t["case"], t["case"]))
         if quick and key in seen:
@@ -1148,6 +1151,7 @@ def run_benchmark(
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
         **({"lies": True} if lies else {}),
         **({"closed_loop": True} if closed_loop else {}),
+        "kinds": sorted({t["kind"] for t in tasks}),
         "conditions": max((int(t.get("conditions", 1)) for t in tasks), default=1),
         **({"templates": {k: str(v) for k, v in templates.items()}} if templates else {}),
         "families": list(families)
