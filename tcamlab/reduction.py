@@ -169,6 +169,11 @@ class Reduction:
         Moments ``(r0, r1)`` of each logged quantity [SI].
     offset : dict of str to (ndarray, ndarray)
         Full minus two-row moments of the stated prediction [SI].
+    within : dict of str to ndarray
+        Per block, the sum of squares of the residuals at the stated values that the two
+        moments leave out [SI^2]: the rows' noise about the block's line, which hardly moves
+        with the parameters. A fit adds it as one constant residual so that its chi-square,
+        and a relative stopping tolerance, are those of every row.
     """
 
     starts: np.ndarray
@@ -181,6 +186,7 @@ class Reduction:
     t_grid: np.ndarray
     measured: dict = field(default_factory=dict)
     offset: dict = field(default_factory=dict)
+    within: dict = field(default_factory=dict)
     frame: object = None
     """The run's grid rows (a DataFrame), set by :func:`checked_reduction`."""
 
@@ -305,6 +311,9 @@ def reduce_run(
         red.measured[q] = red.moments(x, t)
         full, coarse = red.moments(stated[q], t), red.coarse_moments(np.asarray(stated[q])[grid])
         red.offset[q] = (full[0] - coarse[0], full[1] - coarse[1])
+        r = np.asarray(x, float) - np.asarray(stated[q], float)
+        r0, r1 = red.moments(r, t)
+        red.within[q] = np.maximum(np.add.reduceat(r * r, starts) - r0 * r0 - r1 * r1, 0.0)
     return red
 
 

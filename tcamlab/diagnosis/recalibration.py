@@ -221,15 +221,16 @@ class Recalibration:
     def reduced_resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
         """Normalised moments of run i's residuals over the blocks in ``mask``
         (:mod:`tcamlab.reduction`), quantities stacked, each run's zero profiled out over
-        those blocks as :meth:`Problem.resid` does over the rows; or FAIL_RESIDUAL."""
+        those blocks as :meth:`Problem.resid` does over the rows, then the constant residual
+        of what the moments leave out (``Reduction.within``); or FAIL_RESIDUAL."""
         red = self.reductions()[i]
         sel = self._blocks(red, mask)
         counts, two = red.counts[sel], red.two[sel]
         try:
             pred = self._coarse(i, u, mods)
         except MODEL_ERRORS:
-            return np.full(len(self.problem.quantities) * (counts.size + int(two.sum())), FAIL_RESIDUAL)
-        parts = []
+            return np.full(len(self.problem.quantities) * (counts.size + int(two.sum())) + 1, FAIL_RESIDUAL)
+        parts, rest = [], 0.0
         for q in self.problem.quantities:
             p0, p1 = red.predicted(q, pred[q])
             d0 = (red.measured[q][0] - p0)[sel]
@@ -238,7 +239,8 @@ class Recalibration:
                 root = np.sqrt(counts)
                 d0 = d0 - root * (float(root @ d0) / float(counts.sum()))
             parts += [d0 / self.problem.sigma[q], d1 / self.problem.sigma[q]]
-        return np.concatenate(parts)
+            rest += float(np.sum(red.within[q][sel])) / self.problem.sigma[q] ** 2
+        return np.concatenate(parts + [np.array([np.sqrt(rest)])])
 
     def resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
         """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``."""

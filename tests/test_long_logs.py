@@ -1,0 +1,125 @@
+"""Long logs: fits on the reduced representation (tcamlab.reduction) agree with fits on every row.
+
+The log is bench/bench_large_log.py's ``make_log`` (SYNTHETIC: the thesis dynamic model
+tiled at 1 kHz plus laser noise, seed 12). The reduction is switched on below its usual
+length (:data:`tcamlab.reduction.MIN_ROWS` lowered) so that the fit on every row, the
+reference, runs in a test's time.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tcamlab import reduction
+
+_PATH = Path(__file__).resolve().parents[1] / "bench" / "bench_large_log.py"
+_spec = importlib.util.spec_from_file_location("bench_large_log", _PATH)
+big = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(big)
+
+AGREE = 0.1
+"""Largest difference between the reduced and the every-row fit, in widths of the
+every-row fit's interval."""
+
+
+def test_a_line_has_exact_moments_and_blocks_respect_the_spread():
+    """An exponential decay (tau 3 s at 1 kHz, amplitude 1000 noise floors): every block's
+    largest second difference times L^2/8 stays within SPREAD, the curve's fast start gets
+    short blocks and its flat tail long ones, and the two-row moments of a straight line are
+    its exact moments."""
+    t = np.arange(20_000) / 1000.0
+    p = 1000.0 * np.exp(-t / 3.0)
+    data = pd.DataFrame({"time": t, "voltage": np.zeros_like(t)})
+    red = reduction.reduce_run(data, ["voltage"], {"x": p}, {"x": p}, {"x": 1.0})
+    d2 = np.abs(np.diff(p, 2))
+    for a, n in zip(red.starts, red.counts):
+        if n > 2:
+            assert d2[a : a + n - 2].max() * n * n <= 8 * reduction.SPREAD + 1e-12
+    assert red.counts[0] < 200 and red.counts[-1] > 1000
+    line = 2.0 + 0.5 * t
+    m0, m1 = red.moments(line, t)
+    c0, c1 = red.coarse_moments(line[red.grid])
+    np.testing.assert_allclose(c0, m0, rtol=1e-10)
+    np.testing.assert_allclose(c1, m1, rtol=1e-8, atol=1e-9)
+    # a fold edge splits a block; a mask cutting a block is refused
+    cut = reduction.reduce_run(data, ["voltage"], {"x": p}, {"x": p}, {"x": 1.0}, breaks=[12_345])
+    assert 12_345 in cut.starts
+    mask = np.zeros(t.size, bool)
+    mask[12_345:] = True
+    assert cut.blocks_in(mask).sum() == np.count_nonzero(cut.starts >= 12_345)
+    mask[12_346] = False
+    assert cut.blocks_in(mask) is None
+
+
+def test_short_runs_are_not_reduced(monkeypatch):
+    """Below MIN_ROWS, and with the switch set, a run is fitted on every row."""
+    assert reduction.enabled(reduction.MIN_ROWS) and not reduction.enabled(reduction.MIN_ROWS - 1)
+    monkeypatch.setenv(reduction.ENV, "1")
+    assert not reduction.enabled(10**9)
+
+
+@pytest.fixture(scope="module")
+def long_log(tmp_path_factory):
+    return big.make_log(20_000, tmp_path_factory.mktemp("longlog"))
+
+
+def _both(monkeypatch, fn):
+    """``fn()`` with the reduction on (a 20,000-row run counts as long), then off."""
+    monkeypatch.setattr(reduction, "MIN_ROWS", 5_000)
+    reduced = fn()
+    monkeypatch.setenv(reduction.ENV, "1")
+    return reduced, fn()
+
+
+@pytest.mark.slow
+def test_calibration_on_the_reduced_log_agrees_with_every_row(monkeypatch, long_log):
+    from tcamlab.calibration import calibrate
+    from tcamlab.calibration.problem import CalibrationProblem
+    from tcamlab.config import load_experiment
+
+    exp = load_experiment(long_log)
+    monkeypatch.setattr(reduction, "MIN_ROWS", 5_000)
+    prob = CalibrationProblem([exp], [exp.read_runs()])
+    assert prob.n_resid < prob.size / 20  # the fit sees a few moments per block, not 20,000 rows
+    red, full = _both(monkeypatch, lambda: calibrate(long_log))
+    assert red.n_points == full.n_points == 20_000
+    assert red.chi2 == pytest.approx(full.chi2, rel=1e-3)  # both of every row
+    for a, b in zip(red.parameters, full.parameters):
+        width = b.profile_95[1] - b.profile_95[0]
+        assert abs(a.value - b.value) <= AGREE * width, a.name
+        for x, y in zip(a.profile_95 + a.laplace_95, b.profile_95 + b.laplace_95):
+            assert abs(x - y) <= AGREE * width, a.name
+        assert a.identification == b.identification
+
+
+@pytest.mark.slow
+def test_diagnosis_on_the_reduced_log_agrees_with_every_row(monkeypatch, long_log):
+    from tcamlab.config import load_experiment
+    from tcamlab.diagnosis import diagnose
+
+    red, full = _both(monkeypatch, lambda: diagnose(load_experiment(long_log), n_boot=200).to_dict())
+    assert red["verdict"] == full["verdict"]
+    assert red["effect"] == full["effect"]
+    ranked = {c["effect"]: c for c in full["ranking"]}
+    assert {c["effect"] for c in red["ranking"]} == set(ranked)
+    compared = 0
+    for c in red["ranking"]:
+        ref = ranked[c["effect"]]
+        if c["effect"] == "recalibration":  # the folds' fits of a well-posed candidate agree too
+            assert c["heldout_rmse_after_noise"] == pytest.approx(ref["heldout_rmse_after_noise"], abs=0.005)
+        for name, p in (c.get("parameters") or {}).items():
+            q = ref["parameters"][name]
+            width = q["ci95"][1] - q["ci95"][0]
+            assert abs(p["value"] - q["value"]) <= AGREE * width, name
+            assert p["at_bound"] == q["at_bound"], name
+            if q["at_bound"]:
+                continue  # at a bound the Laplace interval is no interval (candidates.AT_BOUND)
+            assert abs(p["ci95"][0] - q["ci95"][0]) <= AGREE * width, name
+            assert abs(p["ci95"][1] - q["ci95"][1]) <= AGREE * width, name
+            compared += 1
+    assert compared >= 1
