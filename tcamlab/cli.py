@@ -285,10 +285,22 @@ def _make_validate(kind: str, example: str):
         max_bytes: MaxBytes = None,
         strict: Strict = False,
         force: Force = False,
+        ignore: list[str] = typer.Option(
+            None,
+            "--ignore",
+            metavar="COLUMN",
+            help="Treat this optional logged column as not logged (e.g. load_N: what the "
+            "self-sensing estimator does without the load); repeatable; raw files are not modified.",
+        ),
     ):
+        import shlex
+
         from tcamlab.pipeline import validate_experiment
         from tcamlab.text import validate_command
 
+        ignore = list(dict.fromkeys(ignore or ()))
+        shown = validate_command(kind, experiment, drop_na, mc_draws)
+        shown += "".join(" --ignore " + shlex.quote(c) for c in ignore)
         outcome = _run_shown(
             as_json,
             validate_experiment,
@@ -299,8 +311,9 @@ def _make_validate(kind: str, example: str):
             drop_na=drop_na,
             mc_draws=mc_draws,
             max_bytes=max_bytes,
-            command=validate_command(kind, experiment, drop_na, mc_draws),
+            command=shown,
             force=force,
+            ignore=ignore,
         )
         _print_validation(outcome, as_json)
         if outcome.failed or (strict and outcome.result.warnings):

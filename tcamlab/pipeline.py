@@ -132,6 +132,7 @@ def validate_experiment(
     command: str | None = None,
     out_name: str | None = None,
     force: bool = False,
+    ignore=(),
 ) -> ValidateOutcome:
     """Validate one experiment and write ``out_dir/NAME/{report.html, report.pdf,
     metrics.json, predictions.csv}`` (NAME: ``out_name``, default the file stem, or its
@@ -163,6 +164,9 @@ def validate_experiment(
         then an existing report there is replaced.
     force : bool
         Replace an existing report of this experiment.
+    ignore : iterable of str
+        Canonical optional columns treated as not logged (``--ignore load_N``); checked
+        against the kind's data contract before anything is read or written.
 
     Returns
     -------
@@ -172,12 +176,13 @@ def validate_experiment(
 
     formats = _parse_formats(formats)
     exp = load_experiment(path, expected_kind=expected_kind)
+    ignore = validation.ignored_columns(exp.kind, ignore)
     if out_name is None:
         target = output_folder(out_dir, [exp.path], "metrics.json", force=force)
     else:
         target = Path(out_dir) / out_name
     kw = {} if mc_draws is None else {"mc_draws": mc_draws}
-    result = validation.validate(exp, drop_na=drop_na, max_bytes=max_bytes, **kw)
+    result = validation.validate(exp, drop_na=drop_na, max_bytes=max_bytes, ignore=ignore, **kw)
     files = _write_validation(result, target, formats, command)
     return ValidateOutcome(result, target, files)
 

@@ -20,8 +20,8 @@ import pandas as pd
 
 from tcamlab import progress
 from tcamlab.config import Experiment
-from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
-from tcamlab.io import RunData, input_files, sha256_file
+from tcamlab.errors import ConfigError, ConvergenceError, IntegrationError, ModelDomainError
+from tcamlab.io import VARIABLE_MAP, RunData, input_files, sha256_file
 from tcamlab.kinds import Kind, get_kind, rest_rows
 from tcamlab.metrics import (
     LOGGED_ZERO,
@@ -48,7 +48,7 @@ from tcamlab.numbers import unit_label
 from tcamlab.text import shown_path
 from tcamlab.units import quantity
 
-__all__ = ["ValidationResult", "RunPrediction", "validate", "MC_DRAWS"]
+__all__ = ["ValidationResult", "RunPrediction", "validate", "ignored_columns", "MC_DRAWS"]
 
 MC_DRAWS = 1000
 """Monte Carlo draws for the dynamic prediction band."""
@@ -123,6 +123,8 @@ class ValidationResult:
     unadjusted : dict or None
         With the whole-run rule: the metrics (shape of ``metrics``) under the rest
         rule, i.e. without each model's mean error taken away; else None.
+    ignored : tuple of str
+        Canonical columns treated as not logged (``validate --ignore``).
     """
 
     experiment: Experiment
@@ -137,6 +139,7 @@ class ValidationResult:
     warnings: list = field(default_factory=list)
     zero_rule: str = ZERO_REST
     unadjusted: dict | None = None
+    ignored: tuple[str, ...] = ()
 
     @property
     def kind(self) -> str:
@@ -256,6 +259,7 @@ class ValidationResult:
                 for v in self.variants
             },
             **({"models_unadjusted": _json(self.unadjusted)} if self.unadjusted is not None else {}),
+            "ignored_columns": list(self.ignored),
             "zero_rule": self.zero_rule,
             "zeros": self.zeros_dict(),
             "thresholds": [c.to_dict() for c in self.checks],
@@ -557,6 +561,71 @@ def identified_parameter_warnings(experiment: Experiment, runs: list[RunData]) -
     ]
 
 
+def ignored_columns(kind_name: str, names) -> tuple[str, ...]:
+    """The canonical columns ``validate --ignore`` names, checked against the kind's data contract.
+
+    Parameters
+    ----------
+    kind_name : str
+        The experiment's kind.
+    names : iterable of str
+        Canonical column names (``load_N``), in the order given; repeats count once.
+
+    Returns
+    -------
+    tuple of str
+        The names, each an optional column of the kind.
+
+    Raises
+    ------
+    ConfigError
+        A name that is a required column of the kind, or not one of its columns at all
+        (with a did-you-mean hint).
+    """
+    from tcamlab.text import did_you_mean
+
+    kind = get_kind(kind_name)
+    optional = ", ".join(kind.optional_columns) or "none"
+    out: list[str] = []
+    for name in names:
+        if name in kind.required_columns:
+            raise ConfigError(
+                f"--ignore {name}: a required column of a {kind.name} run cannot be ignored",
+                hint=f"optional columns of a {kind.name} run: {optional}",
+            )
+        if name not in kind.optional_columns:
+            known = kind.optional_columns + kind.required_columns
+            raise ConfigError(
+                f"--ignore {name}: not a column of a {kind.name} run{did_you_mean(name, known)}",
+                hint=f"optional columns of a {kind.name} run: {optional}",
+            )
+        if name not in out:
+            out.append(name)
+    return tuple(out)
+
+
+def _without(runs: list[RunData], ignored: tuple[str, ...]) -> list[RunData]:
+    """The runs with the internal columns of ``ignored`` (canonical names) dropped from their data,
+    as if not logged; the files and the ``[columns]`` mapping they were read with are kept."""
+    from dataclasses import replace
+
+    internal = [VARIABLE_MAP[c][0] for c in ignored]
+    out = []
+    for r in runs:
+        gone = [c for c in internal if c in r.data]
+        out.append(replace(r, data=r.data.drop(columns=gone)) if gone else r)
+    return out
+
+
+def _ignored_note(runs: list[RunData], ignored: tuple[str, ...]) -> str:
+    """The report's note on the columns treated as not logged."""
+    internal = {c: VARIABLE_MAP[c][0] for c in ignored}
+    had = [c for c in ignored if any(internal[c] in getattr(r, "source_columns", {}) for r in runs)]
+    text = f"--ignore {', '.join(ignored)}: treated as not logged (the raw files are not modified)"
+    missing = [c for c in ignored if c not in had]
+    return text + (f"; {', '.join(missing)} not logged anyway" if missing else "")
+
+
 def _run_names(runs: list[RunData]) -> list[str]:
     names = [r.path.stem for r in runs]
     if len(set(names)) != len(names):
@@ -636,6 +705,7 @@ def validate(
     max_bytes: int | None = None,
     zeros: bool = True,
     zero_rule: str | None = None,
+    ignore=(),
 ) -> ValidationResult:
     """Validate the thesis model of ``experiment.kind`` against its runs.
 
@@ -660,14 +730,18 @@ def validate(
     zero_rule : {"rest", "whole-run"}, optional
         Default: the experiment file's ``[validation] zero`` (else ``"rest"``). With
         ``"whole-run"`` the metrics under ``"rest"`` are kept as ``unadjusted``.
+    ignore : iterable of str
+        Canonical optional columns treated as not logged (:func:`ignored_columns`).
 
     Returns
     -------
     ValidationResult
     """
+    ignored = ignored_columns(experiment.kind, ignore)
     if runs is None:
         kw = {} if max_bytes is None else {"max_bytes": max_bytes}
         runs = experiment.read_runs(drop_na=drop_na, **kw)
+    logged, runs = runs, _without(runs, ignored)
     names = _run_names(runs)
     kind = get_kind(experiment.kind)
     preds = _predict_runs(experiment, kind, runs, names)
@@ -684,7 +758,7 @@ def validate(
     metrics = _metrics(preds, variants, kind.outputs)
     pooled = {q: b["pooled"] for q, b in metrics[primary].items()}
     checks = check_thresholds(pooled, experiment.thresholds)
-    notes = zero_notes + notes
+    notes = zero_notes + notes + ([_ignored_note(logged, ignored)] if ignored else [])
     dropped = sum(r.n_dropped for r in runs)
     if dropped:
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
@@ -697,6 +771,7 @@ def validate(
     ]
     result = ValidationResult(experiment, runs, preds, variants, primary, metrics, checks, notes, extras)
     result.warnings, result.zero_rule, result.unadjusted = warnings, rule, unadjusted
+    result.ignored = ignored
     return result
 
 
