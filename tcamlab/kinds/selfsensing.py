@@ -187,6 +187,11 @@ def _undo_contact(r, temp, delta, x_rest, mods, kw):
     return b
 
 
+WITHHELD = "EKF (load withheld)"
+"""The variant that runs the causal EKF with a logged ``load_N`` withheld (as if not logged)."""
+LOGGED = "EKF (causal)"
+"""The variant that runs the causal EKF with the load as a measurement where ``load_N`` is logged."""
+
 ESTIMATORS = ("inversion", "ekf")
 """``predict``'s estimators: the open-loop inversion (primary) and the causal EKF."""
 
@@ -199,6 +204,7 @@ def predict(
     *,
     initial_resistance: float,
     estimator: str = "inversion",
+    use_load: bool = True,
 ) -> dict[str, np.ndarray]:
     """Self-sensed displacement from voltage and current.
 
@@ -210,8 +216,11 @@ def predict(
     it as the variant "EKF (causal)" (README "Self-sensing").
 
     ``mods``: contact_slope (inter-coil contact), r0_drift (R0 drift), tcr_extra
-    (a TCR other than the stated one).
+    (a TCR other than the stated one). ``use_load=False`` withholds a logged ``load`` [N]
+    (the variant "EKF (load withheld)"): the run is read as if the column were not logged.
     """
+    if not use_load and "load" in data:
+        data = data.drop(columns=["load"])
     if estimator == "ekf":
         from tcamlab.estimation.observer import predict_displacement as ekf_displacement
 
@@ -295,21 +304,142 @@ def published_metrics(error, measured, stroke: float | None = None) -> dict[str,
     }
 
 
+def _run_errors(p, variant: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """(error [m], measured [m], stroke [m]) of one run and variant: error = self-sensed - laser
+    after the run's zero; the stroke is the range of the measurement as logged (its zero added
+    back) over the rows with an error."""
+    m = p.data["displacement"].to_numpy(float)
+    zero = getattr(p, "zeros", {}).get("displacement")
+    logged = m + (zero.value if zero is not None and np.isfinite(zero.value) else 0.0)
+    e = np.asarray(p.predicted[variant]["displacement"], float) - m
+    ok = np.isfinite(e)
+    return e, m, (float(np.ptp(logged[ok])) if ok.any() else float("nan"))
+
+
 def _published(predictions, variant: str) -> dict:
     """{runs {name: published_metrics}, pooled} of one variant. Each run's stroke is the range
     of its measurement as logged (its zero added back); the pooled stroke is their mean."""
     runs, errs, meas, strokes = {}, [], [], []
     for p in predictions:
-        m = p.data["displacement"].to_numpy(float)
-        zero = getattr(p, "zeros", {}).get("displacement")
-        logged = m + (zero.value if zero is not None and np.isfinite(zero.value) else 0.0)
-        e = p.predicted[variant]["displacement"] - m
+        e, m, stroke = _run_errors(p, variant)
         ok = np.isfinite(e)
-        strokes.append(float(np.ptp(logged[ok])) if ok.any() else float("nan"))
-        runs[p.name] = published_metrics(e[ok], m[ok], strokes[-1])
+        strokes.append(stroke)
+        runs[p.name] = published_metrics(e[ok], m[ok], stroke)
         errs.append(e[ok])
         meas.append(m[ok])
     pooled = published_metrics(np.concatenate(errs), np.concatenate(meas), float(np.nanmean(strokes)))
+    return {"runs": runs, "pooled": pooled}
+
+
+LOAD_CHANGE_REL = 0.02
+"""A logged load further than this fraction of its value at rest from it has changed [-]
+(the rig's 5 g rider is 10 % of the 50 g load)."""
+LOAD_CHANGE_MIN_N = 1e-3
+"""... and further than this [N], so that a load cell's noise is not a change."""
+
+
+def heating_only_rows(data: pd.DataFrame) -> tuple[int, str]:
+    """Rows of a run's heating-only part, the leading rows before the first load change.
+
+    With ``load`` logged [N]: the rows before the first one whose load is further than
+    max(:data:`LOAD_CHANGE_REL` |F_rest|, :data:`LOAD_CHANGE_MIN_N`) from the median of the
+    rows at rest. Without it (not logged, or ``--ignore load_N``) the change cannot be seen
+    without the truth, so the part is the rows before the drive first falls back to the probe
+    after its first heating phase (:func:`regimes`): rest and the first heating pulse, on
+    which the load is assumed not to change (the rig's rider goes on 15-35 s into the run,
+    after the steps). No change (or no heating pulse that ends): the whole run.
+
+    Returns
+    -------
+    tuple of (int, str)
+        The number of leading rows, and the rule that ended them, for the report.
+    """
+    n = len(data)
+    t = data["time"].to_numpy(float)
+    if "load" in data:
+        f = data["load"].to_numpy(float)
+        ref = float(np.nanmedian(f[rest_rows(KIND, data)]))
+        tol = max(LOAD_CHANGE_REL * abs(ref), LOAD_CHANGE_MIN_N)
+        moved = np.flatnonzero(np.isfinite(f) & (np.abs(f - ref) > tol))
+        if not moved.size:
+            return n, "no load change logged: the whole run"
+        return int(moved[0]), f"the logged load_N changes at {t[moved[0]]:.2f} s"
+    heating = regimes(data, "displacement")["drive"] == "heating"
+    first = np.flatnonzero(heating)
+    back = np.flatnonzero(~heating[first[0] :]) if first.size else np.array([], int)
+    if not back.size:
+        return n, "load not logged and no heating pulse ends: the whole run"
+    k = int(first[0] + back[0])
+    return k, f"load not logged: rest and the first heating pulse, to {t[k]:.2f} s"
+
+
+PARTS = ("whole_run", "heating_only")
+"""The parts of a run the estimator is scored on with the load logged and withheld."""
+LOAD_CASES = {"load_logged": LOGGED, "load_withheld": WITHHELD}
+"""Load case -> the EKF variant run in it."""
+
+
+def _case_errors(p, variant: str, k: int) -> dict:
+    """Part -> (finite error [m], measured [m]) of one run and variant; and ``stroke`` [m]."""
+    e, m, stroke = _run_errors(p, variant)
+    out = {"stroke": stroke}
+    for part, rows in zip(PARTS, (slice(None), slice(0, k))):
+        ok = np.isfinite(e[rows])
+        out[part] = (e[rows][ok], m[rows][ok])
+    return out
+
+
+def _cell(error, measured, stroke) -> dict | None:
+    """published_metrics of one part, None with fewer than two rows."""
+    return published_metrics(error, measured, stroke) if np.size(error) >= 2 else None
+
+
+def estimator_without_help(predictions) -> dict:
+    """The causal EKF with the load logged and withheld, over the whole run and its heating-only
+    part (:func:`heating_only_rows`), per run and pooled, in the published format.
+
+    Every figure is against the run's whole stroke (the range of the laser displacement as
+    logged); the pooled stroke is the mean of the runs' strokes, the pooled error the runs'
+    errors together. A run that does not log ``load_N`` has no "load logged" case (None), and
+    the pooled "load logged" case pools the runs that do.
+
+    Returns
+    -------
+    dict
+        ``runs`` {name: {logs_load, heating_only_rows, heating_only_rule, load_logged,
+        load_withheld}}, ``pooled`` {load_logged, load_withheld}; each case {part:
+        published_metrics or None}.
+    """
+    runs, pool = {}, {case: {"stroke": [], **{part: [] for part in PARTS}} for case in LOAD_CASES}
+    for p in predictions:
+        k, rule = heating_only_rows(p.data)
+        t = p.data["time"].to_numpy(float)
+        entry = {
+            "logs_load": "load" in p.data,
+            "heating_only_rows": k,
+            "heating_only_until_s": float(t[k]) if k < t.size else None,
+            "heating_only_rule": rule,
+        }
+        for case, variant in LOAD_CASES.items():
+            if case == "load_logged" and not entry["logs_load"]:
+                entry[case] = None
+                continue
+            errs = _case_errors(p, variant, k)
+            entry[case] = {part: _cell(*errs[part], errs["stroke"]) for part in PARTS}
+            pool[case]["stroke"].append(errs["stroke"])
+            for part in PARTS:
+                pool[case][part].append(errs[part])
+        runs[p.name] = entry
+    pooled = {}
+    for case, block in pool.items():
+        if not block["stroke"]:
+            pooled[case] = None
+            continue
+        stroke = float(np.nanmean(block["stroke"]))
+        pooled[case] = {
+            part: _cell(*(np.concatenate([x[i] for x in block[part]]) for i in (0, 1)), stroke)
+            for part in PARTS
+        }
     return {"runs": runs, "pooled": pooled}
 
 
@@ -326,7 +456,11 @@ def validation_extras(experiment, predictions, **_) -> tuple[list, dict]:
             f"({pooled['interval95_of_stroke']:.1%}); published inductive self-sensing: -0.27 mm, "
             "2.14 mm over 10-30 mm (van der Weijde et al. 2017)"
         )
-    extras = {"published_format": by_variant[KIND.primary], "published_format_by_estimator": by_variant}
+    extras = {
+        "published_format": by_variant[KIND.primary],
+        "published_format_by_estimator": by_variant,
+        "ekf_with_and_without_load": estimator_without_help(predictions),
+    }
     return notes, extras
 
 
@@ -377,8 +511,70 @@ def figures(result) -> list[Figure]:
     return figs
 
 
+def _pair(cell: dict | None) -> str:
+    """``"-0.21 % / 1.25 %"``: mean error / 95 % interval, both as % of the stroke; "–" without rows."""
+    if cell is None:
+        return "–"
+    return f"{cell['mean_error_of_stroke']:+.2%} / {cell['interval95_of_stroke']:.2%}".replace("%", " %")
+
+
+def _part_label(entry: dict) -> str:
+    """Where a run's heating-only part ends, short: ``to 23.4 s (load_N)``, ``whole run``."""
+    until = entry["heating_only_until_s"]
+    if until is None:
+        return "whole run"
+    return f"to {until:.1f} s ({'load_N' if entry['logs_load'] else 'first pulse'})"
+
+
+def without_help_table(info: dict) -> Table:
+    """The EKF with the load logged and withheld, whole run and heating-only, per run and pooled."""
+    rows = []
+    for name, entry in info["runs"].items():
+        logged = entry["load_logged"]
+        cells = [_pair(logged[p]) if logged else "not logged" for p in PARTS]
+        rows.append([name, *cells, *(_pair(entry["load_withheld"][p]) for p in PARTS), _part_label(entry)])
+    pooled = info["pooled"]
+    rows.append(
+        [
+            "pooled",
+            *(_pair(pooled["load_logged"][p]) if pooled["load_logged"] else "not logged" for p in PARTS),
+            *(_pair(pooled["load_withheld"][p]) for p in PARTS),
+            "",
+        ]
+    )
+    head = [
+        "run",
+        "load logged: whole run",
+        "load logged: heating only",
+        "load withheld: whole run",
+        "load withheld: heating only",
+        "heating-only part",
+    ]
+    return Table(
+        head,
+        rows,
+        caption="Causal EKF, mean error / 95 % interval of the error, both as % of the run's stroke",
+    )
+
+
+WITHOUT_HELP_TEXT = (
+    "What the estimator does without help: the causal EKF run twice on each run that logs "
+    "load_N, with the load as a measurement (load logged) and as if the column were not logged "
+    "(load withheld; the load is then a random walk with a jump detector). Each cell is the mean "
+    "error / the 95 % interval (2.5 % to 97.5 % percentile) of the error, both as % of the run's "
+    "stroke (the range of its laser displacement; pooled: the runs' errors together over the mean "
+    "of their strokes). Heating only: the rows before the first load change, found from the logged "
+    "load_N (a change of more than 2 % of the load at rest, at least 1 mN); without a logged load, "
+    "the rest and the first heating pulse (to the first row back at the probe), on which the load is "
+    "assumed not to change. A run that does not log load_N (or with --ignore load_N) has no load-"
+    "logged case."
+)
+"""The paragraph over the report's table of the EKF with the load logged and withheld."""
+
+
 def extras_section(result) -> Section | None:
-    """The published-format table (per run and pooled)."""
+    """The EKF with the load logged and withheld (:func:`without_help_table`), then the
+    published-format table of every estimator (per run and pooled)."""
     info = result.extras.get("published_format")
     if not info:
         return None
@@ -409,17 +605,20 @@ def extras_section(result) -> Section | None:
         "interval / stroke",
         "rows",
     ]
+    help_info = result.extras.get("ekf_with_and_without_load")
     return Section(
         "Self-sensing error in the published format",
-        paragraphs=[
+        paragraphs=([WITHOUT_HELP_TEXT] if help_info else [])
+        + [
             "Error = self-sensed - laser displacement (after the run's zero). The 95 % interval is "
             "from the 2.5 % to the 97.5 % percentile of the error; the stroke is each run's range of the "
             "laser displacement as logged (pooled: the mean of the runs' ranges). Published inductive self-sensing (van der Weijde et al., Soft "
-            "Robotics 2017): mean -0.27 mm, 95 % interval 2.14 mm over 10-30 mm. Two estimators: "
-            "the open-loop inversion (the primary model) and the causal EKF, which also lags "
-            "after an unannounced load change (it is counted, not hidden)."
+            "Robotics 2017): mean -0.27 mm, 95 % interval 2.14 mm over 10-30 mm. Three estimators: "
+            "the open-loop inversion (the primary model) and the causal EKF with the load logged and "
+            "withheld; the EKF also lags after an unannounced load change (it is counted, not hidden)."
         ],
-        tables=[Table(head, rows, caption="Self-sensing error per run and pooled")],
+        tables=([without_help_table(help_info)] if help_info else [])
+        + [Table(head, rows, caption="Self-sensing error per run and pooled")],
     )
 
 
@@ -600,7 +799,11 @@ KIND = Kind(
     inputs=("time", "voltage", "current"),
     outputs=("displacement",),
     tension_outputs=(),
-    variants={"open-loop inversion": {}, "EKF (causal)": {"estimator": "ekf"}},
+    variants={
+        "open-loop inversion": {},
+        "EKF (causal)": {"estimator": "ekf"},
+        WITHHELD: {"estimator": "ekf", "use_load": False},
+    },
     predict=predict,
     run_options=run_options,
     needs_training=False,
