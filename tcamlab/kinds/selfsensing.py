@@ -508,7 +508,38 @@ def figures(result) -> list[Figure]:
         figs.append(
             Figure(fig, f"Self-sensing error against {label.split(' [')[0]}.", alt=f"error against {x_name}")
         )
-    return figs
+    return figs + [f for f in (without_help_figure(result),) if f is not None]
+
+
+def without_help_figure(result) -> Figure | None:
+    """The causal EKF's error against time with the load withheld (solid) and logged (dotted),
+    a vertical line where each run's heating-only part ends; None without the two variants."""
+    preds = [p for p in result.predictions if WITHHELD in p.predicted and LOGGED in p.predicted]
+    if not preds:
+        return None
+    fig, ax = new_figure()
+    for p in preds:
+        t, name = p.data["time"].to_numpy(float), legend_label(p.name)
+        m = p.data["displacement"].to_numpy(float)
+        (line,) = ax.plot(t, (p.predicted[WITHHELD]["displacement"] - m) * 1e3, "-", lw=0.9, zorder=3)
+        line.set_label(f"{name} load withheld")
+        if "load" in p.data:
+            e = (p.predicted[LOGGED]["displacement"] - m) * 1e3
+            ax.plot(t, e, ":", color=line.get_color(), lw=1.0, zorder=2, label=f"{name} load logged")
+        k, _ = heating_only_rows(p.data)
+        if k < t.size:
+            ax.axvline(t[k], color=line.get_color(), lw=0.6, ls="--", zorder=1)
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("EKF error (self-sensed - laser) [mm]")
+    ax.legend(fontsize=6, ncol=2)
+    return Figure(
+        fig,
+        "Error of the causal EKF against time, with the load withheld (solid) and logged (dotted); "
+        "each dashed vertical line ends that run's heating-only part (table in \"Self-sensing error "
+        'in the published format").',
+        alt="EKF error with the load logged and withheld",
+    )
 
 
 def _pair(cell: dict | None) -> str:
