@@ -1026,12 +1026,19 @@ _RIG_POSITIVE = (
     "initial_resistance",
     "spring_constant",
     "sensor_offset",
+    "stretch_factor",
 )
 _RIG_POSITIVE_WHY = {
+    "stretch_factor": "k_s scales chapter 3's stretch sensitivity of R (1: tcamlab's law); "
+    "e.g. stretch_factor = 1",
     "sensor_offset": "d1 is the distance between the sensor and the cable; eq. (4.1) divides by it, "
     "and a sensor on the cable's line would not see the bend",
 }
-_RIG_NONNEGATIVE = ("load", "pulse", "damping")
+_RIG_NONNEGATIVE = ("load", "pulse", "damping", "lead_resistance")
+_RIG_NONNEGATIVE_WHY = {
+    "lead_resistance": "R_lead of the leads and contacts in series is 0 or more; "
+    "e.g. lead_resistance_ohm = 0.3",
+}
 _SI_TO_RIG_KEY = {si: key for key, (si, _) in RIG_KEYS.items()}
 
 
@@ -1048,7 +1055,9 @@ def _build_rig(doc: _ExperimentFile, shown: str) -> tuple[Rig, dict[str, str]]:
                 _RIG_POSITIVE_WHY.get(name, "a physical magnitude; check the unit in the key name"),
             )
         if name in _RIG_NONNEGATIVE and value < 0:
-            raise ConfigError(f"{shown}: rig.{key} = {table[key]!r} must not be negative")
+            raise ConfigError(
+                f"{shown}: rig.{key} = {table[key]!r} must not be negative", _RIG_NONNEGATIVE_WHY.get(name)
+            )
         if name == "ambient" and value < tio.ABSOLUTE_ZERO_C:
             raise ConfigError(f"{shown}: rig.ambient_C = {value!r} is below absolute zero")
     for name, value in unc.items():

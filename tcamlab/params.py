@@ -212,6 +212,13 @@ class Rig:
         Temperature coefficient beta of the actuator's resistance in the voltage-step test,
         R(T) = R (1 + beta (T - T_a)) [1/K]; 0 is the thesis's constant R (sec. 2.5.2).
         Calibrated where the runs log ``current_A`` or ``resistance_ohm``.
+    lead_resistance : float
+        R_lead of the leads and contacts in series with a self-sensing muscle, unheated
+        [ohm]: the voltage is read across leads and muscle, so only I^2 (R - R_lead) heats.
+        0 is tcamlab's law.
+    stretch_factor : float
+        k_s, the self-sensing muscle's stretch sensitivity relative to chapter 3's map,
+        R = R_lead + R0 (1 + k_s (g(x) - 1)) heat(T) [-]; 1 is tcamlab's law.
     uncertainty : mapping
         Standard deviations of any of the fields above, same units.
     """
@@ -230,6 +237,8 @@ class Rig:
     segment_lengths: tuple[float, ...] = (30e-3, 30e-3)
     tcr: float = SILVER_TCR
     heater_tcr: float = 0.0
+    lead_resistance: float = 0.0
+    stretch_factor: float = 1.0
     uncertainty: Mapping[str, float] = field(default_factory=dict)
 
     @property
@@ -272,6 +281,8 @@ RIG_KEYS: dict[str, tuple[str, float]] = {
     "segment_lengths_mm": ("segment_lengths", 1e-3),
     "tcr_per_K": ("tcr", 1.0),
     "heater_tcr_per_K": ("heater_tcr", 1.0),
+    "lead_resistance_ohm": ("lead_resistance", 1.0),
+    "stretch_factor": ("stretch_factor", 1.0),
 }
 
 

@@ -99,6 +99,8 @@ PARAMETER_UNITS: dict[str, tuple[str, float]] = {
     "segment_lengths": ("mm", 1e3),
     "tcr": ("1/K", 1.0),
     "heater_tcr": ("1/K", 1.0),
+    "lead_resistance": ("ohm", 1.0),
+    "stretch_factor": ("-", 1.0),
 }
 """SI field of Sample or Rig -> (lab unit, factor from SI); the experiment file's key is
 the field plus the unit (``coil_length_mm``, ``youngs_modulus_GPa``, ``load_g``)."""

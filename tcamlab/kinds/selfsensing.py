@@ -141,26 +141,45 @@ def predict_displacement(
     v = data["voltage"].to_numpy(float)
     i = data["current"].to_numpy(float)
     ok = _readable(i)
-    p = np.where(ok, v * i, 0.0)
+    lead = rig.lead_resistance
+    p = np.where(ok, v * i - lead * i * i, 0.0)  # only the muscle heats
     rest = rest_rows(KIND, data)
     t0 = ssm.rest_temperature(float(np.mean(p[rest])), rig.heat_loss, rig.ambient)
     temp = ssm.temperature_from_power(
         t, p, thermal_mass=rig.thermal_mass, heat_loss=rig.heat_loss, ambient=rig.ambient, initial=t0
     )
     r = np.where(ok, v / np.where(ok, i, 1.0), np.nan)
-    r = pd.Series(r).ffill().bfill().to_numpy() / (1.0 + mods.r0_drift * (t - t[0]))
+    r = (pd.Series(r).ffill().bfill().to_numpy() - lead) / (1.0 + mods.r0_drift * (t - t[0]))
     kw = _model_kwargs(sample, rig, initial_resistance, rig.tcr + mods.tcr_extra)
-    delta = ssm.invert_displacement(r, temp, **kw)
+    delta = invert_muscle(r, temp, kw, rig.stretch_factor)
     # the model's rest extension, not the rest rows' mean of delta: that mean would cancel a
     # common error of R, hiding it from the noise floor and the nuisance zero alike
     mass = float(data["load"].iloc[0]) / G_ACCEL if "load" in data else rig.load
     x_rest = _rest_extension(sample, rig, t0, mass)
     if mods.contact_slope:
-        delta = _undo_contact(r, temp, delta, x_rest, mods, kw)
+        delta = _undo_contact(r, temp, delta, x_rest, mods, kw, rig.stretch_factor)
     return {"displacement": delta - x_rest, "temperature": temp}
 
 
-def _undo_contact(r, temp, delta, x_rest, mods, kw):
+def invert_muscle(r_muscle, temperature, kw: dict, stretch_factor: float = 1.0) -> np.ndarray:
+    """delta [m] from the muscle's R [ohm] (the leads' taken off) at T [degC], with k_s.
+
+    The law R_muscle = R0 (1 + k_s (g - 1)) heat(T) is chapter 3's R0 g heat once R_muscle
+    is mapped to R0 heat + (R_muscle - R0 heat) / k_s, which
+    :func:`tcamlab.models.selfsensing.invert_displacement` inverts; ``kw`` as its keywords,
+    ``stretch_factor`` k_s [-] (1: no mapping).
+    """
+    r = np.asarray(r_muscle, float)
+    if stretch_factor != 1.0:
+        heat = ssm.coating_factor(temperature, kw["reference_temperature"], kw["tcr"]) * ssm.swelling_factor(
+            temperature, kw["reference_temperature"], kw["radial_cte"]
+        )
+        r0_heat = kw["initial_resistance"] * heat
+        r = r0_heat + (r - r0_heat) / stretch_factor
+    return ssm.invert_displacement(r, temperature, **kw)
+
+
+def _undo_contact(r, temp, delta, x_rest, mods, kw, stretch_factor=1.0):
     """delta solving delta = F(delta) = invert(R / contact(delta)) row by row, by secant steps.
 
     R stays monotone in delta (contact lowers R as contraction does), but a plain
@@ -171,7 +190,7 @@ def _undo_contact(r, temp, delta, x_rest, mods, kw):
     zero_t = np.zeros_like(delta)
 
     def phi(d):
-        return d - ssm.invert_displacement(r / ssm.effect_factor(zero_t, x_rest - d, mods), temp, **kw)
+        return d - invert_muscle(r / ssm.effect_factor(zero_t, x_rest - d, mods), temp, kw, stretch_factor)
 
     a, pa = delta, phi(delta)
     b = a - pa
@@ -225,7 +244,15 @@ def predict(
         from tcamlab.estimation.observer import predict_displacement as ekf_displacement
 
         _readable(data["current"].to_numpy(float))  # the same one-line error as the inversion
-        return ekf_displacement(sample, rig, data, mods, initial_resistance=initial_resistance)
+        return ekf_displacement(
+            sample,
+            rig,
+            data,
+            mods,
+            initial_resistance=initial_resistance,
+            lead_resistance=rig.lead_resistance,
+            stretch_factor=rig.stretch_factor,
+        )
     if estimator != "inversion":
         raise ValueError(f"selfsensing estimator {estimator!r}: one of {', '.join(ESTIMATORS)}")
     return predict_displacement(sample, rig, data, mods, initial_resistance=initial_resistance)
@@ -238,12 +265,17 @@ def initial_resistance(sample: Sample, rig: Rig, data: pd.DataFrame, provenance=
     rows = rest_rows(KIND, data)
     v, i = data["voltage"].to_numpy(float)[rows], data["current"].to_numpy(float)[rows]
     ok = _readable(i, what="the rest rows")
-    r_rest = float(np.mean(v[ok] / i[ok]))
-    t0 = ssm.rest_temperature(float(np.mean(v * i)), rig.heat_loss, rig.ambient)
+    lead = rig.lead_resistance
+    r_rest = float(np.mean(v[ok] / i[ok])) - lead
+    t0 = ssm.rest_temperature(float(np.mean(v * i - lead * i * i)), rig.heat_loss, rig.ambient)
     mass = float(data["load"].iloc[0]) / G_ACCEL if "load" in data else rig.load
     x_rest = _rest_extension(sample, rig, t0, mass)
-    unit = ssm.resistance(t0, x_rest, **_model_kwargs(sample, rig, 1.0, rig.tcr))
-    return r_rest / float(unit), f"mean R of the {rows.size} rows at rest / model R/R0 there"
+    unit = float(ssm.resistance(t0, x_rest, **_model_kwargs(sample, rig, 1.0, rig.tcr)))  # g heat
+    heat = float(
+        ssm.coating_factor(t0, rig.ambient, rig.tcr) * ssm.swelling_factor(t0, rig.ambient, sample.radial_cte)
+    )
+    unit = heat + rig.stretch_factor * (unit - heat)  # (1 + k_s (g - 1)) heat
+    return r_rest / unit, f"(mean R of the {rows.size} rows at rest - R_lead) / model R/R0 there"
 
 
 def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, provenance=None, **_) -> RunOptions:
@@ -787,6 +819,23 @@ RIG_FIELDS = (
 )
 """Rig fields of the powered run: shown in the report and written by the virtual rig."""
 
+REPORT_RIG_FIELDS = (*RIG_FIELDS, "lead_resistance", "stretch_factor")
+"""Rig fields shown in the report: :data:`RIG_FIELDS` and the resistance law's two nuisances
+(the virtual rig writes neither: its law is tcamlab's unless a ``law`` is given)."""
+
+LEAD_ZERO_SD = 0.3
+"""Prior sd of R_lead [ohm] where the file states 0 (tcamlab's law) and no sd: real rigs'
+leads and contacts are 0.2-0.5 ohm, so 0.3 ohm reaches them within two sd. R_lead is fitted
+in a linear coordinate (value / prior sd, as rho in the static kind): 0 is a legitimate
+statement and a logarithm is undefined there."""
+LEAD_DEFAULT_SD = 1.0
+"""Relative prior sd of a stated nonzero R_lead without an sd [-]: the stated value itself
+(an ohmmeter across leads and contacts reads R_lead only to its order)."""
+STRETCH_DEFAULT_SD = 0.2
+"""Relative prior sd of k_s without a stated sd [-]: 0.2 about the stated value (1:
+chapter 3's map), fitted as its logarithm (k_s > 0: R rises with stretch); a muscle whose
+stretch sensitivity differs from chapter 3's by 20 % is typical of the sensing fits."""
+
 CALIBRATION = (
     CalibrationParam("initial_resistance", "rig", "R0", "ohm", 0.05, "R of the unloaded muscle at ambient"),
     CalibrationParam("tcr", "rig", "TCR", "1/K", 0.1, "an oven test of R against temperature, unloaded"),
@@ -814,9 +863,28 @@ CALIBRATION = (
         0.3,
         "a load step logged faster than b/k; the open-loop inversion does not use b, the estimator does",
     ),
+    CalibrationParam(
+        "lead_resistance",
+        "rig",
+        "R_lead",
+        "ohm",
+        LEAD_DEFAULT_SD,
+        "a four-wire reading across the muscle alone, or R of the leads shorted at the muscle's ends",
+        positive=False,
+        zero_sd=LEAD_ZERO_SD,
+    ),
+    CalibrationParam(
+        "stretch_factor",
+        "rig",
+        "k_s",
+        "-",
+        STRETCH_DEFAULT_SD,
+        "a pull test of the unheated muscle with R logged (R against extension at ambient)",
+    ),
 )
 """Calibratable parameters of the powered run (R0, the TCR and the thermal constants set the
-open-loop inversion; b enters once the estimator models the mechanics)."""
+open-loop inversion; b enters once the estimator models the mechanics; R_lead and k_s are
+the resistance law's nuisances: leads in series, and a stretch sensitivity other than chapter 3's)."""
 
 
 KIND = Kind(
@@ -842,7 +910,7 @@ KIND = Kind(
     x_column="time",
     regimes=regimes,
     shared_inputs=("voltage",),
-    report_rig_fields=RIG_FIELDS,
+    report_rig_fields=REPORT_RIG_FIELDS,
     figures=figures,
     extras_section=extras_section,
     preset=THESIS_TCA,

@@ -1,0 +1,214 @@
+"""The self-sensing resistance law's two nuisances in the experiment file: R_lead and k_s."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from tcamlab import kinds
+from tcamlab.cli import app
+from tcamlab.config import load_experiment
+from tcamlab.errors import ConfigError
+from tcamlab.kinds import selfsensing as ss
+
+ROOT = Path(__file__).resolve().parents[1]
+KIND = kinds.get_kind("selfsensing")
+runner = CliRunner()
+
+
+def _experiment(folder: Path, rig_lines: str = "", unc_lines: str = "", runs=None) -> Path:
+    """The sample selfsensing file with extra [rig] and [rig.uncertainty] lines."""
+    text = (ROOT / "experiments" / "selfsensing.toml").read_text()
+    if runs is None:
+        text = text.replace("../raw/", str(ROOT / "raw") + "/")
+    else:
+        line = next(x for x in text.splitlines() if x.startswith("runs = ["))
+        text = text.replace(line, "runs = [" + ", ".join(f'"{r}"' for r in runs) + "]")
+    text = text.replace("[rig]\n", "[rig]\n" + rig_lines).replace(
+        "[rig.uncertainty]\n", "[rig.uncertainty]\n" + unc_lines
+    )
+    path = folder / "law.toml"
+    path.write_text(text)
+    return path
+
+
+def test_the_keys_load_in_si_and_default_to_tcamlabs_law(tmp_path):
+    rig = load_experiment(_experiment(tmp_path)).rig
+    assert (rig.lead_resistance, rig.stretch_factor) == (0.0, 1.0)
+    path = _experiment(
+        tmp_path,
+        "lead_resistance_ohm = 0.35\nstretch_factor = 0.85\n",
+        "lead_resistance_ohm = 0.1\nstretch_factor = 0.05\n",
+    )
+    rig = load_experiment(path).rig
+    assert rig.lead_resistance == pytest.approx(0.35) and rig.stretch_factor == pytest.approx(0.85)
+    assert rig.uncertainty["lead_resistance"] == pytest.approx(0.1)
+    assert rig.uncertainty["stretch_factor"] == pytest.approx(0.05)
+
+
+@pytest.mark.parametrize(
+    ("line", "said"),
+    [
+        ("lead_resistance_ohm = -0.2\n", "rig.lead_resistance_ohm = -0.2 must not be negative"),
+        ("stretch_factor = 0.0\n", "rig.stretch_factor = 0.0 must be positive"),
+        ("stretch_factor = -1.0\n", "rig.stretch_factor = -1.0 must be positive"),
+    ],
+)
+def test_invalid_values_are_refused_in_one_line_with_a_hint(tmp_path, line, said):
+    with pytest.raises(ConfigError) as err:
+        load_experiment(_experiment(tmp_path, line))
+    assert said in err.value.message
+    assert "e.g." in (err.value.hint or "")
+    assert "\n" not in err.value.one_line()
+
+
+def test_a_negative_uncertainty_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match=r"rig\.uncertainty\.stretch_factor = -0\.1 must not be negative"):
+        load_experiment(_experiment(tmp_path, "", "stretch_factor = -0.1\n"))
+
+
+def test_the_kind_calibrates_both_with_the_stated_priors():
+    params = {p.field: p for p in KIND.calibration}
+    lead, k_s = params["lead_resistance"], params["stretch_factor"]
+    # R_lead in a linear coordinate (0 is legitimate), 0.3 ohm where the file states 0
+    assert not lead.positive and lead.zero_sd == 0.3 and lead.where == "rig"
+    # k_s > 0 as its logarithm, 20 % about the stated value
+    assert k_s.positive and k_s.default_sd == 0.2 and k_s.where == "rig"
+
+
+def _constant_run(v_volts=6.0, i_amps=0.15, seconds=4.0):
+    """A constructed run: constant V and I, 100 Hz, the muscle resting under the rig's load."""
+    t = np.arange(int(seconds * 100)) / 100.0
+    return pd.DataFrame({"time": t, "voltage": np.full(t.size, v_volts), "current": np.full(t.size, i_amps)})
+
+
+@pytest.fixture(scope="module")
+def setup():
+    sample = KIND.preset.build_sample()
+    rig = KIND.preset.build_rig().replace(**KIND.simulation_rig_defaults)
+    return sample, rig
+
+
+def test_lead_takes_i2_r_lead_off_the_heating_power(setup):
+    sample, rig = setup
+    data = _constant_run()
+    cold = ss.predict_displacement(sample, rig, data, initial_resistance=24.0)
+    lead = ss.predict_displacement(sample, rig.replace(lead_resistance=0.3), data, initial_resistance=24.0)
+    # constant power: T rests at T_a + P / lambda, P = V I - I^2 R_lead, so the lead cools the
+    # muscle by 0.3 * 0.15^2 / 0.00893 = 0.756 K
+    drop = 0.3 * 0.15**2 / rig.heat_loss
+    assert drop == pytest.approx(0.756, abs=1e-3)
+    assert cold["temperature"] - lead["temperature"] == pytest.approx(np.full(data.shape[0], drop), rel=1e-9)
+    assert lead["temperature"][0] == pytest.approx(rig.ambient + (6.0 * 0.15 - 0.3 * 0.15**2) / rig.heat_loss)
+
+
+def test_lead_reads_as_the_voltage_across_the_muscle_alone(setup):
+    sample, rig = setup
+    proto = pd.DataFrame(
+        {
+            "time": np.arange(600) / 100.0,
+            "voltage": np.where((np.arange(600) >= 100) & (np.arange(600) < 300), 6.0, ss.PROBE_V),
+            "load_mass": np.full(600, rig.load),
+        }
+    )
+    data = KIND.exact_inputs(sample, rig, proto)
+    muscle = data.assign(voltage=data["voltage"] - 0.3 * data["current"])
+    lead_rig = rig.replace(lead_resistance=0.3)
+    # the EKF reads V with its own noise model, so it agrees to 2 um and 0.02 K, not exactly
+    for estimator, tol, tol_t in (("inversion", 1e-12, 1e-9), ("ekf", 2e-6, 0.02)):
+        with_lead = ss.predict(sample, lead_rig, data, initial_resistance=24.0, estimator=estimator)
+        across = ss.predict(sample, rig, muscle, initial_resistance=24.0, estimator=estimator)
+        # V I - I^2 R_lead heats and V / I - R_lead is the muscle's R: the same as logging V - I R_lead
+        assert np.max(np.abs(with_lead["displacement"] - across["displacement"])) < tol
+        assert np.max(np.abs(with_lead["temperature"] - across["temperature"])) < tol_t
+    # and it is not nothing: the lead's 0.3 ohm read as muscle moves the estimate by more than 50 um
+    plain = ss.predict(sample, rig, data, initial_resistance=24.0)
+    with_lead = ss.predict(sample, lead_rig, data, initial_resistance=24.0)
+    assert np.max(np.abs(plain["displacement"] - with_lead["displacement"])) > 50e-6
+
+
+def test_the_inversion_recovers_the_truth_under_a_law_with_leads_and_stretch(setup):
+    from tcamlab.rig.selfsensing import ResistanceLaw
+
+    sample, rig = setup
+    law = ResistanceLaw(lead_ohm=0.4, stretch_factor=0.85)
+    t = np.arange(800) / 100.0
+    proto = pd.DataFrame(
+        {
+            "time": t,
+            "voltage": np.where((t >= 1.0) & (t < 4.0), 6.0, ss.PROBE_V),
+            "load_mass": np.where(t >= 6.0, rig.load + ss.RIDER_KG, rig.load),
+        }
+    )
+    exact = KIND.exact_inputs(sample, rig, proto, law=law)
+    truth = exact["true_displacement"].to_numpy()
+    right = ss.predict_displacement(
+        sample, rig.replace(lead_resistance=0.4, stretch_factor=0.85), exact, initial_resistance=24.0
+    )
+    wrong = ss.predict_displacement(sample, rig, exact, initial_resistance=24.0)
+    # as the kind's own test on tcamlab's law: only the zero-order hold of the power separates them
+    assert np.max(np.abs(right["displacement"] - truth)) < 3e-6
+    assert np.max(np.abs(wrong["displacement"] - truth)) > 100e-6
+
+
+def _short_csv(path: Path, sample, rig, law=None, seed=0):
+    """One logged 8 s run (a 6 V step, a rider at 6 s) of the virtual rig, as the lab writes it."""
+    t = np.arange(800) / 100.0
+    proto = pd.DataFrame(
+        {
+            "time": t,
+            "voltage": np.where((t >= 1.0) & (t < 4.0), 6.0, ss.PROBE_V),
+            "load_mass": np.where(t >= 6.0, rig.load + ss.RIDER_KG, rig.load),
+        }
+    )
+    rng = np.random.default_rng(seed)
+    m = ss.measure(KIND.exact_inputs(sample, rig, proto, law=law), {}, rng, 1.0)
+    pd.DataFrame(
+        {"time_s": m["time"], "voltage_V": m["voltage"], "current_A": m["current"], "load_N": m["load"],
+         "displacement_mm": m["displacement"] * 1e3}
+    ).to_csv(path, index=False, float_format="%.7g")  # fmt: skip
+
+
+def test_calibrate_writes_both_keys_and_the_calibrated_file_loads(tmp_path, setup):
+    from tcamlab.rig.selfsensing import ResistanceLaw
+
+    sample, rig = setup
+    _short_csv(tmp_path / "run1.csv", sample, rig, ResistanceLaw(lead_ohm=0.3, stretch_factor=0.9))
+    exp = _experiment(tmp_path, "lead_resistance_ohm = 0.25\n", "", runs=[str(tmp_path / "run1.csv")])
+    res = runner.invoke(app, ["calibrate", str(exp), "--out", str(tmp_path / "cal"), "--json"])
+    assert res.exit_code == 0, res.output
+    fitted = {p["field"]: p for p in json.loads(res.output[res.output.index("{") :])["parameters"]}
+    back = load_experiment(tmp_path / "law.calibrated.toml").rig
+    for field in ("lead_resistance", "stretch_factor"):
+        assert getattr(back, field) == pytest.approx(fitted[field]["value"], rel=1e-5)
+        assert back.uncertainty[field] == pytest.approx(fitted[field]["posterior_sd"], rel=1e-3)
+    # the stated 0.25 ohm moved: the fit read R_lead from the logs
+    assert back.lead_resistance != pytest.approx(0.25, abs=1e-6)
+    assert back.stretch_factor > 0.0
+
+
+@pytest.mark.slow
+def test_diagnose_on_a_law_run_without_drift_does_not_name_the_drift(tmp_path, setup):
+    from tcamlab.rig.selfsensing import ResistanceLaw
+
+    sample, rig = setup
+    law = ResistanceLaw(lead_ohm=0.45, tcr2_per_K2=1.8e-6, stretch_factor=0.85)
+    names = []
+    for k in range(3):
+        rng = np.random.default_rng(1000 + k)
+        proto = ss.protocol(rig, rng)
+        m = ss.measure(ss.exact_inputs(sample, rig, proto, law=law), {}, rng, 1.0, noisy_zero=True)
+        path = tmp_path / f"run{k + 1}.csv"
+        pd.DataFrame(
+            {"time_s": m["time"], "voltage_V": m["voltage"], "current_A": m["current"], "load_N": m["load"],
+             "displacement_mm": m["displacement"] * 1e3}
+        ).to_csv(path, index=False, float_format="%.7g")  # fmt: skip
+        names.append(str(path))
+    exp = _experiment(tmp_path, runs=names)
+    res = runner.invoke(app, ["diagnose", str(exp), "--json"])
+    assert res.exit_code == 0, res.output
+    verdict = json.loads(res.output[res.output.index("{") :])["verdict"]
+    assert "resistance-drift" not in json.dumps(verdict)
