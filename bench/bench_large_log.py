@@ -134,9 +134,7 @@ def run_measured(args: list[str], env: dict | None = None) -> dict:
     nothing of it is counted)."""
     t0 = time.perf_counter()
     full_env = dict(os.environ, **(env or {}))
-    proc = subprocess.Popen(
-        args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=full_env
-    )
+    proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=full_env)
     out = proc.stdout.read().decode(errors="replace")
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)

@@ -36,7 +36,9 @@ def test_fit_goals_follow_the_log_length_and_fail_a_slow_or_broken_fit(capsys):
     fast = {"exit": 0, "wall_s": 19.0, "rss_mb": 500.0, "cpu_s": 18.0}
     slow = dict(fast, wall_s=21.0)
     broken = dict(fast, exit=1)
-    big.print_fits({"fit_142100": {"calibrate": fast, "diagnose": slow}, "fit_1000000": {"calibrate": broken}})
+    big.print_fits(
+        {"fit_142100": {"calibrate": fast, "diagnose": slow}, "fit_1000000": {"calibrate": broken}}
+    )
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("calibrate") and lines[0].endswith("PASS")
     assert lines[1].startswith("diagnose") and lines[1].endswith("FAIL")  # 21 s > 20 s at 142,100 rows

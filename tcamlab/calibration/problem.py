@@ -248,7 +248,9 @@ class CalibrationProblem:
         self.reductions = self._reductions()
         self._active = any(r is not None for r in self.reductions.values())
         self.n_reduced = sum(
-            len(self.runs[i][j].data) * len(self.quantities[i]) if red is None else red.size * len(self.quantities[i])
+            len(self.runs[i][j].data) * len(self.quantities[i])
+            if red is None
+            else red.size * len(self.quantities[i])
             for (i, j), red in self.reductions.items()
         )
 

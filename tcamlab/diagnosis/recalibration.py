@@ -451,9 +451,7 @@ class Recalibration:
         x = fit.x + bounded_gauss_newton_step(J, fit.fun[keep], fit.x, fit.box[0], fit.box[1])
         p = self.p
         scales = np.array([q.scale for q in effect.params], float) if effect is not None else np.zeros(0)
-        return JointFit(
-            x[:p], x[p:], x[p:] * scales, float("nan"), n_rows, None, fit.success
-        )
+        return JointFit(x[:p], x[p:], x[p:] * scales, float("nan"), n_rows, None, fit.success)
 
     def starts(self, effect: Effect | None, u: np.ndarray, box) -> list[np.ndarray]:
         """Starts of a fit on all rows: the recalibration's ``u`` with theta 0, +1 and -1;
