@@ -113,8 +113,8 @@ def test_verdict_rules_between_recalibration_and_an_effect():
             "ci95": [1.8, 2.2],
             "unit": "J/K",
             "stated": 1.0,
-            "shift_in_stated_sds": 5.0,
-            "shift_in_prior_sds": 5.0,
+            "shift_in_stated_sds": 2.5,
+            "shift_in_prior_sds": 2.5,
         },
         "damping": {
             "symbol": "b",
@@ -134,6 +134,13 @@ def test_verdict_rules_between_recalibration_and_an_effect():
     v = verdict([rec, eff], True, _after({RECALIBRATION: 110, eff.effect: 110}), idx, b_n, 3.0, 1.1)
     assert v[0] == "miscalibrated" and v[1] is None
     assert named_parameters(rec) == ["thermal_mass"]
+    # unless the stated value would have to be wrong by more than 3 stated sds: then the effect,
+    # with plausible parameters, is an equal explanation and recalibration one of its aliases
+    far = {**params, "thermal_mass": {**params["thermal_mass"], "shift_in_stated_sds": 5.0}}
+    rec_far = _C(RECALIBRATION, 0.9, 0.3, True, far, after=1.5)
+    v = verdict([rec_far, eff], True, _after({RECALIBRATION: 110, eff.effect: 110}), idx, b_n, 3.0, 1.1)
+    assert v[:3] == ("aliased", "convective-heat-loss", [RECALIBRATION])
+    assert "would have to be wrong by 5.0 stated sds" in v[3]
     # an effect that beats recalibration in every fold is attributed
     v = verdict([eff, rec], True, _after({RECALIBRATION: 130, eff.effect: 100}), idx, b_n, 3.0, 1.1)
     assert v[:2] == ("attributed", "convective-heat-loss")
