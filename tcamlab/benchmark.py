@@ -1147,7 +1147,7 @@ def run_benchmark(
         "n_tasks": len(tasks),
         "wall_seconds": wall,
         "generator": GENERATOR,
-        "strengths": [3.0] if quick else list(STRENGTHS),
+        "strengths": sorted({_strength(t) for t in tasks if t["case"] == "single"}),
         "executor": "dask" if scheduler is not None else f"processes ({workers or os.cpu_count()})",
         **({"lies": True} if lies else {}),
         **({"closed_loop": True} if closed_loop else {}),
