@@ -85,7 +85,7 @@ def make_log(rows: int, work: Path, seed: int = SEED) -> Path:
     import pandas as pd
 
     from tcamlab.config import load_experiment
-    from tcamlab.csvfast import fixed_csv_bytes
+    from tcamlab.io.csvfast import fixed_csv_bytes
     from tcamlab.kinds import dynamic
 
     folder = work / f"biglog-{rows}-s{seed}"

@@ -70,14 +70,14 @@ def neutralise_csv(df: pd.DataFrame) -> pd.DataFrame:
 
 
 FAST_CSV_ROWS = 200_000
-"""A table longer than this is written by :func:`tcamlab.csvfast.fixed_csv_bytes` (fixed
+"""A table longer than this is written by :func:`tcamlab.io.csvfast.fixed_csv_bytes` (fixed
 point, 9 significant digits of each column's largest value) instead of pandas (%.9g),
 which needs minutes for a 10-million-row log."""
 
 
 def _csv_bytes(df: pd.DataFrame) -> bytes:
     if len(df) > FAST_CSV_ROWS and list(df.columns[:1]) == ["run"]:
-        from tcamlab.csvfast import fixed_csv_bytes
+        from tcamlab.io.csvfast import fixed_csv_bytes
 
         def safe(text):  # a run name made safe once per run, not once per row
             return neutralise_csv(pd.DataFrame({"run": [text]}))["run"].iloc[0]

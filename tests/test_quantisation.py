@@ -1,4 +1,4 @@
-"""Tests of tcamlab.quantisation: the logging step and the error second differences miss."""
+"""Tests of tcamlab.io.quantisation: the logging step and the error second differences miss."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tcamlab import quantisation as Q
+from tcamlab.io import quantisation as Q
 from tcamlab.signals import second_difference_sigma
 
 ADC_STEP = 10e-3 / 1023  # the voltage-step rig's 10-bit laser ADC [m]

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tcamlab.csvfast import fixed_csv_bytes
+from tcamlab.io.csvfast import fixed_csv_bytes
 from tcamlab.pipeline import simulate_experiment, validate_experiment
 from tcamlab.report.figures import (
     LEGEND_MAX_ENTRIES,

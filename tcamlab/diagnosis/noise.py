@@ -19,7 +19,7 @@ from tcamlab.calibration.problem import EFFECT_STEP, profile_random_effects, ran
 from tcamlab.diagnosis.problem import MODEL_ERRORS, Problem, fit_effect
 from tcamlab.diagnosis.result import Baseline, Gap, NoiseFloor, QuantityNoise
 from tcamlab.effects import Mods
-from tcamlab.quantisation import unseen_variance
+from tcamlab.io.quantisation import unseen_variance
 from tcamlab.signals import second_difference_sigma
 from tcamlab.units import display
 
@@ -239,7 +239,7 @@ def run_noise_sigma(problem: Problem, i: int, q: str, residual) -> tuple[float, 
     """(noise sd [SI], quantisation step [SI] or None, share of the variance second differences
     miss) of quantity ``q`` in run ``i``: the second difference of its residuals plus the
     quantisation error they cannot see (a slowly moving reading on a coarse converter,
-    :mod:`tcamlab.quantisation`)."""
+    :mod:`tcamlab.io.quantisation`)."""
     seen = second_difference_sigma(residual)
     if not np.isfinite(seen):
         return seen, None, 0.0

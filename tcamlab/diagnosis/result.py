@@ -68,7 +68,7 @@ class QuantityNoise(Record):
     """That display unit."""
     per_run: list
     """Second-difference sd of each run, with the quantisation error it cannot see
-    (:func:`tcamlab.quantisation.unseen_variance`) [display unit]."""
+    (:func:`tcamlab.io.quantisation.unseen_variance`) [display unit]."""
     dof: float
     """Effective degrees of freedom of ``sigma**2`` [-]."""
     method: str

@@ -340,7 +340,7 @@ def rest_reading(kind: Kind, runs, columns) -> tuple[float, float] | None:
     """
     import numpy as np
 
-    from tcamlab.quantisation import logging_step
+    from tcamlab.io.quantisation import logging_step
     from tcamlab.signals import mad_scale
 
     values, steps, noise = [], [0.0], []
