@@ -160,7 +160,8 @@ def ekf_step(s, c, volt, cur, load_force, dt, p, nsub, noise, table, grid, out):
     """One causal EKF step from the previous sample's (V, I) to this sample's (V, I).
 
     ``noise`` = (sd_V [V], sd_I [A], q_T [K^2/s], q_v [m^2/s^3], q_F [N^2/s],
-    sd_load [N], q_theta [1/K^2/s][, jump_k [-], jump_h [-], jump_sd [N], jump_hold [s]]).
+    sd_load [N], q_theta [1/K^2/s]), optionally followed by (jump_k [-], jump_h [-], jump_sd [N],
+    jump_hold [s]).
     The power held over the last interval is the previous sample's V I less I^2 R_lead
     (``out[0]``, ``out[1]`` carry V and I between calls; ``out[2]``, ``out[3]`` the
     load-jump detector's sums and ``out[4]`` the time left of its hold when ``out`` has
