@@ -510,7 +510,7 @@ class CalibrationProblem:
 
     def _reduced(self, i: int, j: int):
         """Run j of experiment i's reduction while the reduction is on, else None."""
-        return self.reductions.get((i, j)) if self._active else None
+        return self.reductions.get((i, j)) if getattr(self, "_active", False) else None
 
     def _block_sd(self, i: int, j: int, q: str) -> np.ndarray:
         """Sd [SI] of each moment of a reduced run: its block's RMS row sd."""
