@@ -209,6 +209,20 @@ GUIDE: dict[str, Guide] = {
         "optional",
         0.0,
     ),
+    "lead_resistance_ohm": Guide(
+        "resistance of the unheated leads and contacts in series with the muscle, R_lead [ohm] (self-sensing)",
+        "ohmmeter across the leads with the muscle shorted; left out, tcamlab calibrate fits it (prior 0 +- 0.3 ohm)",
+        "0.2-0.5",
+        "optional",
+        0.0,
+    ),
+    "stretch_factor": Guide(
+        "factor on chapter 3's stretch sensitivity of the resistance, k_s [-] (self-sensing)",
+        "tcamlab calibrate on runs with the laser; 1 is the thesis's map",
+        "1 (0.8-1.2)",
+        "optional",
+        1.0,
+    ),
 }
 """Experiment-file key -> :class:`Guide`."""
 
