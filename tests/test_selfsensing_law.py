@@ -70,14 +70,15 @@ def test_a_negative_uncertainty_is_refused(tmp_path):
         load_experiment(_experiment(tmp_path, "", "stretch_factor = -0.1\n"))
 
 
-def test_the_kind_calibrates_k_s_and_uses_r_lead_as_stated():
-    params = {p.field: p for p in KIND.calibration}
+def test_the_laws_nuisances_are_used_as_stated_with_their_priors_kept():
+    # not calibrated (ss.LAW_CALIBRATION says why); their priors are kept beside the list
+    assert not {"lead_resistance", "stretch_factor"} & {p.field for p in KIND.calibration}
+    params = {p.field: p for p in ss.LAW_CALIBRATION}
+    lead, k_s = params["lead_resistance"], params["stretch_factor"]
+    # R_lead in a linear coordinate (0 is legitimate), 0.3 ohm where the file states 0
+    assert not lead.positive and lead.zero_sd == 0.3 and lead.where == "rig"
     # k_s > 0 as its logarithm, 20 % about the stated value
-    k_s = params["stretch_factor"]
     assert k_s.positive and k_s.default_sd == 0.2 and k_s.where == "rig"
-    # R_lead is not fitted: the calibration's box would let it below 0, which loading refuses
-    assert "lead_resistance" not in params
-    assert ss.LEAD_ZERO_SD == 0.3
 
 
 def _constant_run(v_volts=6.0, i_amps=0.15, seconds=4.0):
@@ -173,23 +174,26 @@ def _short_csv(path: Path, sample, rig, law=None, seed=0):
     ).to_csv(path, index=False, float_format="%.7g")  # fmt: skip
 
 
-def test_calibrate_writes_k_s_and_keeps_r_lead_and_the_calibrated_file_loads(tmp_path, setup):
+def test_calibrate_keeps_both_keys_and_the_calibrated_file_loads(tmp_path, setup):
     from tcamlab.rig.selfsensing import ResistanceLaw
 
     sample, rig = setup
     _short_csv(tmp_path / "run1.csv", sample, rig, ResistanceLaw(lead_ohm=0.3, stretch_factor=0.9))
-    exp = _experiment(tmp_path, "lead_resistance_ohm = 0.25\n", "", runs=[str(tmp_path / "run1.csv")])
+    exp = _experiment(
+        tmp_path,
+        "lead_resistance_ohm = 0.25\nstretch_factor = 0.9\n",
+        "stretch_factor = 0.05\n",
+        runs=[str(tmp_path / "run1.csv")],
+    )
     res = runner.invoke(app, ["calibrate", str(exp), "--out", str(tmp_path / "cal"), "--json"])
     assert res.exit_code == 0, res.output
     fitted = {p["field"]: p for p in json.loads(res.output[res.output.index("{") :])["parameters"]}
     back = load_experiment(tmp_path / "law.calibrated.toml").rig
-    assert back.stretch_factor == pytest.approx(fitted["stretch_factor"]["value"], rel=1e-5)
-    assert back.uncertainty["stretch_factor"] == pytest.approx(
-        fitted["stretch_factor"]["posterior_sd"], rel=1e-3
-    )
-    # k_s moved from its stated 1 (the fit read the logs); R_lead is kept as stated
-    assert back.stretch_factor != pytest.approx(1.0, abs=1e-4)
-    assert back.lead_resistance == pytest.approx(0.25) and "lead_resistance" not in fitted
+    # both keys are written back as stated, and the calibrated parameters moved
+    assert back.lead_resistance == pytest.approx(0.25) and back.stretch_factor == pytest.approx(0.9)
+    assert back.uncertainty["stretch_factor"] == pytest.approx(0.05)
+    assert not {"lead_resistance", "stretch_factor"} & set(fitted)
+    assert back.initial_resistance == pytest.approx(fitted["initial_resistance"]["value"], rel=1e-5)
 
 
 @pytest.mark.slow
