@@ -70,6 +70,14 @@ def command(settings: dict) -> str:
     return " \\\n    ".join(parts)
 
 
+def strengths(results: list[dict]) -> list[float]:
+    """The strengths the run's single-effect cases had (what the run did, whatever its settings
+    list)."""
+    return sorted(
+        {float(v) for r in results if r.get("case") == "single" for v in (r.get("effects") or {}).values()}
+    )
+
+
 def page(path: Path, meta: dict[str, str]) -> str:
     """The markdown page of one stored run."""
     with gzip.open(path, "rt", encoding="utf-8") as f:
@@ -91,7 +99,7 @@ def page(path: Path, meta: dict[str, str]) -> str:
         f"| commit | `{meta['commit']}` |",
         f"| machine | {settings.get('executor', '-')}, wall time {settings.get('wall_seconds', 0):,.0f} s |",
         f"| cases | {settings.get('n_tasks')} (seeds {settings.get('seeds')}, strengths "
-        + ", ".join(f"{s:g}x" for s in settings.get("strengths", []))
+        + ", ".join(f"{s:g}x" for s in strengths(d["results"]) or settings.get("strengths", []))
         + ") |",
         f"| raw results | `bench/reference/{path.name}` |",
         "",
