@@ -967,8 +967,41 @@ def closed_loop_scores(results: list[dict]) -> dict:
             "n": len(flags),
             "rate": _rate(int(sum(flags)), len(flags)),
         },
+        "within_reach": _within_reach_scores(rows, after),
         "cases": [_loop_row(r, a) for r, a in zip(rows, after)],
     }
+
+
+def _reach(r: dict) -> bool | None:
+    """Whether the menu could show the case's true effect at its true size (None: no effect, or
+    the design did not weigh it; :func:`tcamlab.loop.within_reach`)."""
+    from tcamlab.loop import within_reach
+
+    if not r.get("effects") or r.get("nearest"):
+        return None
+    eff = true_effect(r)
+    return within_reach(eff, (r.get("truth_values") or {}).get(eff, {}), r["loop"])
+
+
+def _within_reach_scores(rows: list[dict], after: list[dict]) -> dict:
+    """{family: {strength: {k, n, rate, out_of_reach}}}: top-1 after the designed runs over the
+    effect cases, leaving out those whose true effect no protocol of the menu reaches at its
+    true size (the design says so instead of promising)."""
+    cells: dict = defaultdict(lambda: [0, 0, 0])
+    for r, a in zip(rows, after):
+        fam = CASE_FAMILY.get(r["case"], r["case"])
+        if fam not in ("effect-only", "realistic") or not r.get("effects"):
+            continue
+        cell = cells[(fam, str(float(_strength(r))))]
+        if _reach(r) is False:
+            cell[2] += 1
+            continue
+        cell[0] += int(right(a))
+        cell[1] += 1
+    out: dict = {}
+    for (fam, st), (k, n, m) in sorted(cells.items()):
+        out.setdefault(fam, {})[st] = {"k": k, "n": n, "rate": _rate(k, n), "out_of_reach": m}
+    return out
 
 
 def _loop_row(r: dict, a: dict) -> dict:
@@ -990,6 +1023,8 @@ def _loop_row(r: dict, a: dict) -> dict:
         "default_separation": default.get("separation"),
         "default_runs": default.get("runs"),
         "at_least_default": loop.get("at_least_default"),
+        "decisive": loop.get("decisive"),
+        "reach": _reach(r),
     }
 
 
@@ -1413,6 +1448,10 @@ def _loop_tables(c: dict) -> list:
         [fam, fig, n, before.get((fam, fig), ["", "", "", "-"])[3], val, _loop_target(fam, fig)]
         for fam, fig, n, val, _ in _family_rows(c["after"])
     ]
+    for fam, by in (c.get("within_reach") or {}).items():
+        for st, w in by.items():
+            fig = f"top-1 at {st}x, leaving out the {w['out_of_reach']} out of the menu's reach"
+            rows.append([fam, fig, str(w["n"]), "-", _fmt(w["rate"]), LOOP_TARGETS["top-1"]])
     d = c["at_least_default"]
     rows.append(
         [
@@ -1436,6 +1475,8 @@ def _loop_tables(c: dict) -> list:
             _fmt(x["separation"]),
             _fmt(x["default_separation"]),
             f"{x['runs'] or '-'} / {x['default_runs'] or '-'}",
+            {True: "yes", False: "no"}.get(x.get("decisive"), "-"),
+            {True: "yes", False: "no"}.get(x.get("reach"), "-"),
         ]
         for x in c["cases"]
     ]
@@ -1458,6 +1499,8 @@ def _loop_tables(c: dict) -> list:
                 "J",
                 "J default",
                 "runs / default",
+                "decisive",
+                "true effect in reach",
             ],
             cases,
         ),

@@ -16,13 +16,20 @@ from pathlib import Path
 import numpy as np
 
 from tcamlab.config import load_experiment
-from tcamlab.design import DECISIVE, design, protocol_toml
+from tcamlab.design import design, protocol_toml
 from tcamlab.diagnosis import diagnose
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.report.atomic import atomic_write_text
 from tcamlab.rig import same_truth, simulate
 
-__all__ = ["close_loop", "loop_summary", "DEFAULT_PROTOCOL", "LOOP_SEED_OFFSET", "at_least_default"]
+__all__ = [
+    "close_loop",
+    "loop_summary",
+    "DEFAULT_PROTOCOL",
+    "LOOP_SEED_OFFSET",
+    "at_least_default",
+    "within_reach",
+]
 
 DEFAULT_PROTOCOL = {
     "static": "second load 2x",
@@ -124,6 +131,8 @@ def _protocol(c) -> dict | None:
         "runs": int(c.runs),
         "minutes": float(c.minutes),
         "feasible": bool(c.feasible),
+        "decisive": bool(c.decisive),
+        "at_fit": {k: float(v) for k, v in c.at_fit.items()},
     }
 
 
@@ -138,15 +147,29 @@ def loop_summary(res, kind: str) -> dict:
         "chosen": best,
         "default": default,
         "at_least_default": at_least_default(best, default),
-        "decisive": bool(best is not None and best["beyond_repeat"] >= DECISIVE),
+        "decisive": bool(res.best is not None and res.best.decisive),
+        "smallest_detectable": res.smallest_detectable(),
     }
+
+
+def within_reach(effect: str, true_values: dict, summary: dict) -> bool | None:
+    """Whether the design's menu could show ``effect`` at its true parameters [SI]: True when
+    sum over its parameters of (true / smallest detectable)^2 >= 1 (the Wald statistic at the
+    truth reaches :data:`~tcamlab.design.DECISIVE`; ``smallest_detectable`` of
+    :func:`loop_summary`), None when the design did not weigh it (not a hypothesis, or a
+    clear first diagnosis)."""
+    smallest = (summary.get("smallest_detectable") or {}).get(effect)
+    if not smallest:
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = sum((float(true_values.get(n, 0.0)) / v) ** 2 for n, v in smallest.items() if v > 0)
+    return bool(ratio >= 1.0)
 
 
 def at_least_default(best: dict | None, default: dict | None) -> bool | None:
     """Whether the chosen protocol separates at least as well as the default with no more
-    runs: J_chosen >= J_default, or both at least :data:`~tcamlab.design.DECISIVE` (both are
-    expected to decide), and runs_chosen <= runs_default; True when the default is outside the
-    sample's limits. None when either is missing or the design ranked by precision (a clear
+    runs: J_chosen >= J_default or the chosen one expected to decide (``decisive``), and
+    runs_chosen <= runs_default; True when the default is outside the sample's limits. None when either is missing or the design ranked by precision (a clear
     diagnosis: nothing to separate)."""
     if best is None or default is None:
         return None
@@ -155,5 +178,4 @@ def at_least_default(best: dict | None, default: dict | None) -> bool | None:
     a, b = best["separation"], default["separation"]
     if not (np.isfinite(a) and np.isfinite(b)):
         return None
-    both = min(best.get("beyond_repeat", a), default.get("beyond_repeat", b)) >= DECISIVE
-    return bool((a >= b or both) and best["runs"] <= default["runs"])
+    return bool((a >= b or best.get("decisive")) and best["runs"] <= default["runs"])

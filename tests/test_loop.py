@@ -4,19 +4,24 @@ from __future__ import annotations
 
 from tcamlab.benchmark import closed_loop_scores, loop_tasks
 from tcamlab.design import DECISIVE
-from tcamlab.loop import DEFAULT_PROTOCOL, at_least_default
+from tcamlab.design.protocols import kind_module
+from tcamlab.loop import DEFAULT_PROTOCOL, at_least_default, within_reach
 
 
-def _p(j, runs, feasible=True):
-    return {"protocol": "p", "separation": j, "runs": runs, "feasible": feasible}
+def _p(j, runs, feasible=True, decisive=None):
+    decisive = j >= DECISIVE if decisive is None else decisive
+    return {"protocol": "p", "separation": j, "runs": runs, "feasible": feasible, "decisive": decisive}
 
 
 def test_designed_against_the_default():
     assert at_least_default(_p(5.0, 2), _p(4.0, 2)) is True
     assert at_least_default(_p(3.0, 2), _p(4.0, 2)) is False
-    # both decisive: both are expected to decide, the cheaper is not worse
+    # the chosen one expected to decide: the cheaper is not worse
     assert at_least_default(_p(DECISIVE + 1, 2), _p(10 * DECISIVE, 4)) is True
     assert at_least_default(_p(DECISIVE - 1, 2), _p(10 * DECISIVE, 4)) is False
+    # a large J that would not decide at the fitted effect sizes does not beat a decisive choice
+    assert at_least_default(_p(DECISIVE + 1, 2), _p(10 * DECISIVE, 2, decisive=False)) is True
+    assert at_least_default(_p(DECISIVE + 1, 2, decisive=False), _p(10 * DECISIVE, 2)) is False
     # more runs than the default is worse even with more separation
     assert at_least_default(_p(50.0, 6), _p(4.0, 4)) is False
     # a default outside the sample's limits cannot be run: the design wins
@@ -55,6 +60,30 @@ def test_closed_loop_scores_count_before_and_after():
     assert [c["after"] for c in sc["cases"]] == ["displacement-drift", "miscalibrated", "displacement-drift"]
 
 
+def test_within_reach_compares_the_true_size_with_the_smallest_detectable():
+    summary = {"smallest_detectable": {"g": {"slope": 3.5e4}, "two": {"a": 1.0, "b": 2.0}}}
+    assert within_reach("g", {"slope": 2.9e3}, summary) is False
+    assert within_reach("g", {"slope": -4e4}, summary) is True
+    # two parameters: (0.8 / 1)^2 + (1.4 / 2)^2 = 1.13 >= 1, though each alone falls short
+    assert within_reach("two", {"a": 0.8, "b": 1.4}, summary) is True
+    assert within_reach("two", {"a": 0.5, "b": 1.0}, summary) is False
+    assert within_reach("drift", {"drift": 1.0}, summary) is None  # not weighed by the design
+
+
+def test_closed_loop_scores_leave_out_what_no_protocol_reaches():
+    reach = {"smallest_detectable": {"displacement-drift": {"drift": 1e-9}}}
+    far = {"smallest_detectable": {"displacement-drift": {"drift": 1e-6}}}
+    rows = []
+    for summary, after in ((reach, "displacement-drift"), (far, None), (reach, None)):
+        c = _case("miscalibrated", None, "attributed" if after else "miscalibrated", after, True)
+        c["loop"].update(summary)
+        c["truth_values"] = {"displacement-drift": {"drift": 4e-9}}
+        rows.append(c)
+    w = closed_loop_scores(rows)["within_reach"]["effect-only"]["3.0"]
+    assert w == {"k": 1, "n": 2, "rate": 0.5, "out_of_reach": 1}
+    assert [c["reach"] for c in closed_loop_scores(rows)["cases"]] == [True, False, True]
+
+
 def test_loop_tasks_keep_kinds_with_a_menu_and_one_case_per_family_when_quick():
     tasks = [
         {"case": "single", "kind": "static", "effects": {"a": 3.0}, "seed": 1},
@@ -63,7 +92,9 @@ def test_loop_tasks_keep_kinds_with_a_menu_and_one_case_per_family_when_quick():
         {"case": "null", "kind": "selfsensing", "effects": {}, "seed": 2},
     ]
     quick = loop_tasks(tasks, quick=True)
-    assert [(t["case"], t["effects"]) for t in quick] == [("single", {"a": 3.0}), ("null", {})]
+    menu = hasattr(kind_module("selfsensing"), "design_menu")
+    expected = [("single", {"a": 3.0}), ("null", {})] + [("null", {})] * menu
+    assert [(t["case"], t["effects"]) for t in quick] == expected
     assert all(t["closed_loop"] for t in quick)
-    assert len(loop_tasks(tasks, quick=False)) == 3
+    assert len(loop_tasks(tasks, quick=False)) == 3 + menu
     assert set(DEFAULT_PROTOCOL) >= {"static", "dynamic", "sensing", "curvature"}

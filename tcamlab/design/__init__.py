@@ -28,7 +28,7 @@ from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
 from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive, sensitivity
 from tcamlab.design.protocols import Protocol, cost_minutes, menu, model_inputs, protocol_frames
 from tcamlab.design.result import CandidateProtocol, DesignResult
-from tcamlab.design.score import information_gain, pair_separation, refit_separation
+from tcamlab.design.score import information_gain, pair_separation, refit_separation, wald_after
 from tcamlab.design.toml import protocol_toml
 from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
@@ -117,10 +117,48 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
             step()
     _mark_risky(cands)
     _beyond_repeat(cands)
+    base.out_of_reach = _decide(cands, hyps)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates, base.best = cands, _best(cands)
     base.message = _message(base, hyps)
     return base
+
+
+def _decide(cands: list[CandidateProtocol], hyps) -> dict:
+    """Mark the protocols expected to decide; return the effects out of every protocol's reach.
+
+    An effect is out of reach when no protocol of the menu would tell it from zero at its fitted
+    size (``at_fit`` below :data:`DECISIVE` under every feasible one): then, if it is the truth
+    at about that size, nothing here will show it, and the design says so instead of counting on
+    J, whose spread over a wide posterior promises otherwise. A protocol decides when its J
+    beyond the repeat is at least :data:`DECISIVE` and it tells every effect within reach from
+    zero at its fitted size; with every effect out of reach, none decides.
+    """
+    ok = [c for c in cands if c.feasible]
+    effects = [h for h in hyps if h.effect_values.size]
+    reach = {
+        h.name: max((np.nan_to_num(c.at_fit.get(h.name, 0.0), nan=0.0) for c in ok), default=0.0)
+        for h in effects
+    }
+    out = {}
+    for h in effects:
+        if reach[h.name] >= DECISIVE:
+            continue
+        best = max(ok, key=lambda c: np.nan_to_num(c.at_fit.get(h.name, 0.0), nan=0.0), default=None)
+        need = best.detectable.get(h.name, {}) if best is not None else {}
+        out[h.name] = {
+            n: {"fitted": float(h.intervals[n]["value"]), "smallest": v, "unit": h.intervals[n].get("unit")}
+            for n, v in need.items()
+        }
+    within = [h.name for h in effects if h.name not in out]
+    for c in cands:
+        c.decisive = bool(
+            c.feasible
+            and within
+            and c.beyond_repeat >= DECISIVE
+            and all(np.nan_to_num(c.at_fit.get(n, 0.0), nan=0.0) >= DECISIVE for n in within)
+        )
+    return out
 
 
 def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int):
@@ -187,25 +225,38 @@ def _beyond_repeat(cands: list[CandidateProtocol]) -> None:
 
 def _best(cands: list[CandidateProtocol]) -> CandidateProtocol | None:
     ok = [c for c in cands if c.feasible and np.isfinite(c.separation) and c.separation > 0]
-    decisive = [c for c in ok if c.beyond_repeat >= DECISIVE]
+    decisive = [c for c in ok if c.decisive]
     if decisive:
         return max(decisive, key=lambda c: c.per_hour)
     return max(ok, key=lambda c: (round(c.beyond_repeat, 1), -c.runs, c.separation)) if ok else None
 
 
 def _message(res: DesignResult, hyps) -> str:
-    names = " vs ".join(h.name for h in hyps)
+    names = " vs ".join(h.name for h in hyps if h.name not in res.out_of_reach)
     b = res.best
     if b is None:
         return f"no protocol of the {res.kind} menu separates {names} within the limits"
-    verdict = (
-        "is expected to decide" if b.beyond_repeat >= DECISIVE else "separates best, but not decisively,"
-    )
+    verdict = "is expected to decide" if b.decisive else "separates best, but not decisively,"
     return (
         f"{b.name} {verdict} between {names}: separation J {b.separation_refit:.3g}, "
         f"{b.beyond_repeat:.3g} beyond a repeat of the protocol run (decisive from {DECISIVE:.1f}: an "
-        f"expected Bayes factor of 100), {b.runs} runs, {b.minutes:.0f} min"
+        f"expected Bayes factor of 100), {b.runs} runs, {b.minutes:.0f} min" + _out_of_reach(res)
     )
+
+
+def _out_of_reach(res: DesignResult) -> str:
+    """The effects no protocol of the menu would tell from zero at their fitted sizes, with
+    the smallest size the best one would (empty when none)."""
+    parts = []
+    for name, params in res.out_of_reach.items():
+        sizes = [
+            f"{n} fitted {p['fitted']:.3g}, the best protocol needs {p['smallest']:.3g} {p.get('unit') or ''}".rstrip()
+            for n, p in params.items()
+        ]
+        parts.append(f"{name} ({'; '.join(sizes) or 'no solution near its fit'})")
+    if not parts:
+        return ""
+    return "; out of reach of every protocol here at its fitted size: " + ", ".join(parts)
 
 
 def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) -> CandidateProtocol:
@@ -249,6 +300,7 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
         label[i, j]: {q: float(np.max(np.abs(preds[i].mean[q] - preds[j].mean[q]))) for q in preds[i].mean}
         for i, j in pairs
     }
+    out.at_fit, out.detectable = _at_fit(kind, sample, rig, frames, hyps, noise)
     stacked = [_normalised_draws(p, noise, outputs) for p in preds]
     out.refit = {label[i, j]: refit_separation(stacked[i], stacked[j], scale[i, j]) for i, j in pairs}
     out.separation_refit = float(min(out.refit.values())) if pairs else float("inf")
@@ -256,6 +308,29 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
     out.log_bayes_factor = out.separation_refit / 2.0
     out.per_hour = out.separation_refit / (minutes / 60.0)
     return out
+
+
+def _at_fit(kind, sample, rig, frames, hyps, noise: dict) -> tuple[dict, dict]:
+    """Each effect hypothesis's Wald statistic at its fit after the runs so far and these
+    (:func:`~tcamlab.design.score.wald_after`; NaN where the model has no solution near the
+    fit), and the smallest size of each of its parameters they would tell from zero [SI]."""
+    outputs = get_kind(kind).outputs
+    w2, smallest = {}, {}
+    for h in hyps:
+        p, k = h.u().size, h.effect_values.size
+        if k == 0:
+            continue
+        try:
+            sens = sensitivity(kind, sample, rig, frames, h)
+        except (*MODEL_ERRORS, ValueError):
+            w2[h.name] = float("nan")
+            continue
+        scale = max(1.0, h.misfit)  # the pair's noise in J is scaled the same way
+        B = np.vstack([sens[q] / (noise[q] * scale) for q in outputs])
+        w2[h.name], sd = wald_after(B, covariance_root(h)[p:, :], h.effect_values)
+        names = list(h.intervals)[p : p + k]
+        smallest[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
+    return w2, smallest
 
 
 def _normalised_draws(pred, noise: dict, outputs) -> np.ndarray:

@@ -71,6 +71,16 @@ class CandidateProtocol:
     """Hypothesis -> share of its parameter draws with no solution under this protocol [-]."""
     sd_ratio: dict = field(default_factory=dict)
     """A clear diagnosis: each parameter's expected sd after the new runs over its sd now [-]."""
+    at_fit: dict = field(default_factory=dict)
+    """Effect hypothesis -> its Wald statistic at its fitted parameters after the runs so far and
+    this protocol's, theta^T Sigma_after^-1 theta [-] (:func:`tcamlab.design.score.wald_after`):
+    the evidence for the effect expected if it is as large as fitted."""
+    detectable: dict = field(default_factory=dict)
+    """Effect hypothesis -> {parameter: smallest |value| the runs so far and this protocol's would
+    tell from zero, sqrt(``DECISIVE``) sds after [SI]}."""
+    decisive: bool = False
+    """Expected to decide: J beyond the repeat and every effect's ``at_fit`` at least
+    ``DECISIVE``."""
 
     def to_dict(self) -> dict:
         return to_jsonable(dict(self.__dict__))
@@ -115,6 +125,19 @@ class DesignResult:
     criterion: str = ""
     message: str = ""
     settings: dict = field(default_factory=dict)
+    out_of_reach: dict = field(default_factory=dict)
+    """Effect -> {parameter: {fitted, smallest, unit}}: effects no protocol of the menu would tell
+    from zero at their fitted sizes (``smallest``: the size the best of them would [SI])."""
+
+    def smallest_detectable(self) -> dict:
+        """Effect -> {parameter: the smallest |value| any feasible protocol of the menu would tell
+        from zero with the runs so far [SI]} (min over protocols of ``detectable``)."""
+        out: dict = {}
+        for c in self.candidates:
+            for name, params in (c.detectable if c.feasible else {}).items():
+                for n, v in params.items():
+                    out.setdefault(name, {})[n] = min(v, out.get(name, {}).get(n, float("inf")))
+        return out
 
     def to_dict(self) -> dict:
         return to_jsonable(
@@ -131,5 +154,6 @@ class DesignResult:
                 "best": self.best.name if self.best is not None else None,
                 "candidates": [c.to_dict() for c in self.candidates],
                 "settings": self.settings,
+                "out_of_reach": self.out_of_reach,
             }
         )

@@ -25,6 +25,15 @@ def _num(x: float) -> str:
     return "inf" if math.isinf(x) else (f"{x:.3g}" if abs(x) < 100 else f"{x:.0f}")
 
 
+def _at_fit(c, out_of_reach) -> str:
+    """The weakest effect's Wald statistic at its fit after the protocol, among the effects
+    within the menu's reach ("-": none)."""
+    vals = [v for n, v in c.at_fit.items() if n not in out_of_reach]
+    if not vals:
+        return "-"
+    return "nan" if any(math.isnan(v) for v in vals) else _num(min(vals))
+
+
 def design_lines(result) -> list[str]:
     """Headline, hypotheses, then one line per protocol (best first)."""
     lines = [f"{result.experiment}: {result.message}"]
@@ -34,7 +43,7 @@ def design_lines(result) -> list[str]:
     if result.status == "clear":
         return lines + _precision_lines(result)
     head = (
-        f"{'protocol':30s} {'J':>8s} {'beyond':>8s} {'D rows':>8s} {'runs':>4s} {'min':>6s} "
+        f"{'protocol':30s} {'J':>8s} {'beyond':>8s} {'at fit':>8s} {'D rows':>8s} {'runs':>4s} {'min':>6s} "
         f"{'per h':>7s}  max difference"
     )
     lines += [head, "-" * len(head)]
@@ -44,7 +53,8 @@ def design_lines(result) -> list[str]:
             lines.append(f"{mark}{c.name:29s} {'out of bounds':>8s}  {c.limit}")
             continue
         lines.append(
-            f"{mark}{c.name:29s} {_num(c.separation_refit):>8s} {_num(c.beyond_repeat):>8s} {_num(c.separation):>8s} "
+            f"{mark}{c.name:29s} {_num(c.separation_refit):>8s} {_num(c.beyond_repeat):>8s} {_at_fit(c, result.out_of_reach):>8s} "
+            f"{_num(c.separation):>8s} "
             f"{c.runs:4d} {c.minutes:6.0f} {c.per_hour:7.2f}  {_diff(c)}"
         )
     return lines
