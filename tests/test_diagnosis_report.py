@@ -471,12 +471,16 @@ def _design() -> dict:
         "status": "ambiguous",
         "message": "Run the slow oven ramp next: it tells glass-transition from recalibration.",
         "best": "slow oven ramp",
+        "out_of_reach": {"displacement-drift": {"drift": {"fitted": 1e-12, "smallest": 1e-9, "unit": "m/s"}}},
         "candidates": [
             {
                 **protocol,
                 "name": "slow oven ramp",
                 "separation": 12.5,
                 "separation_refit": 9.25,
+                "beyond_repeat": 9.5,
+                "at_fit": {"glass-transition": 30.0, "displacement-drift": 0.1},
+                "decisive": True,
                 "runs": 3,
                 "minutes": 45.0,
                 "per_hour": 16.7,
@@ -503,10 +507,21 @@ def test_next_experiment_section_lists_the_protocols_with_the_best_marked():
     assert sec.heading == "Next experiment"
     assert sec.paragraphs == [_design()["message"]]
     (table,) = sec.tables
-    assert table.columns == ["protocol", "separation J", "J, rows independent", "runs", "minutes", "feasible"]
+    assert table.columns == [
+        "protocol",
+        "separation J",
+        "J beyond the repeat",
+        "weakest effect at its fit",
+        "decides",
+        "runs",
+        "minutes",
+        "feasible",
+    ]
     rows = [[c.text for c in row] for row in table.formatted_rows()]
-    assert rows[0] == ["slow oven ramp (best)", "9.25", "12.5", "3", "45", "yes"]
-    assert rows[1] == ["second load", "\u2013", "4.5", "2", "30", "load above the thread's rating"]
+    # the drift is out of the menu's reach: the weakest effect within it is the glass transition
+    assert rows[0] == ["slow oven ramp (best)", "9.25", "9.5", "30", "yes", "3", "45", "yes"]
+    dash = "\u2013"
+    assert rows[1] == ["second load", dash, dash, dash, "no", "2", "30", "load above the thread's rating"]
     # a clear diagnosis: ranked by the information the protocols add
     clear = {**_design(), "status": "clear"}
     clear["candidates"] = [{**c, "information_gain": 2.5} for c in clear["candidates"]]

@@ -314,6 +314,19 @@ def _finite(x):
     return float(x) if isinstance(x, (int, float)) and math.isfinite(x) else None
 
 
+def _separation_cells(c: dict, out_of_reach: dict) -> list:
+    """J, J beyond the repeat, the weakest within-reach effect's Wald statistic at its fit (None
+    without one) and whether the protocol decides."""
+    at_fit = [v for n, v in (c.get("at_fit") or {}).items() if n not in out_of_reach]
+    weakest = _finite(min(at_fit)) if at_fit else None
+    return [
+        _finite(c.get("separation_refit")),
+        _finite(c.get("beyond_repeat")),
+        weakest,
+        "yes" if c.get("decisive") else "no",
+    ]
+
+
 def next_experiment_section(design) -> Section | None:
     """The "Next experiment" section of a diagnosis's ``next_experiment``, or None.
 
@@ -334,13 +347,10 @@ def next_experiment_section(design) -> Section | None:
         return None
     best = design.get("best")
     precision = design.get("status") == "clear"
+    reach = design.get("out_of_reach") or {}
     rows = [
         [c.get("name", "") + (" (best)" if best is not None and c.get("name") == best else "")]
-        + (
-            [_finite(c.get("information_gain"))]
-            if precision
-            else [_finite(c.get("separation_refit")), _finite(c.get("separation"))]
-        )
+        + ([_finite(c.get("information_gain"))] if precision else _separation_cells(c, reach))
         + [
             c.get("runs"),
             _finite(c.get("minutes")),
@@ -355,12 +365,22 @@ def next_experiment_section(design) -> Section | None:
             "parameters (expected information gain); feasible, or the limit it breaks"
         )
     else:
-        columns = ["protocol", "separation J", "J, rows independent", "runs", "minutes", "feasible"]
+        columns = [
+            "protocol",
+            "separation J",
+            "J beyond the repeat",
+            "weakest effect at its fit",
+            "decides",
+            "runs",
+            "minutes",
+            "feasible",
+        ]
         caption = (
             "Candidate protocols, best first: separation J of the hardest pair of hypotheses (symmetric "
-            "KL divergence of their predictive distributions, J/2 the expected log Bayes factor; "
-            "decisive from 9.2), the same with the rows taken as independent, and whether the "
-            "sample's limits allow it"
+            "KL divergence of their predictive distributions, J/2 the expected log Bayes factor), "
+            "what it adds beyond a repeat of the protocol run, the Wald statistic of the weakest "
+            "effect within the menu's reach if it is as large as fitted, whether it decides (both "
+            "from 9.2: a Bayes factor of 100), and whether the sample's limits allow it"
         )
     return Section(
         heading="Next experiment",
