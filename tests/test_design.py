@@ -100,6 +100,20 @@ def test_an_effect_no_protocol_reaches_is_said_and_not_counted_on():
     assert by["second load 2x"].at_fit["youngs-modulus-temperature"] >= 2 * np.log(100)
     assert by["repeat (same protocol)"].at_fit["youngs-modulus-temperature"] < 1.0
     assert res.best.decisive and not by["repeat (same protocol)"].decisive
+    # 80 % power at the fitted size: (sqrt(9.21) + 0.84)^2 = 15.0
+    from tcamlab.design import POWERED
+
+    assert POWERED == pytest.approx(15.03, abs=0.01)
+    assert res.best.at_fit["youngs-modulus-temperature"] >= POWERED
+    # a protocol short of it is scored again with twice its runs, which lifts the statistic
+    # (by less than twice: repeated runs pin what they see, not what they miss); the repeat,
+    # far from it, is not
+    once, twice = by["second load 1.5x"], by["second load 1.5x, 2x the runs"]
+    assert once.at_fit["youngs-modulus-temperature"] < POWERED
+    assert twice.runs == 2 * once.runs and twice.table["runs"] == 2 * once.table["runs"]
+    w1, w2 = once.at_fit["youngs-modulus-temperature"], twice.at_fit["youngs-modulus-temperature"]
+    assert w1 < w2 < 2 * w1
+    assert not any(c.name.startswith("repeat (same protocol), ") for c in res.candidates)
     # a J beyond the repeat alone does not make a protocol decisive
     assert all(
         not c.decisive

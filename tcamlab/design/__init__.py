@@ -22,6 +22,7 @@ Steps (one module each):
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import norm
 
 from tcamlab import progress
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
@@ -34,7 +35,16 @@ from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
 from tcamlab.units import display
 
-__all__ = ["design", "DesignResult", "CandidateProtocol", "Hypothesis", "protocol_toml", "DECISIVE"]
+__all__ = [
+    "design",
+    "DesignResult",
+    "CandidateProtocol",
+    "Hypothesis",
+    "protocol_toml",
+    "DECISIVE",
+    "POWERED",
+    "RUN_FACTORS",
+]
 
 DECISIVE = 2.0 * float(np.log(100.0))
 """Separation J [-] at which a protocol is expected to decide: an expected log Bayes factor of
@@ -43,6 +53,16 @@ repeat's per hour among those whose J (:func:`~tcamlab.design.score.refit_separa
 correlated) exceeds the repeat's by it (:func:`_beyond_repeat`), else the one with the most. The rows-independent D is shown beside it but not used:
 on a static case with E(T) withheld, D was 17.5 and the correlated criterion 0.65 for a second
 load, and the diagnosis with the designed runs added stayed aliased."""
+
+POWERED = (float(np.sqrt(DECISIVE)) + float(norm.ppf(0.8))) ** 2
+"""Wald statistic at an effect's fit [-] that a protocol should expect for the realised one to
+reach :data:`DECISIVE` with a probability of 0.8 if the effect is as large as fitted
+((sqrt(9.2) + 0.84)^2 = 15.0). Below it the protocol is also scored with more runs
+(:data:`RUN_FACTORS`)."""
+
+RUN_FACTORS = (2, 3)
+"""Multiples of a protocol's runs the design also scores where the protocol falls short of
+:data:`POWERED` at an effect's fitted size (the same programs run again)."""
 
 MAX_FAILED_DRAWS = 0.05
 """Largest share of a hypothesis's parameter draws for which the model may have no solution
@@ -113,7 +133,7 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
     cands = []
     with progress.task("designing: scoring protocols", total=len(protocols)) as step:
         for p in protocols:
-            cands.append(_score(experiment, p, hyps, noise, n_draws, seed))
+            cands.extend(_score(experiment, p, hyps, noise, n_draws, seed))
             step()
     _mark_risky(cands)
     _beyond_repeat(cands)
@@ -127,12 +147,13 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
 def _decide(cands: list[CandidateProtocol], hyps) -> dict:
     """Mark the protocols expected to decide; return the effects out of every protocol's reach.
 
-    An effect is out of reach when no protocol of the menu would tell it from zero at its fitted
-    size (``at_fit`` below :data:`DECISIVE` under every feasible one): then, if it is the truth
-    at about that size, nothing here will show it, and the design says so instead of counting on
-    J, whose spread over a wide posterior promises otherwise. A protocol decides when its J
-    beyond the repeat is at least :data:`DECISIVE` and it tells every effect within reach from
-    zero at its fitted size; with every effect out of reach, none decides.
+    An effect is out of reach when no protocol of the menu, with up to the largest of
+    :data:`RUN_FACTORS` times its runs, would tell it from zero at its fitted size (``at_fit``
+    below :data:`DECISIVE` under every feasible one): then, if it is the truth at about that
+    size, nothing here will show it, and the design says so instead of counting on J, whose
+    spread over a wide posterior promises otherwise. A protocol decides when its J beyond the
+    repeat is at least :data:`DECISIVE` and it expects every effect within reach at
+    :data:`POWERED` at its fitted size; with every effect out of reach, none decides.
     """
     ok = [c for c in cands if c.feasible]
     effects = [h for h in hyps if h.effect_values.size]
@@ -156,7 +177,7 @@ def _decide(cands: list[CandidateProtocol], hyps) -> dict:
             c.feasible
             and within
             and c.beyond_repeat >= DECISIVE
-            and all(np.nan_to_num(c.at_fit.get(n, 0.0), nan=0.0) >= DECISIVE for n in within)
+            and all(np.nan_to_num(c.at_fit.get(n, 0.0), nan=0.0) >= POWERED for n in within)
         )
     return out
 
@@ -228,7 +249,10 @@ def _best(cands: list[CandidateProtocol]) -> CandidateProtocol | None:
     decisive = [c for c in ok if c.decisive]
     if decisive:
         return max(decisive, key=lambda c: c.per_hour)
-    return max(ok, key=lambda c: (round(c.beyond_repeat, 1), -c.runs, c.separation)) if ok else None
+    # none decides: the menu's own protocols only (more runs are offered to decide, not to
+    # spend on a protocol that would not)
+    base = [c for c in ok if c.run_factor == 1]
+    return max(base, key=lambda c: (round(c.beyond_repeat, 1), -c.runs, c.separation)) if base else None
 
 
 def _message(res: DesignResult, hyps) -> str:
@@ -259,32 +283,32 @@ def _out_of_reach(res: DesignResult) -> str:
     return "; out of reach of every protocol here at its fitted size: " + ", ".join(parts)
 
 
-def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) -> CandidateProtocol:
-    """One protocol scored: predictions of every hypothesis, limits, D of every pair."""
+def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) -> list[CandidateProtocol]:
+    """One protocol scored (predictions of every hypothesis, limits, J and D of every pair, each
+    effect's statistic at its fit), then the same with :data:`RUN_FACTORS` times its runs where
+    it falls short of :data:`POWERED` at the fit."""
     kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
     frames = protocol_frames(kind, rig, proto.table, seed)
     minutes = cost_minutes(frames, kind)
-    out = CandidateProtocol(
-        proto.name, proto.table, len(frames), minutes, float("nan"), float("nan"), float("nan"), {}, {}
-    )
+    nan = float("nan")
+    out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
     frames, why = _inputs(kind, sample, rig, frames, hyps[0])
     if why:
         out.feasible, out.limit = False, why
-        return out
+        return [out]
     preds = []
     for h in hyps:
         pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed)
         if why:
             out.feasible, out.limit = False, why
-            return out
+            return [out]
         out.failed_draws[h.name] = pred.failed
         preds.append(pred)
-    pairs = [(i, j) for i in range(len(hyps)) for j in range(i + 1, len(hyps))]
-    label = {(i, j): f"{hyps[i].name} vs {hyps[j].name}" for i, j in pairs}
-    scale = {(i, j): max(1.0, hyps[i].misfit, hyps[j].misfit) for i, j in pairs}
     outputs = get_kind(kind).outputs
-    out.pairs = {
-        label[i, j]: sum(
+    pairs = [(i, j) for i in range(len(hyps)) for j in range(i + 1, len(hyps))]
+    scale = {(i, j): max(1.0, hyps[i].misfit, hyps[j].misfit) for i, j in pairs}
+    D = {
+        (i, j): sum(
             pair_separation(
                 preds[i].mean[q],
                 preds[i].var[q],
@@ -297,40 +321,85 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
         for i, j in pairs
     }
     out.max_difference = {
-        label[i, j]: {q: float(np.max(np.abs(preds[i].mean[q] - preds[j].mean[q]))) for q in preds[i].mean}
+        f"{hyps[i].name} vs {hyps[j].name}": {
+            q: float(np.max(np.abs(preds[i].mean[q] - preds[j].mean[q]))) for q in preds[i].mean
+        }
         for i, j in pairs
     }
-    out.at_fit, out.detectable = _at_fit(kind, sample, rig, frames, hyps, noise)
     stacked = [_normalised_draws(p, noise, outputs) for p in preds]
-    out.refit = {label[i, j]: refit_separation(stacked[i], stacked[j], scale[i, j]) for i, j in pairs}
-    out.separation_refit = float(min(out.refit.values())) if pairs else float("inf")
-    out.separation = float(min(out.pairs.values())) if pairs else float("inf")
+    parts = (hyps, stacked, _sensitivities(kind, sample, rig, frames, hyps, noise), D, scale)
+    _fill(out, parts, 1)
+    return [out] + _more_runs(out, parts)
+
+
+def _more_runs(out: CandidateProtocol, parts) -> list[CandidateProtocol]:
+    """The protocol with :data:`RUN_FACTORS` times its runs, up to the first that gets every
+    effect to :data:`POWERED` at its fit; none when its own runs do, or when no effect's
+    statistic is within the largest factor of :data:`DECISIVE`. (The statistic grows more
+    slowly than the runs where the new runs cannot tell the effect from a recalibrated
+    parameter: repeating them pins what they see, not what they miss.)"""
+    # an effect whose statistic more runs could lift to DECISIVE, were it to grow with them
+    short = [w for w in out.at_fit.values() if np.isfinite(w) and DECISIVE / max(RUN_FACTORS) <= w < POWERED]
+    variants = []
+    for m in RUN_FACTORS if short else ():
+        nan = float("nan")
+        v = CandidateProtocol(
+            f"{out.name}, {m}x the runs", {**out.table, "runs": m * out.runs}, m * out.runs,
+            m * out.minutes, nan, nan, nan, {}, dict(out.max_difference), failed_draws=dict(out.failed_draws),
+            run_factor=m,
+        )  # fmt: skip
+        _fill(v, parts, m)
+        variants.append(v)
+        if all(w >= POWERED for w in v.at_fit.values() if np.isfinite(w) and w > 0):
+            break
+    return variants
+
+
+def _fill(out: CandidateProtocol, parts, m: int) -> None:
+    """J, D, the effects' statistics at their fits and the sizes they would detect, for ``m``
+    copies of the protocol's runs (the same programs again: D and the new runs' information
+    scale by ``m``; J is computed on the draws repeated ``m`` times)."""
+    hyps, stacked, sens, D, scale = parts
+    label = {(i, j): f"{hyps[i].name} vs {hyps[j].name}" for i, j in D}
+    out.pairs = {label[k]: m * d for k, d in D.items()}
+    out.refit = {
+        label[i, j]: refit_separation(np.tile(stacked[i], m), np.tile(stacked[j], m), scale[i, j])
+        for i, j in D
+    }
+    out.separation_refit = float(min(out.refit.values())) if D else float("inf")
+    out.separation = float(min(out.pairs.values())) if D else float("inf")
     out.log_bayes_factor = out.separation_refit / 2.0
-    out.per_hour = out.separation_refit / (minutes / 60.0)
-    return out
-
-
-def _at_fit(kind, sample, rig, frames, hyps, noise: dict) -> tuple[dict, dict]:
-    """Each effect hypothesis's Wald statistic at its fit after the runs so far and these
-    (:func:`~tcamlab.design.score.wald_after`; NaN where the model has no solution near the
-    fit), and the smallest size of each of its parameters they would tell from zero [SI]."""
-    outputs = get_kind(kind).outputs
-    w2, smallest = {}, {}
+    out.per_hour = out.separation_refit / (out.minutes / 60.0)
     for h in hyps:
+        if h.name not in sens:
+            continue
+        if sens[h.name] is None:
+            out.at_fit[h.name] = float("nan")
+            continue
         p, k = h.u().size, h.effect_values.size
-        if k == 0:
+        w, sd = wald_after(np.sqrt(m) * sens[h.name], covariance_root(h)[p:, :], h.effect_values)
+        out.at_fit[h.name] = w
+        names = list(h.intervals)[p : p + k]
+        out.detectable[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
+
+
+def _sensitivities(kind, sample, rig, frames, hyps, noise: dict) -> dict:
+    """Effect hypothesis -> its predictions' sensitivity to one posterior sd of each
+    standardised parameter, rows over its noise (None where the model has no solution near the
+    fit; :func:`~tcamlab.design.predict.sensitivity`)."""
+    outputs = get_kind(kind).outputs
+    out = {}
+    for h in hyps:
+        if not h.effect_values.size:
             continue
         try:
             sens = sensitivity(kind, sample, rig, frames, h)
         except (*MODEL_ERRORS, ValueError):
-            w2[h.name] = float("nan")
+            out[h.name] = None
             continue
         scale = max(1.0, h.misfit)  # the pair's noise in J is scaled the same way
-        B = np.vstack([sens[q] / (noise[q] * scale) for q in outputs])
-        w2[h.name], sd = wald_after(B, covariance_root(h)[p:, :], h.effect_values)
-        names = list(h.intervals)[p : p + k]
-        smallest[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
-    return w2, smallest
+        out[h.name] = np.vstack([sens[q] / (noise[q] * scale) for q in outputs])
+    return out
 
 
 def _normalised_draws(pred, noise: dict, outputs) -> np.ndarray:

@@ -78,9 +78,12 @@ class CandidateProtocol:
     detectable: dict = field(default_factory=dict)
     """Effect hypothesis -> {parameter: smallest |value| the runs so far and this protocol's would
     tell from zero, sqrt(``DECISIVE``) sds after [SI]}."""
+    run_factor: int = 1
+    """1 for a protocol of the kind's menu; m for the same with m times its runs, scored where
+    the menu's protocol falls short of deciding at the fitted sizes only by its runs."""
     decisive: bool = False
-    """Expected to decide: J beyond the repeat and every effect's ``at_fit`` at least
-    ``DECISIVE``."""
+    """Expected to decide: J beyond the repeat at least ``DECISIVE`` and every effect within the
+    menu's reach at least ``POWERED`` at its fit (:mod:`tcamlab.design`)."""
 
     def to_dict(self) -> dict:
         return to_jsonable(dict(self.__dict__))

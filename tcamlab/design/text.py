@@ -43,17 +43,17 @@ def design_lines(result) -> list[str]:
     if result.status == "clear":
         return lines + _precision_lines(result)
     head = (
-        f"{'protocol':30s} {'J':>8s} {'beyond':>8s} {'at fit':>8s} {'D rows':>8s} {'runs':>4s} {'min':>6s} "
+        f"{'protocol':42s} {'J':>8s} {'beyond':>8s} {'at fit':>8s} {'D rows':>8s} {'runs':>4s} {'min':>6s} "
         f"{'per h':>7s}  max difference"
     )
     lines += [head, "-" * len(head)]
     for c in result.candidates:
         mark = "*" if result.best is not None and c.name == result.best.name else " "
         if not c.feasible:
-            lines.append(f"{mark}{c.name:29s} {'out of bounds':>8s}  {c.limit}")
+            lines.append(f"{mark}{c.name:41s} {'out of bounds':>8s}  {c.limit}")
             continue
         lines.append(
-            f"{mark}{c.name:29s} {_num(c.separation_refit):>8s} {_num(c.beyond_repeat):>8s} {_at_fit(c, result.out_of_reach):>8s} "
+            f"{mark}{c.name:41s} {_num(c.separation_refit):>8s} {_num(c.beyond_repeat):>8s} {_at_fit(c, result.out_of_reach):>8s} "
             f"{_num(c.separation):>8s} "
             f"{c.runs:4d} {c.minutes:6.0f} {c.per_hour:7.2f}  {_diff(c)}"
         )
