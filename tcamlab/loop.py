@@ -10,7 +10,6 @@ default protocol (:data:`DEFAULT_PROTOCOL`) would have separated the hypotheses.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,7 @@ from tcamlab.design import design, protocol_toml
 from tcamlab.diagnosis import diagnose
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.report.atomic import atomic_write_text
-from tcamlab.rig import same_truth, simulate
+from tcamlab.rig import same_truth, simulate, with_hidden_rig
 
 __all__ = [
     "close_loop",
@@ -82,7 +81,7 @@ def close_loop(experiment, first: dict, truth: dict, out_dir, *, seed: int, n_bo
     try:
         sim = simulate(
             experiment.kind,
-            _with_hidden_rig(load_experiment(nxt, require_runs=False), truth),
+            with_hidden_rig(load_experiment(nxt, require_runs=False), truth),
             seed=new_seed,
             out_dir=out_dir,
             name=name,
@@ -97,20 +96,6 @@ def close_loop(experiment, first: dict, truth: dict, out_dir, *, seed: int, n_bo
     both = load_experiment(sim.experiment_path)
     summary["runs_total"] = len(both.runs)
     return summary, diagnose(both, n_boot=n_boot, seed=0, workers=1).to_dict()
-
-
-def _with_hidden_rig(protocol_file, truth: dict):
-    """The protocol file's experiment with the rig values the simulated experiment file keeps
-    hidden (a sensing rig's S and R0 are the template's, never written out) taken from the
-    truth's template, so the virtual rig can run it."""
-    hidden = {
-        k: v
-        for k, v in (truth.get("template_rig") or {}).items()
-        if v is not None and hasattr(protocol_file.rig, k) and getattr(protocol_file.rig, k) is None
-    }
-    if not hidden:
-        return protocol_file
-    return dataclasses.replace(protocol_file, rig=protocol_file.rig.replace(**hidden))
 
 
 def _default(res, kind: str):

@@ -676,7 +676,9 @@ def simulate_experiment(
     opts = dict(effects=effects or {}, scatter=scatter, noise_scale=noise_scale)
     opts.update(parameter_error=parameter_error, noisy_zero=noisy_zero)
     if truth is not None:
-        opts = _same_truth(kind, truth, effects, parameter_error, noisy_zero)
+        opts, doc = _same_truth(kind, truth, effects, parameter_error, noisy_zero)
+        # a protocol file made from a simulated experiment lacks the rig values it kept hidden
+        template = rig.with_hidden_rig(load_experiment(template, require_runs=False), doc)
     return rig.simulate(
         kind,
         template,
@@ -691,9 +693,9 @@ def simulate_experiment(
     )
 
 
-def _same_truth(kind: str, path, effects, parameter_error, noisy_zero) -> dict:
-    """simulate's arguments from a truth file (:func:`tcamlab.rig.same_truth`); refuses the
-    options the truth file sets."""
+def _same_truth(kind: str, path, effects, parameter_error, noisy_zero) -> tuple[dict, dict]:
+    """(simulate's arguments from a truth file (:func:`tcamlab.rig.same_truth`), the truth file's
+    content); refuses the options the truth file sets."""
     from tcamlab import rig
 
     given = [o for o, v in (("--effect", effects), ("--parameter-error", parameter_error)) if v]
@@ -712,7 +714,7 @@ def _same_truth(kind: str, path, effects, parameter_error, noisy_zero) -> dict:
         ) from None
     if doc.get("kind") != kind:
         raise ConfigError(f"{path}: a truth file of a {doc.get('kind')!r} simulation, not {kind!r}")
-    return rig.same_truth(doc)
+    return rig.same_truth(doc), doc
 
 
 def _refuse_simulation_overwrite(kind, template, out_dir, runs, name, force) -> None:

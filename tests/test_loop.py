@@ -98,3 +98,33 @@ def test_loop_tasks_keep_kinds_with_a_menu_and_one_case_per_family_when_quick():
     assert all(t["closed_loop"] for t in quick)
     assert len(loop_tasks(tasks, quick=False)) == 3 + menu
     assert set(DEFAULT_PROTOCOL) >= {"static", "dynamic", "sensing", "curvature"}
+
+
+def test_simulate_runs_a_sensing_protocol_file_on_the_same_muscle(tmp_path):
+    # Synthetic (virtual rig, seeds 3 and 9). The simulated sensing experiment keeps its rig's S
+    # and R0 hidden, so a protocol file made from it lacks them; --truth supplies them from the
+    # truth file, as the closed loop does, instead of refusing the file.
+    from typer.testing import CliRunner
+
+    from tcamlab.cli import app
+    from tcamlab.config import load_experiment
+    from tcamlab.design import protocol_toml
+    from tcamlab.kinds.sensing import design_menu
+    from tcamlab.rig import simulate
+    from tcamlab.templates import TEMPLATES
+
+    effects = {"stiffening-spring": 3.0}
+    first = simulate(
+        "sensing", TEMPLATES / "sensing.toml", seed=3, out_dir=tmp_path, effects=effects, name="sn"
+    )
+    exp = load_experiment(first.experiment_path)
+    assert exp.rig.spring_constant is None  # hidden from the file
+    template = load_experiment(TEMPLATES / "sensing.toml", require_runs=False)
+    table = dict(design_menu(template.sample, template.rig)[0][1])
+    nxt = tmp_path / "experiments" / "sn.next.toml"
+    nxt.write_text(protocol_toml(exp.raw, table, "repeat"), encoding="utf-8")
+    args = ["simulate", "sensing", "--experiment", str(nxt), "--truth", str(first.truth_path)]
+    res = CliRunner().invoke(app, args + ["--seed", "9", "--out", str(tmp_path), "--name", "sn2"])
+    assert res.exit_code == 0, res.output
+    both = load_experiment(tmp_path / "experiments" / "sn2.toml")
+    assert len(both.runs) == 3 + table["runs"]

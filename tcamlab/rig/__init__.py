@@ -144,6 +144,7 @@ along their ``scale`` vector (:func:`scale_effect`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Mapping
@@ -183,6 +184,7 @@ __all__ = [
     "SimulationResult",
     "simulate",
     "same_truth",
+    "with_hidden_rig",
     "noise_sd",
     "instrument_sd",
     "protocol",
@@ -540,6 +542,20 @@ def _scale_forms(plan: _Plan, offlibrary: Mapping[str, float], runs: list[_Run],
 
 def _strength(strength):
     return strength if isinstance(strength, Mapping) else float(strength)
+
+
+def with_hidden_rig(experiment, truth: Mapping[str, Any]):
+    """``experiment`` with the rig values a simulated experiment file keeps hidden (a sensing
+    rig's S and R0, never written out) taken from ``truth``'s template, so the virtual rig can
+    run a protocol file made from it (values the file states are kept)."""
+    hidden = {
+        k: v
+        for k, v in (truth.get("template_rig") or {}).items()
+        if v is not None and hasattr(experiment.rig, k) and getattr(experiment.rig, k) is None
+    }
+    if not hidden:
+        return experiment
+    return dataclasses.replace(experiment, rig=experiment.rig.replace(**hidden))
 
 
 def same_truth(truth: Mapping[str, Any]) -> dict[str, Any]:
