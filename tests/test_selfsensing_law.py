@@ -349,3 +349,37 @@ def test_after_calibrate_the_ekf_with_the_load_withheld_does_not_drift(tmp_path,
     assert abs(open_loop) > 0.03
     assert abs(refit) < 0.03
     assert back.rig.lead_resistance >= 0.0
+
+
+def test_a_nuisance_the_runs_cannot_tell_from_r0_is_held_with_the_reason(tmp_path, setup):
+    from tcamlab.calibration.estimator import identifiable
+
+    sample, rig = setup
+    # SYNTHETIC (virtual rig, seed 0): the probe voltage only, constant load, so g(x) and T stay
+    # put and R_lead, R0 and k_s (g - 1) are one constant offset of R
+    t = np.arange(600) / 100.0
+    proto = pd.DataFrame(
+        {"time": t, "voltage": np.full(t.size, ss.PROBE_V), "load_mass": np.full(t.size, rig.load)}
+    )
+    m = ss.measure(KIND.exact_inputs(sample, rig, proto), {}, np.random.default_rng(0), 1.0)
+    names, held = identifiable(sample, rig, [m], (True, False))
+    assert names[:2] == ("initial_resistance", "tcr")
+    assert set(held) == {"lead_resistance", "stretch_factor"}
+    assert all("held at its stated value: r = " in why for why in held.values())
+
+
+def test_a_refit_the_filter_cannot_run_keeps_the_open_loop_fit(tmp_path, setup, monkeypatch):
+    from tcamlab.calibration import estimator
+    from tcamlab.errors import ModelDomainError
+
+    sample, rig = setup
+    _short_csv(tmp_path / "run1.csv", sample, rig, seed=0)
+    exp = load_experiment(_experiment(tmp_path, runs=[str(tmp_path / "run1.csv")]))
+
+    def refuse(*args, **kwargs):
+        raise ModelDomainError("the table ran past chapter 3's domain")
+
+    monkeypatch.setattr(estimator, "fit_for_estimator", refuse)
+    fit = estimator.refit_for_estimator(exp, exp.rig, [r.data for r in exp.read_runs()])
+    assert fit.fitted == () and fit.values == fit.open_loop
+    assert "chapter 3's domain" in fit.held["initial_resistance"]

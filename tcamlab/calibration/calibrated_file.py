@@ -126,6 +126,8 @@ def estimator_values(doc: dict, fit) -> list[str]:
             hint="state lead_resistance_ohm and stretch_factor in [rig]",
         )
     rig = doc.setdefault("rig", {})
+    if not fit.fitted:
+        return ["Second stage (the estimator's own fit): " + next(iter(fit.held.values()), "not run") + "."]
     lines = [
         "Second stage (the estimator's own fit): R0 and the TCR, with R_lead and k_s where the runs",
         "identify them, refitted through the causal EKF against the laser ("

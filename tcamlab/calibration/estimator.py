@@ -25,6 +25,8 @@ from tcamlab.errors import InputError
 __all__ = [
     "EstimatorFit",
     "refit_for_estimator",
+    "fit_for_estimator",
+    "identifiable",
     "PARAMETERS",
     "MAX_CORRELATION",
     "PRIOR_SD_REL",
@@ -177,6 +179,27 @@ def identifiable(sample, rig, frames, cases) -> tuple[tuple, dict]:
 
 
 def refit_for_estimator(experiment, rig, frames) -> EstimatorFit:
+    """The EKF refit (:func:`fit_for_estimator`), or, where the filter cannot run at the
+    open-loop values (a value the EKF's domain refuses, a non-finite residual), the open-loop
+    fit kept with the reason: the first stage's values stay valid without the second.
+    """
+    from tcamlab.errors import TcamlabError
+
+    try:
+        return fit_for_estimator(experiment, rig, frames)
+    except (TcamlabError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+        reason = getattr(exc, "message", None) or str(exc)
+    values = {n: float(getattr(rig, n)) for n in PARAMETERS}
+    first = reason.splitlines()[0] if reason else "no reason given"
+    return EstimatorFit(
+        experiment=experiment.name, open_loop=values, values=dict(values), fitted=(),
+        held=dict.fromkeys(PARAMETERS, f"not refitted (the EKF could not run: {first}); the open-loop fit is kept"),
+        sd={}, correlation={"names": [], "matrix": []}, cases=(), rms_before_um=float("nan"),
+        rms_after_um=float("nan"), used_by=dict(USED_BY),
+    )  # fmt: skip
+
+
+def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
     """Refit R0, TCR and, where identified, R_lead and k_s through the EKF (module docstring).
 
     Parameters

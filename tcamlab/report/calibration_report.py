@@ -390,6 +390,8 @@ def estimator_section(result) -> Section | None:
         + "; ".join(
             f"{f.experiment}: {', '.join(f.cases)}, error rms {f.rms_before_um:.1f} um -> "
             f"{f.rms_after_um:.1f} um"
+            if f.fitted
+            else f"{f.experiment}: not refitted"
             for f in fits
         )
         + "); C_th, lambda and b stay at the open-loop fit."
