@@ -5,13 +5,14 @@ through the virtual rig, and the design ranking the menu on a diagnosis."""
 from __future__ import annotations
 
 import hashlib
+import json
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from tcamlab.config import load_experiment
-from tcamlab.design import protocol_toml
+from tcamlab.design import design, protocol_toml
 from tcamlab.design.protocols import cost_minutes, kind_module, protocol_frames
 from tcamlab.design.toml import KEY_DOCS
 from tcamlab.errors import ConfigError
@@ -25,6 +26,61 @@ from tcamlab.templates import TEMPLATES
 
 DEFAULT_DIGEST = "41e2922e222f7abd772d6033cfc9b26ea4279448196ac16049622164d9f46ca4"
 """sha256 of each column's name and bytes of the program before it took options (seed 0)."""
+
+
+# A diagnosis as tcamlab diagnose wrote it (only the fields design reads, and only the fits of
+# the named effect and one rival):
+#   tcamlab simulate selfsensing --experiment selfsensing --out A --seed 1 --runs 5 --effect coating-tcr=3
+#   tcamlab diagnose A/experiments/selfsensing.toml --json
+# attributed to resistance-drift (its ranking's second to fourth: inter-coil-contact,
+# recalibration, coating-tcr).
+SELFSENSING_ATTRIBUTED = json.loads(
+    '{"kind":"selfsensing","verdict":"attributed","effect":"resistance-drift","aliased_with":[],"reca'
+    'libration":{"stand_ins":{}},"noise_floor":{"by_quantity":{"displacement":{"sigma":0.112591219071'
+    '66951,"unit":"mm"}}},"ranking":[{"effect":"resistance-drift","recalibrated":{"damping":{"ci95":['
+    '0.6348616092191005,1.1114233240027065],"prior_sd":0.12,"unit":"N s/m","value":0.84},"heat_loss":'
+    '{"ci95":[0.006953149580256474,0.00856819923315508],"prior_sd":0.01615,"unit":"W/K","value":0.007'
+    '7185472014859174},"initial_resistance":{"ci95":[22.67950769259802,22.78445922293515],"prior_sd":'
+    '0.24,"unit":"ohm","value":22.731922888709693},"tcr":{"ci95":[0.003221948837009682,0.003924039212'
+    '806669],"prior_sd":0.0002,"unit":"1/K","value":0.0035557071839625426},"thermal_mass":{"ci95":[0.'
+    '020563830179918068,0.02535136596673202],"prior_sd":0.00845,"unit":"J/K","value":0.02283245901274'
+    '8312}},"recalibrated_shift":{"covariance":[[1.3872293157870386e-06,3.343366772206766e-06,3.81754'
+    "4967726798e-06,3.700633810259254e-06,0.0],[3.34336677220699e-06,0.0025291341806164764,0.00268478"
+    "1211094682,0.0026793140034554117,0.0],[3.8175449677270326e-06,0.0026847812110946797,0.0028508719"
+    "124280277,0.002844348298390121,0.0],[3.700633810259492e-06,0.0026793140034554117,0.0028443482983"
+    '90123,0.002839005507159367,0.0],[0.0,0.0,0.0,0.0,0.02040816326530612]],"joint_covariance":[[1.38'
+    "72293157870386e-06,3.343366772206766e-06,3.817544967726798e-06,3.700633810259254e-06,0.0,2.61263"
+    "8983870368e-09],[3.34336677220699e-06,0.0025291341806164764,0.002684781211094682,0.0026793140034"
+    "554117,0.0,9.27808055472775e-09],[3.8175449677270326e-06,0.0026847812110946797,0.002850871912428"
+    "0277,0.002844348298390121,0.0,1.0017427419801708e-08],[3.700633810259492e-06,0.00267931400345541"
+    "17,0.002844348298390123,0.002839005507159367,0.0,1.092305045680085e-08],[0.0,0.0,0.0,0.0,0.02040"
+    "816326530612,0.0],[2.6126389838703704e-09,9.278080554727998e-09,1.0017427419801981e-08,1.0923050"
+    '456801112e-08,0.0,8.224798316408854e-12]],"u":[-0.054283599110021896,-0.06644709668866078,-0.152'
+    '728051333201,-0.1457902348970146,0.0]},"parameters":{"r0_drift":{"ci95":[-0.00010436844961055869'
+    ',-9.31265237895974e-05],"stderr":2.8678909178015914e-06,"unit":"1/s","value":-9.874748670007805e'
+    '-05}},"heldout_rmse_after_noise":0.9920406955626265},{"effect":"coating-tcr","recalibrated":{"da'
+    'mping":{"ci95":[0.6321186413727692,1.1162461503550214],"prior_sd":0.12,"unit":"N s/m","value":0.'
+    '84},"heat_loss":{"ci95":[0.00737505105413968,0.017433419948363407],"prior_sd":0.01615,"unit":"W/'
+    'K","value":0.011338975357916486},"initial_resistance":{"ci95":[23.407556089609653,23.47526753169'
+    '7998],"prior_sd":0.24,"unit":"ohm","value":23.441387362244864},"tcr":{"ci95":[0.0035074216686175'
+    '34,0.004324876843897544],"prior_sd":0.0002,"unit":"1/K","value":0.003894761450511245},"thermal_m'
+    'ass":{"ci95":[0.021557309701837266,0.05103335856829547],"prior_sd":0.00845,"unit":"J/K","value":'
+    '0.03316838729546035}},"recalibrated_shift":{"covariance":[[5.430014986691467e-07,5.0166529729640'
+    "84e-09,2.4930300855847342e-06,2.106125530967107e-06,0.0],[5.016652978327459e-09,0.00285642021867"
+    "4574,4.274955348552845e-06,4.279651807348352e-06,0.0],[2.4930300855885793e-06,4.274955256350098e"
+    "-06,0.04833047664878716,0.048247068869409986,0.0],[2.106125530970944e-06,4.279651715303677e-06,0"
+    '.04824706886940996,0.04816480047719852,0.0],[0.0,0.0,0.0,0.0,0.02104424149823711]],"joint_covari'
+    'ance":[[5.430014986691467e-07,5.016652972964084e-09,2.4930300855847342e-06,2.106125530967107e-06'
+    ",0.0,1.1106046555066302e-08],[5.016652978327459e-09,0.002856420218674574,4.274955348552845e-06,4"
+    ".279651807348352e-06,0.0,-1.1100806894336968e-05],[2.4930300855885793e-06,4.274955256350098e-06,"
+    "0.04833047664878716,0.048247068869409986,0.0,0.0002347315801758851],[2.106125530970944e-06,4.279"
+    "651715303677e-06,0.04824706886940996,0.04816480047719852,0.0,0.000234329780727786],[0.0,0.0,0.0,"
+    "0.0,0.02104424149823711,0.0],[1.1106046555064088e-08,-1.1100806894784814e-05,0.00023473158017552"
+    '596,0.0002343297807274276,0.0,1.1833660730887289e-06]],"u":[-0.023550679581581857,0.024631365659'
+    '937288,0.22068601661823983,0.2388295428840541,0.0]},"parameters":{"tcr_extra":{"ci95":[-0.000963'
+    '5225732026653,0.0033006781911032864],"stderr":0.0010878263064886457,"unit":"1/K","value":0.00116'
+    '85778089503107}},"heldout_rmse_after_noise":1.7197223312701142}]}'
+)
 
 
 def template():
@@ -153,3 +209,25 @@ def test_a_protocol_file_runs_on_the_virtual_rig(tmp_path):
         assert len(d) == 6000 and d["time_s"].iloc[-1] == pytest.approx(59.99)
         step = np.flatnonzero(np.diff(d["load_N"].to_numpy()))
         assert step.size == 1 and d["time_s"].iloc[step[0] + 1] == pytest.approx(55.0)
+
+
+@pytest.mark.slow
+def test_design_ranks_the_menu_on_a_selfsensing_diagnosis():
+    exp = template()
+    menu = sorted(n for n, _ in sp.design_menu(exp.sample, exp.rig))
+    # clear: the protocols ranked by what they add to the precision of the explanation's parameters
+    res = design(exp, SELFSENSING_ATTRIBUTED, n_draws=8)
+    assert res.status == "clear" and sorted(c.name for c in res.candidates) == menu
+    assert all(c.feasible and np.isfinite(c.information_gain) for c in res.candidates)
+    assert res.best is not None and res.best.information_gain > 0
+    # the same fits with coating-tcr left standing beside it: two hypotheses to separate
+    aliased = {**SELFSENSING_ATTRIBUTED, "aliased_with": ["coating-tcr"]}
+    res = design(exp, aliased, n_draws=8)
+    assert res.status == "ambiguous" and [h["name"] for h in res.hypotheses] == [
+        "resistance-drift",
+        "coating-tcr",
+    ]
+    assert sorted(c.name for c in res.candidates) == menu and all(c.feasible for c in res.candidates)
+    assert all(np.isfinite(c.separation_refit) and c.separation_refit > 0 for c in res.candidates)
+    per_hour = [c.per_hour for c in res.candidates]
+    assert per_hour == sorted(per_hour, reverse=True) and res.best is not None
