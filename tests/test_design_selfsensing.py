@@ -131,8 +131,8 @@ def test_the_options_shape_the_program():
     assert np.all(np.isin(v[t >= 62.0], [1.5, 2.5]))  # the hold, after the chirp
     assert np.all(m[t < 20.0] == rig.load) and np.all(m[t >= 20.0] == pytest.approx(rig.load + 0.01))
     # runs cycle through the probe voltages
-    runs = sp.protocol_runs({"probe_V": [1.5, 3.0], "runs": 3}, rig)
-    assert [r["probe_v"] for r in runs] == [1.5, 3.0, 1.5]
+    runs = sp.protocol_runs({"probe_V": [1.5, 2.5], "runs": 3}, rig)
+    assert [r["probe_v"] for r in runs] == [1.5, 2.5, 1.5]
 
 
 @pytest.mark.parametrize(
@@ -187,7 +187,7 @@ def test_a_sample_that_softens_early_loses_the_hot_entries():
     exp = template()
     # G_t' of (2.13) reaches zero 70 K above ambient instead of 153 K: the limit is 85 degC, past
     # which the 6 V steps held 6 s go (90 degC at the thesis values), while the program run so
-    # far (78 degC) and the 3 V probe (81 degC) stay inside
+    # far (78 degC) and the 2.5 V probe stay inside
     soft = exp.sample.replace(shear_modulus_slope=exp.sample.shear_modulus_slope * 153.0 / 70.0)
     assert sp.program_limit(soft, exp.rig, {}) is None
     why = sp.program_limit(soft, exp.rig, {"steps_s": 24.0})

@@ -57,9 +57,10 @@ RIPPLE_HZ = 0.5
 PROBE_MIN_V = 0.5
 """Lowest probe voltage [V]: about 12 mA through the loaded muscle, ten times the current
 below which R = V / I is not read (:data:`tcamlab.kinds.selfsensing.MIN_CURRENT_A`)."""
-PROBE_MAX_V = 0.5 * max(STEP_LEVELS_V)
-"""Highest probe voltage [V]: half the top drive, so the 6 V phases still read as heating
-(the kind's regimes: heating above twice the probe). 3 V heats the muscle by about 24 K."""
+PROBE_MAX_V = 2.5
+"""Highest probe voltage [V]: below half the top drive (6 V), so its phases still read as
+heating (the kind's regimes: heating above twice the probe); 2.5 V heats the muscle by about
+17 K."""
 DRIVER_MAX_V = 12.0
 """Highest voltage the driver puts out and the voltage ADC reads [V]."""
 MAX_SEGMENT_S = 600.0
@@ -219,7 +220,7 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         raise ConfigError(
             f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
         )
-    hint = f"probe voltages from {PROBE_MIN_V:g} to {PROBE_MAX_V:g} V, e.g. [1.5, 3.0]"
+    hint = f"probe voltages from {PROBE_MIN_V:g} to {PROBE_MAX_V:g} V, e.g. [1.5, 2.5]"
     probes = table.get("probe_V", [PROBE_V])
     if not isinstance(probes, list) or not probes:
         raise ConfigError(f"[protocol]: probe_V must be a list of voltages [V], got {probes!r}", hint)
@@ -308,7 +309,7 @@ def program_limit(sample: Sample, rig: Rig, table: dict, seed: int = 0) -> str |
 def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     """Candidate protocols of a self-sensing powered run [(name, ``[protocol]`` table)].
 
-    The default program repeated, and its changes: a second probe voltage (2 x: 3 V, runs
+    The default program repeated, and its changes: a second probe voltage (2.5 V, runs
     alternating), a larger and a smaller load step (the rider 2 x and 0.5 x), a load step on
     a held probe (a 10 s hold after the chirp, the rider on in its middle: the load changes
     with no heating), a square probe ripple (+-0.5 V at 0.5 Hz: a change of power at the
@@ -331,7 +332,7 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     end = sum(d for _, d in SEGMENTS)
     second = round(min(2.0 * PROBE_V, PROBE_MAX_V), 3)
     changes = [
-        (f"second probe voltage {second / PROBE_V:g}x, {second:g} V", {"probe_V": [PROBE_V, second]}),
+        (f"second probe voltage {second:g} V", {"probe_V": [PROBE_V, second]}),
         (f"load step 2x, {2 * base['rider_g']:g} g rider", {"rider_g": 2 * base["rider_g"]}),
         (f"load step 0.5x, {0.5 * base['rider_g']:g} g rider", {"rider_g": 0.5 * base["rider_g"]}),
         ("load step on a held probe, 10 s hold", {"hold_s": 10.0, "rider_s": end + 5.0}),
