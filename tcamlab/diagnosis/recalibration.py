@@ -246,12 +246,22 @@ class Recalibration:
         return np.concatenate(parts + [np.array([np.sqrt(rest)])])
 
     def resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
-        """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``."""
+        """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``. Those of
+        all of a long run's rows are kept for the last (run, u, mods): a reduced fit scores
+        every row at its optimum and the term's RMS asks for the same rows again."""
+        whole = mask is None or (len(mask) >= reduction.MIN_ROWS and bool(np.all(mask)))
+        key = (i, np.asarray(u, float).tobytes(), mods) if whole else None
+        last = self.__dict__.get("_whole_last")
+        if key is not None and last is not None and last[0] == key:
+            return last[1]
         try:
             pred = self._rows_predicted(i, u, mods, mask)
         except MODEL_ERRORS:
             return self.problem.failed(i, mask)
-        return self.problem.scaled(i, pred, mask)
+        out = self.problem.scaled(i, pred, None if whole else mask)
+        if key is not None and len(self.problem.frames[i]) >= reduction.MIN_ROWS:
+            self._whole_last = (key, out)
+        return out
 
     def _rows_predicted(self, i: int, u: np.ndarray, mods: Mods, mask) -> dict:
         """Predictions [SI] of run i for :meth:`resid`. On a reduced run (whose model reads its
