@@ -352,7 +352,7 @@ def test_after_calibrate_the_ekf_with_the_load_withheld_does_not_drift(tmp_path,
 
 
 def test_a_nuisance_the_runs_cannot_tell_from_r0_is_held_with_the_reason(tmp_path, setup):
-    from tcamlab.calibration.estimator import identifiable
+    from tcamlab.calibration.estimator import refit_for_estimator
 
     sample, rig = setup
     # SYNTHETIC (virtual rig, seed 0): the probe voltage only, constant load, so g(x) and T stay
@@ -362,10 +362,13 @@ def test_a_nuisance_the_runs_cannot_tell_from_r0_is_held_with_the_reason(tmp_pat
         {"time": t, "voltage": np.full(t.size, ss.PROBE_V), "load_mass": np.full(t.size, rig.load)}
     )
     m = ss.measure(KIND.exact_inputs(sample, rig, proto), {}, np.random.default_rng(0), 1.0)
-    names, held = identifiable(sample, rig, [m], (True, False))
-    assert names[:2] == ("initial_resistance", "tcr")
-    assert set(held) == {"lead_resistance", "stretch_factor"}
-    assert all("held at its stated value: r = " in why for why in held.values())
+    exp = load_experiment(_experiment(tmp_path))
+    fit = refit_for_estimator(exp, rig, [m])
+    assert fit.fitted[:2] == ("initial_resistance", "tcr")
+    assert set(fit.held) == {"lead_resistance", "stretch_factor"}
+    assert all(why.startswith("held at its stated value") for why in fit.held.values())
+    assert fit.values["lead_resistance"] == rig.lead_resistance
+    assert fit.values["stretch_factor"] == rig.stretch_factor
 
 
 def test_a_refit_the_filter_cannot_run_keeps_the_open_loop_fit(tmp_path, setup, monkeypatch):
