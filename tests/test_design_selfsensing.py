@@ -13,6 +13,7 @@ import pytest
 
 from tcamlab.config import load_experiment
 from tcamlab.design import design, protocol_toml
+from tcamlab.design.hypotheses import hypotheses
 from tcamlab.design.protocols import cost_minutes, kind_module, protocol_frames
 from tcamlab.design.toml import KEY_DOCS
 from tcamlab.errors import ConfigError
@@ -231,3 +232,21 @@ def test_design_ranks_the_menu_on_a_selfsensing_diagnosis():
     assert all(np.isfinite(c.separation_refit) and c.separation_refit > 0 for c in res.candidates)
     per_hour = [c.per_hour for c in res.candidates]
     assert per_hour == sorted(per_hour, reverse=True) and res.best is not None
+
+
+def test_a_diagnosis_file_with_sorted_keys_reads_in_the_fits_order():
+    # diagnosis.json lists the recalibrated parameters alphabetically; their covariance is in
+    # the fit's order (the kind's calibration order), so the design reads them in that order
+    rec = SELFSENSING_ATTRIBUTED["ranking"][0]["recalibrated"]
+    assert list(rec) == sorted(rec)
+    (h,) = hypotheses(SELFSENSING_ATTRIBUTED, "selfsensing")
+    assert [f[0] for f in h.fields] == [p.field for p in get_kind("selfsensing").calibration]
+    shuffled = json.loads(json.dumps(SELFSENSING_ATTRIBUTED))
+    for c in shuffled["ranking"]:
+        c["recalibrated"] = dict(reversed(list(c["recalibrated"].items())))
+    (g,) = hypotheses(shuffled, "selfsensing")
+    assert g.fields == h.fields and np.array_equal(g.values, h.values) and np.array_equal(g.cov_u, h.cov_u)
+    # R0 is the best pinned of them (0.12 % of its value), damping the least (0.14, near its prior)
+    sd = dict(zip((f[0] for f in h.fields), np.sqrt(np.diag(h.cov_u))))
+    assert min(sd, key=sd.get) == "initial_resistance" and sd["initial_resistance"] < 2e-3
+    assert max(sd, key=sd.get) == "damping" and sd["damping"] > 0.1
