@@ -33,6 +33,14 @@ reduction switched off (``TCAMLAB_NO_REDUCTION=1``: every row in every fit) on a
 ``--ref-fit-rows`` rows (default 100,000; quick 20,000), beside the reduced fit of that log
 (reduced from that length on: ``TCAMLAB_REDUCTION_MIN_ROWS``).
 
+The static log (``--static-rows``, default 142,100) is the joined log of a real static
+test: a 1 kHz laser displacement joined with a 25 Hz thermal camera whose temperature is
+held between its frames (SYNTHETIC, :func:`make_static_log`, seed 12): the temperature, a
+noisy input, changes on almost every frame. ``calibrate`` and ``diagnose`` run on it reduced,
+against the same commands with ``TCAMLAB_NO_REDUCTION=1`` on a log of ``--static-ref-rows``
+rows (default 20,000; quick 10,000: the every-row diagnosis of the static model takes
+minutes at 20,000 rows), beside the reduced fit of that log.
+
 Nothing asserts on time; each row prints PASS or FAIL against its goal. ``--check``
 (run by ``.ci/run``) measures ``validate`` and ``report`` only, at 10 million rows, and exits 1
 when either fails or writes a ``report.html`` of 5 MB or more: the size goal is a property of
@@ -128,6 +136,74 @@ def make_log(rows: int, work: Path, seed: int = SEED) -> Path:
     return toml
 
 
+CAMERA_HZ = 25.0
+"""Frame rate of the thermal camera of :func:`make_static_log` [Hz]."""
+CAMERA_NOISE_C = 0.5
+"""Sd of the camera's temperature per frame [degC]."""
+OVEN_CYCLE_S = 60.0
+"""Period of the heat-cool cycle of :func:`make_static_log` [s]."""
+
+
+def make_static_log(rows: int, work: Path, seed: int = SEED, camera: str = "held") -> Path:
+    """Write (or reuse) a synthetic static experiment of one ``rows``-row log: a 1 kHz laser
+    displacement joined with a 25 Hz thermal camera's temperature.
+
+    SYNTHETIC (seed ``seed``): the actuator's temperature follows a heat-cool cycle, 25 to
+    80 degC and back every 60 s; the thesis static model (``tcamlab.kinds.static.predict`` on
+    the bundled ``experiments/static.toml`` sample and rig) on that temperature plus laser
+    noise (sd 5 um) rounded to 1 um is the displacement; the camera reads the temperature
+    every 40 ms with noise (sd 0.5 degC, rounded to 0.1 degC). ``camera`` is how its frames
+    are joined to the laser's rows: ``"held"`` (each row takes the nearest frame, a staircase)
+    or ``"interpolated"`` (linear between frames; the noise is then on every row, correlated
+    over a frame).
+
+    Returns the experiment TOML's path (``work/staticlog-ROWS-CAMERA-sSEED/experiment.toml``).
+    """
+    import numpy as np
+    import pandas as pd
+
+    from tcamlab.config import load_experiment
+    from tcamlab.io.csvfast import fixed_csv_bytes
+    from tcamlab.kinds import static
+
+    folder = work / f"staticlog-{rows}-{camera}-s{seed}"
+    toml = folder / "experiment.toml"
+    if toml.exists():
+        return toml
+    folder.mkdir(parents=True, exist_ok=True)
+    exp = load_experiment(REPO / "experiments" / "static.toml")
+    rng = np.random.default_rng(seed)
+    t = np.arange(rows) / RATE_HZ
+    true_c = 25.0 + 27.5 * (1.0 - np.cos(2.0 * np.pi * t / OVEN_CYCLE_S))
+    disp = static.predict(exp.sample, exp.rig, pd.DataFrame({"time": t, "temperature": true_c}))
+    disp_um = disp["displacement"] * 1e6 + rng.normal(0, NOISE_MM * 1e3, rows)
+    disp_mm = np.round(disp_um) / 1e3
+    disp_mm[0] = 0.0  # the log is zeroed on its first row
+    t_frame = np.arange(0.0, t[-1] + 1.0 / CAMERA_HZ, 1.0 / CAMERA_HZ)
+    frame_c = 25.0 + 27.5 * (1.0 - np.cos(2.0 * np.pi * t_frame / OVEN_CYCLE_S))
+    frame_c = np.round((frame_c + rng.normal(0, CAMERA_NOISE_C, t_frame.size)) * 10) / 10
+    if camera == "held":
+        temp = frame_c[np.clip(np.round(t * CAMERA_HZ).astype(int), 0, t_frame.size - 1)]
+    else:
+        temp = np.interp(t, t_frame, frame_c)
+    frame = pd.DataFrame({"time_s": t, "temperature_C": temp, "displacement_mm": disp_mm})
+    (folder / "run1.csv").write_bytes(fixed_csv_bytes(frame))
+    src = (REPO / "experiments" / "static.toml").read_text()
+    body = src[src.index("[sample]") :]
+    toml.write_text(
+        'kind = "static"\n'
+        f'title = "Long 1 kHz laser log with a 25 Hz thermal camera ({camera}), {rows} rows (synthetic)"\n'
+        'runs = ["run1.csv"]\n'
+        'notes = "SYNTHETIC: bench/bench_large_log.py make_static_log, the thesis static model '
+        'on a heat-cool cycle, laser and camera noise."\n\n'
+        "[synthetic]\n"
+        'generator = "bench/bench_large_log.py make_static_log"\n'
+        f"seed = {seed}\n"
+        f'command = "python bench/bench_large_log.py --static-rows {rows}"\n\n' + body
+    )
+    return toml
+
+
 def run_measured(args: list[str], env: dict | None = None) -> dict:
     """Run ``args`` from the repository root (``env`` added to the environment); wall time [s]
     and the child's peak RSS [MB] (``os.wait4``'s ``ru_maxrss``; this parent stays small, so
@@ -215,18 +291,19 @@ def measure(rows: int, work: Path, ref_rows: int, refs: bool = True) -> dict:
     return res
 
 
-def _log(rows: int, work: Path) -> Path:
-    """The experiment file of a ``rows``-row log, made in a subprocess (its memory not ours)."""
+def _log(rows: int, work: Path, maker: str = "make_log") -> Path:
+    """The experiment file of a ``rows``-row log by ``maker`` (:func:`make_log` or
+    :func:`make_static_log`), made in a subprocess (its memory not ours)."""
     py = sys.executable
-    gen = f"import sys; sys.path.insert(0, 'bench'); import bench_large_log as b; from pathlib import Path; print(b.make_log({rows}, Path({str(work)!r})))"
+    gen = f"import sys; sys.path.insert(0, 'bench'); import bench_large_log as b; from pathlib import Path; print(b.{maker}({rows}, Path({str(work)!r})))"
     made = run_measured([py, "-c", gen])
     return Path(made["output"].strip().splitlines()[-1])
 
 
-def measure_fits(fit_rows: list[int], ref_rows: int, work: Path) -> dict:
+def measure_fits(fit_rows: list[int], ref_rows: int, work: Path, maker: str = "make_log") -> dict:
     """``calibrate`` and ``diagnose`` on a log of each of ``fit_rows`` rows (reduced fits), and
     on a ``ref_rows``-row log both reduced and on every row (the reference); ``ref_rows`` 0:
-    no reference."""
+    no reference. ``maker``: the log's generator (``make_log``, ``make_static_log``)."""
     py = sys.executable
     out = {}
 
@@ -237,16 +314,17 @@ def measure_fits(fit_rows: list[int], ref_rows: int, work: Path) -> dict:
         }
 
     for rows in fit_rows:
-        out[f"fit_{rows}"] = both(_log(rows, work), {})
+        out[f"fit_{rows}"] = both(_log(rows, work, maker), {})
     if ref_rows:
-        toml = _log(ref_rows, work)
+        toml = _log(ref_rows, work, maker)
         out["ref_reduced"] = both(toml, {"TCAMLAB_REDUCTION_MIN_ROWS": str(min(ref_rows, 50_000))})
         out["ref_every_row"] = both(toml, {"TCAMLAB_NO_REDUCTION": "1"})
     return out
 
 
-def print_fits(res: dict) -> None:
-    """One line per fit measurement, PASS/FAIL against :func:`fit_goal`."""
+def print_fits(res: dict, label: str = "") -> None:
+    """One line per fit measurement, PASS/FAIL against :func:`fit_goal`; ``label`` names the
+    log (e.g. ``static``) at the start of each line."""
     for key, pair in res.items():
         if not key.startswith("fit_"):
             continue
@@ -255,7 +333,7 @@ def print_fits(res: dict) -> None:
         for name, r in pair.items():
             ok = r["exit"] == 0 and r["wall_s"] <= goal_s and r["rss_mb"] <= goal_mb
             print(
-                f"{name:9s} {rows:>10,} rows {r['wall_s']:7.1f} s (CPU {r['cpu_s']:.1f} s)  peak RSS "
+                f"{label}{name:9s} {rows:>10,} rows {r['wall_s']:7.1f} s (CPU {r['cpu_s']:.1f} s)  peak RSS "
                 f"{r['rss_mb']:6.0f} MB  exit {r['exit']}  goal <= {goal_s:.0f} s, <= {goal_mb:.0f} MB: "
                 + ("PASS" if ok else "FAIL")
             )
@@ -263,7 +341,7 @@ def print_fits(res: dict) -> None:
         for name in ("calibrate", "diagnose"):
             a, b = res["ref_reduced"][name], res["ref_every_row"][name]
             print(
-                f"{name:9s} reference on {res['ref_rows']:,} rows: reduced {a['wall_s']:.1f} s "
+                f"{label}{name:9s} reference on {res['ref_rows']:,} rows: reduced {a['wall_s']:.1f} s "
                 f"({a['rss_mb']:.0f} MB, exit {a['exit']}) against every row {b['wall_s']:.1f} s "
                 f"({b['rss_mb']:.0f} MB, exit {b['exit']}): {b['wall_s'] / a['wall_s']:.1f}x faster"
             )
@@ -340,6 +418,12 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--ref-fit-rows", type=int, default=None, help="rows of the every-row fit reference (0: none)"
     )
+    parser.add_argument(
+        "--static-rows", type=int, default=REAL_LOG_ROWS, help="rows of the static laser and camera log"
+    )
+    parser.add_argument(
+        "--static-ref-rows", type=int, default=None, help="rows of its every-row reference (0: none)"
+    )
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "tcamlab-bench-biglog")
     parser.add_argument("--json", type=Path)
     parser.add_argument(
@@ -363,6 +447,17 @@ def main(argv=None) -> int:
         fits["ref_rows"] = ref
         print_fits(fits)
         res["fits"] = fits
+        # the joined laser and thermal-camera static log (a noisy input on every row)
+        static_ref = (
+            args.static_ref_rows if args.static_ref_rows is not None else (10_000 if args.quick else 20_000)
+        )
+        static = measure_fits([args.static_rows], static_ref, args.work, "make_static_log")
+        static["ref_rows"] = static_ref
+        print(
+            f"SYNTHETIC static log, laser with a {CAMERA_HZ:.0f} Hz thermal camera held between frames (seed {SEED})"
+        )
+        print_fits(static, "static ")
+        res["static_fits"] = static
     if args.json:
         args.json.write_text(json.dumps(res, indent=1, default=str))
     if args.check:

@@ -14,9 +14,9 @@ The blocks (:func:`reduce_run`)
 -------------------------------
 A block is a run of consecutive rows with
 
-* the same held inputs (the kind's inputs but time: a model reading its inputs
-  row by row and holding them in between then sees the same input on the coarse
-  grid as on every row);
+* the same held inputs (the kind's inputs but time and but its noisy inputs, below: a
+  model reading its inputs row by row and holding them in between then sees the same
+  input on the coarse grid as on every row);
 * no fold edge inside it (a fold's rows are a union of blocks);
 * at most ``L`` rows, where ``max |second difference| * L**2 / 8 <= SPREAD``: the
   stated prediction's largest departure from a straight line over the block,
@@ -36,6 +36,61 @@ the difference between the full and the two-row moments of the stated prediction
 (its curvature, at most :data:`SPREAD` noise floors, which hardly moves with the
 parameters). What the reduction leaves out is the rows' departure from a line in
 each block: noise, and the curvature's change with the parameters.
+
+Noisy inputs
+------------
+An input logged by an instrument with its own noise (:attr:`tcamlab.kinds.Kind.noisy_inputs`:
+the static oven test's temperature read by a thermometer or a thermal camera, held between
+the camera's frames or noisy on every row) changes on every row, so no two rows hold the
+same input. Such an input does not cut blocks; instead
+
+* the curvature above is that of the stated prediction's means over windows of
+  :data:`NOISY_WINDOW` rows (second differences of the window means over
+  ``NOISY_WINDOW**2``, taken as every row's of the window and its neighbours): the smoothed
+  level of the prediction, hence of the input, is a straight line over a block to within
+  :data:`SPREAD` noise floors, while the rows' noise (sd ``s`` per row, at most the noise
+  floor) adds only about ``2.5 s / NOISY_WINDOW**2.5`` per row to the curvature (blocks of
+  several hundred rows where the input's propagated noise is the whole noise floor);
+* the model is evaluated on the grid at the input's block line ``x_line(t) = xbar +
+  b (t - tbar)`` (its level and slope moments, :attr:`Reduction.lines`), not at the noisy
+  value of the grid row. The first row keeps its logged value (a model referred to its
+  first row, the static displacement, keeps the reference of the fit on every row);
+* each block gets a third moment per quantity and noisy input, the residuals projected on
+  the input's unit departure from its line ``e / |e|`` (:meth:`Reduction.residual`). The
+  fit on every row sees the input's noise through ``f' e`` in its residuals: their sum of
+  squares ``f'(theta)**2 |e|**2`` pulls the parameters that set ``f'`` (errors in
+  variables), and its curvature adds to their information. On the block lines that term is
+  gone; the noise moment restores it, predicted as ``f'(theta) |e|`` (``f'`` from the model
+  on the grid with the input raised by :data:`INPUT_SHIFT`, all rows but the first) plus
+  its value at the stated values beyond that first-order part. The chi-square and its
+  Jacobian in the parameters are then those of every row to first order in ``e``; without
+  it the calibrated G(T) slope of the static test moved 0.13 interval widths from the
+  every-row fit's, with it 0.001.
+
+The approximation: over a block, write the input ``x_i = x_line(t_i) + e_i``; ``e`` has
+zero level and slope moments (the line is its least-squares line). The full prediction
+``f(x_i) = f(x_line) + f' e_i + f'' e_i**2 / 2 + ...``: the ``f' e`` term has zero moments
+where ``f'`` is constant over the block, and the coarse prediction leaves out
+``f'' L var(e) / 2`` of the level moment (``L var(e) = sum(e**2)``, the within-block input
+variance, noise and the smoothed level's departure from the line) and the ``f'`` change's
+share. Both are in the offset (full minus coarse moments at the stated values), which is
+taken here from the coarse prediction on the block lines; what is left is their change
+with the parameters, ``d f''/d theta L var(e) / 2``, relative to the noise floor ``sigma
+sqrt(L)`` of the moment: ``sqrt(L) var(e) |d f''/d theta| / (2 sigma)``. For the static
+oven test (``f'`` about -5.7 um/K, ``f''`` about 0.016 um/K**2 on the thesis sample) with a
+0.5 K camera noise, a 5 um laser and blocks of 500 rows the left-out term is
+``sqrt(500) 0.25 0.016 / 2 / 5``, about 0.01 noise floors, and it moves with the
+parameters by its relative change, a few per cent across an interval: about 1e-4 noise
+floors per block, negligible against the intervals (the tests compare both fits to a
+tenth of an interval's width). A model with state (a thermal lag of the
+input) filters ``e`` across the blocks; that response at the stated values is in the
+offsets too, and the grid check below compares the coarse prediction with the full
+prediction on the block lines. What is not reduced exactly is an effect that filters the
+noisy input over time away from the stated values (the diagnosis's oven-thermal-lag
+candidate): the fit on every row gains from the lag's smoothing of the input's noise
+(``|lag(e)| < |e|``, a pull towards a longer lag) and steps the lag over every row, the
+reduced fit steps it over the grid rows on the lines. Its lag differed by 0.5 to 0.9
+interval widths on the 20,000-row camera logs of the tests (the verdict the same).
 
 Below :data:`MIN_ROWS` rows in a run nothing is reduced (the bundled experiments'
 results are those of a fit on every row), and a run whose coarse prediction at the
@@ -61,6 +116,7 @@ __all__ = [
     "SPREAD",
     "MAX_BLOCK",
     "GRID_TOLERANCE",
+    "NOISY_WINDOW",
     "enabled",
     "block_edges",
     "Reduction",
@@ -81,6 +137,11 @@ MAX_BLOCK = 4096
 GRID_TOLERANCE = 0.05
 """Largest difference, in noise floors, between the coarse and the full prediction at the
 grid rows at the stated values for a run to be reduced."""
+
+NOISY_WINDOW = 256
+"""Rows of the windows whose means give the curvature of a run with noisy inputs (module
+docstring): long enough that the rows' noise hardly adds to it, short against a thermal
+response of seconds at 1 kHz."""
 
 ENV = "TCAMLAB_NO_REDUCTION"
 """Set (to anything but empty or ``0``) to fit on every row whatever the log's length: the
@@ -188,17 +249,63 @@ class Reduction:
     offset: dict = field(default_factory=dict)
     within: dict = field(default_factory=dict)
     frame: object = None
-    """The run's grid rows (a DataFrame), set by :func:`checked_reduction`."""
+    """The run's grid rows (a DataFrame), set by :func:`checked_reduction`; a noisy input's
+    column holds its block line there (module docstring)."""
+    lines: dict = field(default_factory=dict)
+    """Per noisy input, ``(level, slope)`` of its block line: mean [unit of the input] and
+    slope [unit / s] over each block (module docstring)."""
+    norms: dict = field(default_factory=dict)
+    """Per noisy input, ``|e|`` per block: the root sum of squares of its departure from the
+    block line [unit of the input]."""
+    gram: dict = field(default_factory=dict)
+    """``gram[x][z]``: per block, input z's departure projected on input x's unit departure."""
+    noise_measured: dict = field(default_factory=dict)
+    """``[q][x]``: per block, logged quantity q projected on input x's unit departure [SI]."""
+    noise_stated: dict = field(default_factory=dict)
+    """``[q][x]``: the same of the full prediction at the stated values [SI]."""
+    noise_offset: dict = field(default_factory=dict)
+    """``[q][x]``: that minus its first-order part ``sum_z f'_z gram[x][z]`` at the stated
+    values, set by :func:`checked_reduction` [SI]."""
+    shifted: dict = field(default_factory=dict)
+    """Per noisy input, ``(frame, h)``: the grid frame with the input raised by ``h``, for
+    the model's slope in it."""
 
     @property
     def two(self) -> np.ndarray:
         """Blocks with a slope moment (two rows or more)."""
         return self.counts >= 2
 
+    def rough(self, x: str) -> np.ndarray:
+        """Blocks with an input-noise moment of noisy input ``x`` (a departure from the line)."""
+        return self.norms[x] > 0
+
     @property
     def size(self) -> int:
         """Moments per quantity."""
-        return int(self.counts.size + np.count_nonzero(self.two))
+        extra = sum(int(np.count_nonzero(self.rough(x))) for x in self.norms)
+        return int(self.counts.size + np.count_nonzero(self.two)) + extra
+
+    def per_moment(self, v: np.ndarray, sel=None) -> np.ndarray:
+        """A per-block value laid out as the moments of :meth:`residual` (blocks in ``sel``)."""
+        sel = np.ones(self.counts.size, bool) if sel is None else sel
+        parts = [v[sel], v[sel & self.two]] + [v[sel & self.rough(x)] for x in self.norms]
+        return np.concatenate(parts)
+
+    def residual(self, q: str, x_grid: np.ndarray, slopes=None, sel=None):
+        """``(level, rest)``: measured minus predicted moments of ``q`` over the blocks in
+        ``sel`` for a prediction given on the grid (curvature offsets added): the level
+        moments, then the slope moments and each noisy input's noise moment (module
+        docstring), the latter from ``slopes`` (input: d prediction / d input on the grid)."""
+        sel = np.ones(self.counts.size, bool) if sel is None else sel
+        (m0, m1), (p0, p1) = self.measured[q], self.predicted(q, x_grid)
+        parts = [(m1 - p1)[sel & self.two]]
+        for x in self.norms:
+            pred = self.noise_offset[q][x].copy()
+            for z in self.norms:
+                g = np.asarray(slopes[z], float)
+                pred += 0.5 * (g[self.g1] + g[self.g2]) * self.gram[x][z]
+            parts.append((self.noise_measured[q][x] - pred)[sel & self.rough(x)])
+        return (m0 - p0)[sel], np.concatenate(parts)
 
     def moments(self, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Orthonormal level and slope moments of a full-length column ``x`` per block."""
@@ -225,6 +332,30 @@ class Reduction:
         c0, c1 = self.offset[q]
         return p0 + c0, p1 + c1
 
+    def on_lines(self, data, rows: np.ndarray):
+        """Rows ``rows`` of ``data`` with each noisy input replaced by its block line (the
+        first row keeps its logged value)."""
+        frame = data.iloc[rows].copy() if len(rows) < len(data) else data.copy()
+        if not self.lines:
+            return frame
+        block = np.searchsorted(self.starts, rows, side="right") - 1
+        t = frame["time"].to_numpy(float)
+        for x, (level, slope) in self.lines.items():
+            value = level[block] + slope[block] * (t - self.tbar[block])
+            value[rows == 0] = float(data[x].iloc[0])
+            frame[x] = value
+        return frame
+
+    def slopes(self, predict, base: dict) -> dict:
+        """``{q: {x: d prediction / d input x}}`` on the grid, from ``base = predict(frame)``
+        and ``predict`` on each shifted frame (empty without noisy inputs)."""
+        out = {q: {} for q in base}
+        for x, (frame, h) in self.shifted.items():
+            up = predict(frame)
+            for q in base:
+                out[q][x] = (np.asarray(up[q], float) - np.asarray(base[q], float)) / h
+        return out
+
     def blocks_in(self, mask) -> np.ndarray | None:
         """Blocks whose rows are in ``mask`` (all rows: None), or None when a block
         straddles its edge (then the rows are scored one by one)."""
@@ -248,6 +379,36 @@ def _curvature(preds: dict, sigma: dict) -> np.ndarray:
     return out
 
 
+def _smooth_curvature(preds: dict, sigma: dict, window: int) -> np.ndarray:
+    """Largest |second difference| per row over the quantities, in noise floors, of the
+    predictions' means over windows of ``window`` rows (module docstring: noisy inputs)."""
+    n = len(next(iter(preds.values())))
+    m = n // window
+    if m < 3:
+        return _curvature(preds, sigma)
+    worst = np.zeros(m)
+    for q, p in preds.items():
+        means = np.asarray(p, float)[: m * window].reshape(m, window).mean(axis=1)
+        d2 = np.abs(means[2:] - 2.0 * means[1:-1] + means[:-2]) / (sigma[q] * window * window)
+        np.maximum(worst[1:-1], d2, out=worst[1:-1])
+    worst[0], worst[-1] = worst[1], worst[-2]
+    # a window and its neighbours: a block across a window edge sees both sides' curvature
+    near = np.maximum(worst, np.maximum(np.append(worst[1:], 0.0), np.insert(worst[:-1], 0, 0.0)))
+    out = np.repeat(near, window)
+    return np.concatenate([out, np.full(n - out.size, near[-1])])
+
+
+def _lines(red: Reduction, data, noisy: list[str], t: np.ndarray) -> dict:
+    """``(level, slope)`` of each noisy input over each block (least-squares line in time)."""
+    out = {}
+    for x in noisy:
+        m0, m1 = red.moments(data[x].to_numpy(float), t)
+        level = m0 / np.sqrt(red.counts)
+        slope = np.where(red.tsd > 0, m1 / np.where(red.tsd > 0, red.tsd, 1.0), 0.0)
+        out[x] = (level, slope)
+    return out
+
+
 def _changes(data, held: list[str]) -> np.ndarray:
     """True where a held input differs from the previous row's."""
     n = len(data)
@@ -259,7 +420,14 @@ def _changes(data, held: list[str]) -> np.ndarray:
 
 
 def reduce_run(
-    data, held: list[str], stated: dict, measured: dict, sigma: dict, breaks=(), knot_every: int = 1
+    data,
+    held: list[str],
+    stated: dict,
+    measured: dict,
+    sigma: dict,
+    breaks=(),
+    knot_every: int = 1,
+    noisy=(),
 ) -> Reduction:
     """The blocks and moments of one run (module docstring).
 
@@ -281,13 +449,18 @@ def reduce_run(
         Rows between extra grid rows inside long blocks (none when 1): an explicit
         integrator stepping over a whole quiet block at once can overshoot into the
         model's domain edge on its trial step.
+    noisy : sequence of str
+        Held inputs logged with their own noise: they cut no block and are replaced by
+        their block lines on the grid (module docstring).
     """
     n = len(data)
     t = data["time"].to_numpy(float)
     cut = np.zeros(n, bool)
     cut[np.asarray(list(breaks), int)] = True
-    changes = _changes(data, held)
-    starts = block_edges(_curvature(stated, sigma), changes, cut, SPREAD, MAX_BLOCK)
+    noisy = [x for x in noisy if x in held]
+    changes = _changes(data, [c for c in held if c not in noisy])
+    curv = _smooth_curvature(stated, sigma, NOISY_WINDOW) if noisy else _curvature(stated, sigma)
+    starts = block_edges(curv, changes, cut, SPREAD, MAX_BLOCK)
     counts = np.diff(np.append(starts, n))
     r1 = starts + np.round((counts - 1) * (0.5 - 0.5 / math.sqrt(3.0))).astype(np.int64)
     r2 = starts + np.round((counts - 1) * (0.5 + 0.5 / math.sqrt(3.0))).astype(np.int64)
@@ -307,14 +480,42 @@ def reduce_run(
         tsd=np.sqrt(np.add.reduceat(rel2, starts)),
         t_grid=t[grid],
     )
+    red.lines = _lines(red, data, noisy, t)
+    dirs = _noise_directions(red, data, t)
     for q, x in measured.items():
         red.measured[q] = red.moments(x, t)
         full, coarse = red.moments(stated[q], t), red.coarse_moments(np.asarray(stated[q])[grid])
         red.offset[q] = (full[0] - coarse[0], full[1] - coarse[1])
         r = np.asarray(x, float) - np.asarray(stated[q], float)
         r0, r1 = red.moments(r, t)
-        red.within[q] = np.maximum(np.add.reduceat(r * r, starts) - r0 * r0 - r1 * r1, 0.0)
+        left = np.add.reduceat(r * r, starts) - r0 * r0 - r1 * r1
+        red.noise_measured[q], red.noise_stated[q] = {}, {}
+        for v, unit in dirs.items():
+            red.noise_measured[q][v] = np.add.reduceat(np.asarray(x, float) * unit, starts)
+            red.noise_stated[q][v] = np.add.reduceat(np.asarray(stated[q], float) * unit, starts)
+            left = left - (red.noise_measured[q][v] - red.noise_stated[q][v]) ** 2
+        red.within[q] = np.maximum(left, 0.0)
     return red
+
+
+def _noise_directions(red: Reduction, data, t: np.ndarray) -> dict:
+    """Per noisy input, its departure from its block lines normalised to a unit vector per
+    block (full length, zero in a block without departure); sets ``red.norms`` and
+    ``red.gram``."""
+    dev = {}
+    for x, (level, slope) in red.lines.items():
+        line = np.repeat(level, red.counts) + np.repeat(slope, red.counts) * (
+            t - np.repeat(red.tbar, red.counts)
+        )
+        dev[x] = data[x].to_numpy(float) - line
+    units = {}
+    for x, e in dev.items():
+        norm = np.sqrt(np.add.reduceat(e * e, red.starts))
+        red.norms[x] = norm
+        units[x] = e / np.repeat(np.where(norm > 0, norm, 1.0), red.counts)
+    for x, unit in units.items():
+        red.gram[x] = {z: np.add.reduceat(e * unit, red.starts) for z, e in dev.items()}
+    return units
 
 
 KNOT_EVERY = (64, 16, 4)
@@ -322,25 +523,65 @@ KNOT_EVERY = (64, 16, 4)
 1 kHz, about the mechanical time constant m / b of the thesis rig."""
 
 
-def checked_reduction(data, held, stated, measured, sigma, predict, breaks=()) -> Reduction | None:
+def checked_reduction(data, held, stated, measured, sigma, predict, breaks=(), noisy=()) -> Reduction | None:
     """:func:`reduce_run` with the coarsest grid whose prediction at the stated values
     matches the full one at the grid rows to :data:`GRID_TOLERANCE` noise floors, or None.
 
     ``predict(frame)`` is the model at the stated values on a frame of some of the rows
-    (a dict of quantity to ndarray; it may raise where the coarse grid fails)."""
+    (a dict of quantity to ndarray; it may raise where the coarse grid fails). With noisy
+    inputs (module docstring) the full prediction compared is the one on the block lines,
+    and the curvature offsets are taken from the coarse prediction itself."""
+    errors = (TcamlabError, ArithmeticError, ValueError)
     for every in KNOT_EVERY:
-        red = reduce_run(data, held, stated, measured, sigma, breaks, every)
+        red = reduce_run(data, held, stated, measured, sigma, breaks, every, noisy)
         if red.grid.size * 2 > len(data):
             return None  # nothing to gain
-        red.frame = data.iloc[red.grid]
+        red.frame = red.on_lines(data, red.grid)
         try:
             coarse = predict(red.frame)
-        except (TcamlabError, ArithmeticError, ValueError):  # a failed coarse step: finer grid
+            reference = stated
+            if red.lines:  # the model on every row of the block lines
+                reference = predict(red.on_lines(data, np.arange(len(data))))
+        except errors:  # a failed coarse step: finer grid
             continue
         worst = max(
-            float(np.max(np.abs(np.asarray(coarse[q]) - np.asarray(stated[q])[red.grid]))) / sigma[q]
+            float(np.max(np.abs(np.asarray(coarse[q]) - np.asarray(reference[q])[red.grid]))) / sigma[q]
             for q in measured
         )
-        if worst <= GRID_TOLERANCE:
-            return red
+        if worst > GRID_TOLERANCE:
+            continue
+        if red.lines:
+            try:
+                _noise_offsets(red, data, stated, coarse, predict)
+            except errors:
+                continue
+        return red
     return None
+
+
+INPUT_SHIFT = 1e-4
+"""Shift of a noisy input for the model's slope in it, relative to its largest magnitude."""
+
+
+def _noise_offsets(red: Reduction, data, stated: dict, coarse: dict, predict) -> None:
+    """The offsets of a reduction with noisy inputs, from the coarse prediction at the stated
+    values: the within-block input variance's share of the level and slope moments, and
+    what the noise moments hold beyond the model's slope times the input's departure."""
+    t = data["time"].to_numpy(float)
+    for x in red.lines:
+        h = INPUT_SHIFT * max(float(np.max(np.abs(data[x].to_numpy(float)))), 1e-300)
+        frame = red.frame.copy()
+        # the first row keeps its value: a model referred to it (the static displacement)
+        # would otherwise cancel a uniform shift
+        frame[x] = frame[x].to_numpy(float) + np.where(red.grid > 0, h, 0.0)
+        red.shifted[x] = (frame, h)
+    slopes = red.slopes(predict, {q: coarse[q] for q in red.measured})
+    for q in red.measured:
+        full, low = red.moments(stated[q], t), red.coarse_moments(coarse[q])
+        red.offset[q] = (full[0] - low[0], full[1] - low[1])
+        red.noise_offset[q] = {}
+        for x in red.norms:
+            first = sum(
+                0.5 * (slopes[q][z][red.g1] + slopes[q][z][red.g2]) * red.gram[x][z] for z in red.norms
+            )
+            red.noise_offset[q][x] = red.noise_stated[q][x] - first

@@ -43,3 +43,36 @@ def test_fit_goals_follow_the_log_length_and_fail_a_slow_or_broken_fit(capsys):
     assert lines[0].startswith("calibrate") and lines[0].endswith("PASS")
     assert lines[1].startswith("diagnose") and lines[1].endswith("FAIL")  # 21 s > 20 s at 142,100 rows
     assert lines[2].endswith("FAIL")  # exit 1
+
+
+def test_the_static_log_joins_a_1khz_laser_with_a_25hz_camera(tmp_path):
+    """make_static_log (SYNTHETIC, seed 12): the held camera's temperature changes only at
+    its frames (every 40 rows at 1 kHz), the interpolated one on every row within a frame;
+    both read the same frames (equal at the frame times), the laser column is the same, and
+    the file says it is synthetic with its generator and seed."""
+    import numpy as np
+    import pandas as pd
+
+    held = big.make_static_log(4_000, tmp_path, camera="held")
+    interp = big.make_static_log(4_000, tmp_path, camera="interpolated")
+    a = pd.read_csv(held.parent / "run1.csv")
+    b = pd.read_csv(interp.parent / "run1.csv")
+    assert len(a) == len(b) == 4_000
+    changes = np.flatnonzero(np.diff(a["temperature_C"].to_numpy()) != 0) + 1
+    assert changes.size > 50 and np.all(np.isin(changes % 40, (20, 21)))  # nearest frame: halfway
+    assert np.count_nonzero(np.diff(b["temperature_C"].to_numpy()) != 0) > 3_000
+    frames = np.arange(0, 4_000, 40)
+    np.testing.assert_allclose(
+        a["temperature_C"].to_numpy()[frames], b["temperature_C"].to_numpy()[frames], atol=1e-3
+    )
+    np.testing.assert_array_equal(a["displacement_mm"].to_numpy(), b["displacement_mm"].to_numpy())
+    text = held.read_text()
+    assert "SYNTHETIC" in text and 'generator = "bench/bench_large_log.py make_static_log"' in text
+    assert "seed = 12" in text
+
+
+def test_fit_lines_carry_the_log_label(capsys):
+    fast = {"exit": 0, "wall_s": 5.0, "rss_mb": 500.0, "cpu_s": 5.0}
+    big.print_fits({"fit_142100": {"diagnose": fast}}, "static ")
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("static diagnose") and "142,100 rows" in line and line.endswith("PASS")

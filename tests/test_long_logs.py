@@ -1,9 +1,11 @@
 """Long logs: fits on the reduced representation (tcamlab.reduction) agree with fits on every row.
 
-The log is bench/bench_large_log.py's ``make_log`` (SYNTHETIC: the thesis dynamic model
-tiled at 1 kHz plus laser noise, seed 12). The reduction is switched on below its usual
-length (:data:`tcamlab.reduction.MIN_ROWS` lowered) so that the fit on every row, the
-reference, runs in a test's time.
+The logs are bench/bench_large_log.py's ``make_log`` (SYNTHETIC: the thesis dynamic model
+tiled at 1 kHz plus laser noise, seed 12) and ``make_static_log`` (SYNTHETIC: the thesis
+static model on a heat-cool cycle, a 1 kHz laser joined with a 25 Hz thermal camera whose
+temperature is held between frames or interpolated, noise on both, seed 12). The reduction is
+switched on below its usual length (:data:`tcamlab.reduction.MIN_ROWS` lowered) so that the
+fit on every row, the reference, runs in a test's time.
 """
 
 from __future__ import annotations
@@ -122,4 +124,105 @@ def test_diagnosis_on_the_reduced_log_agrees_with_every_row(monkeypatch, long_lo
             assert abs(p["ci95"][0] - q["ci95"][0]) <= AGREE * width, name
             assert abs(p["ci95"][1] - q["ci95"][1]) <= AGREE * width, name
             compared += 1
+    assert compared >= 1
+
+
+@pytest.fixture(scope="module")
+def static_logs(tmp_path_factory):
+    work = tmp_path_factory.mktemp("staticlog")
+    return {cam: big.make_static_log(20_000, work, camera=cam) for cam in ("held", "interpolated")}
+
+
+def test_a_noisy_input_cuts_no_block_and_its_line_replaces_it_on_the_grid():
+    """A temperature with 0.5 degC noise on every row on a slow ramp (SYNTHETIC, seed 3): the
+    blocks are hundreds of rows long (held-input blocks would be one row), the grid frame
+    holds each block's least-squares line of the input, and the noise moments of a model
+    linear in the input are its slope times the input's departure (the gram)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(30_000) / 1000.0
+    temp = 25.0 + 1.5 * t + rng.normal(0, 0.5, t.size)
+    pred = -5.7e-6 * (temp - temp[0])  # a static response, [m]
+    data = pd.DataFrame({"time": t, "temperature": temp})
+    red = reduction.reduce_run(
+        data, ["temperature"], {"x": pred}, {"x": pred}, {"x": 5e-6}, noisy=["temperature"]
+    )
+    assert red.counts.min() > 100 and red.counts.size < 300
+    frame = red.on_lines(data, red.grid)
+    level, slope = red.lines["temperature"]
+    b = np.searchsorted(red.starts, red.grid[5]) - 1
+    assert frame["temperature"].iloc[5] == pytest.approx(level[b] + slope[b] * (t[red.grid[5]] - red.tbar[b]))
+    assert frame["temperature"].iloc[0] == temp[0]  # the first row keeps its logged value
+    # the line of a noisy ramp is the ramp to within its noise over sqrt(rows)
+    assert np.max(np.abs(level - (25.0 + 1.5 * red.tbar))) < 5 * 0.5 / np.sqrt(red.counts.min())
+    # a model linear in the input: its noise moment is slope * |e| (noise_stated), exactly
+    np.testing.assert_allclose(
+        red.noise_stated["x"]["temperature"], -5.7e-6 * red.gram["temperature"]["temperature"], rtol=1e-9
+    )
+    assert red.size == red.counts.size + red.two.sum() + red.rough("temperature").sum()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("camera", ["held", "interpolated"])
+def test_calibration_with_a_noisy_temperature_agrees_with_every_row(monkeypatch, static_logs, camera):
+    """The static log whose temperature comes from a thermal camera: reduced (a few moments
+    per block), the calibrated values and their intervals agree with the every-row fit within
+    a tenth of the interval's width, and the chi-square of every row with it."""
+    from tcamlab.calibration import calibrate
+    from tcamlab.calibration.problem import CalibrationProblem
+    from tcamlab.config import load_experiment
+
+    path = static_logs[camera]
+    exp = load_experiment(path)
+    monkeypatch.setattr(reduction, "MIN_ROWS", 5_000)
+    prob = CalibrationProblem([exp], [exp.read_runs()])
+    assert prob.reductions[(0, 0)] is not None and prob.n_resid < prob.size / 20
+    red, full = _both(monkeypatch, lambda: calibrate(path))
+    assert red.chi2 == pytest.approx(full.chi2, rel=1e-4)
+    for a, b in zip(red.parameters, full.parameters):
+        width = b.profile_95[1] - b.profile_95[0]
+        assert abs(a.value - b.value) <= AGREE * width, a.name
+        for x, y in zip(a.profile_95 + a.laplace_95, b.profile_95 + b.laplace_95):
+            assert abs(x - y) <= AGREE * width, a.name
+        assert a.identification == b.identification
+
+
+FILTERS_THE_INPUT = {"oven-thermal-lag"}
+"""Candidates whose effect filters the noisy input over time: the reduction evaluates the
+model on the input's block lines, so it sees neither the lag's smoothing of the camera's
+noise (which lowers the every-row chi-square: an errors-in-variables pull towards a longer
+lag) nor the rows between its grid rows (tcamlab.reduction, module docstring)."""
+
+LAG_AGREE = 1.0
+"""Largest difference of such a candidate's parameters, in interval widths (measured 0.5 to
+0.9 on these logs)."""
+
+
+@pytest.mark.slow
+def test_diagnosis_with_a_noisy_temperature_agrees_with_every_row(monkeypatch, static_logs):
+    """The diagnosis of the held-camera static log: same verdict and effect, every candidate's
+    held-out score, and each parameter off its bound with its interval within a tenth of its
+    width (a lag of the input within one width, FILTERS_THE_INPUT)."""
+    from tcamlab.config import load_experiment
+    from tcamlab.diagnosis import diagnose
+
+    path = static_logs["held"]
+    red, full = _both(monkeypatch, lambda: diagnose(load_experiment(path), n_boot=200).to_dict())
+    assert red["verdict"] == full["verdict"]
+    assert red["effect"] == full["effect"]
+    ranked = {c["effect"]: c for c in full["ranking"]}
+    assert {c["effect"] for c in red["ranking"]} == set(ranked)
+    compared = 0
+    for c in red["ranking"]:
+        ref = ranked[c["effect"]]
+        assert c["heldout_rmse_after_noise"] == pytest.approx(ref["heldout_rmse_after_noise"], abs=0.005)
+        agree = LAG_AGREE if c["effect"] in FILTERS_THE_INPUT else AGREE
+        for name, p in (c.get("parameters") or {}).items():
+            q = ref["parameters"][name]
+            if p["at_bound"] or q["at_bound"]:
+                continue  # at a bound the Laplace interval is no interval (candidates.AT_BOUND)
+            width = q["ci95"][1] - q["ci95"][0]
+            assert abs(p["value"] - q["value"]) <= agree * width, name
+            assert abs(p["ci95"][0] - q["ci95"][0]) <= agree * width, name
+            assert abs(p["ci95"][1] - q["ci95"][1]) <= agree * width, name
+            compared += agree == AGREE
     assert compared >= 1

@@ -93,7 +93,59 @@ def calibrated_document(experiment: Experiment, result) -> tuple[dict, str]:
     doc.pop("calibration", None)
     if applied:
         doc["calibration"] = joint_table(applied, result)
+    for fit in getattr(result, "estimator", None) or []:
+        if fit.experiment == experiment.name:
+            lines += estimator_values(doc, fit)
     return doc, "\n".join(lines)
+
+
+ESTIMATOR_KEYS = {
+    "initial_resistance": "initial_resistance_ohm",
+    "tcr": "tcr_per_K",
+    "lead_resistance": "lead_resistance_ohm",
+    "stretch_factor": "stretch_factor",
+}
+"""[rig] key of each field the EKF refit writes (all in SI = lab units)."""
+
+
+def estimator_values(doc: dict, fit) -> list[str]:
+    """Write the EKF refit's R0, TCR (and R_lead, k_s where fitted) into ``doc``'s [rig]; the
+    header lines that give both fits and which figure uses which.
+
+    Raises
+    ------
+    InputError
+        R_lead below 0 or k_s not above 0: loading would refuse the file, so none is written.
+    """
+    from tcamlab.errors import InputError
+
+    if fit.values["lead_resistance"] < 0 or fit.values["stretch_factor"] <= 0:
+        raise InputError(
+            f"{fit.experiment}: R_lead {fit.values['lead_resistance']:.4g} ohm / k_s "
+            f"{fit.values['stretch_factor']:.4g} cannot be written to a calibrated file",
+            hint="state lead_resistance_ohm and stretch_factor in [rig]",
+        )
+    rig = doc.setdefault("rig", {})
+    if not fit.fitted:
+        return ["Second stage (the estimator's own fit): " + next(iter(fit.held.values()), "not run") + "."]
+    lines = [
+        "Second stage (the estimator's own fit): R0 and the TCR, with R_lead and k_s where the runs",
+        "identify them, refitted through the causal EKF against the laser ("
+        + ", ".join(fit.cases)
+        + f"); EKF error rms {fit.rms_before_um:.1f} um -> {fit.rms_after_um:.1f} um.",
+    ]
+    for name, key in ESTIMATOR_KEYS.items():
+        before, after = fit.open_loop[name], fit.values[name]
+        if name in fit.fitted:
+            rig[key] = _round(after)
+            rig.setdefault("uncertainty", {})
+            if name in ("initial_resistance", "tcr"):
+                rig["uncertainty"][key] = _round(fit.sd[name])
+            lines.append(f"rig.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written)")
+        else:
+            lines.append(f"rig.{key}: {before:.6g}, {fit.held.get(name, 'held at its stated value')}")
+    lines += [f"{k}: used by {v}." for k, v in fit.used_by.items()]
+    return lines
 
 
 def _positive(p, kinds) -> bool:

@@ -243,7 +243,9 @@ def calibrate(
     -------
     CalibrationResult
         MAP values with Laplace and profile 95 % intervals, nuisance zeros, correlation,
-        identifiability in words, residuals before and after.
+        identifiability in words, residuals before and after; for a selfsensing experiment
+        also ``estimator``, the second stage that refits R0, TCR, R_lead and k_s through the
+        EKF at these values (:mod:`tcamlab.calibration.estimator`).
     """
     exps = load_experiments(experiments)
     if isinstance(params, str):
@@ -287,4 +289,25 @@ def calibrate(
         n_points=problem.size,
         inputs=_inputs(exps, runs),
         curves=curves,
+        estimator=_estimator_stage(exps, runs, estimates),
     )
+
+
+def _estimator_stage(exps, runs, estimates) -> list:
+    """The EKF refit of every selfsensing experiment at its open-loop values
+    (:mod:`tcamlab.calibration.estimator`); empty when there is none."""
+    from tcamlab.calibration.estimator import refit_for_estimator
+
+    out = []
+    for e, rs in zip(exps, runs):
+        if e.kind != "selfsensing":
+            continue
+        changes = {
+            p.field: p.value
+            for p in estimates
+            if p.where == "rig" and p.name in (p.field, f"{e.name}.{p.field}")
+        }
+        with progress.task(f"calibrating: {e.name}'s EKF refit", total=1) as step:
+            out.append(refit_for_estimator(e, e.rig.replace(**changes), [r.data for r in rs]))
+            step()
+    return out

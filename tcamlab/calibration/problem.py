@@ -487,6 +487,7 @@ class CalibrationProblem:
                         {q: self.measured(i, j, q) for q in qs},
                         {q: self.sigma[(i, q)] for q in qs},
                         lambda f, i=i, j=j: self.predict_run(i, j, self.u0, frame=f),
+                        noisy=[c for c in self.kinds[i].noisy_inputs if c in run.data],
                     )
                 out[(i, j)] = red
         return out
@@ -519,7 +520,7 @@ class CalibrationProblem:
             red = self.reductions[(i, j)]
             var = np.add.reduceat(self.row_sigma[(i, j, q)] ** 2, red.starts) / red.counts
             sd = np.sqrt(var)
-            self._measured[key] = np.concatenate([sd, sd[red.two]])
+            self._measured[key] = red.per_moment(sd)
         return self._measured[key]
 
     # evaluation ------------------------------------------------------------------------
@@ -590,9 +591,10 @@ class CalibrationProblem:
                     out.extend((j, q, self.measured(i, j, q) - pred[q]) for q in self.quantities[i])
                     continue
                 pred = self.predict_run(i, j, u, frame=red.frame)
+                slopes = red.slopes(lambda f, j=j: self.predict_run(i, j, u, frame=f), pred)
                 for q in self.quantities[i]:
-                    (m0, m1), (p0, p1) = red.measured[q], red.predicted(q, pred[q])
-                    out.append((j, q, np.concatenate([m0 - p0, (m1 - p1)[red.two]])))
+                    level, rest = red.residual(q, pred[q], slopes.get(q))
+                    out.append((j, q, np.concatenate([level, rest])))
         except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError, ValueError):
             out = None
         cache[key] = out
@@ -653,7 +655,7 @@ class CalibrationProblem:
             if red is None:
                 parts.append((r - zero) / self.row_sigma[(i, j, q)])
                 continue
-            load = np.concatenate([np.sqrt(red.counts), np.zeros(int(red.two.sum()))])
+            load = np.concatenate([np.sqrt(red.counts), np.zeros(red.size - red.counts.size)])
             parts.append((r - load * zero) / self._block_sd(i, j, q))
         out = np.concatenate(parts)
         # per-run random effects profiled out (see _run_effects)

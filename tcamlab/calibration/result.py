@@ -206,6 +206,9 @@ class CalibrationResult:
         ``path`` (as given or as listed in the experiment file) and ``sha256``.
     curves : list of RunCurves
         Per-run curves for the report; arrays, so left out of :meth:`to_dict`.
+    estimator : list of EstimatorFit
+        The second stage of a self-sensing experiment: R0, TCR, R_lead and k_s refitted
+        through the EKF (:mod:`tcamlab.calibration.estimator`); empty for other kinds.
     """
 
     experiments: list[str]
@@ -221,6 +224,7 @@ class CalibrationResult:
     notes: list[str] = field(default_factory=list)
     inputs: list[dict] = field(default_factory=list)
     curves: list[RunCurves] = field(default_factory=list, repr=False, compare=False)
+    estimator: list = field(default_factory=list)
 
     def parameter(self, name: str) -> ParameterEstimate:
         """The estimate called ``name``."""
@@ -231,6 +235,7 @@ class CalibrationResult:
         without :attr:`curves`."""
         from tcamlab import __version__
 
-        out = asdict(replace(self, curves=[]))
+        out = asdict(replace(self, curves=[], estimator=[]))
         del out["curves"]
+        out["estimator"] = [f.to_dict() for f in self.estimator]
         return {"schema_version": SCHEMA_VERSION, "tool": f"tcamlab {__version__}", **out}

@@ -66,10 +66,7 @@ class Hypothesis:
 
     def effect(self, kind: str):
         """The :class:`tcamlab.effects.Effect` of this hypothesis (None for recalibration)."""
-        if self.name == RECALIBRATION:
-            return None
-        parts = [get_effect(n, kind) for n in self.name.split("+")]
-        return parts[0] if len(parts) == 1 else combine(*parts)
+        return _effect_of(self.name, kind)
 
     def joint(self) -> np.ndarray:
         """Covariance of (u, effect parameters [SI]) (see ``cov_joint``)."""
@@ -98,6 +95,14 @@ class Hypothesis:
         eff = self.effect(kind)
         mods = eff.mods(theta) if eff is not None else Mods()
         return sample.replace(**kw["sample"]), rig.replace(**kw["rig"]), mods
+
+
+def _effect_of(name: str, kind: str):
+    """The :class:`tcamlab.effects.Effect` of a hypothesis's name (None for recalibration)."""
+    if name == RECALIBRATION:
+        return None
+    parts = [get_effect(n, kind) for n in name.split("+")]
+    return parts[0] if len(parts) == 1 else combine(*parts)
 
 
 def _to_u(value: float, prior_sd: float, positive: bool) -> float:
@@ -134,19 +139,27 @@ def hypotheses(diagnosis: dict, kind: str) -> list[Hypothesis]:
     for name in _names(diagnosis):
         if name not in by:
             raise ConfigError(f"diagnosis: no fit of {name!r} in its ranking")
-        out.append(_hypothesis(by[name], cal))
+        out.append(_hypothesis(by[name], cal, kind))
     return out
 
 
-def _hypothesis(c: dict, cal: dict) -> Hypothesis:
-    rec = c.get("recalibrated") or {}
+def _in_order(d: dict, names) -> dict:
+    """``d`` with the keys in ``names`` first, in that order, then the rest as they were."""
+    names = list(names)
+    return {n: d[n] for n in sorted(d, key=lambda n: names.index(n) if n in names else len(names))}
+
+
+def _hypothesis(c: dict, cal: dict, kind: str) -> Hypothesis:
+    # in the fit's order, which the covariances follow: a diagnosis.json lists keys sorted
+    rec = _in_order(c.get("recalibrated") or {}, cal)
     fields = [(n, cal[n].where, bool(cal[n].positive)) for n in rec]
     values = np.array([rec[n]["value"] for n in rec], float)
     prior_sd = np.array([rec[n]["prior_sd"] for n in rec], float)
     shift = c.get("recalibrated_shift") or {}
     cov = np.asarray(shift.get("covariance") or np.zeros((len(rec), len(rec))), float)
     joint = shift.get("joint_covariance")
-    params = c.get("parameters") or {}
+    eff = _effect_of(c["effect"], kind)
+    params = _in_order(c.get("parameters") or {}, eff.param_names if eff is not None else ())
     ev = np.array([p["value"] for p in params.values()], float)
     esd = np.array([p.get("stderr") or 0.0 for p in params.values()], float)
     intervals = {n: {k: rec[n].get(k) for k in ("value", "ci95", "unit")} for n in rec}

@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 from scipy import stats
 
 from tcamlab import reduction
@@ -198,6 +199,7 @@ class Recalibration:
                     dict(problem.sigma),
                     lambda f, i=i: self.cal.predict_run(0, i, self.cal.u0, Mods(), f),
                     sorted(edges[i]),
+                    noisy=[c for c in problem.k.noisy_inputs if c in d],
                 )
         self._reductions = out
         return out
@@ -210,6 +212,8 @@ class Recalibration:
             return self._coarse_last[1]
         red = self.reductions()[i]
         pred = self.cal.predict_run(0, i, u, mods, red.frame)
+        # with noisy inputs, the model's slope in them (the noise moments)
+        pred = dict(pred, slopes=red.slopes(lambda f: self.cal.predict_run(0, i, u, mods, f), pred))
         self._coarse_last = (key, pred)
         return pred
 
@@ -225,16 +229,15 @@ class Recalibration:
         of what the moments leave out (``Reduction.within``); or FAIL_RESIDUAL."""
         red = self.reductions()[i]
         sel = self._blocks(red, mask)
-        counts, two = red.counts[sel], red.two[sel]
+        counts = red.counts[sel]
         try:
             pred = self._coarse(i, u, mods)
         except MODEL_ERRORS:
-            return np.full(len(self.problem.quantities) * (counts.size + int(two.sum())) + 1, FAIL_RESIDUAL)
+            size = red.per_moment(red.counts, sel).size
+            return np.full(len(self.problem.quantities) * size + 1, FAIL_RESIDUAL)
         parts, rest = [], 0.0
         for q in self.problem.quantities:
-            p0, p1 = red.predicted(q, pred[q])
-            d0 = (red.measured[q][0] - p0)[sel]
-            d1 = (red.measured[q][1] - p1)[sel][two]
+            d0, d1 = red.residual(q, pred[q], pred["slopes"].get(q), sel)
             if q in self.problem.zeroed:  # the mean of the rows' residuals, as Problem.resid
                 root = np.sqrt(counts)
                 d0 = d0 - root * (float(root @ d0) / float(counts.sum()))
@@ -243,12 +246,22 @@ class Recalibration:
         return np.concatenate(parts + [np.array([np.sqrt(rest)])])
 
     def resid(self, i: int, u: np.ndarray, mods: Mods, mask=None) -> np.ndarray:
-        """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``."""
+        """Normalised residuals of run i's rows in ``mask`` at ``u`` with ``mods``. Those of
+        all of a long run's rows are kept for the last (run, u, mods): a reduced fit scores
+        every row at its optimum and the term's RMS asks for the same rows again."""
+        whole = mask is None or (len(mask) >= reduction.MIN_ROWS and bool(np.all(mask)))
+        key = (i, np.asarray(u, float).tobytes(), mods) if whole else None
+        last = self.__dict__.get("_whole_last")
+        if key is not None and last is not None and last[0] == key:
+            return last[1]
         try:
             pred = self._rows_predicted(i, u, mods, mask)
         except MODEL_ERRORS:
             return self.problem.failed(i, mask)
-        return self.problem.scaled(i, pred, mask)
+        out = self.problem.scaled(i, pred, None if whole else mask)
+        if key is not None and len(self.problem.frames[i]) >= reduction.MIN_ROWS:
+            self._whole_last = (key, out)
+        return out
 
     def _rows_predicted(self, i: int, u: np.ndarray, mods: Mods, mask) -> dict:
         """Predictions [SI] of run i for :meth:`resid`. On a reduced run (whose model reads its
@@ -261,7 +274,11 @@ class Recalibration:
         rows = np.flatnonzero(mask)
         first, last = int(rows[0]), int(rows[-1])
         take = np.concatenate([red.grid[red.grid < first], np.arange(first, last + 1)])
-        part = self.cal.predict_run(0, i, u, mods, self.problem.frames[i].iloc[take])
+        frame = self.problem.frames[i].iloc[take]
+        if red.lines:  # the grid rows before the fold as the fit saw them, on the block lines
+            before = red.frame.iloc[: int(np.count_nonzero(red.grid < first))]
+            frame = pd.concat([before, frame.iloc[before.shape[0] :]])
+        part = self.cal.predict_run(0, i, u, mods, frame)
         out = {}
         for q, v in part.items():
             full = np.zeros(len(mask))

@@ -62,6 +62,7 @@ __all__ = [
     "LOAD_PRIOR_SD",
     "LAW_PRIORS",
     "calibrate_resistance_law",
+    "rest_rows_count",
     "chain_sd",
     "VOLTAGE_NOISE_SD",
     "VOLTAGE_QUANTUM",
@@ -491,7 +492,7 @@ def filter_run(
     )
     if load is not None:
         config = replace(config, initial_load_sd=max(LOAD_PRIOR_SD, LOAD_PRIOR_REL * abs(rig.force)))
-    rest = slice(0, _rest_count(data))
+    rest = slice(0, rest_rows_count(data))
     p_rest = float(np.mean(v[rest] * i[rest] - law[0] * i[rest] ** 2))
     t0 = rig.ambient + p_rest / rig.heat_loss  # steady at the probe power
     est = estimate(t, v, i, config, load=load, initial_temperature=t0)
@@ -623,7 +624,7 @@ def calibrate_resistance_law(
         out = [u]
         for data, (est, x_rest) in runs_of(u):
             e = est.displacement + est.extension0 - x_rest - data["displacement"].to_numpy(float)
-            e = e - e[: _rest_count(data)].mean()
+            e = e - e[: rest_rows_count(data)].mean()
             out.append(e[::LAW_FIT_THIN] / LAW_FIT_ERROR_SD)
         return np.concatenate(out)
 
@@ -643,7 +644,7 @@ def calibrate_resistance_law(
     return {**dict(zip(keys, map(float, theta))), "cost": float(cost)}
 
 
-def _rest_count(data) -> int:
+def rest_rows_count(data) -> int:
     """Number of leading rows at the first voltage (the rest rows)."""
     v = data["voltage"].to_numpy(float)
     moved = np.flatnonzero(np.abs(v - v[0]) > 0.02 * max(float(np.ptp(v)), 1e-12))

@@ -19,8 +19,8 @@ R0 (``initial_resistance_ohm``) is chapter 3's: unloaded, at ambient. When the
 file does not state it, it is the mean R of the rest rows divided by the model's
 g(x_rest) and thermal factor at the rest temperature.
 
-The virtual rig (:func:`protocol`, :func:`exact_inputs`, :func:`measure`) runs
-every protocol the issue asks for in one run: a quiet start at the probe
+The virtual rig (:func:`exact_inputs`, :func:`measure`, and the program :func:`protocol` of
+:mod:`tcamlab.kinds.selfsensing_protocol`) runs every protocol in one run: a quiet start at the probe
 voltage, voltage steps, PWM, a sine and a chirp, with a rider put on the hanger
 at a random time (the load changes, so the thermal model alone cannot predict
 the displacement). The truth is :func:`tcamlab.rig.selfsensing.powered_run`.
@@ -35,6 +35,24 @@ from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import InputError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
+from tcamlab.kinds.selfsensing_protocol import (  # noqa: F401  (the program's names stay importable here)
+    CHIRP_F0_HZ,
+    CHIRP_F1_HZ,
+    PROBE_V,
+    PROGRAM_OPTIONS,
+    PWM_DUTY,
+    PWM_HZ,
+    PWM_V,
+    RATE_HZ,
+    RIDER_KG,
+    RIDER_WINDOW_S,
+    SEGMENTS,
+    SINE_AMP_V,
+    SINE_HZ,
+    SINE_MEAN_V,
+    STEP_LEVELS_V,
+    protocol,
+)
 from tcamlab.models import selfsensing as ssm
 from tcamlab.models import static
 from tcamlab.params import G_ACCEL, THESIS_TCA, Rig, Sample
@@ -45,31 +63,6 @@ MIN_CURRENT_A = 1e-3
 """Below this current R = V / I is not read; the estimate is held [A]."""
 CONTACT_ITERATIONS = 12
 """Secant steps that undo the inter-coil contact factor in the inversion."""
-
-RATE_HZ = 100
-"""Logging rate of the powered run [Hz]."""
-PROBE_V = 1.5
-"""Probe voltage between heating phases [V]: keeps a current to read R (about 35 mA, 6 K of self-heating)."""
-SEGMENTS = (
-    ("rest", 2.0),
-    ("steps", 12.0),
-    ("pwm", 12.0),
-    ("sine", 12.0),
-    ("chirp", 12.0),
-)
-"""Protocol segments and their durations [s], in order."""
-STEP_LEVELS_V = (4.0, 6.0)
-"""Voltage steps, each 3 s on then 3 s at the probe [V] (6 V on 40 ohm: about 100 K at steady state)."""
-PWM_V, PWM_HZ, PWM_DUTY = 6.0, 1.0, 0.5
-"""PWM amplitude [V], frequency [Hz] and duty cycle [-]."""
-SINE_MEAN_V, SINE_AMP_V, SINE_HZ = 3.5, 2.5, 0.25
-"""Sine voltage: mean [V], amplitude [V], frequency [Hz]."""
-CHIRP_F0_HZ, CHIRP_F1_HZ = 0.05, 1.0
-"""Chirp of the same mean and amplitude, linear from f0 to f1 over its segment [Hz]."""
-RIDER_KG = 5e-3
-"""Mass of the rider put on the hanger during the run [kg] (5 g, a tenth of the load)."""
-RIDER_WINDOW_S = (15.0, 35.0)
-"""The rider goes on at a uniform random time in this window [s]."""
 
 CURRENT_SD_A = 0.05e-3
 """Noise of the current-sense chain (0.1 ohm shunt into an INA219-class monitor) [A]."""
@@ -688,51 +681,6 @@ def extras_section(result) -> Section | None:
 # --- virtual rig ---------------------------------------------------------------------------
 
 
-def _segment_voltage(name: str, tau: np.ndarray, duration: float) -> np.ndarray:
-    """Commanded voltage of one protocol segment at local times ``tau`` [s] from its start [V]."""
-    if name == "steps":
-        half = duration / (2 * len(STEP_LEVELS_V))
-        k = np.minimum((tau // (2 * half)).astype(int), len(STEP_LEVELS_V) - 1)
-        on = (tau % (2 * half)) < half
-        return np.where(on, np.asarray(STEP_LEVELS_V)[k], PROBE_V)
-    if name == "pwm":
-        return np.where((tau * PWM_HZ) % 1.0 < PWM_DUTY, PWM_V, PROBE_V)
-    if name == "sine":
-        return SINE_MEAN_V + SINE_AMP_V * np.sin(2 * np.pi * SINE_HZ * tau)
-    if name == "chirp":
-        phase = 2 * np.pi * (CHIRP_F0_HZ * tau + 0.5 * (CHIRP_F1_HZ - CHIRP_F0_HZ) / duration * tau**2)
-        return SINE_MEAN_V + SINE_AMP_V * np.sin(phase)
-    return np.full(tau.shape, PROBE_V)
-
-
-def protocol(rig: Rig, rng: np.random.Generator) -> pd.DataFrame:
-    """The commanded voltage and hanging mass of one run.
-
-    Parameters
-    ----------
-    rig : Rig
-        ``load`` [kg] before the rider goes on.
-    rng : numpy.random.Generator
-        Draws the time the rider goes on (uniform in :data:`RIDER_WINDOW_S`).
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``time`` [s], ``voltage`` [V] (held, 1 mV steps of the driver), ``load_mass`` [kg].
-    """
-    total = sum(d for _, d in SEGMENTS)
-    t = np.arange(int(round(total * RATE_HZ))) / RATE_HZ
-    v = np.empty(t.size)
-    start = 0.0
-    for name, duration in SEGMENTS:
-        m = (t >= start - 1e-9) & (t < start + duration - 1e-9)
-        v[m] = _segment_voltage(name, t[m] - start, duration)
-        start += duration
-    on = float(rng.uniform(*RIDER_WINDOW_S))
-    mass = np.where(t >= on, rig.load + RIDER_KG, rig.load)
-    return pd.DataFrame({"time": t, "voltage": np.round(v, 3), "load_mass": mass})
-
-
 def exact_inputs(
     sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS, *, law=None
 ) -> pd.DataFrame:
@@ -934,7 +882,7 @@ KIND = Kind(
     benchmark_program={},
     benchmark_uncertainty={},
     benchmark_pairs=(("inter-coil-contact", "coating-tcr"),),
-    program_options=(),
+    program_options=PROGRAM_OPTIONS,
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,

@@ -364,6 +364,47 @@ def _measurement_section(result, name: str) -> Section:
     )
 
 
+def estimator_section(result) -> Section | None:
+    """Both fits of a self-sensing experiment (open-loop, then the EKF refit) and which figure
+    uses which; None without a second stage."""
+    fits = getattr(result, "estimator", None) or []
+    if not fits:
+        return None
+    from tcamlab.calibration.estimator import SYMBOLS
+
+    rows = []
+    for fit in fits:
+        for name, symbol in SYMBOLS.items():
+            before, after = fit.open_loop[name], fit.values[name]
+            if name in fit.fitted:
+                status = f"refitted, sd {fit.sd[name]:.3g}"
+            else:
+                status = fit.held.get(name, "held at its stated value")
+            rows.append([fit.experiment, symbol, f"{before:.6g}", f"{after:.6g}", status])
+    paragraphs = [
+        "Second stage: the open-loop fit above leaves R0, the TCR, C_th and lambda off together "
+        "(the inversion cannot tell them apart), which the causal EKF with the load unknown reads as a "
+        "load drift. R0 and the TCR, and the lead resistance R_lead (bounded at 0) and the stretch "
+        "factor k_s where the runs identify them, are refitted through the EKF against the laser "
+        "("
+        + "; ".join(
+            f"{f.experiment}: {', '.join(f.cases)}, error rms {f.rms_before_um:.1f} um -> "
+            f"{f.rms_after_um:.1f} um"
+            if f.fitted
+            else f"{f.experiment}: not refitted"
+            for f in fits
+        )
+        + "); C_th, lambda and b stay at the open-loop fit."
+    ]
+    paragraphs += [f"The {k} is used by {v}." for k, v in fits[0].used_by.items()]
+    head = ["experiment", "parameter", "open-loop fit", "EKF refit (written)", "status"]
+    return Section(
+        "Fit for the estimator",
+        paragraphs=paragraphs,
+        tables=[Table(head, rows, caption="R0, TCR, R_lead and k_s after each stage (SI)")],
+    )
+
+
 def calibration_document(result, experiments: Sequence, *, command: str | None = None) -> Document:
     """The calibration report.
 
@@ -394,6 +435,7 @@ def calibration_document(result, experiments: Sequence, *, command: str | None =
         Section("Identifiability", paragraphs=list(result.identifiability)),
         Section("Fit quality", tables=[_quality_table(result)]),
     ]
+    sections += [s for s in (estimator_section(result),) if s is not None]
     if zeros is not None:
         sections.append(Section("Nuisance zeros", tables=[zeros]))
     sections += [_measurement_section(result, name) for name in names]
