@@ -35,9 +35,11 @@ DEFAULT_PROTOCOL = {
     "dynamic": "second voltage 0.8x",
     "sensing": "larger pull range",
     "curvature": "finer levels",
+    "selfsensing": "second probe voltage",
 }
 """The fixed protocol a lab would run without a design, by kind (a menu entry's name, or the
-first entry starting with it): a second load at twice the first, a second voltage."""
+first entry starting with it): a second load at twice the first, a second voltage, a
+second probe voltage."""
 
 LOOP_SEED_OFFSET = 100_000
 """The designed runs' seed is the case's plus this: the same muscle, new noise."""

@@ -347,7 +347,7 @@ def test_design_ranks_the_menu_on_an_aliased_diagnosis(kind, diagnosis, monkeypa
     assert all(np.isfinite(c.separation_refit) and c.separation_refit > 0 for c in res.candidates)
     per_hour = [c.per_hour for c in res.candidates]
     assert per_hour == sorted(per_hour, reverse=True)
-    assert res.best is not None and res.best.name in menu
+    assert res.best is not None and res.best.name.startswith(tuple(menu))
     # more of the same separates more than the repeat: every change beats it in separation
     repeat = next(c for c in res.candidates if c.name == "repeat (same protocol)")
     assert all(

@@ -7,8 +7,9 @@ Steps (one module each):
 2. :mod:`~tcamlab.design.protocols` -- the kind's menu of protocol changes (static: a second
    load, heat-cool, a wider range, a longer dwell; dynamic: a second voltage, a shorter or
    longer pulse, a pulse train; sensing: a larger pull range, cycles, a second pull rate, a
-   finer step, a longer dwell; curvature: finer levels, a larger range), each with its runs
-   and rig time.
+   finer step, a longer dwell; curvature: finer levels, a larger range; selfsensing: a second
+   probe voltage, a load step, a probe ripple, longer heating steps), each with its runs and
+   rig time.
 3. :mod:`~tcamlab.design.predict` -- every hypothesis's predicted logs under each protocol,
    with their spread over draws of its parameters, and the protocol's limits (no G_t' <= 0,
    coil not closed, temperature under :data:`~tcamlab.design.predict.TEMPERATURE_LIMIT_C`).

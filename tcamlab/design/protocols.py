@@ -56,7 +56,10 @@ def menu(kind: str, sample, rig) -> list[Protocol]:
     """The kind's candidate protocols (its ``design_menu``); ConfigError for a kind without one."""
     make = getattr(kind_module(kind), "design_menu", None)
     if make is None:
-        raise ConfigError(f"design: the {kind} rig has no menu of protocols yet", "static or dynamic")
+        raise ConfigError(
+            f"design: the {kind} rig has no menu of protocols yet",
+            "kinds with a menu: static, dynamic, sensing, curvature, selfsensing",
+        )
     return [Protocol(name, table) for name, table in make(sample, rig)]
 
 
