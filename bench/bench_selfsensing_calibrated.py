@@ -5,6 +5,7 @@ Run from the repository root::
 
     python bench/bench_selfsensing_calibrated.py --seeds 3
     python bench/bench_selfsensing_calibrated.py --quick    # seed 1 (CI)
+    python bench/bench_selfsensing_calibrated.py --seed 2 --linear-tcr --logged-only
 
 Per seed, all SYNTHETIC (generator ``tcamlab.kinds.selfsensing`` virtual rig with
 ``tcamlab.rig.selfsensing.ResistanceLaw``, drawn by ``bench/bench_observer.py``'s
@@ -91,8 +92,11 @@ def open_loop_only(text: str, fit) -> str:
     return text
 
 
-def one_seed(seed: int, work: Path, load_logged: bool) -> dict:
-    """Draw, log, calibrate on runs 1-3, validate runs 4-5 with both fits."""
+def one_seed(seed: int, work: Path, load_logged: bool, linear_tcr: bool = False) -> dict:
+    """Draw, log, calibrate on runs 1-3, validate runs 4-5 with both fits; ``linear_tcr`` sets
+    the drawn law's quadratic TCR to 0 (the rest of the draw unchanged)."""
+    from dataclasses import replace
+
     from bench_observer import draw_truth, make_runs
 
     from tcamlab.config import load_experiment
@@ -100,6 +104,8 @@ def one_seed(seed: int, work: Path, load_logged: bool) -> dict:
 
     template = load_experiment(ROOT / "experiments" / "selfsensing.toml")
     truth, law = draw_truth(template.rig, seed)
+    if linear_tcr:
+        law = replace(law, tcr2_per_K2=0.0)
     names = write_runs(make_runs(template.sample, truth, law, seed), work, load_logged)
     text = (ROOT / "experiments" / "selfsensing.toml").read_text()
     train = work / "experiments" / "train.toml"
@@ -149,14 +155,20 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="seed 1 only (CI)")
+    parser.add_argument("--seed", type=int, help="this seed only")
+    parser.add_argument("--linear-tcr", action="store_true", help="the drawn law's quadratic TCR set to 0")
+    parser.add_argument("--logged-only", action="store_true", help="only the case that logs load_N")
     args = parser.parse_args(argv)
     seeds = [1] if args.quick else list(range(1, args.seeds + 1))
+    seeds = [args.seed] if args.seed else seeds
     print("SYNTHETIC: selfsensing virtual rig, truth one stated sd off, ResistanceLaw drawn per seed")
     print("cells: mean / 95 % interval of the error, % of the stroke, pooled over withheld runs 4-5")
-    for load_logged in (True, False):
+    if args.linear_tcr:
+        print("the law's quadratic TCR set to 0 (--linear-tcr)")
+    for load_logged in (True,) if args.logged_only else (True, False):
         for seed in seeds:
             with tempfile.TemporaryDirectory(prefix="tcam-sscal-") as tmp:
-                res = one_seed(seed, Path(tmp), load_logged)
+                res = one_seed(seed, Path(tmp), load_logged, args.linear_tcr)
             law, fit = res["law"], res["fit"]
             print(
                 f"seed {seed} ({'load_N logged' if load_logged else 'no load_N'}): truth R_lead "

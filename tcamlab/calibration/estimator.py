@@ -302,9 +302,9 @@ def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
 
 USED_BY = {
     "open-loop fit": "the calibration report's parameter table, fit quality, overlays, residuals, "
-    "profiles and correlation (the open-loop inversion against the laser); its C_th, lambda and b "
-    "are the calibrated file's",
-    "EKF refit": "the calibrated file's R0, TCR, R_lead and k_s, so by every variant validate scores "
-    "on that file: EKF (causal), EKF (load withheld) and the open-loop inversion",
+    "profiles and correlation (the open-loop inversion against the laser), and, through the "
+    "calibrated file's C_th, lambda and b, every variant validate scores on that file",
+    "EKF refit": "every variant validate scores on the calibrated file (EKF (causal), EKF (load "
+    "withheld) and the open-loop inversion), through the file's R0, TCR, R_lead and k_s",
 }
 """Which figure uses which fit (written to the calibrated file and the report)."""

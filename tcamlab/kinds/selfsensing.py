@@ -840,7 +840,9 @@ On synthetic runs of the virtual rig's law (bench/bench_observer.py's draw) the 
 R_lead to the box's edge below 0 (a calibrated file that loading refuses) and k_s to 0.4-1.7
 against a truth of 0.85 (k_s is fixed only together with R0, r = -1.00); on a run with a
 true resistance drift the verdict went from attributed to aliased. Neither stopped the
-diagnosis from naming an effect on law runs without drift."""
+diagnosis from naming an effect on law runs without drift. ``calibrate``'s second stage fits
+them through the EKF instead, bounded and held where not identified
+(:mod:`tcamlab.calibration.estimator`)."""
 
 
 KIND = Kind(
