@@ -247,16 +247,7 @@ def parameter_vector(sample: Sample, rig: Rig, lead_resistance: float = 0.0) -> 
     p[K.P_TA], p[K.P_CTH], p[K.P_LAM] = rig.ambient, rig.thermal_mass, rig.heat_loss
     p[K.P_MASS], p[K.P_DAMP] = rig.load, rig.damping
     p[K.P_L], p[K.P_D0], p[K.P_RHO] = sample.fiber_length, sample.fiber_diameter, sample.radial_cte
-    p[K.P_GT] = float(
-        static.sample_shear_modulus(
-            sample.fiber_diameter,
-            sample.fiber_length,
-            sample.twists,
-            sample.youngs_modulus,
-            sample.thread_plies,
-            sample.max_volume_fraction,
-        )
-    )
+    p[K.P_GT] = static.shear_modulus_of(sample)
     p[K.P_SLOPE], p[K.P_E] = sample.shear_modulus_slope, sample.youngs_modulus
     p[K.P_PHI0] = 2.0 * np.pi * sample.twists
     p[K.P_NCOIL] = float(static.n_coils(sample.fiber_length, sample.coil_length, sample.coil_diameter))

@@ -272,14 +272,7 @@ def program_limit(sample: Sample, rig: Rig, table: dict, seed: int = 0) -> str |
     from tcamlab.rig.selfsensing import powered_run  # the rig package imports the kind registry
 
     kw = sample.model_kwargs()
-    gt = st.sample_shear_modulus(
-        kw["fiber_diameter"],
-        kw["fiber_length"],
-        kw["twists"],
-        kw["youngs_modulus"],
-        kw["thread_plies"],
-        kw["max_volume_fraction"],
-    )
+    gt = st.shear_modulus_of(sample)
     rise = float(st.max_temperature_rise(gt, sample.shear_modulus_slope))
     hottest_ok = min(MAX_OVEN_C, rig.ambient + rise - G_LIMIT_MARGIN_C)
     solid = (

@@ -262,14 +262,7 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     (capped at :data:`MAX_OVEN_C` and :data:`G_LIMIT_MARGIN_C` below the G_t' = 0
     temperature at the stated values), a longer dwell. Each runs twice per load.
     """
-    g = _static.sample_shear_modulus(
-        sample.fiber_diameter,
-        sample.fiber_length,
-        sample.twists,
-        sample.youngs_modulus,
-        sample.thread_plies,
-        sample.max_volume_fraction,
-    )
+    g = _static.shear_modulus_of(sample)
     rise = float(_static.max_temperature_rise(g, sample.shear_modulus_slope))
     top = float(min(MAX_OVEN_C, 5.0 * np.floor((rig.ambient + rise - G_LIMIT_MARGIN_C) / 5.0)))
     g0 = round(rig.load * 1e3, 3)

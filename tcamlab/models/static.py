@@ -60,6 +60,7 @@ __all__ = [
     "displacement",
     "internal_force",
     "sample_shear_modulus",
+    "shear_modulus_of",
 ]
 
 
@@ -163,6 +164,21 @@ def sample_shear_modulus(
         youngs_modulus,
         volume_fraction(thread_plies, max_volume_fraction),
         bias_angle(fiber_diameter, twists, fiber_length),
+    )
+
+
+def shear_modulus_of(sample) -> float:
+    """G_t of a sample object [Pa]: :func:`sample_shear_modulus` of its fields of the same names
+    (:class:`tcamlab.params.Sample`, or any object with them)."""
+    return float(
+        sample_shear_modulus(
+            sample.fiber_diameter,
+            sample.fiber_length,
+            sample.twists,
+            sample.youngs_modulus,
+            sample.thread_plies,
+            sample.max_volume_fraction,
+        )
     )
 
 

@@ -115,16 +115,7 @@ class PoweredRun:
 def _mechanics(sample: Sample):
     """Constants of F_i(x, T) (2.15) as the dynamic model's reference right-hand side."""
     kw = sample.model_kwargs()
-    gt = float(
-        static.sample_shear_modulus(
-            kw["fiber_diameter"],
-            kw["fiber_length"],
-            kw["twists"],
-            kw["youngs_modulus"],
-            kw["thread_plies"],
-            kw["max_volume_fraction"],
-        )
-    )
+    gt = static.shear_modulus_of(sample)
     n = float(static.n_coils(kw["fiber_length"], kw["coil_length"], kw["coil_diameter"]))
     return kw, gt, n
 
