@@ -36,6 +36,7 @@ TITLES = {
     "one_condition": "Static and dynamic, one condition",
     "two_conditions": "Static and dynamic, two conditions",
     "closed_loop": "Closed loop: diagnose, design, measure, diagnose (static and dynamic)",
+    "closed_loop_sensors": "Closed loop: diagnose, design, measure, diagnose (sensing and curvature)",
 }
 
 

@@ -999,7 +999,7 @@ def _within_reach_scores(rows: list[dict], after: list[dict]) -> dict:
         cell[0] += int(right(a))
         cell[1] += 1
     out: dict = {}
-    for (fam, st), (k, n, m) in sorted(cells.items()):
+    for (fam, st), (k, n, m) in sorted(cells.items(), key=lambda kv: (kv[0][0], float(kv[0][1]))):
         out.setdefault(fam, {})[st] = {"k": k, "n": n, "rate": _rate(k, n), "out_of_reach": m}
     return out
 
@@ -1449,7 +1449,7 @@ def _loop_tables(c: dict) -> list:
         for fam, fig, n, val, _ in _family_rows(c["after"])
     ]
     for fam, by in (c.get("within_reach") or {}).items():
-        for st, w in by.items():
+        for st, w in sorted(by.items(), key=lambda kv: float(kv[0])):
             fig = f"top-1 at {st}x, leaving out the {w['out_of_reach']} out of the menu's reach"
             rows.append([fam, fig, str(w["n"]), "-", _fmt(w["rate"]), LOOP_TARGETS["top-1"]])
     d = c["at_least_default"]
