@@ -5,7 +5,9 @@ One loop per sample k (period dt), in the order a real controller runs:
 1. the controller picks V_k from the feedback of sample k-1 (one sample delay);
 2. the driver applies V_k; the ADCs read V and I (noise, quantisation), the
    laser reads the displacement (noise, quantisation);
-3. the self-sensing estimator takes (V, I) (:func:`kernel.ekf_step`);
+3. the self-sensing estimator takes (V, I) (:func:`kernel.ekf_step`), with the load-jump
+   detector's sums and hold carried between samples, so a configured detector runs here
+   as it does over a log;
 4. the plant (the dynamic model with the TRUE parameters and the TRUE
    resistance R(T, x)) integrates over [t_k, t_k+1] with V_k held, heated by
    V_k^2 / R, under the TRUE load force of the interval.
@@ -78,7 +80,7 @@ def run_loop(mode, time, ref, force, load_meas, v_given, s_true, p_true, table_t
     """Run the loop; ``out`` columns: true displacement, estimate, V, true T, estimated T, laser reading."""
     n = time.size
     x0_true = s_true[1]
-    carry = np.empty(2)
+    carry = np.zeros(6)  # V, I, the jump detector's two sums, its hold [s], the innovation's variance
     plant = np.empty(K.NX)
     integ = 0.0
     y = 0.0
