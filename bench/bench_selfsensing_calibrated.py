@@ -82,12 +82,23 @@ def scores(path: Path, out: Path) -> dict:
     return out
 
 
+def with_tcr2(text: str, fit) -> str:
+    """The calibrated file with the EKF refit's quadratic TCR in [rig] as ``tcr2_per_K2`` where the
+    refit fitted it and the file does not state it (the calibrated-file writer states R0, the TCR,
+    R_lead and k_s; this puts the fifth beside them, so validate reads the law that was fitted)."""
+    if "tcr2" not in fit.fitted or re.search(r"^tcr2_per_K2 = ", text, flags=re.M):
+        return text
+    return re.sub(
+        r"^\[rig\]\n", f"[rig]\ntcr2_per_K2 = {fit.values['tcr2']:.6g}\n", text, count=1, flags=re.M
+    )
+
+
 def open_loop_only(text: str, fit) -> str:
-    """The calibrated file with R0 and the TCR of the open-loop fit, R_lead and k_s as stated."""
+    """The calibrated file with R0 and the TCR of the open-loop fit, R_lead, k_s and tcr2 as stated."""
     keys = {"initial_resistance_ohm": "initial_resistance", "tcr_per_K": "tcr"}
     for key, name in keys.items():
         text = re.sub(rf"^{key} = .*$", f"{key} = {fit.open_loop[name]:.6g}", text, count=1, flags=re.M)
-    for key in ("lead_resistance_ohm", "stretch_factor"):
+    for key in ("lead_resistance_ohm", "stretch_factor", "tcr2_per_K2"):
         text = re.sub(rf"^{key} = .*\n", "", text, count=1, flags=re.M)
     return text
 
@@ -111,7 +122,7 @@ def one_seed(seed: int, work: Path, load_logged: bool, linear_tcr: bool = False)
     train = work / "experiments" / "train.toml"
     train.write_text(with_runs(text, names[:3]))
     result = calibrate_experiment([train]).result
-    calibrated = train.with_name("train.calibrated.toml").read_text()
+    calibrated = with_tcr2(train.with_name("train.calibrated.toml").read_text(), result.estimator[0])
     both = work / "experiments" / "withheld.toml"
     both.write_text(with_runs(calibrated, names[3:]))
     first = work / "experiments" / "withheld_open_loop.toml"

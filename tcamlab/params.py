@@ -219,6 +219,9 @@ class Rig:
     stretch_factor : float
         k_s, the self-sensing muscle's stretch sensitivity relative to chapter 3's map,
         R = R_lead + R0 (1 + k_s (g(x) - 1)) heat(T) [-]; 1 is tcamlab's law.
+    tcr2 : float
+        Quadratic temperature coefficient of a self-sensing muscle's coating,
+        heat(T) = (1 + tcr dT + tcr2 dT^2) / (1 + rho dT)^2 [1/K^2]; 0 is tcamlab's (linear) law.
     uncertainty : mapping
         Standard deviations of any of the fields above, same units.
     """
@@ -239,6 +242,7 @@ class Rig:
     heater_tcr: float = 0.0
     lead_resistance: float = 0.0
     stretch_factor: float = 1.0
+    tcr2: float = 0.0
     uncertainty: Mapping[str, float] = field(default_factory=dict)
 
     @property
@@ -283,6 +287,7 @@ RIG_KEYS: dict[str, tuple[str, float]] = {
     "heater_tcr_per_K": ("heater_tcr", 1.0),
     "lead_resistance_ohm": ("lead_resistance", 1.0),
     "stretch_factor": ("stretch_factor", 1.0),
+    "tcr2_per_K2": ("tcr2", 1.0),
 }
 
 

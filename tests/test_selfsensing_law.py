@@ -1,4 +1,4 @@
-"""The self-sensing resistance law's two nuisances in the experiment file: R_lead and k_s."""
+"""The self-sensing resistance law's nuisances in the experiment file: R_lead, k_s and the quadratic TCR."""
 
 import json
 from pathlib import Path
@@ -240,7 +240,13 @@ def test_diagnose_on_a_law_run_without_drift_does_not_name_the_drift(tmp_path, s
 def _estimator_fit(**values):
     from tcamlab.calibration.estimator import PARAMETERS, EstimatorFit
 
-    stated = {"initial_resistance": 24.0, "tcr": 0.0038, "lead_resistance": 0.0, "stretch_factor": 1.0}
+    stated = {
+        "initial_resistance": 24.0,
+        "tcr": 0.0038,
+        "lead_resistance": 0.0,
+        "stretch_factor": 1.0,
+        "tcr2": 0.0,
+    }
     return EstimatorFit(
         experiment="law", open_loop=stated, values={**stated, **values}, fitted=PARAMETERS, held={},
         sd=dict.fromkeys(PARAMETERS, 0.01), correlation={}, cases=("load withheld",),
@@ -365,10 +371,12 @@ def test_a_nuisance_the_runs_cannot_tell_from_r0_is_held_with_the_reason(tmp_pat
     exp = load_experiment(_experiment(tmp_path))
     fit = refit_for_estimator(exp, rig, [m])
     assert fit.fitted[:2] == ("initial_resistance", "tcr")
-    assert set(fit.held) == {"lead_resistance", "stretch_factor"}
+    # at a held probe T stays put too: the quadratic TCR is not seen either
+    assert set(fit.held) == {"lead_resistance", "stretch_factor", "tcr2"}
     assert all(why.startswith("held at its stated value") for why in fit.held.values())
     assert fit.values["lead_resistance"] == rig.lead_resistance
     assert fit.values["stretch_factor"] == rig.stretch_factor
+    assert fit.values["tcr2"] == rig.tcr2 == 0.0
 
 
 def test_a_refit_the_filter_cannot_run_keeps_the_open_loop_fit(tmp_path, setup, monkeypatch):
@@ -386,3 +394,60 @@ def test_a_refit_the_filter_cannot_run_keeps_the_open_loop_fit(tmp_path, setup, 
     fit = estimator.refit_for_estimator(exp, exp.rig, [r.data for r in exp.read_runs()])
     assert fit.fitted == () and fit.values == fit.open_loop
     assert "chapter 3's domain" in fit.held["initial_resistance"]
+
+
+def test_the_quadratic_tcr_key_loads_in_si_and_defaults_to_linear(tmp_path):
+    assert load_experiment(_experiment(tmp_path)).rig.tcr2 == 0.0
+    rig = load_experiment(_experiment(tmp_path, "tcr2_per_K2 = 1.5e-6\n", "tcr2_per_K2 = 5e-7\n")).rig
+    assert rig.tcr2 == pytest.approx(1.5e-6) and rig.uncertainty["tcr2"] == pytest.approx(5e-7)
+
+
+def test_the_estimators_law_with_a_quadratic_tcr_follows_its_formula(setup):
+    from tcamlab.estimation import observer as so
+
+    sample, rig = setup
+    temps = rig.ambient + np.array([0.0, 10.0, 40.0, 90.0])
+    x = np.full(4, so.rest_extension(sample, rig))
+    lin = so.combined_resistance(sample, rig, 24.0, 0.0038, 0.3, 0.85)(temps, x)
+    quad = so.combined_resistance(sample, rig, 24.0, 0.0038, 0.3, 0.85, 2e-6)(temps, x)
+    dT = temps - rig.ambient
+    # R = R_lead + R0 (1 + k_s (g - 1)) (1 + TCR dT + tcr2 dT^2) / (1 + rho dT)^2
+    want = 0.3 + (lin - 0.3) * (1.0 + 0.0038 * dT + 2e-6 * dT**2) / (1.0 + 0.0038 * dT)
+    np.testing.assert_allclose(quad, want, rtol=1e-12)
+    assert quad[-1] - lin[-1] > 0.3  # 2e-6 * 90^2 = 1.6 % of about 24 ohm: not nothing
+    # absent and 0 are the same table, to the bit
+    base = so.config_from(sample, rig, initial_resistance=24.0)
+    zero = so.config_from(sample, rig, initial_resistance=24.0, tcr2=0.0)
+    assert np.array_equal(base.table.values, zero.table.values)
+
+
+def test_a_stated_quadratic_tcr_removes_the_ekfs_drift_with_the_load_unknown(setup):
+    from tcamlab.rig.selfsensing import ResistanceLaw
+
+    sample, rig = setup
+    # SYNTHETIC (the kind's virtual rig, protocol and noise seed 7): the truth's coating has a
+    # quadratic TCR of 2e-6 /K^2, everything else is the filter's
+    rng = np.random.default_rng(7)
+    proto = ss.protocol(rig, rng)
+    m = ss.measure(ss.exact_inputs(sample, rig, proto, law=ResistanceLaw(tcr2_per_K2=2e-6)), {}, rng, 1.0)
+    meas = m["displacement"].to_numpy()
+
+    def mean_error(tcr2):
+        p = ss.predict(sample, rig.replace(tcr2=tcr2), m, initial_resistance=rig.initial_resistance,
+                       estimator="ekf", use_load=False)  # fmt: skip
+        e = p["displacement"] - meas
+        return float(np.mean(e - e[:150].mean()) / np.ptp(meas))
+
+    # measured: +3.3 % of the stroke with the law linear, -0.9 % with tcr2 stated
+    assert mean_error(0.0) > 0.025
+    assert abs(mean_error(2e-6)) < 0.015
+
+
+def test_the_quadratic_tcrs_prior_in_the_estimators_refit(setup):
+    from tcamlab.calibration import estimator
+
+    _, rig = setup
+    assert "tcr2" in estimator.PARAMETERS and "tcr2" not in estimator.CORE
+    assert estimator.refit_prior(rig, "tcr2") == (0.0, estimator.TCR2_PRIOR_SD)
+    stated = rig.replace(tcr2=1e-6, uncertainty={**rig.uncertainty, "tcr2": 3e-7})
+    assert estimator.refit_prior(stated, "tcr2") == (1e-6, 3e-7)

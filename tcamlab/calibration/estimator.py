@@ -6,7 +6,8 @@
 with the load unknown reads that common error as a load drift during heating. This stage
 holds the thermal constants and the damping at the open-loop fit and refits what the EKF is
 sensitive to, R0 and the TCR, with the resistance law's nuisances R_lead (lead and contacts,
-bounded at 0 ohm) and k_s (stretch sensitivity) where the runs identify them, through the
+bounded at 0 ohm), k_s (stretch sensitivity) and tcr2 (the coating's quadratic TCR) where the
+runs identify them, through the
 estimator ``validate`` scores: the EKF (load logged where the runs log it, and withheld),
 against the laser of the training runs, each run after its rest-row zero.
 
@@ -29,6 +30,8 @@ __all__ = [
     "refit_for_estimator",
     "fit_for_estimator",
     "held_nuisances",
+    "refit_prior",
+    "TCR2_PRIOR_SD",
     "PARAMETERS",
     "MAX_CORRELATION",
     "PRIOR_SD_REL",
@@ -36,11 +39,17 @@ __all__ = [
     "THIN",
 ]
 
-PARAMETERS = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor")
-"""Fields the stage refits, in order: R0 [ohm], TCR [1/K], R_lead [ohm], k_s [-]."""
+PARAMETERS = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor", "tcr2")
+"""Fields the stage refits, in order: R0 [ohm], TCR [1/K], R_lead [ohm], k_s [-], tcr2 [1/K^2]."""
 CORE = ("initial_resistance", "tcr")
 """Always refitted: the EKF's drift comes from them."""
-SYMBOLS = {"initial_resistance": "R0", "tcr": "TCR", "lead_resistance": "R_lead", "stretch_factor": "k_s"}
+SYMBOLS = {
+    "initial_resistance": "R0",
+    "tcr": "TCR",
+    "lead_resistance": "R_lead",
+    "stretch_factor": "k_s",
+    "tcr2": "tcr2",
+}
 """Thesis symbols, for the report."""
 MAX_CORRELATION = 0.99
 """A nuisance whose estimate correlates with a fitted parameter beyond this is held [-]."""
@@ -52,6 +61,10 @@ PRIOR_SD_REL = {"initial_resistance": 0.1, "tcr": 0.2, "stretch_factor": 0.2}
 several % off together (the reason for this stage); k_s within 20 % of chapter 3's."""
 LEAD_PRIOR_SD = 0.3
 """Prior sd of R_lead [ohm] about the stated value (a bench rig's leads: 0.2-0.5 ohm)."""
+TCR2_PRIOR_SD = 2e-6
+"""Prior sd of the coating's quadratic TCR [1/K^2] about the stated value (0: linear) when no sd
+is stated: 2e-6 /K^2 moves R by 0.5 % at 50 K above ambient, an eighth of the linear term's
+19 % there, as far as a plated coating's curvature is seen to go."""
 ERROR_SD = 50e-6
 """sd of one thinned row's displacement error [m] (the EKF's, beyond the laser's noise)."""
 THIN = 10
@@ -106,15 +119,18 @@ class EstimatorFit:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def _prior(rig, name: str) -> tuple[float, float]:
-    """(centre, sd) of one refitted field, SI: the open-loop fit's (or stated) value; R_lead's and
-    k_s's sd as stated in [rig.uncertainty], else :data:`LEAD_PRIOR_SD` / :data:`PRIOR_SD_REL`."""
+def refit_prior(rig, name: str) -> tuple[float, float]:
+    """(centre, sd) of one refitted field, SI: the open-loop fit's (or stated) value; R_lead's,
+    k_s's and tcr2's sd as stated in [rig.uncertainty], else :data:`LEAD_PRIOR_SD`,
+    :data:`PRIOR_SD_REL` and :data:`TCR2_PRIOR_SD`."""
     mu = float(getattr(rig, name))
     stated = (getattr(rig, "uncertainty", None) or {}).get(name)
-    if name in ("lead_resistance", "stretch_factor") and stated:
-        return mu, float(stated)  # a four-wire reading or a pull test stated it
+    if name in ("lead_resistance", "stretch_factor", "tcr2") and stated:
+        return mu, float(stated)  # a four-wire reading, a pull test or an oven test stated it
     if name == "lead_resistance":
         return mu, LEAD_PRIOR_SD
+    if name == "tcr2":
+        return mu, TCR2_PRIOR_SD
     return mu, PRIOR_SD_REL[name] * abs(mu)
 
 
@@ -135,6 +151,7 @@ def _residual_fn(sample, rig, frames, names, mu, sd, cases):
                 est, x_rest = filter_run(
                     sample, fitted, data, initial_resistance=fitted.initial_resistance, use_load=use_load,
                     lead_resistance=fitted.lead_resistance, stretch_factor=fitted.stretch_factor,
+                    tcr2=fitted.tcr2,
                 )  # fmt: skip
                 e = est.displacement + est.extension0 - x_rest - data["displacement"].to_numpy(float)
                 e = e - np.nanmean(e[: rest_rows_count(data)])
@@ -157,7 +174,7 @@ def _correlation(jac: np.ndarray, n_prior: int) -> np.ndarray:
 
 
 def held_nuisances(jac: np.ndarray, names) -> dict:
-    """The nuisances (R_lead, k_s) the runs cannot tell from another fitted field, with the reason.
+    """The nuisances (R_lead, k_s, tcr2) the runs cannot tell from another fitted field, with the reason.
 
     Parameters
     ----------
@@ -205,7 +222,7 @@ def _least_squares(sample, rig, frames, names, cases):
     scipy fit, the thinned residuals at the start [-])."""
     from scipy.optimize import least_squares
 
-    mu, sd = (np.array(x) for x in zip(*(_prior(rig, n) for n in names)))
+    mu, sd = (np.array(x) for x in zip(*(refit_prior(rig, n) for n in names)))
     lo = np.array([(-mu[k] / sd[k] if n == "lead_resistance" else -np.inf) for k, n in enumerate(names)])
     lo = np.where(np.array(names) == "stretch_factor", (0.05 - mu) / sd, lo)  # k_s > 0
     fn = _residual_fn(sample, rig, frames, names, mu, sd, cases)
@@ -239,7 +256,7 @@ def refit_for_estimator(experiment, rig, frames) -> EstimatorFit:
 
 
 def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
-    """Refit R0, TCR and, where identified, R_lead and k_s through the EKF (module docstring).
+    """Refit R0, TCR and, where identified, R_lead, k_s and tcr2 through the EKF (module docstring).
 
     Parameters
     ----------
@@ -261,7 +278,7 @@ def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
         When the refit leaves R_lead below 0 or k_s not above 0 (never written to a file).
     """
     cases = (True, False) if any("load" in d for d in frames) else (False,)
-    # all four first: at the open-loop values the withheld case's drift dominates the Jacobian
+    # all five first: at the open-loop values the withheld case's drift dominates the Jacobian
     # and k_s looked tied to R0 (r = -0.998) where, fitted, it was not (|r| <= 0.71; measured)
     names = list(PARAMETERS)
     theta, sd, fit, before = _least_squares(experiment.sample, rig, frames, names, cases)

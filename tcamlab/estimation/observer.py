@@ -209,6 +209,8 @@ class ObserverConfig:
         R_lead of the leads and contacts in series, unheated [ohm] (in ``table`` too).
     stretch_factor : float
         k_s, the stretch sensitivity relative to chapter 3's map [-] (in ``table`` too).
+    tcr2 : float
+        The coating's quadratic TCR [1/K^2] (in ``table`` too; 0: linear).
     """
 
     sample: Sample
@@ -221,6 +223,7 @@ class ObserverConfig:
     initial_load_sd: float | None = None
     lead_resistance: float = 0.0
     stretch_factor: float = 1.0
+    tcr2: float = 0.0
 
     def load_prior_sd(self) -> float:
         """Prior sd of the load force at the first row [N] (:data:`LOAD_PRIOR_SD` unless set)."""
@@ -278,6 +281,7 @@ def combined_resistance(
     resistance_tc: float,
     lead_resistance: float = 0.0,
     stretch_factor: float = 1.0,
+    tcr2: float = 0.0,
 ):
     """R(T, x) of :mod:`tcamlab.models.selfsensing` as a function of (T [degC], x [m]) -> R [ohm].
 
@@ -285,7 +289,8 @@ def combined_resistance(
     ``rig.spring_constant``, else :data:`TCS_STIFFNESS_RATIO` / f11(alpha0). The two
     nuisances of a real rig: R = R_lead + R0 (1 + k_s (g(x) - 1)) heat(T), with
     ``lead_resistance`` R_lead [ohm] (unheated, in series) and ``stretch_factor`` k_s [-]
-    (1: chapter 3's map).
+    (1: chapter 3's map). ``tcr2`` [1/K^2] is the coating's quadratic TCR: the coating factor
+    1 + TCR dT + tcr2 dT^2 (0: tcamlab's linear law, the same table to the bit).
     """
     from tcamlab.models import selfsensing
 
@@ -294,9 +299,10 @@ def combined_resistance(
 
     def resistance(temperature, extension):
         g = selfsensing.geometric_ratio(extension, spring_constant=s_c, **kw)
-        heat = selfsensing.coating_factor(
-            temperature, rig.ambient, resistance_tc
-        ) * selfsensing.swelling_factor(temperature, rig.ambient, sample.radial_cte)
+        coating = selfsensing.coating_factor(temperature, rig.ambient, resistance_tc)
+        if tcr2:
+            coating = coating + tcr2 * (np.asarray(temperature, float) - rig.ambient) ** 2
+        heat = coating * selfsensing.swelling_factor(temperature, rig.ambient, sample.radial_cte)
         return lead_resistance + initial_resistance * (1.0 + stretch_factor * (g - 1.0)) * heat
 
     return resistance
@@ -402,26 +408,27 @@ def config_from(
     temperature_span=160.0,
     lead_resistance=0.0,
     stretch_factor=1.0,
+    tcr2=0.0,
 ) -> ObserverConfig:
     """As :func:`observer_config`, from a sample and a rig; ``initial_resistance`` overrides R0 [ohm].
 
-    ``lead_resistance`` [ohm] and ``stretch_factor`` [-] are the resistance law's nuisances
-    (:func:`combined_resistance`); a given ``resistance`` must include them itself.
+    ``lead_resistance`` [ohm], ``stretch_factor`` [-] and ``tcr2`` [1/K^2] are the resistance
+    law's nuisances (:func:`combined_resistance`); a given ``resistance`` must include them itself.
     """
     r0 = unloaded_resistance(sample, rig) if initial_resistance is None else float(initial_resistance)
     tcr = float(getattr(rig, "tcr", SILVER_TCR))
-    fn = resistance or combined_resistance(sample, rig, r0, tcr, lead_resistance, stretch_factor)
+    fn = resistance or combined_resistance(sample, rig, r0, tcr, lead_resistance, stretch_factor, tcr2)
     x0 = rest_extension(sample, rig)
     half = 0.3 * x0 + 2e-3  # loads from about 70% to 130% of the stated one
     x_range = defined_extensions(fn, rig, x0, (x0 - half, x0 + half))
     table = ResistanceTable.build(fn, (rig.ambient - 20.0, rig.ambient + temperature_span), x_range)
     return ObserverConfig(
         sample, rig, float(r0), tcr, table, {**DEFAULT_NOISE, **(noise or {})},
-        lead_resistance=float(lead_resistance), stretch_factor=float(stretch_factor),
+        lead_resistance=float(lead_resistance), stretch_factor=float(stretch_factor), tcr2=float(tcr2),
     )  # fmt: skip
 
 
-def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods, law=(0.0, 1.0)):
+def _contact_resistance(sample: Sample, rig: Rig, initial_resistance, mods, law=(0.0, 1.0, 0.0)):
     """R(T, x) with the inter-coil contact term of ``mods``, or None when there is none.
 
     The filter then reads R through the same contact factor the effect library puts on
@@ -454,6 +461,7 @@ def filter_run(
     lead_resistance=0.0,
     stretch_factor=1.0,
     noise=None,
+    tcr2=0.0,
 ) -> tuple[EstimateResult, float]:
     """The EKF over a logged run and its rest reference: (EstimateResult, x_rest [m]).
 
@@ -471,7 +479,7 @@ def filter_run(
     # "load" is the selfsensing kind's logged load_N column; "load_force" the simulations'
     column = next((c for c in ("load_force", "load") if c in data), None)
     load = data[column].to_numpy(float) if use_load and column else None
-    law = (float(lead_resistance), float(stretch_factor))
+    law = (float(lead_resistance), float(stretch_factor), float(tcr2))
     config = config_from(
         sample,
         rig,
@@ -480,6 +488,7 @@ def filter_run(
         noise=noise if noise is not None else (THETA_NOISE if load is not None else UNKNOWN_LOAD_NOISE),
         lead_resistance=law[0],
         stretch_factor=law[1],
+        tcr2=law[2],
     )
     if load is not None:
         config = replace(config, initial_load_sd=max(LOAD_PRIOR_SD, LOAD_PRIOR_REL * abs(rig.force)))
@@ -505,6 +514,7 @@ def predict_displacement(
     lead_resistance=0.0,
     stretch_factor=1.0,
     noise=None,
+    tcr2=0.0,
 ):
     """The self-sensed displacement and temperature of a logged run, by the EKF (causal).
 
@@ -530,6 +540,8 @@ def predict_displacement(
     noise : dict, optional
         Overrides of the filter's noise; default :data:`THETA_NOISE` with a logged load,
         :data:`UNKNOWN_LOAD_NOISE` without.
+    tcr2 : float
+        The coating's quadratic TCR of :func:`combined_resistance` [1/K^2] (0: linear).
 
     Returns
     -------
@@ -540,7 +552,7 @@ def predict_displacement(
     """
     est, x_rest = filter_run(
         sample, rig, data, mods, initial_resistance=initial_resistance, use_load=use_load,
-        lead_resistance=lead_resistance, stretch_factor=stretch_factor, noise=noise,
+        lead_resistance=lead_resistance, stretch_factor=stretch_factor, noise=noise, tcr2=tcr2,
     )  # fmt: skip
     return {
         "displacement": est.displacement + est.extension0 - x_rest,

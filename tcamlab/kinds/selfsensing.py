@@ -245,6 +245,7 @@ def predict(
             initial_resistance=initial_resistance,
             lead_resistance=rig.lead_resistance,
             stretch_factor=rig.stretch_factor,
+            tcr2=rig.tcr2,
         )
     if estimator != "inversion":
         raise ValueError(f"selfsensing estimator {estimator!r}: one of {', '.join(ESTIMATORS)}")
