@@ -237,3 +237,149 @@ def second_difference_sigma(r) -> float:
         return float("nan")
     d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
     return float(math.sqrt(np.sum(d2 * d2) / (6.0 * (r.size - 2))))
+
+
+FRAME_MIN_EDGES = 20
+"""Fewest frame edges for a column to count as a slower instrument's reading."""
+FRAME_REGULARITY = 0.8
+"""Share of the spacings between frame edges that must be a whole number of frames (within
+a tenth of a frame): a camera's or a meter's frames come on its own clock; a slowly moving
+reading of a coarse converter changes where the signal crosses a step, irregularly."""
+WITHIN_FRAME = 0.95
+"""Share of the rows inside frames whose first (held) or second (interpolated) difference is
+within two steps of the column's resolution: a slower instrument adds nothing in between."""
+SMOOTHING_FRAMES = (32, 16, 8, 4)
+"""Frames a slower instrument's reading is averaged over, the longest first
+(:func:`smooth_slow_input`)."""
+
+
+def instrument_frames(x) -> tuple[int, np.ndarray]:
+    """Rows per frame of a slower instrument's reading joined onto a faster log, and the
+    first row of each frame.
+
+    A thermal camera at 25 Hz joined onto a 1 kHz laser log holds each frame for 40 rows (a
+    staircase: the first difference is zero inside a frame) or is interpolated between its
+    frames (straight lines: the second difference is zero inside a frame). A frame edge is
+    a row whose first (then second) difference is more than 8 times the median's size;
+    the edges of a slower instrument are many and evenly spaced (:data:`FRAME_REGULARITY`),
+    and the rows between them carry none of its noise (:data:`WITHIN_FRAME`).
+
+    Parameters
+    ----------
+    x : array_like
+        The logged column [any unit].
+
+    Returns
+    -------
+    (int, ndarray)
+        Rows per frame (1: every row is its own reading) and the frames' first rows
+        (empty when 1).
+    """
+    x = np.asarray(x, float)
+    if x.size < 10 * FRAME_MIN_EDGES:
+        return 1, np.zeros(0, int)
+    tiny = 1e-12 * max(float(np.max(np.abs(x))), 1e-300)
+    for order in (1, 2):
+        d = np.abs(np.diff(x, order))
+        edges = np.flatnonzero(d > max(8.0 * float(np.median(d)), tiny))
+        if edges.size < FRAME_MIN_EDGES:
+            continue
+        gaps = np.diff(edges)
+        first = float(np.median(gaps))
+        if first < 2:
+            continue
+        # a frame clock beating against the log's (39 and 41 rows for 40) averages out
+        frames = gaps / (np.sum(gaps) / max(float(np.sum(np.round(gaps / first))), 1.0))
+        period = int(round(float(np.sum(gaps) / np.sum(np.round(frames)))))
+        if np.mean(np.abs(frames - np.round(frames)) <= 0.1) < FRAME_REGULARITY:
+            continue
+        # a slower instrument adds nothing between its frames (held: equal rows; interpolated:
+        # a straight line, to the logged digits); a stepped test (a pull held at each step)
+        # has the same regular edges but its meter's noise on every row
+        inside = np.delete(d, edges)
+        if np.mean(inside <= 2.0 * resolution(x)) >= WITHIN_FRAME:
+            return period, np.concatenate(([0], edges + 1))
+    return 1, np.zeros(0, int)
+
+
+def resolution(x) -> float:
+    """The smallest step between the distinct values of a logged column [its unit]: the last
+    digit it was written with (above the float rounding of parsing it)."""
+    x = np.asarray(x, float)
+    u = np.unique(x)
+    gaps = np.diff(u)
+    gaps = gaps[gaps > 1e-9 * max(float(np.max(np.abs(u))), 1e-300)]
+    return float(gaps.min()) if gaps.size else 0.0
+
+
+def frame_average(x, window: int) -> np.ndarray:
+    """Centred moving average over ``window`` rows (made odd); within half a window of either
+    end, the least-squares line over the first (last) ``window`` rows, so that a trend is
+    not bent at the ends (a static log is referred to its first row).
+
+    Parameters
+    ----------
+    x : array_like
+        The signal [any unit].
+    window : int
+        Rows averaged [-].
+    """
+    x = np.asarray(x, float)
+    n = x.size
+    h = min(int(window) // 2, (n - 1) // 2)
+    if h < 1:
+        return x.copy()
+    w = 2 * h + 1
+    c = np.concatenate(([0.0], np.cumsum(x - x[0])))
+    out = np.empty(n)
+    out[h : n - h] = x[0] + (c[w:] - c[:-w]) / w
+    t = np.arange(w, dtype=float)
+    head = np.polyfit(t, x[:w], 1)
+    tail = np.polyfit(t, x[n - w :], 1)
+    out[:h] = np.polyval(head, t[:h])
+    out[n - h :] = np.polyval(tail, t[w - h :])
+    return out
+
+
+def smooth_slow_input(x) -> tuple[np.ndarray, dict | None]:
+    """A slower instrument's reading, averaged over whole frames for a model to read.
+
+    A model reading a noisy input ``x`` turns its noise into a residual ``f'(x) e``. Where
+    every row is its own reading, that residual is white and the noise floor (second
+    differences) sees it. A slower instrument's noise is held (or interpolated) over a
+    frame of many rows: second differences miss it, the residual looks like a misfit, and
+    an effect that smooths the input over time (a thermal lag) explains it. Averaged over
+    ``K`` frames, the noise left is ``sd / sqrt(K)``; ``K`` is the longest of
+    :data:`SMOOTHING_FRAMES` over which the input's change stays below that noise (the
+    average over ``K`` frames departs from the one over ``K/2`` by no more than 1.5 times
+    the ``sd / sqrt(K)`` that noise alone gives).
+
+    Parameters
+    ----------
+    x : array_like
+        The logged column [any unit].
+
+    Returns
+    -------
+    (ndarray, dict or None)
+        The column the models read, and ``{"rows_per_frame", "frames", "window_rows",
+        "frame_sd"}`` (``frame_sd`` in the column's unit: the frame values' second-difference
+        noise), or ``(x, None)`` where the column is not a slower instrument's or changes too
+        fast to average.
+    """
+    x = np.asarray(x, float)
+    period, starts = instrument_frames(x)
+    if period < 2:
+        return x, None
+    d2 = np.diff(x[starts], 2)
+    sd = mad_scale(d2) / math.sqrt(6.0) if d2.size else float("nan")  # robust to real steps
+    if not (np.isfinite(sd) and sd > 0):
+        return x, None
+    for k in SMOOTHING_FRAMES:
+        if k * period > x.size // 4:
+            continue
+        full, half = frame_average(x, k * period), frame_average(x, k * period // 2)
+        if float(np.sqrt(np.mean((full - half) ** 2))) <= 1.5 * sd / math.sqrt(k):
+            info = {"rows_per_frame": period, "frames": k, "window_rows": k * period, "frame_sd": sd}
+            return full, info
+    return x, None

@@ -303,6 +303,21 @@ def _joined_input(run: RunData, start) -> dict:
     }
 
 
+def smoothed_notes(run: RunData) -> list[str]:
+    """One line per input of ``run`` that a slower instrument logged and the models read
+    averaged over its frames (:attr:`tcamlab.io.RunData.smoothed`)."""
+    out = []
+    for col, s in run.smoothed.items():
+        unit = run.units.get(col, "")
+        out.append(
+            f"{run.path.name}: {col} comes from a slower instrument (a frame every "
+            f"{s['rows_per_frame']} rows, noise {s['frame_sd']:.3g} {unit} per frame); the models read "
+            f"its average over {s['frames']} frames ({s['window_rows']} rows), centred, so its "
+            f"noise does not pass to the outputs as a misfit (tcamlab.signals.smooth_slow_input)"
+        )
+    return out
+
+
 def relative_to(path, start) -> str:
     """``path`` relative to the folder ``start`` in POSIX form (``../raw/run1.csv``), as an
     experiment file names its runs; the bare name on another drive. Never absolute."""
@@ -762,6 +777,7 @@ def validate(
     dropped = sum(r.n_dropped for r in runs)
     if dropped:
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
+    notes += [n for r in runs for n in smoothed_notes(r)]
     warnings = sanity_warnings(kind, preds, metrics)
     warnings += unused_threshold_warnings(experiment.thresholds, checks, list(metrics[primary]))
     warnings += [

@@ -38,6 +38,7 @@ __all__ = [
     "between_run_spread",
     "pool_noise_estimates",
     "run_noise_sigma",
+    "slow_input_variance",
     "run_effect_columns",
     "profile_run_effects",
 ]
@@ -235,39 +236,68 @@ def _quantity_noise(
     return sigma, dof, method
 
 
-def run_noise_sigma(problem: Problem, i: int, q: str, residual) -> tuple[float, float | None, float]:
-    """(noise sd [SI], quantisation step [SI] or None, share of the variance second differences
-    miss) of quantity ``q`` in run ``i``: the second difference of its residuals plus the
-    quantisation error they cannot see (a slowly moving reading on a coarse converter,
-    :mod:`tcamlab.io.quantisation`)."""
+def slow_input_variance(problem: Problem, i: int, q: str, spring=None) -> float:
+    """Variance [SI^2] that the noise left in run i's frame-averaged inputs adds to ``q``.
+
+    A slower instrument's reading (a thermal camera's frames on a 1 kHz log) is read
+    averaged over K frames (:func:`tcamlab.signals.smooth_slow_input`); its noise left,
+    ``frame_sd**2 / K``, reaches the output through the model's gain and is correlated over
+    the K frames' rows, so second differences cannot see it. Without it, a 142,100-row static
+    log of a 0.5 degC camera came out at 1.006 noise floors against a limit of 1.0075:
+    on a longer log, a gap with nothing in it."""
+    var = 0.0
+    for column, info in problem.smoothed[i].items():
+        gain = problem.input_gain(i, column, spring)
+        if gain is not None:
+            var += float(np.mean(gain[q] ** 2)) * info["frame_sd"] ** 2 / info["frames"]
+    return var
+
+
+def run_noise_sigma(
+    problem: Problem, i: int, q: str, residual, spring=None
+) -> tuple[float, float | None, float, float]:
+    """(noise sd [SI], quantisation step [SI] or None, and the shares of the variance second
+    differences miss: the quantisation error of a slowly moving reading on a coarse converter
+    (:mod:`tcamlab.io.quantisation`), then the noise left in a slower instrument's averaged
+    input (:func:`slow_input_variance`)) of quantity ``q`` in run ``i``."""
     seen = second_difference_sigma(residual)
     if not np.isfinite(seen):
-        return seen, None, 0.0
+        return seen, None, 0.0, 0.0
     measured = problem.measured(i, q)
     hidden, step = unseen_variance(measured, measured - np.asarray(residual, float), seen * seen)
-    total = seen * seen + hidden
-    return math.sqrt(total), step, (hidden / total if total > 0 else 0.0)
+    slow = slow_input_variance(problem, i, q, spring)
+    total = seen * seen + hidden + slow
+    if total <= 0:
+        return 0.0, step, 0.0, 0.0
+    return math.sqrt(total), step, hidden / total, slow / total
 
 
 def estimate_noise(problem: Problem, baseline: BaselineFit) -> NoiseFloor:
     """Each quantity's noise floor from the baseline residuals; sets ``problem.sigma``."""
     res = baseline.residuals
-    per = {q: [run_noise_sigma(problem, i, q, r[q]) for i, r in enumerate(res)] for q in problem.quantities}
+    per = {
+        q: [run_noise_sigma(problem, i, q, r[q], baseline.spring) for i, r in enumerate(res)]
+        for q in problem.quantities
+    }
     spread = between_run_spread(problem, res)
     by_q = {}
     for q in problem.quantities:
-        per_run = [s for s, _, _ in per[q]]
+        per_run = [s for s, *_ in per[q]]
         problem.sigma[q], dof, method = _quantity_noise(problem, q, per_run, spread, res)
-        steps = [st for _, st, _ in per[q] if st is not None]
+        steps = [st for _, st, _, _ in per[q] if st is not None]
         unit, fac = display(q)
         step = float(np.median(steps)) * fac if steps else None
-        hidden = float(np.median([h for _, _, h in per[q]]))
+        hidden = float(np.median([h for _, _, h, _ in per[q]]))
         if hidden >= 0.01:
             method += f" + {hidden:.0%} of the variance: the error of its {step:.3g} {unit} quantisation step"
+        slow = float(np.median([v for *_, v in per[q]]))
+        if slow >= 0.001:
+            method += f" + {slow:.1%} of the variance: the noise left in a slower instrument's averaged input"
         by_q[q] = QuantityNoise(problem.sigma[q] * fac, unit, [v * fac for v in per_run], dof, method, step)
     method = (
-        "second difference of baseline residuals (median over runs), plus the error of a "
-        "quantised reading that moves slowly (which second differences cannot see); pooled "
+        "second difference of baseline residuals (median over runs), plus what second "
+        "differences cannot see: the error of a quantised reading that moves slowly and the "
+        "noise left in a slower instrument's input averaged over its frames; pooled "
         "with the between-run spread where runs share their inputs and the two agree"
     )
     return NoiseFloor(list(problem.quantities), method, by_q, spread)

@@ -97,6 +97,8 @@ class Problem:
         self.rig = experiment.rig
         self.quantities = tuple(self.k.outputs)
         self.frames: list[pd.DataFrame] = [r.data for r in runs]
+        # noisy inputs a slower instrument logged, read averaged over frames (tcamlab.io)
+        self.smoothed: list[dict] = [dict(getattr(r, "smoothed", None) or {}) for r in runs]
         self.names = [getattr(r, "path", None) for r in runs]
         self.sigma = {q: 1.0 for q in self.quantities}
         for i, d in enumerate(self.frames):
@@ -154,6 +156,25 @@ class Problem:
             while len(cache) > PREDICTIONS_KEPT * len(self.frames):
                 cache.pop(next(iter(cache)))
         return out
+
+    def input_gain(self, i: int, column: str, spring: float | None) -> dict[str, np.ndarray] | None:
+        """d predicted / d input [SI per the input's unit] of run i, per row, at the stated
+        values, or None where the model has no prediction there: the column moved by a
+        millionth of its size on every row but the first (the models read an input row by
+        row, and a model referred to its first row, the static displacement, would otherwise
+        see only its gain's change since then)."""
+        col = self.frames[i][column].to_numpy(float)
+        h = 1e-6 * max(float(np.max(np.abs(col))), 1e-300)
+        moved = self.frames[i].copy()
+        moved[column] = col + np.where(np.arange(col.size) > 0, h, 0.0)
+        try:
+            base = self.predict(i, Mods(), spring)
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                up = predict(self.kind, self.sample, self.rig, moved, Mods(), **self.options(i, spring))
+        except MODEL_ERRORS:
+            return None
+        return {q: (up[q] - base[q]) / h for q in self.quantities}
 
     def measured(self, i: int, q: str) -> np.ndarray:
         return self.frames[i][q].to_numpy(float)

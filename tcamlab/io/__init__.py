@@ -51,6 +51,7 @@ import pandas as pd
 
 from tcamlab import kinds as _kinds
 from tcamlab.errors import InputError
+from tcamlab.signals import smooth_slow_input
 from tcamlab.text import close_matches, did_you_mean
 from tcamlab.units import QUANTITIES
 
@@ -586,6 +587,12 @@ class RunData:
     columns : dict of str to dict
         The ``[columns]`` mapping as applied: canonical column -> ``from`` (header or column
         number), ``unit``, ``scale``, ``offset`` (and ``file`` for a joined column).
+    smoothed : dict of str to dict
+        Noisy inputs read by a slower instrument (a thermal camera's frames held or
+        interpolated onto a 1 kHz log), which the models read averaged over whole frames:
+        internal column -> ``rows_per_frame``, ``frames``, ``window_rows`` and ``frame_sd``
+        [the column's SI unit] (:func:`tcamlab.signals.smooth_slow_input`). ``data`` holds the
+        averaged column; the file keeps the logged one.
     """
 
     path: Path
@@ -603,6 +610,7 @@ class RunData:
     join_path: Path | None = None
     dropped: dict[str, int] = field(default_factory=dict)
     columns: dict[str, dict] = field(default_factory=dict)
+    smoothed: dict[str, dict] = field(default_factory=dict)
 
     @property
     def n_dropped_total(self) -> int:
@@ -1462,6 +1470,7 @@ def _read_run(
         _check_pull_force(shown, data, selected)
     frame = pd.DataFrame(data)
     frame.index = pd.RangeIndex(len(frame))
+    smoothed = {} if only else _smooth_slow_inputs(frame, kind)
     dropped = {"blank cells": n_dropped} if n_dropped else {}
     if record and record["rows_outside_overlap"]:
         dropped["outside the joined file's time span"] = record["rows_outside_overlap"]
@@ -1488,7 +1497,22 @@ def _read_run(
         dropped=dropped,
         columns=_mapping({n: v for n, v in selected.items() if n not in jsel})
         | _mapping(jsel, record["file"] if record else None),
+        smoothed=smoothed,
     )
+
+
+def _smooth_slow_inputs(frame: pd.DataFrame, kind: str) -> dict[str, dict]:
+    """Replace each noisy input of the kind that a slower instrument logged by its average over
+    whole frames (:func:`tcamlab.signals.smooth_slow_input`, which says why); what was done,
+    per column (:attr:`RunData.smoothed`)."""
+    done = {}
+    for col in _kinds.get_kind(kind).noisy_inputs:
+        if col in frame:
+            x, info = smooth_slow_input(frame[col].to_numpy(float))
+            if info is not None:
+                frame[col] = x
+                done[col] = info
+    return done
 
 
 def column_option(text: str) -> tuple[str, Any]:

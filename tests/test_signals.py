@@ -1,0 +1,104 @@
+"""Operations on logged signals (tcamlab.signals): a slower instrument's reading found and
+averaged over its frames, checked on forms this module did not make (SYNTHETIC series, seeds
+given; the bundled stepped pull test's resistance)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tcamlab import signals
+from tcamlab.io import read_run
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
+
+
+def _camera(rows=60_000, seed=1, per_frame=40, sd=0.5, digits=1):
+    """A 1 kHz log of an oven's heat-cool cycle read by a camera every ``per_frame`` rows
+    (SYNTHETIC, seed ``seed``): (true temperature, frames held, frames interpolated)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(rows) / 1000.0
+    true = 25.0 + 27.5 * (1.0 - np.cos(2.0 * np.pi * t / 60.0))
+    tf = np.arange(0.0, t[-1] + per_frame / 1000.0, per_frame / 1000.0)
+    frame = 25.0 + 27.5 * (1.0 - np.cos(2.0 * np.pi * tf / 60.0)) + rng.normal(0, sd, tf.size)
+    frame = np.round(frame, digits)
+    held = frame[np.clip(np.round(t * 1000.0 / per_frame).astype(int), 0, tf.size - 1)]
+    return true, held, np.round(np.interp(t, tf, frame), 4)
+
+
+@pytest.mark.parametrize("per_frame", [7, 40, 125])
+def test_a_camera_held_or_interpolated_onto_a_faster_log_is_found_with_its_frame(per_frame):
+    _, held, interp = _camera(per_frame=per_frame)
+    for x in (held, interp):
+        period, starts = signals.instrument_frames(x)
+        assert period == per_frame
+        gaps = np.diff(starts)[1:]  # whole frames (two frames read alike merge), to a row
+        assert starts[0] == 0 and np.all(np.abs(gaps - per_frame * np.round(gaps / per_frame)) <= 1)
+
+
+def test_a_reading_on_every_row_or_a_stepped_test_is_no_slower_instrument():
+    rng = np.random.default_rng(2)
+    true, _, _ = _camera()
+    assert signals.instrument_frames(true + rng.normal(0, 0.5, true.size))[0] == 1  # a thermocouple
+    assert signals.instrument_frames(np.round(true, 1))[0] == 1  # a slow reading, coarse digits
+    # a pull held at regular steps, its ohmmeter's noise on every row (the bundled pull test)
+    steps = np.repeat(np.arange(60) * 0.025, 50) + 30.0 + rng.normal(0, 0.002, 3000)
+    assert signals.instrument_frames(np.round(steps, 3))[0] == 1
+    bundled = pd.read_csv(ROOT / "raw" / "sensing_run1.csv")["resistance_ohm"].to_numpy(float)
+    assert signals.instrument_frames(bundled)[0] == 1
+
+
+def test_the_frame_average_keeps_a_line_to_both_ends_and_averages_the_rest():
+    t = np.arange(1000.0)
+    line = 3.0 - 0.25 * t
+    np.testing.assert_allclose(signals.frame_average(line, 101), line, atol=1e-9)
+    x = np.random.default_rng(3).normal(0, 1, 1000)
+    assert signals.frame_average(x, 101)[500] == pytest.approx(np.mean(x[450:551]))
+
+
+def test_the_averaged_camera_is_the_true_temperature_to_its_noise_over_the_frames():
+    true, held, interp = _camera(seed=4)
+    for x in (held, interp):
+        smooth, info = signals.smooth_slow_input(x)
+        assert info["rows_per_frame"] == 40 and info["frames"] == 32
+        assert info["frame_sd"] == pytest.approx(0.5, rel=0.1)
+        rms = float(np.sqrt(np.mean((smooth - true) ** 2)))
+        assert rms < 1.5 * 0.5 / math.sqrt(32)  # the camera's noise over 32 frames
+        assert float(np.sqrt(np.mean((x - true) ** 2))) > 4 * rms
+        assert abs(float(np.mean(smooth - true))) < 0.02  # centred: no lag, no offset
+
+
+def test_an_input_that_moves_within_a_few_frames_is_left_as_logged():
+    """A 20 degC square wave of 40 frames under 0.1 degC of camera noise (SYNTHETIC, seed 5):
+    any average over whole frames would bend its edges by more than the noise it removes."""
+    rng = np.random.default_rng(5)
+    frame = 20.0 * (np.arange(1500) // 20 % 2) + rng.normal(0, 0.1, 1500)
+    x = np.repeat(frame, 40)
+    assert signals.instrument_frames(x)[0] == 40
+    out, info = signals.smooth_slow_input(x)
+    assert info is None
+    np.testing.assert_array_equal(out, x)
+
+
+def test_reading_a_run_averages_its_camera_and_keeps_the_file(tmp_path):
+    true, held, _ = _camera(rows=20_000, seed=6)
+    t = np.arange(true.size) / 1000.0
+    disp = -5.7e-3 * (true - true[0])
+    path = tmp_path / "run.csv"
+    pd.DataFrame({"time_s": t, "temperature_C": held, "displacement_mm": np.round(disp, 3)}).to_csv(
+        path, index=False
+    )
+    before = path.read_bytes()
+    run = read_run(path, "static")
+    assert path.read_bytes() == before
+    assert set(run.smoothed) == {"temperature"}
+    assert run.smoothed["temperature"]["rows_per_frame"] == 40
+    err = run.data["temperature"].to_numpy() - true
+    assert float(np.sqrt(np.mean(err**2))) < 0.15
+    # a column that is no noisy input of the kind is never touched
+    np.testing.assert_allclose(
+        run.data["displacement"].to_numpy() * 1e3, np.round(disp, 3) - np.round(disp, 3)[0]
+    )
