@@ -144,7 +144,9 @@ OVEN_CYCLE_S = 60.0
 """Period of the heat-cool cycle of :func:`make_static_log` [s]."""
 
 
-def make_static_log(rows: int, work: Path, seed: int = SEED, camera: str = "held") -> Path:
+def make_static_log(
+    rows: int, work: Path, seed: int = SEED, camera: str = "held", lag_s: float = 0.0
+) -> Path:
     """Write (or reuse) a synthetic static experiment of one ``rows``-row log: a 1 kHz laser
     displacement joined with a 25 Hz thermal camera's temperature.
 
@@ -155,7 +157,8 @@ def make_static_log(rows: int, work: Path, seed: int = SEED, camera: str = "held
     every 40 ms with noise (sd 0.5 degC, rounded to 0.1 degC). ``camera`` is how its frames
     are joined to the laser's rows: ``"held"`` (each row takes the nearest frame, a staircase)
     or ``"interpolated"`` (linear between frames; the noise is then on every row, correlated
-    over a frame).
+    over a frame). ``lag_s`` > 0: the actuator follows the camera's scene through a
+    first-order thermal lag of that time constant [s] (the oven-thermal-lag effect).
 
     Returns the experiment TOML's path (``work/staticlog-ROWS-CAMERA-sSEED/experiment.toml``).
     """
@@ -163,10 +166,11 @@ def make_static_log(rows: int, work: Path, seed: int = SEED, camera: str = "held
     import pandas as pd
 
     from tcamlab.config import load_experiment
+    from tcamlab.effects import Mods
     from tcamlab.io.csvfast import fixed_csv_bytes
     from tcamlab.kinds import static
 
-    folder = work / f"staticlog-{rows}-{camera}-s{seed}"
+    folder = work / f"staticlog-{rows}-{camera}-s{seed}" / (f"lag{lag_s:g}" if lag_s else "")
     toml = folder / "experiment.toml"
     if toml.exists():
         return toml
@@ -175,7 +179,9 @@ def make_static_log(rows: int, work: Path, seed: int = SEED, camera: str = "held
     rng = np.random.default_rng(seed)
     t = np.arange(rows) / RATE_HZ
     true_c = 25.0 + 27.5 * (1.0 - np.cos(2.0 * np.pi * t / OVEN_CYCLE_S))
-    disp = static.predict(exp.sample, exp.rig, pd.DataFrame({"time": t, "temperature": true_c}))
+    disp = static.predict(
+        exp.sample, exp.rig, pd.DataFrame({"time": t, "temperature": true_c}), Mods(lag_tau=lag_s)
+    )
     disp_um = disp["displacement"] * 1e6 + rng.normal(0, NOISE_MM * 1e3, rows)
     disp_mm = np.round(disp_um) / 1e3
     disp_mm[0] = 0.0  # the log is zeroed on its first row
@@ -192,7 +198,8 @@ def make_static_log(rows: int, work: Path, seed: int = SEED, camera: str = "held
     body = src[src.index("[sample]") :]
     toml.write_text(
         'kind = "static"\n'
-        f'title = "Long 1 kHz laser log with a 25 Hz thermal camera ({camera}), {rows} rows (synthetic)"\n'
+        f'title = "Long 1 kHz laser log with a 25 Hz thermal camera ({camera}), {rows} rows'
+        f'{f", a {lag_s:g} s thermal lag" if lag_s else ""} (synthetic)"\n'
         'runs = ["run1.csv"]\n'
         'notes = "SYNTHETIC: bench/bench_large_log.py make_static_log, the thesis static model '
         'on a heat-cool cycle, laser and camera noise."\n\n'

@@ -108,6 +108,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tcamlab.errors import TcamlabError
+from tcamlab.signals import LINEAR_BETWEEN_ROWS
 
 __all__ = [
     "MIN_ROWS",
@@ -338,6 +339,7 @@ class Reduction:
         frame = data.iloc[rows].copy() if len(rows) < len(data) else data.copy()
         if not self.lines:
             return frame
+        frame.attrs[LINEAR_BETWEEN_ROWS] = "linear"  # a time filter must not see steps
         block = np.searchsorted(self.starts, rows, side="right") - 1
         t = frame["time"].to_numpy(float)
         for x, (level, slope) in self.lines.items():

@@ -102,3 +102,20 @@ def test_reading_a_run_averages_its_camera_and_keeps_the_file(tmp_path):
     np.testing.assert_allclose(
         run.data["displacement"].to_numpy() * 1e3, np.round(disp, 3) - np.round(disp, 3)[0]
     )
+
+
+def test_a_lag_of_a_ramp_read_on_a_coarse_grid_trails_it_by_tau_with_the_midpoint_hold():
+    """y' = (x - y) / tau on x = 2 t: after the start, y = x - 2 tau. Sampled every 64 ms,
+    holding each sample's value over the step before it leads x by half a step; holding the
+    step's mean does not (to second order in the step)."""
+    tau, step = 0.5, 0.064
+    t = np.arange(0.0, 10.0, step)
+    x = 2.0 * t
+    end = signals.first_order_lag(x, t, tau)
+    mid = signals.first_order_lag(x, t, tau, hold="midpoint")
+    late = t > 8 * tau
+    assert np.max(np.abs(x - mid - 2.0 * tau)[late]) < 2.0 * step**2 / (12 * tau)
+    assert np.median((x - end - 2.0 * tau)[late]) == pytest.approx(-2.0 * step / 2, rel=0.05)
+    fine = np.arange(0.0, 10.0, 0.001)  # every row of a 1 kHz log: either hold
+    ref = signals.first_order_lag(2.0 * fine, fine, tau)
+    np.testing.assert_allclose(np.interp(t, fine, ref)[late], mid[late], atol=2e-3)

@@ -23,7 +23,7 @@ from tcamlab.models import static as _static
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure
 from tcamlab.report.figures import legend_label, new_figure
-from tcamlab.signals import clock, first_order_lag, moving_average
+from tcamlab.signals import LINEAR_BETWEEN_ROWS, clock, first_order_lag, moving_average
 
 TEMPERATURE_BAND_EDGES_C = (25, 50, 75, 100, 125, 150)
 """Edges of the temperature bands the diagnosis reports residuals in [degC]."""
@@ -66,8 +66,9 @@ def predict(
         ``displacement`` [m], zero at the first row.
     """
     t = clock(data)
+    hold = "midpoint" if data.attrs.get(LINEAR_BETWEEN_ROWS) == "linear" else "end"
     temp = first_order_lag(
-        data["temperature"].to_numpy(float), t, mods.lag_tau, mods.lag_conductance_tc, rig.ambient
+        data["temperature"].to_numpy(float), t, mods.lag_tau, mods.lag_conductance_tc, rig.ambient, hold
     )
     dT = temp - rig.ambient
     kw = sample.model_kwargs()
