@@ -320,8 +320,21 @@ def instrument_frames(x) -> tuple[int, np.ndarray]:
         # has the same regular edges but its meter's noise on every row
         inside = np.delete(d, edges)
         if np.mean(inside <= 2.0 * resolution(x)) >= WITHIN_FRAME:
-            return period, np.concatenate(([0], edges + 1))
+            return period, _every_frame(np.concatenate(([0], edges + 1)), period)
     return 1, np.zeros(0, int)
+
+
+def _every_frame(starts: np.ndarray, period: int) -> np.ndarray:
+    """Frame starts with the frames no edge shows put back, evenly within their gap: two
+    frames read alike (held) or a frame on the line of its neighbours (interpolated) make no
+    edge, and leaving them out would keep only the frames that moved (a frame noise 3.5 %
+    high on a 0.5 degC camera written to 0.1 degC)."""
+    gaps = np.diff(starts)
+    n = np.maximum(np.round(gaps / period), 1).astype(np.int64)
+    first = np.repeat(starts[:-1], n)
+    step = np.repeat(gaps / n, n)
+    j = np.arange(first.size) - np.repeat(np.cumsum(n) - n, n)
+    return np.append(first + np.round(j * step).astype(np.int64), starts[-1])
 
 
 def frame_noise(frames) -> float:
