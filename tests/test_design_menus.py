@@ -18,7 +18,7 @@ from tcamlab.design.hypotheses import hypotheses
 from tcamlab.design.protocols import protocol_frames
 from tcamlab.design.toml import KEY_DOCS
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
-from tcamlab.kinds import curvature, get_kind, sensing
+from tcamlab.kinds import curvature, get_kind, sensing, static
 from tcamlab.models import sensing as sensing_model
 from tcamlab.rig import simulate
 from tcamlab.templates import TEMPLATES
@@ -378,3 +378,16 @@ def test_a_program_is_not_a_log(kind):
         k1, k2 = out["kappa1"], out["kappa2"]
         assert k1[0] == pytest.approx(0.0, abs=1e-9) and k2[0] == pytest.approx(0.0, abs=1e-9)
         assert np.all(np.diff(k2) > 0) and np.all(k1[1:] > k2[1:])
+
+
+def test_the_static_menu_has_finer_steps_and_the_glass_window():
+    """A finer range (the issue of a change of slope, e.g. the glass transition near 45 degC):
+    2.5 degC steps over 25-150 degC read 51 set points a run; 1 degC steps over 35-60 degC, 26."""
+    exp = template("static")
+    menu = dict(static.design_menu(exp.sample, exp.rig))
+    fine = protocol_frames("static", exp.rig, menu["finer steps 2.5 degC"])
+    knee = protocol_frames("static", exp.rig, menu["1 degC steps 35-60 degC"])
+    assert len(fine) == len(knee) == 2
+    assert len(fine[0]) == 51 and len(knee[0]) == 26
+    t = knee[0]["temperature"].to_numpy()
+    assert 34.0 < t.min() and t.max() < 61.0 and np.median(np.diff(t)) == pytest.approx(1.0, abs=0.5)

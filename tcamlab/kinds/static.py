@@ -255,13 +255,20 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
     ]
 
 
+GLASS_WINDOW_C = (35.0, 60.0)
+"""Oven range [degC] around nylon 6,6's glass transition (about 45 degC, the
+glass-transition effect's knee): steps of 1 degC there locate a change of slope that 5 degC
+steps over 25-150 degC show at two or three readings."""
+
+
 def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     """Candidate protocols of a static oven test [(name, ``[protocol]`` table)].
 
     The thesis's program (one load, heating, 25-150 degC, 300 s dwell) and its changes: a
     second hanging load (1.5 x, 2 x), a heat-cool program, a wider temperature range
     (capped at :data:`MAX_OVEN_C` and :data:`G_LIMIT_MARGIN_C` below the G_t' = 0
-    temperature at the stated values), a longer dwell. Each runs twice per load.
+    temperature at the stated values), a longer dwell, finer steps (2.5 degC over the range,
+    or 1 degC over :data:`GLASS_WINDOW_C`). Each runs twice per load.
     """
     g = _static.shear_modulus_of(sample)
     rise = float(_static.max_temperature_rise(g, sample.shear_modulus_slope))
@@ -284,6 +291,9 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     if top > 150.0:
         menu.append((f"wider range to {top:.0f} degC", {**base, "temperature_C": [25.0, top]}))
     menu.append(("longer dwell 900 s", {**base, "dwell_s": 900.0}))
+    menu.append(("finer steps 2.5 degC", {**base, "step_C": 2.5}))
+    lo, hi = GLASS_WINDOW_C
+    menu.append((f"1 degC steps {lo:g}-{hi:g} degC", {**base, "temperature_C": [lo, hi], "step_C": 1.0}))
     menu.append(
         (
             "second load 1.5x, heat-cool",
