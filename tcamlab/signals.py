@@ -350,6 +350,31 @@ def frame_noise(frames) -> float:
     return math.sqrt(float(np.mean(kept**2)) / 6.0)
 
 
+NOISE_FRAMES = 100
+"""Fewest frames from which a slower instrument's frame-to-frame changes can be told from a
+pattern of its own (:func:`frames_look_like_noise`)."""
+NOISE_FLATNESS = 1.5
+"""Largest ratio between the frames' second-difference variances at lags of 1 to 4 frames."""
+
+
+def frames_look_like_noise(frames) -> bool:
+    """Whether a slower instrument's frame-to-frame changes are noise about a smooth course.
+
+    Second differences at a lag of ``L`` frames, ``f[i+L] - 2 f[i] + f[i-L]``, have variance
+    ``6 sd**2`` at every lag for noise on a straight (or gently curved) course. A pattern of
+    the input itself (a drive stepped at every frame, or every other) makes them differ by
+    lag: an alternation has none at lag 2; two frames high, two low, four times as much at
+    lag 2 as at lag 1. Such an input is a signal and is never averaged. The variances at
+    lags 1 to 4 must agree within :data:`NOISE_FLATNESS`, over at least
+    :data:`NOISE_FRAMES` frames.
+    """
+    f = np.asarray(frames, float)
+    if f.size < NOISE_FRAMES:
+        return False
+    v = [float(np.mean((f[2 * k :] - 2.0 * f[k:-k] + f[: -2 * k]) ** 2)) for k in (1, 2, 3, 4)]
+    return min(v) > 0 and max(v) <= NOISE_FLATNESS * min(v)
+
+
 def resolution(x) -> float:
     """The smallest step between the distinct values of a logged column [its unit]: the last
     digit it was written with (above the float rounding of parsing it)."""
@@ -420,7 +445,7 @@ def smooth_slow_input(x) -> tuple[np.ndarray, dict | None]:
     if period < 2:
         return x, None
     sd = frame_noise(x[starts])
-    if not (np.isfinite(sd) and sd > 0):
+    if not (np.isfinite(sd) and sd > 0 and frames_look_like_noise(x[starts])):
         return x, None
     for k in SMOOTHING_FRAMES:
         if k * period > x.size // 4:

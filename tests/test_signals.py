@@ -118,3 +118,20 @@ def test_a_lag_of_a_ramp_read_on_a_coarse_grid_trails_it_by_tau_with_the_midpoin
     assert np.median((x - end - 2.0 * tau)[late]) == pytest.approx(-2.0 * step / 2, rel=0.05)
     exact = x - 2.0 * tau * (1.0 - np.exp(-t / tau))  # from rest, the transient included
     assert np.max(np.abs(mid - exact)) < 2.0 * step**2 / (12 * tau)
+
+
+@pytest.mark.parametrize("pattern", [[0.0, 1.0], [0.0, 0.0, 1.0, 1.0], [0.0, 1.0, 1.0]])
+def test_a_drive_stepped_at_every_few_frames_is_a_signal_not_noise(pattern):
+    """A commanded input held between regular steps looks like a slower instrument's frames
+    (evenly spaced edges, nothing in between), but its frame-to-frame changes repeat: never
+    averaged."""
+    x = np.repeat(np.tile(pattern, 400) * 3.0 + 1.0, 50)
+    assert signals.instrument_frames(x)[0] in (1, 50, 100)  # found as frames, or irregular
+    out, info = signals.smooth_slow_input(x)
+    assert info is None
+    np.testing.assert_array_equal(out, x)
+
+
+def test_too_few_frames_to_tell_noise_from_a_pattern_are_left_alone():
+    true, held, _ = _camera(rows=3_000, seed=7)  # 75 frames
+    assert signals.smooth_slow_input(held)[1] is None
