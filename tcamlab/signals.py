@@ -265,8 +265,12 @@ FRAME_MIN_EDGES = 20
 """Fewest frame edges for a column to count as a slower instrument's reading."""
 FRAME_REGULARITY = 0.8
 """Share of the spacings between frame edges that must be a whole number of frames (within
-a tenth of a frame): a camera's or a meter's frames come on its own clock; a slowly moving
+:data:`FRAME_JITTER`): a camera's or a meter's frames come on its own clock; a slowly moving
 reading of a coarse converter changes where the signal crosses a step, irregularly."""
+FRAME_JITTER = 0.25
+"""How far a spacing between frame edges may be from a whole number of frames [frames]: a
+25 Hz camera's time stamps jittering by +-5 ms on a 1 kHz log move its edges by up to a
+quarter of a frame."""
 WITHIN_FRAME = 0.95
 """Share of the rows inside frames whose first (held) or second (interpolated) difference is
 within two steps of the column's resolution: a slower instrument adds nothing in between."""
@@ -304,6 +308,8 @@ def instrument_frames(x) -> tuple[int, np.ndarray]:
     for order in (1, 2):
         d = np.abs(np.diff(x, order))
         edges = np.flatnonzero(d > max(8.0 * float(np.median(d)), tiny))
+        # an interpolated frame whose time falls between two rows bends the line at both
+        edges = edges[np.diff(edges, prepend=-2) > 1]
         if edges.size < FRAME_MIN_EDGES:
             continue
         gaps = np.diff(edges)
@@ -313,7 +319,7 @@ def instrument_frames(x) -> tuple[int, np.ndarray]:
         # a frame clock beating against the log's (39 and 41 rows for 40) averages out
         frames = gaps / (np.sum(gaps) / max(float(np.sum(np.round(gaps / first))), 1.0))
         period = int(round(float(np.sum(gaps) / np.sum(np.round(frames)))))
-        if np.mean(np.abs(frames - np.round(frames)) <= 0.1) < FRAME_REGULARITY:
+        if np.mean(np.abs(frames - np.round(frames)) <= FRAME_JITTER) < FRAME_REGULARITY:
             continue
         # a slower instrument adds nothing between its frames (held: equal rows; interpolated:
         # a straight line, to the logged digits); a stepped test (a pull held at each step)

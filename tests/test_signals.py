@@ -16,16 +16,21 @@ from tcamlab.io import read_run
 ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
 
 
-def _camera(rows=60_000, seed=1, per_frame=40, sd=0.5, digits=1):
-    """A 1 kHz log of an oven's heat-cool cycle read by a camera every ``per_frame`` rows
-    (SYNTHETIC, seed ``seed``): (true temperature, frames held, frames interpolated)."""
+def _camera(rows=60_000, seed=1, per_frame=40, sd=0.5, digits=1, jitter_s=0.0):
+    """A 1 kHz log of an oven's heat-cool cycle read by a camera every ``per_frame`` rows, its
+    frames time-stamped to +-``jitter_s`` (SYNTHETIC, seed ``seed``): (true temperature,
+    frames held, frames interpolated)."""
     rng = np.random.default_rng(seed)
     t = np.arange(rows) / 1000.0
     true = 25.0 + 27.5 * (1.0 - np.cos(2.0 * np.pi * t / 60.0))
     tf = np.arange(0.0, t[-1] + per_frame / 1000.0, per_frame / 1000.0)
+    tf = np.sort(tf + rng.uniform(-jitter_s, jitter_s, tf.size)) if jitter_s else tf
     frame = 25.0 + 27.5 * (1.0 - np.cos(2.0 * np.pi * tf / 60.0)) + rng.normal(0, sd, tf.size)
     frame = np.round(frame, digits)
-    held = frame[np.clip(np.round(t * 1000.0 / per_frame).astype(int), 0, tf.size - 1)]
+    if jitter_s:
+        held = frame[np.clip(np.searchsorted(tf, t, side="right") - 1, 0, tf.size - 1)]
+    else:
+        held = frame[np.clip(np.round(t * 1000.0 / per_frame).astype(int), 0, tf.size - 1)]
     return true, held, np.round(np.interp(t, tf, frame), 4)
 
 
@@ -37,6 +42,17 @@ def test_a_camera_held_or_interpolated_onto_a_faster_log_is_found_with_its_frame
         assert period == per_frame
         gaps = np.diff(starts)[1:]  # whole frames (two frames read alike merge), to a row
         assert starts[0] == 0 and np.all(np.abs(gaps - per_frame * np.round(gaps / per_frame)) <= 1)
+
+
+@pytest.mark.parametrize("jitter_s", [0.005, 0.008])
+def test_a_camera_whose_frame_times_jitter_is_found_and_averaged(jitter_s):
+    """Frame time stamps jittering by up to a fifth of a frame: the edges of held frames move,
+    and an interpolated frame between two rows bends the line at both."""
+    true, held, interp = _camera(seed=8, jitter_s=jitter_s)
+    for x in (held, interp):
+        smooth, info = signals.smooth_slow_input(x)
+        assert info is not None and info["rows_per_frame"] == 40
+        assert float(np.sqrt(np.mean((smooth - true) ** 2))) < 0.15
 
 
 def test_a_reading_on_every_row_or_a_stepped_test_is_no_slower_instrument():
