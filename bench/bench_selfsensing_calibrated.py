@@ -6,6 +6,7 @@ Run from the repository root::
     python bench/bench_selfsensing_calibrated.py --seeds 3
     python bench/bench_selfsensing_calibrated.py --quick    # seed 1 (CI)
     python bench/bench_selfsensing_calibrated.py --seed 2 --linear-tcr --logged-only
+    python bench/bench_selfsensing_calibrated.py --seeds 3 --tcr2-sd 2e-6   # quadratic TCR refitted
 
 Per seed, all SYNTHETIC (generator ``tcamlab.kinds.selfsensing`` virtual rig with
 ``tcamlab.rig.selfsensing.ResistanceLaw``, drawn by ``bench/bench_observer.py``'s
@@ -84,13 +85,17 @@ def scores(path: Path, out: Path) -> dict:
 
 def with_tcr2(text: str, fit) -> str:
     """The calibrated file with the EKF refit's quadratic TCR in [rig] as ``tcr2_per_K2`` where the
-    refit fitted it and the file does not state it (the calibrated-file writer states R0, the TCR,
-    R_lead and k_s; this puts the fifth beside them, so validate reads the law that was fitted)."""
-    if "tcr2" not in fit.fitted or re.search(r"^tcr2_per_K2 = ", text, flags=re.M):
+    refit fitted it (the calibrated-file writer states R0, the TCR, R_lead and k_s; this puts the
+    fifth beside them, so validate reads the law that was fitted)."""
+    if "tcr2" not in fit.fitted:
         return text
-    return re.sub(
-        r"^\[rig\]\n", f"[rig]\ntcr2_per_K2 = {fit.values['tcr2']:.6g}\n", text, count=1, flags=re.M
-    )
+    head, sep, tail = text.partition("[rig.uncertainty]")
+    line = f"tcr2_per_K2 = {fit.values['tcr2']:.6g}"
+    if re.search(r"^tcr2_per_K2 = .*$", head, flags=re.M):
+        head = re.sub(r"^tcr2_per_K2 = .*$", line, head, count=1, flags=re.M)
+    else:
+        head = re.sub(r"^\[rig\]\n", f"[rig]\n{line}\n", head, count=1, flags=re.M)
+    return head + sep + tail
 
 
 def open_loop_only(text: str, fit) -> str:
@@ -103,9 +108,13 @@ def open_loop_only(text: str, fit) -> str:
     return text
 
 
-def one_seed(seed: int, work: Path, load_logged: bool, linear_tcr: bool = False) -> dict:
+def one_seed(
+    seed: int, work: Path, load_logged: bool, linear_tcr: bool = False, tcr2_sd: float = 0.0
+) -> dict:
     """Draw, log, calibrate on runs 1-3, validate runs 4-5 with both fits; ``linear_tcr`` sets
-    the drawn law's quadratic TCR to 0 (the rest of the draw unchanged)."""
+    the drawn law's quadratic TCR to 0 (the rest of the draw unchanged); ``tcr2_sd`` [1/K^2], when
+    above 0, states the quadratic TCR as 0 with that sd in [rig.uncertainty], so the EKF refit
+    fits it where the runs identify it."""
     from dataclasses import replace
 
     from bench_observer import draw_truth, make_runs
@@ -119,6 +128,8 @@ def one_seed(seed: int, work: Path, load_logged: bool, linear_tcr: bool = False)
         law = replace(law, tcr2_per_K2=0.0)
     names = write_runs(make_runs(template.sample, truth, law, seed), work, load_logged)
     text = (ROOT / "experiments" / "selfsensing.toml").read_text()
+    if tcr2_sd > 0:
+        text = text.replace("[rig.uncertainty]\n", f"[rig.uncertainty]\ntcr2_per_K2 = {tcr2_sd:g}\n", 1)
     train = work / "experiments" / "train.toml"
     train.write_text(with_runs(text, names[:3]))
     result = calibrate_experiment([train]).result
@@ -169,6 +180,12 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, help="this seed only")
     parser.add_argument("--linear-tcr", action="store_true", help="the drawn law's quadratic TCR set to 0")
     parser.add_argument("--logged-only", action="store_true", help="only the case that logs load_N")
+    parser.add_argument(
+        "--tcr2-sd",
+        type=float,
+        default=0.0,
+        help="state the quadratic TCR as 0 with this sd [1/K^2] (EKF refit fits it)",
+    )
     args = parser.parse_args(argv)
     seeds = [1] if args.quick else list(range(1, args.seeds + 1))
     seeds = [args.seed] if args.seed else seeds
@@ -176,10 +193,14 @@ def main(argv=None) -> int:
     print("cells: mean / 95 % interval of the error, % of the stroke, pooled over withheld runs 4-5")
     if args.linear_tcr:
         print("the law's quadratic TCR set to 0 (--linear-tcr)")
+    if args.tcr2_sd > 0:
+        print(
+            f"the file states the quadratic TCR as 0 +- {args.tcr2_sd:g} /K^2 (--tcr2-sd): the EKF refit fits it"
+        )
     for load_logged in (True,) if args.logged_only else (True, False):
         for seed in seeds:
             with tempfile.TemporaryDirectory(prefix="tcam-sscal-") as tmp:
-                res = one_seed(seed, Path(tmp), load_logged, args.linear_tcr)
+                res = one_seed(seed, Path(tmp), load_logged, args.linear_tcr, args.tcr2_sd)
             law, fit = res["law"], res["fit"]
             print(
                 f"seed {seed} ({'load_N logged' if load_logged else 'no load_N'}): truth R_lead "

@@ -451,3 +451,46 @@ def test_the_quadratic_tcrs_prior_in_the_estimators_refit(setup):
     assert estimator.refit_prior(rig, "tcr2") == (0.0, estimator.TCR2_PRIOR_SD)
     stated = rig.replace(tcr2=1e-6, uncertainty={**rig.uncertainty, "tcr2": 3e-7})
     assert estimator.refit_prior(stated, "tcr2") == (1e-6, 3e-7)
+
+
+def test_the_quadratic_tcr_is_refitted_only_where_the_file_states_it(setup):
+    from tcamlab.calibration import estimator
+
+    _, rig = setup
+    # absent: held at 0 with the reason, so the refit is the linear law's four-parameter fit
+    assert set(estimator.unstated_fields(rig)) == {"tcr2"}
+    assert estimator.unstated_fields(rig)["tcr2"].startswith("held at its stated value")
+    assert estimator.unstated_fields(rig.replace(tcr2=1e-6)) == {}
+    assert estimator.unstated_fields(rig.replace(uncertainty={**rig.uncertainty, "tcr2": 2e-6})) == {}
+
+
+def test_the_inversion_reads_a_stated_quadratic_tcr(setup):
+    sample, rig = setup
+    # SYNTHETIC (the kind's virtual rig, exact readings): the truth's coating has a quadratic TCR
+    proto = pd.DataFrame(
+        {
+            "time": np.arange(1500) / 100.0,
+            "voltage": np.where((np.arange(1500) >= 200) & (np.arange(1500) < 900), 7.0, ss.PROBE_V),
+            "load_mass": np.full(1500, rig.load),
+        }
+    )
+    from tcamlab.rig.selfsensing import ResistanceLaw
+
+    data = KIND.exact_inputs(sample, rig, proto, law=ResistanceLaw(tcr2_per_K2=3e-6))
+    meas = data["true_displacement"].to_numpy() - data["true_displacement"].iloc[0]
+    linear = ss.predict_displacement(sample, rig, data, initial_resistance=rig.initial_resistance)
+    quad = ss.predict_displacement(
+        sample, rig.replace(tcr2=3e-6), data, initial_resistance=rig.initial_resistance
+    )
+    err_lin = np.max(np.abs(linear["displacement"] - linear["displacement"][0] - meas))
+    err_quad = np.max(np.abs(quad["displacement"] - quad["displacement"][0] - meas))
+    assert err_quad < 0.2 * err_lin
+    # 0 gives the readings back unchanged: the linear law's inversion, to the bit
+    r = np.array([24.0, 25.0])
+    assert ss.linear_coating(r, np.array([0.0, 50.0]), 0.0038, 0.0) is r
+    scaled = ss.linear_coating(r, np.array([0.0, 50.0]), 0.0038, 2e-6)
+    np.testing.assert_allclose(
+        scaled,
+        r * (1 + 0.0038 * np.array([0, 50])) / (1 + 0.0038 * np.array([0, 50]) + 2e-6 * np.array([0, 2500])),
+        rtol=1e-14,
+    )

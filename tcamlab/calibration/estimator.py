@@ -6,8 +6,8 @@
 with the load unknown reads that common error as a load drift during heating. This stage
 holds the thermal constants and the damping at the open-loop fit and refits what the EKF is
 sensitive to, R0 and the TCR, with the resistance law's nuisances R_lead (lead and contacts,
-bounded at 0 ohm), k_s (stretch sensitivity) and tcr2 (the coating's quadratic TCR) where the
-runs identify them, through the
+bounded at 0 ohm), k_s (stretch sensitivity) and, where the file states it, tcr2 (the coating's
+quadratic TCR) where the runs identify them, through the
 estimator ``validate`` scores: the EKF (load logged where the runs log it, and withheld),
 against the laser of the training runs, each run after its rest-row zero.
 
@@ -31,6 +31,7 @@ __all__ = [
     "fit_for_estimator",
     "held_nuisances",
     "refit_prior",
+    "unstated_fields",
     "TCR2_PRIOR_SD",
     "PARAMETERS",
     "MAX_CORRELATION",
@@ -117,6 +118,19 @@ class EstimatorFit:
     def to_dict(self) -> dict:
         """JSON-ready form."""
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+def unstated_fields(rig) -> dict:
+    """The optional law terms the rig does not state, with the reason they are not refitted.
+
+    The quadratic TCR is refitted only where ``[rig]`` states it (``tcr2_per_K2`` other than 0,
+    or an sd of it in ``[rig.uncertainty]``): absent, the law is linear and every result is the
+    linear law's. Returns field -> reason.
+    """
+    unc = getattr(rig, "uncertainty", None) or {}
+    if float(getattr(rig, "tcr2", 0.0)) == 0.0 and "tcr2" not in unc:
+        return {"tcr2": "held at its stated value (0, linear): the file states no quadratic TCR"}
+    return {}
 
 
 def refit_prior(rig, name: str) -> tuple[float, float]:
@@ -278,12 +292,13 @@ def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
         When the refit leaves R_lead below 0 or k_s not above 0 (never written to a file).
     """
     cases = (True, False) if any("load" in d for d in frames) else (False,)
-    # all five first: at the open-loop values the withheld case's drift dominates the Jacobian
+    unstated = unstated_fields(rig)
+    # all first: at the open-loop values the withheld case's drift dominates the Jacobian
     # and k_s looked tied to R0 (r = -0.998) where, fitted, it was not (|r| <= 0.71; measured)
-    names = list(PARAMETERS)
+    names = [n for n in PARAMETERS if n not in unstated]
     theta, sd, fit, before = _least_squares(experiment.sample, rig, frames, names, cases)
-    held = held_nuisances(fit.jac, names)
-    if held:
+    held = {**unstated, **held_nuisances(fit.jac, names)}
+    if set(held) - set(unstated):
         names = [n for n in names if n not in held]
         theta, sd, fit, _ = _least_squares(experiment.sample, rig, frames, names, cases)
     values = {n: float(getattr(rig, n)) for n in PARAMETERS}

@@ -144,6 +144,7 @@ def predict_displacement(
     r = np.where(ok, v / np.where(ok, i, 1.0), np.nan)
     r = (pd.Series(r).ffill().bfill().to_numpy() - lead) / (1.0 + mods.r0_drift * (t - t[0]))
     kw = _model_kwargs(sample, rig, initial_resistance, rig.tcr + mods.tcr_extra)
+    r = linear_coating(r, temp - rig.ambient, kw["tcr"], rig.tcr2)
     delta = invert_muscle(r, temp, kw, rig.stretch_factor)
     # the model's rest extension, not the rest rows' mean of delta: that mean would cancel a
     # common error of R, hiding it from the noise floor and the nuisance zero alike
@@ -152,6 +153,20 @@ def predict_displacement(
     if mods.contact_slope:
         delta = _undo_contact(r, temp, delta, x_rest, mods, kw, rig.stretch_factor)
     return {"displacement": delta - x_rest, "temperature": temp}
+
+
+def linear_coating(r_muscle, rise, tcr: float, tcr2: float = 0.0) -> np.ndarray:
+    """The muscle's R [ohm] as the linear law would give it at the same T and extension.
+
+    R_muscle carries the coating factor 1 + TCR dT + tcr2 dT^2; chapter 3's inversion knows
+    1 + TCR dT, so R is scaled by their ratio. ``rise`` dT = T - T_a [K], ``tcr`` [1/K],
+    ``tcr2`` [1/K^2]; with ``tcr2`` 0 the readings come back unchanged (the same array).
+    """
+    if not tcr2:
+        return r_muscle
+    dT = np.asarray(rise, float)
+    linear = 1.0 + tcr * dT
+    return np.asarray(r_muscle, float) * linear / (linear + tcr2 * dT * dT)
 
 
 def invert_muscle(r_muscle, temperature, kw: dict, stretch_factor: float = 1.0) -> np.ndarray:
