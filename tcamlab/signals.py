@@ -304,10 +304,11 @@ def instrument_frames(x) -> tuple[int, np.ndarray]:
     x = np.asarray(x, float)
     if x.size < 10 * FRAME_MIN_EDGES:
         return 1, np.zeros(0, int)
-    tiny = 1e-12 * max(float(np.max(np.abs(x))), 1e-300)
+    # within a frame the differences are zero to the last digit written
+    digit = max(2.0 * resolution(x), 1e-12 * max(float(np.max(np.abs(x))), 1e-300))
     for order in (1, 2):
         d = np.abs(np.diff(x, order))
-        edges = np.flatnonzero(d > max(8.0 * float(np.median(d)), tiny))
+        edges = np.flatnonzero(d > max(8.0 * float(np.median(d)), digit))
         # an interpolated frame whose time falls between two rows bends the line at both
         edges = edges[np.diff(edges, prepend=-2) > 1]
         if edges.size < FRAME_MIN_EDGES:
@@ -325,7 +326,7 @@ def instrument_frames(x) -> tuple[int, np.ndarray]:
         # a straight line, to the logged digits); a stepped test (a pull held at each step)
         # has the same regular edges but its meter's noise on every row
         inside = np.delete(d, edges)
-        if np.mean(inside <= 2.0 * resolution(x)) >= WITHIN_FRAME:
+        if np.mean(inside <= digit) >= WITHIN_FRAME:
             return period, _every_frame(np.concatenate(([0], edges + 1)), period)
     return 1, np.zeros(0, int)
 
