@@ -453,15 +453,19 @@ def test_the_quadratic_tcrs_prior_in_the_estimators_refit(setup):
     assert estimator.refit_prior(stated, "tcr2") == (1e-6, 3e-7)
 
 
-def test_the_quadratic_tcr_is_refitted_only_where_the_file_states_it(setup):
-    from tcamlab.calibration import estimator
+def test_the_quadratic_tcr_is_refitted_only_where_the_file_states_it(setup, monkeypatch):
+    from tcamlab.calibration import calibrated_file, estimator
 
     _, rig = setup
     # absent: held at 0 with the reason, so the refit is the linear law's four-parameter fit
     assert set(estimator.unstated_fields(rig)) == {"tcr2"}
     assert estimator.unstated_fields(rig)["tcr2"].startswith("held at its stated value")
-    assert estimator.unstated_fields(rig.replace(tcr2=1e-6)) == {}
-    assert estimator.unstated_fields(rig.replace(uncertainty={**rig.uncertainty, "tcr2": 2e-6})) == {}
+    stated = [rig.replace(tcr2=1e-6), rig.replace(uncertainty={**rig.uncertainty, "tcr2": 2e-6})]
+    # stated, but a writer that would not state the refit's tcr2 beside its R0 and TCR: held
+    if "tcr2" not in calibrated_file.ESTIMATOR_KEYS:
+        assert all("writer" in estimator.unstated_fields(r)["tcr2"] for r in stated)
+    monkeypatch.setitem(calibrated_file.ESTIMATOR_KEYS, "tcr2", "tcr2_per_K2")
+    assert all(estimator.unstated_fields(r) == {} for r in stated)
 
 
 def test_the_inversion_reads_a_stated_quadratic_tcr(setup):
