@@ -89,6 +89,8 @@ def speed(config, quick):
 
 
 def accuracy(config, quick, load_logged):
+    """The closed-loop study (seed 1); with the load unknown its filter runs
+    ``control.LOOP_UNKNOWN_LOAD_NOISE`` (theta on, a slow load walk, no jump detector)."""
     sc = ct.Scenario(duration=60.0 if quick else 120.0, load_change_at=30.0 if quick else 60.0)
     study = ct.closed_loop_study(config, sc, so.combined_resistance, load_logged=load_logged)
     e = study.results["laser"].estimate_error
