@@ -83,16 +83,6 @@ def scores(path: Path, out: Path) -> dict:
     return out
 
 
-def let_the_writer_state_tcr2() -> None:
-    """Put the quadratic TCR among the keys the calibrated-file writer states (in this process
-    only): ``tcamlab.calibration.calibrated_file.ESTIMATOR_KEYS`` lists R0, the TCR, R_lead and
-    k_s, and the EKF refit holds tcr2 while the writer would not state it. This measures what
-    the refit gives once the writer states it."""
-    from tcamlab.calibration import calibrated_file
-
-    calibrated_file.ESTIMATOR_KEYS.setdefault("tcr2", "tcr2_per_K2")
-
-
 def open_loop_only(text: str, fit) -> str:
     """The calibrated file with R0 and the TCR of the open-loop fit, R_lead, k_s and tcr2 as stated."""
     keys = {"initial_resistance_ohm": "initial_resistance", "tcr_per_K": "tcr"}
@@ -189,9 +179,8 @@ def main(argv=None) -> int:
     if args.linear_tcr:
         print("the law's quadratic TCR set to 0 (--linear-tcr)")
     if args.tcr2_sd > 0:
-        let_the_writer_state_tcr2()
         print(
-            f"the file states the quadratic TCR as 0 +- {args.tcr2_sd:g} /K^2 (--tcr2-sd): the EKF refit fits it"
+            f"the file states the quadratic TCR as 0 +- {args.tcr2_sd:g} /K^2 (--tcr2-sd): both stages fit it"
         )
     for load_logged in (True,) if args.logged_only else (True, False):
         for seed in seeds:

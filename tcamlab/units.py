@@ -101,6 +101,7 @@ PARAMETER_UNITS: dict[str, tuple[str, float]] = {
     "heater_tcr": ("1/K", 1.0),
     "lead_resistance": ("ohm", 1.0),
     "stretch_factor": ("-", 1.0),
+    "tcr2": ("1/K^2", 1.0),
 }
 """SI field of Sample or Rig -> (lab unit, factor from SI); the experiment file's key is
 the field plus the unit (``coil_length_mm``, ``youngs_modulus_GPa``, ``load_g``)."""

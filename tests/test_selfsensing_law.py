@@ -453,7 +453,7 @@ def test_the_quadratic_tcrs_prior_in_the_estimators_refit(setup):
     assert estimator.refit_prior(stated, "tcr2") == (1e-6, 3e-7)
 
 
-def test_the_quadratic_tcr_is_refitted_only_where_the_file_states_it(setup, monkeypatch):
+def test_the_quadratic_tcr_is_refitted_only_where_the_file_states_it(setup):
     from tcamlab.calibration import calibrated_file, estimator
 
     _, rig = setup
@@ -461,11 +461,23 @@ def test_the_quadratic_tcr_is_refitted_only_where_the_file_states_it(setup, monk
     assert set(estimator.unstated_fields(rig)) == {"tcr2"}
     assert estimator.unstated_fields(rig)["tcr2"].startswith("held at its stated value")
     stated = [rig.replace(tcr2=1e-6), rig.replace(uncertainty={**rig.uncertainty, "tcr2": 2e-6})]
-    # stated, but a writer that would not state the refit's tcr2 beside its R0 and TCR: held
-    if "tcr2" not in calibrated_file.ESTIMATOR_KEYS:
-        assert all("writer" in estimator.unstated_fields(r)["tcr2"] for r in stated)
-    monkeypatch.setitem(calibrated_file.ESTIMATOR_KEYS, "tcr2", "tcr2_per_K2")
+    # stated: refitted, and the calibrated file states the refit beside its R0 and TCR
+    assert calibrated_file.ESTIMATOR_KEYS["tcr2"] == "tcr2_per_K2"
     assert all(estimator.unstated_fields(r) == {} for r in stated)
+
+
+def test_the_first_stage_fits_the_quadratic_tcr_only_where_its_sd_is_stated(tmp_path):
+    """The open-loop fit's parameters: tcr2 joins them only with an sd in [rig.uncertainty]
+    (a file that says nothing of it is calibrated exactly as before)."""
+    from tcamlab.calibration.problem import CalibrationProblem
+    from tcamlab.config import load_experiment
+
+    exp = load_experiment(_experiment(tmp_path))
+    names = [s.name for s in CalibrationProblem([exp], [exp.read_runs()]).specs]
+    assert "tcr2" not in names and "tcr" in names
+    exp2 = load_experiment(_experiment(tmp_path, unc_lines="tcr2_per_K2 = 2e-6\n"))
+    spec = {s.name: s for s in CalibrationProblem([exp2], [exp2.read_runs()]).specs}["tcr2"]
+    assert spec.prior_sd == 2e-6 and spec.stated == 0.0 and spec.sd_stated
 
 
 def test_the_inversion_reads_a_stated_quadratic_tcr(setup):

@@ -104,6 +104,7 @@ ESTIMATOR_KEYS = {
     "tcr": "tcr_per_K",
     "lead_resistance": "lead_resistance_ohm",
     "stretch_factor": "stretch_factor",
+    "tcr2": "tcr2_per_K2",
 }
 """[rig] key of each field the EKF refit writes (all in SI = lab units)."""
 

@@ -125,20 +125,14 @@ def unstated_fields(rig) -> dict:
 
     The quadratic TCR is refitted only where ``[rig]`` states it (``tcr2_per_K2`` other than 0,
     or an sd of it in ``[rig.uncertainty]``): absent, the law is linear and every result is the
-    linear law's. It is held, too, while the calibrated file's writer
-    (:data:`tcamlab.calibration.calibrated_file.ESTIMATOR_KEYS`) does not state it: R0 and the
-    TCR refitted beside a tcr2 the file would not carry biased the withheld EKF by 3-5 % of the
-    stroke (measured). Returns field -> reason.
+    linear law's. The calibrated file states a refitted tcr2 beside R0 and the TCR
+    (:data:`tcamlab.calibration.calibrated_file.ESTIMATOR_KEYS`): R0 and the TCR refitted beside
+    a tcr2 the file would not carry biased the withheld EKF by 3-5 % of the stroke (measured).
+    Returns field -> reason.
     """
-    from tcamlab.calibration.calibrated_file import ESTIMATOR_KEYS
-
     unc = getattr(rig, "uncertainty", None) or {}
     if float(getattr(rig, "tcr2", 0.0)) == 0.0 and "tcr2" not in unc:
         return {"tcr2": "held at its stated value (0, linear): the file states no quadratic TCR"}
-    if "tcr2" not in ESTIMATOR_KEYS:  # R0 and the TCR fitted beside a tcr2 the file would not carry
-        return {
-            "tcr2": "held at its stated value: the calibrated file's writer does not state a refitted tcr2"
-        }
     return {}
 
 

@@ -802,6 +802,17 @@ CALIBRATION = (
     CalibrationParam("initial_resistance", "rig", "R0", "ohm", 0.05, "R of the unloaded muscle at ambient"),
     CalibrationParam("tcr", "rig", "TCR", "1/K", 0.1, "an oven test of R against temperature, unloaded"),
     CalibrationParam(
+        "tcr2",
+        "rig",
+        "TCR2",
+        "1/K^2",
+        1.0,
+        "an oven test of R against temperature over the whole working range, unloaded (the bend of R(T))",
+        positive=False,
+        zero_sd=2e-6,
+        only_if_stated=True,
+    ),
+    CalibrationParam(
         "thermal_mass",
         "rig",
         "C_th",
@@ -827,7 +838,9 @@ CALIBRATION = (
     ),
 )
 """Calibratable parameters of the powered run (R0, the TCR and the thermal constants set the
-open-loop inversion; b enters once the estimator models the mechanics). R_lead and k_s are
+open-loop inversion; the quadratic TCR only where the file states its sd, in
+``[rig.uncertainty] tcr2_per_K2``: a linear law, left at 0, is tcamlab's own; b enters once the
+estimator models the mechanics). R_lead and k_s are
 used as stated: see :data:`LAW_CALIBRATION`)."""
 
 LAW_CALIBRATION = (
