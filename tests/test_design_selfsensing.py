@@ -240,7 +240,11 @@ def test_a_diagnosis_file_with_sorted_keys_reads_in_the_fits_order():
     rec = SELFSENSING_ATTRIBUTED["ranking"][0]["recalibrated"]
     assert list(rec) == sorted(rec)
     (h,) = hypotheses(SELFSENSING_ATTRIBUTED, "selfsensing")
-    assert [f[0] for f in h.fields] == [p.field for p in get_kind("selfsensing").calibration]
+    # (a file written before the quadratic TCR was calibrated lacks it: read without it)
+    assert [f[0] for f in h.fields] == [
+        p.field for p in get_kind("selfsensing").calibration if p.field in rec
+    ]
+    assert "tcr2" not in rec and "tcr2" in [p.field for p in get_kind("selfsensing").calibration]
     shuffled = json.loads(json.dumps(SELFSENSING_ATTRIBUTED))
     for c in shuffled["ranking"]:
         c["recalibrated"] = dict(reversed(list(c["recalibrated"].items())))

@@ -453,31 +453,20 @@ def test_the_quadratic_tcrs_prior_in_the_estimators_refit(setup):
     assert estimator.refit_prior(stated, "tcr2") == (1e-6, 3e-7)
 
 
-def test_the_quadratic_tcr_is_refitted_only_where_the_file_states_it(setup):
+def test_both_stages_fit_the_quadratic_tcr_about_0_unless_the_file_states_it(tmp_path):
+    """tcr2 is among the open-loop fit's parameters with a prior of 0 +- TCR2_ZERO_SD, or the
+    file's sd; the refit fits it too, and the calibrated file states the refit's value."""
     from tcamlab.calibration import calibrated_file, estimator
-
-    _, rig = setup
-    # absent: held at 0 with the reason, so the refit is the linear law's four-parameter fit
-    assert set(estimator.unstated_fields(rig)) == {"tcr2"}
-    assert estimator.unstated_fields(rig)["tcr2"].startswith("held at its stated value")
-    stated = [rig.replace(tcr2=1e-6), rig.replace(uncertainty={**rig.uncertainty, "tcr2": 2e-6})]
-    # stated: refitted, and the calibrated file states the refit beside its R0 and TCR
-    assert calibrated_file.ESTIMATOR_KEYS["tcr2"] == "tcr2_per_K2"
-    assert all(estimator.unstated_fields(r) == {} for r in stated)
-
-
-def test_the_first_stage_fits_the_quadratic_tcr_only_where_its_sd_is_stated(tmp_path):
-    """The open-loop fit's parameters: tcr2 joins them only with an sd in [rig.uncertainty]
-    (a file that says nothing of it is calibrated exactly as before)."""
     from tcamlab.calibration.problem import CalibrationProblem
-    from tcamlab.config import load_experiment
 
+    assert calibrated_file.ESTIMATOR_KEYS["tcr2"] == "tcr2_per_K2"
+    assert "tcr2" in estimator.PARAMETERS
     exp = load_experiment(_experiment(tmp_path))
-    names = [s.name for s in CalibrationProblem([exp], [exp.read_runs()]).specs]
-    assert "tcr2" not in names and "tcr" in names
-    exp2 = load_experiment(_experiment(tmp_path, unc_lines="tcr2_per_K2 = 2e-6\n"))
+    spec = {s.name: s for s in CalibrationProblem([exp], [exp.read_runs()]).specs}["tcr2"]
+    assert (spec.stated, spec.prior_sd, spec.sd_stated) == (0.0, ss.TCR2_ZERO_SD, False)
+    exp2 = load_experiment(_experiment(tmp_path, unc_lines="tcr2_per_K2 = 5e-7\n"))
     spec = {s.name: s for s in CalibrationProblem([exp2], [exp2.read_runs()]).specs}["tcr2"]
-    assert spec.prior_sd == 2e-6 and spec.stated == 0.0 and spec.sd_stated
+    assert (spec.stated, spec.prior_sd, spec.sd_stated) == (0.0, 5e-7, True)
 
 
 def test_the_inversion_reads_a_stated_quadratic_tcr(setup):

@@ -6,8 +6,8 @@
 with the load unknown reads that common error as a load drift during heating. This stage
 holds the thermal constants and the damping at the open-loop fit and refits what the EKF is
 sensitive to, R0 and the TCR, with the resistance law's nuisances R_lead (lead and contacts,
-bounded at 0 ohm), k_s (stretch sensitivity) and, where the file states it, tcr2 (the coating's
-quadratic TCR) where the runs identify them, through the
+bounded at 0 ohm), k_s (stretch sensitivity) and tcr2 (the coating's quadratic TCR, about 0
+when the file states none) where the runs identify them, through the
 estimator ``validate`` scores: the EKF (load logged where the runs log it, and withheld),
 against the laser of the training runs, each run after its rest-row zero.
 
@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tcamlab.errors import InputError
+from tcamlab.kinds.selfsensing import TCR2_ZERO_SD
 
 __all__ = [
     "EstimatorFit",
@@ -31,7 +32,6 @@ __all__ = [
     "fit_for_estimator",
     "held_nuisances",
     "refit_prior",
-    "unstated_fields",
     "TCR2_PRIOR_SD",
     "PARAMETERS",
     "MAX_CORRELATION",
@@ -62,10 +62,11 @@ PRIOR_SD_REL = {"initial_resistance": 0.1, "tcr": 0.2, "stretch_factor": 0.2}
 several % off together (the reason for this stage); k_s within 20 % of chapter 3's."""
 LEAD_PRIOR_SD = 0.3
 """Prior sd of R_lead [ohm] about the stated value (a bench rig's leads: 0.2-0.5 ohm)."""
-TCR2_PRIOR_SD = 2e-6
+TCR2_PRIOR_SD = TCR2_ZERO_SD
 """Prior sd of the coating's quadratic TCR [1/K^2] about the stated value (0: linear) when no sd
-is stated: 2e-6 /K^2 moves R by 0.5 % at 50 K above ambient, an eighth of the linear term's
-19 % there, as far as a plated coating's curvature is seen to go."""
+is stated, the first stage's (:data:`tcamlab.kinds.selfsensing.TCR2_ZERO_SD`): 2e-6 /K^2 moves R
+by 0.5 % at 50 K above ambient, an eighth of the linear term's 19 % there, as far as a plated
+coating's curvature is seen to go."""
 ERROR_SD = 50e-6
 """sd of one thinned row's displacement error [m] (the EKF's, beyond the laser's noise)."""
 THIN = 10
@@ -118,22 +119,6 @@ class EstimatorFit:
     def to_dict(self) -> dict:
         """JSON-ready form."""
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
-
-
-def unstated_fields(rig) -> dict:
-    """The optional law terms the rig does not state, with the reason they are not refitted.
-
-    The quadratic TCR is refitted only where ``[rig]`` states it (``tcr2_per_K2`` other than 0,
-    or an sd of it in ``[rig.uncertainty]``): absent, the law is linear and every result is the
-    linear law's. The calibrated file states a refitted tcr2 beside R0 and the TCR
-    (:data:`tcamlab.calibration.calibrated_file.ESTIMATOR_KEYS`): R0 and the TCR refitted beside
-    a tcr2 the file would not carry biased the withheld EKF by 3-5 % of the stroke (measured).
-    Returns field -> reason.
-    """
-    unc = getattr(rig, "uncertainty", None) or {}
-    if float(getattr(rig, "tcr2", 0.0)) == 0.0 and "tcr2" not in unc:
-        return {"tcr2": "held at its stated value (0, linear): the file states no quadratic TCR"}
-    return {}
 
 
 def refit_prior(rig, name: str) -> tuple[float, float]:
@@ -295,13 +280,12 @@ def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
         When the refit leaves R_lead below 0 or k_s not above 0 (never written to a file).
     """
     cases = (True, False) if any("load" in d for d in frames) else (False,)
-    unstated = unstated_fields(rig)
     # all first: at the open-loop values the withheld case's drift dominates the Jacobian
     # and k_s looked tied to R0 (r = -0.998) where, fitted, it was not (|r| <= 0.71; measured)
-    names = [n for n in PARAMETERS if n not in unstated]
+    names = list(PARAMETERS)
     theta, sd, fit, before = _least_squares(experiment.sample, rig, frames, names, cases)
-    held = {**unstated, **held_nuisances(fit.jac, names)}
-    if set(held) - set(unstated):
+    held = held_nuisances(fit.jac, names)
+    if held:
         names = [n for n in names if n not in held]
         theta, sd, fit, _ = _least_squares(experiment.sample, rig, frames, names, cases)
     values = {n: float(getattr(rig, n)) for n in PARAMETERS}

@@ -264,14 +264,6 @@ class CalibrationProblem:
                 fill[p.field] = _unstated_start(kind, exp, self.runs[i], p.field)
         return exp.rig.replace(**fill)
 
-    def _uncertainty_stated(self, i: int, p: CalibrationParam) -> bool:
-        """Whether experiment i's file states a positive sd of the field ([sample.uncertainty]
-        or [rig.uncertainty])."""
-        exp = self.experiments[i]
-        unc = exp.sample_uncertainty if p.where == "sample" else exp.rig.uncertainty
-        sd = unc.get(p.field)
-        return sd is not None and sd > 0
-
     def _spec(self, p: CalibrationParam, idx: tuple[int, ...], name: str) -> Spec:
         exp = self.experiments[idx[0]]
         holder = self.samples[idx[0]] if p.where == "sample" else self.rigs[idx[0]]
@@ -300,8 +292,6 @@ class CalibrationProblem:
                     continue  # e.g. dynamic R without a logged current or resistance
                 if p.effect is not None and not self.effect_params:
                     continue  # the diagnosis's recalibration: the effect is a candidate
-                if p.only_if_stated and not self._uncertainty_stated(i, p):
-                    continue  # e.g. the quadratic TCR of a file that says nothing of it
                 if p.where == "sample":
                     if p.field not in specs:
                         specs[p.field] = self._spec(p, tuple(range(len(self.experiments))), p.field)

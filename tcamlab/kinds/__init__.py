@@ -108,10 +108,6 @@ class CalibrationParam:
         slack, because the model's straight body has its sensors at rest length. Their
         mean is a measurement of the parameter, which calibration multiplies into its
         prior (:class:`tcamlab.calibration.problem.Spec`). Empty: none.
-    only_if_stated : bool
-        Calibrated only where the experiment file states the field's uncertainty (a term
-        tcamlab's own law leaves out, such as the coating's quadratic TCR): a file that says
-        nothing of it keeps it at its stated value, usually 0.
     """
 
     field: str
@@ -125,7 +121,6 @@ class CalibrationParam:
     zero_sd: float | None = None
     effect: str | None = None
     read_at_rest: tuple[str, ...] = ()
-    only_if_stated: bool = False
 
 
 @dataclass(frozen=True)
