@@ -462,3 +462,27 @@ def smooth_slow_input(x) -> tuple[np.ndarray, dict | None]:
             info = {"rows_per_frame": period, "frames": k, "window_rows": k * period, "frame_sd": sd}
             return full, info
     return x, None
+
+
+def block_means(z, n_parts: int, block: int) -> np.ndarray:
+    """A stacked residual vector (``n_parts`` equal parts) averaged over blocks of ``block``
+    rows of each part, times sqrt(rows in the block): white noise keeps its variance per
+    element, a misfit constant over a block keeps its sum of squares, and the noise's share of
+    the sum falls ``block``-fold (a last, shorter block is averaged over its own rows).
+
+    Fitting these instead of the rows keeps a fit from buying a smaller residual by shrinking
+    the gain through which an input's white noise reaches an output (errors in variables)."""
+    out = []
+    for part in np.split(np.asarray(z, float), n_parts):
+        edges = np.arange(0, part.size, block)
+        if part.size == 0:
+            out.append(part)
+            continue
+        counts = np.diff(np.append(edges, part.size))
+        out.append(np.add.reduceat(part, edges) / np.sqrt(counts))
+    return np.concatenate(out) if out else np.asarray(z, float)
+
+
+def n_blocks(rows: int, block: int) -> int:
+    """Blocks of :func:`block_means` in a part of ``rows`` rows."""
+    return -(-rows // block) if block > 1 else rows

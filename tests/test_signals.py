@@ -151,3 +151,14 @@ def test_a_drive_stepped_at_every_few_frames_is_a_signal_not_noise(pattern):
 def test_too_few_frames_to_tell_noise_from_a_pattern_are_left_alone():
     true, held, _ = _camera(rows=3_000, seed=7)  # 75 frames
     assert signals.smooth_slow_input(held)[1] is None
+
+
+def test_block_means_keep_a_constant_misfits_sum_of_squares_and_the_noises_variance():
+    z = np.array([1.0, 1.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0, 4.0, 4.0])
+    # two stacked parts of six rows, blocks of four: the last block of each part has two rows
+    got = signals.block_means(z, 2, 4)
+    assert got == pytest.approx([2.0, 4.0 / math.sqrt(2.0), 6.0, 8.0 / math.sqrt(2.0)])
+    assert np.sum(got[:2] ** 2) == pytest.approx(np.sum(z[:6] ** 2))  # constant per block
+    noise = np.random.default_rng(3).normal(0.0, 1.0, 64_000)
+    assert np.var(signals.block_means(noise, 1, 16)) == pytest.approx(1.0, abs=0.03)
+    assert signals.n_blocks(6, 4) == 2 and signals.n_blocks(6, 1) == 6

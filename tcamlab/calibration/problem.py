@@ -26,6 +26,7 @@ from tcamlab import reduction
 from tcamlab.errors import InputError, ModelDomainError, TcamlabError
 from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
+from tcamlab.signals import block_means, n_blocks
 from tcamlab.text import did_you_mean
 
 __all__ = [
@@ -252,6 +253,13 @@ class CalibrationProblem:
             if red is None
             else red.size * len(self.quantities[i])
             for (i, j), red in self.reductions.items()
+        )
+        # a kind read from noisy inputs is fitted on block means (Kind.fit_block); see full_rows()
+        self._blocking = not self._active and any(k.fit_block > 1 for k in self.kinds)
+        self.n_blocked = sum(
+            n_blocks(len(r.data), self.kinds[i].fit_block) * len(q)
+            for i, (rs, q) in enumerate(zip(self.runs, self.quantities))
+            for r in rs
         )
 
     # construction ----------------------------------------------------------------------
@@ -495,19 +503,26 @@ class CalibrationProblem:
     @property
     def n_resid(self) -> int:
         """Data residuals of :meth:`data_residuals`: rows times quantities, or the moments of
-        the reduced runs while the reduction is on."""
-        return self.n_reduced if getattr(self, "_active", False) else self.size
+        the reduced runs while the reduction is on, or a blocked kind's block means
+        (:attr:`~tcamlab.kinds.Kind.fit_block`) outside :meth:`full_rows`."""
+        if getattr(self, "_active", False):
+            return self.n_reduced
+        return self.n_blocked if getattr(self, "_blocking", False) else self.size
+
+    def _block(self, i: int) -> int:
+        """Rows per residual of experiment i's runs while blocking is on (1: row by row)."""
+        return self.kinds[i].fit_block if getattr(self, "_blocking", False) else 1
 
     @contextmanager
     def full_rows(self) -> Iterator[None]:
-        """Residuals of every row inside the block, whatever the runs' length (the final
-        residuals and the fit quality of a long log)."""
-        before = self._active
-        self._active = False
+        """Residuals of every row inside the block, whatever the runs' length or the kind's
+        :attr:`~tcamlab.kinds.Kind.fit_block` (the final residuals and the fit quality)."""
+        before = self._active, self._blocking
+        self._active = self._blocking = False
         try:
             yield
         finally:
-            self._active = before
+            self._active, self._blocking = before
 
     def _reduced(self, i: int, j: int):
         """Run j of experiment i's reduction while the reduction is on, else None."""
@@ -648,10 +663,11 @@ class CalibrationProblem:
         raw = self.raw_residuals(u)
         if raw is None:
             return np.full(self.n_resid, FAIL_RESIDUAL)
-        parts = []
+        parts, blocks = [], []
         for i, j, q, r in raw:
             zero = self.zero_of(i, j, q, r) if self.is_zeroed(i, q) else 0.0
             red = self._reduced(i, j)
+            blocks.append(self._block(i) if red is None else 1)
             if red is None:
                 parts.append((r - zero) / self.row_sigma[(i, j, q)])
                 continue
@@ -661,6 +677,9 @@ class CalibrationProblem:
         # per-run random effects profiled out (see _run_effects)
         for rows, u_mat, shrink in self.run_effects:
             out[rows] = profile_random_effects(out[rows], u_mat, shrink)
+        if max(blocks) > 1:  # row by row for the random effects' layout, then block means
+            pieces = np.split(out, np.cumsum([p.size for p in parts])[:-1])
+            out = np.concatenate([block_means(x, 1, b) if b > 1 else x for x, b in zip(pieces, blocks)])
         return out
 
     def failed(self, chi2: float) -> bool:

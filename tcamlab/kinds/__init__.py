@@ -233,6 +233,11 @@ class Kind:
         Sample field -> relative sd [-] of each run's departure from the shared value
         (re-mounting, annealing): calibration treats it as a per-run random effect
         (:mod:`tcamlab.calibration.problem`). Empty: runs share the sample exactly.
+    fit_block : int
+        Rows averaged into one residual by the fits of ``calibrate`` and ``diagnose``
+        (:func:`tcamlab.signals.block_means`; 1: row by row). For a kind whose outputs are
+        read from noisy inputs through a gain every parameter moves, so that a row-by-row fit
+        gains by shrinking that gain (errors in variables).
     """
 
     name: str
@@ -277,6 +282,7 @@ class Kind:
     calibration: tuple[CalibrationParam, ...]
     nuisance_zeros: tuple[str, ...]
     run_reproducibility: Mapping[str, float] = field(default_factory=dict)
+    fit_block: int = 1
 
     @property
     def primary(self) -> str:
