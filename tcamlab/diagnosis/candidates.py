@@ -31,6 +31,7 @@ from tcamlab.diagnosis.recalibration import (
 )
 from tcamlab.diagnosis.result import CandidateResult
 from tcamlab.effects import Effect, Mods
+from tcamlab.signals import second_difference_sigma
 from tcamlab.units import display
 
 __all__ = [
@@ -133,12 +134,32 @@ def _candidate_job(job):
             fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD, defined_on=held)
             held_z = _held_resid(rec, eff, fit, held)
         fold_vals.append(_fold_values(rec, eff, fit))
-        for (_, m), za in zip(held, held_z):
-            after_fold[k] += np.sum(za**2)
-            nm = int(m.sum())
+        for (i, m), za in zip(held, held_z):
+            sums = gain_corrected_sums(problem, za, i, m, spring)
+            after_fold[k] += float(np.sum(sums))
             for j, q in enumerate(Q):
-                after_q[k, j] += np.sum((za[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
+                after_q[k, j] += sums[j] * problem.sigma[q] ** 2
     return after_fold, after_q, fold_vals, full
+
+
+def gain_corrected_sums(problem: Problem, z: np.ndarray, i: int, mask, spring) -> np.ndarray:
+    """Per quantity, the sum of squares of a candidate's normalised held-out residuals ``z``
+    (run ``i``'s rows in ``mask``), for a kind fitted on block means
+    (:attr:`~tcamlab.kinds.Kind.fit_block` > 1) less what the candidate changes of the white
+    noise its inputs carry: rows times the change, from the baseline's residuals to the
+    candidate's, of the variance second differences see. A term that lowers the gain from a
+    noisy input to the output shrinks that noise on every row, and row by row it would be
+    scored as explaining something (self-sensing: the contact term ahead of a recalibration that
+    left 1.00 floors). Other kinds: the plain sums."""
+    parts = np.split(np.asarray(z, float), len(problem.quantities))
+    sums = np.array([float(np.sum(x * x)) for x in parts])
+    if problem.k.fit_block <= 1:
+        return sums
+    base = np.split(problem.norm_resid(i, Mods(), spring, mask), len(problem.quantities))
+    for j, (x, b) in enumerate(zip(parts, base)):
+        if x.size >= 3 and np.all(b != FAIL_RESIDUAL):
+            sums[j] -= x.size * (second_difference_sigma(x) ** 2 - second_difference_sigma(b) ** 2)
+    return sums
 
 
 def _held_resid(rec: Recalibration, eff: Effect | None, fit: JointFit, held) -> list:
