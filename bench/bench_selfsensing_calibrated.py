@@ -22,7 +22,8 @@ put back to the first stage's, R_lead and k_s as stated).
 
 Figures: the EKF's mean error and 95 % interval as % of the stroke, whole run and heating
 only (rows before the first load change, validate's rule), pooled over runs 4-5; the open-loop
-inversion's whole run beside it. Targets: load withheld / not logged |mean| <= 3 %, interval
+inversion's whole run beside it; and the heating-only part against its own stroke (the
+thermal stroke before the rider), judged on its own. Targets: load withheld / not logged |mean| <= 3 %, interval
 <= 15 %; load logged <= 2 % / 10 %, whole run and heating only. Nothing asserts.
 """
 
@@ -137,7 +138,8 @@ def pct(cell) -> str:
 
 
 def rows(seed: int, res: dict, load_logged: bool):
-    """Printed rows of one seed: case, calibration, whole run, heating only."""
+    """Printed rows of one seed: case, calibration, whole run, heating only (of the run's stroke
+    and of its own)."""
     for calib in ("refit", "open_loop"):
         for case, parts in res[calib].items():
             if case == "inversion":
@@ -146,7 +148,13 @@ def rows(seed: int, res: dict, load_logged: bool):
                 label = f"EKF, {case}"
             else:
                 label = "EKF, no load_N"
-            yield calib, label, parts.get("whole_run"), parts.get("heating_only")
+            yield (
+                calib,
+                label,
+                parts.get("whole_run"),
+                parts.get("heating_only"),
+                parts.get("heating_only_own_stroke"),
+            )
 
 
 def verdict(label: str, cells) -> str:
@@ -193,9 +201,13 @@ def main(argv=None) -> int:
                 + ", ".join(f"{k} {v:.5g}" for k, v in fit.values.items())
                 + (f"; held {fit.held}" if fit.held else "")
             )
-            for calib, label, whole, heat in rows(seed, res, load_logged):
+            for calib, label, whole, heat, own in rows(seed, res, load_logged):
                 v = verdict(label, (whole, heat)) if "EKF" in label else ""
-                print(f"  {calib:9s} {label:22s} whole {pct(whole)}  heating {pct(heat)}  {v}")
+                v_own = verdict(label, (own,)) if "EKF" in label else ""
+                print(
+                    f"  {calib:9s} {label:22s} whole {pct(whole)}  heating {pct(heat)}  {v:4s}"
+                    f"  heating, own stroke {pct(own)}  {v_own}"
+                )
     return 0
 
 

@@ -77,7 +77,7 @@ def test_pooled_figures_are_those_of_the_runs_errors_together(logged):
     rows = pd.read_csv(folder / "predictions.csv")
     for case, slug in (("load_logged", "EKF_causal"), ("load_withheld", "EKF_load_withheld")):
         parts = {"whole_run": [], "heating_only": []}
-        strokes = []
+        strokes, own = [], []
         for run in RUNS:
             r = rows[rows["run"] == run]
             measured = r["measured_displacement_mm"].to_numpy()
@@ -90,7 +90,13 @@ def test_pooled_figures_are_those_of_the_runs_errors_together(logged):
             strokes.append(np.ptp(measured))
             parts["whole_run"].append(e)
             parts["heating_only"].append(e[:k])
+            own.append(np.ptp(measured[:k]))
         stroke = np.mean(strokes)
+        e = np.concatenate(parts["heating_only"])
+        lo, hi = np.percentile(e, [2.5, 97.5])
+        got = info["pooled"][case]["heating_only_own_stroke"]
+        assert got["stroke_mm"] == pytest.approx(np.mean(own), rel=1e-9) and np.mean(own) < 0.8 * stroke
+        assert got["interval95_of_stroke"] == pytest.approx((hi - lo) / np.mean(own), rel=1e-3)
         for part, errs in parts.items():
             e = np.concatenate(errs)
             lo, hi = np.percentile(e, [2.5, 97.5])
@@ -106,7 +112,9 @@ def test_pooled_figures_are_those_of_the_runs_errors_together(logged):
 
 def test_the_report_table_has_a_row_per_run_and_pooled(logged):
     html = (logged[1] / "report.html").read_text()
-    assert "load withheld: heating only" in html and "What the estimator does without help" in html
+    assert (
+        "load withheld: heating only, own stroke" in html and "What the estimator does without help" in html
+    )
     cell = logged[0]["extras"]["ekf_with_and_without_load"]["pooled"]["load_withheld"]["whole_run"]
     shown = f"{cell['mean_error_of_stroke']:+.2%} / {cell['interval95_of_stroke']:.2%}".replace("%", " %")
     assert shown in html

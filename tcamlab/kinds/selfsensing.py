@@ -414,19 +414,23 @@ def heating_only_rows(data: pd.DataFrame) -> tuple[int, str]:
     return k, f"load not logged: rest and the first heating pulse, to {t[k]:.2f} s"
 
 
-PARTS = ("whole_run", "heating_only")
-"""The parts of a run the estimator is scored on with the load logged and withheld."""
+PARTS = ("whole_run", "heating_only", "heating_only_own_stroke")
+"""The parts of a run the estimator is scored on with the load logged and withheld: the whole
+run and its heating-only part against the run's stroke, and the heating-only part against its
+own stroke (the range of the laser over those rows: the thermal stroke, which a rider's step
+does not inflate)."""
 LOAD_CASES = {"load_logged": LOGGED, "load_withheld": WITHHELD}
 """Load case -> the EKF variant run in it."""
 
 
 def _case_errors(p, variant: str, k: int) -> dict:
-    """Part -> (finite error [m], measured [m]) of one run and variant; and ``stroke`` [m]."""
+    """Part -> (finite error [m], measured [m], stroke [m]) of one run and variant."""
     e, m, stroke = _run_errors(p, variant)
-    out = {"stroke": stroke}
-    for part, rows in zip(PARTS, (slice(None), slice(0, k))):
+    out = {}
+    for part, rows in zip(PARTS, (slice(None), slice(0, k), slice(0, k))):
         ok = np.isfinite(e[rows])
-        out[part] = (e[rows][ok], m[rows][ok])
+        own = float(np.ptp(m[rows][ok])) if ok.sum() >= 2 else float("nan")
+        out[part] = (e[rows][ok], m[rows][ok], own if part == "heating_only_own_stroke" else stroke)
     return out
 
 
@@ -439,10 +443,11 @@ def estimator_without_help(predictions) -> dict:
     """The causal EKF with the load logged and withheld, over the whole run and its heating-only
     part (:func:`heating_only_rows`), per run and pooled, in the published format.
 
-    Every figure is against the run's whole stroke (the range of the laser displacement as
-    logged); the pooled stroke is the mean of the runs' strokes, the pooled error the runs'
-    errors together. A run that does not log ``load_N`` has no "load logged" case (None), and
-    the pooled "load logged" case pools the runs that do.
+    The whole run and the heating-only part are against the run's whole stroke (the range of the
+    laser displacement as logged), and the heating-only part once more against its own stroke
+    (:data:`PARTS`); the pooled stroke is the mean of the runs' strokes, the pooled error the
+    runs' errors together. A run that does not log ``load_N`` has no "load logged" case (None),
+    and the pooled "load logged" case pools the runs that do.
 
     Returns
     -------
@@ -451,7 +456,7 @@ def estimator_without_help(predictions) -> dict:
         load_withheld}}, ``pooled`` {load_logged, load_withheld}; each case {part:
         published_metrics or None}.
     """
-    runs, pool = {}, {case: {"stroke": [], **{part: [] for part in PARTS}} for case in LOAD_CASES}
+    runs, pool = {}, {case: {part: [] for part in PARTS} for case in LOAD_CASES}
     for p in predictions:
         k, rule = heating_only_rows(p.data)
         t = p.data["time"].to_numpy(float)
@@ -466,19 +471,20 @@ def estimator_without_help(predictions) -> dict:
                 entry[case] = None
                 continue
             errs = _case_errors(p, variant, k)
-            entry[case] = {part: _cell(*errs[part], errs["stroke"]) for part in PARTS}
-            pool[case]["stroke"].append(errs["stroke"])
+            entry[case] = {part: _cell(*errs[part]) for part in PARTS}
             for part in PARTS:
                 pool[case][part].append(errs[part])
         runs[p.name] = entry
     pooled = {}
     for case, block in pool.items():
-        if not block["stroke"]:
+        if not block[PARTS[0]]:
             pooled[case] = None
             continue
-        stroke = float(np.nanmean(block["stroke"]))
         pooled[case] = {
-            part: _cell(*(np.concatenate([x[i] for x in block[part]]) for i in (0, 1)), stroke)
+            part: _cell(
+                *(np.concatenate([x[i] for x in block[part]]) for i in (0, 1)),
+                float(np.nanmean([x[2] for x in block[part]])),
+            )
             for part in PARTS
         }
     return {"runs": runs, "pooled": pooled}
@@ -614,18 +620,18 @@ def without_help_table(info: dict) -> Table:
             "",
         ]
     )
+    parts = ("whole run", "heating only", "heating only, own stroke")
     head = [
         "run",
-        "load logged: whole run",
-        "load logged: heating only",
-        "load withheld: whole run",
-        "load withheld: heating only",
+        *(f"load logged: {p}" for p in parts),
+        *(f"load withheld: {p}" for p in parts),
         "heating-only part",
     ]
     return Table(
         head,
         rows,
-        caption="Causal EKF, mean error / 95 % interval of the error, both as % of the run's stroke",
+        caption="Causal EKF, mean error / 95 % interval of the error, both as % of the run's stroke "
+        "(last of each three: of the heating-only part's own stroke)",
     )
 
 
@@ -635,7 +641,8 @@ WITHOUT_HELP_TEXT = (
     "(load withheld; the load is then a random walk with a jump detector). Each cell is the mean "
     "error / the 95 % interval (2.5 % to 97.5 % percentile) of the error, both as % of the run's "
     "stroke (the range of its laser displacement; pooled: the runs' errors together over the mean "
-    "of their strokes). Heating only: the rows before the first load change, found from the logged "
+    "of their strokes), and for the heating-only part once more as % of that part's own stroke "
+    "(the thermal stroke, which a rider's step does not inflate). Heating only: the rows before the first load change, found from the logged "
     "load_N (a change of more than 2 % of the load at rest, at least 1 mN); without a logged load, "
     "the rest and the first heating pulse (to the first row back at the probe), on which the load is "
     "assumed not to change. A run that does not log load_N (or with --ignore load_N) has no load-"
