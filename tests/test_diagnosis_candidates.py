@@ -5,6 +5,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from tcamlab.diagnosis.candidates import effect_parameters
 
@@ -32,3 +33,29 @@ def test_a_parameter_at_its_fitted_box_edge_is_at_bound_and_one_inside_is_not():
     # interval from the Laplace sd in SI: 2.0 * 2e-4 +- 1.96 * 0.5 * 2e-4
     lo, hi = out["lag_conductance_tc"]["ci95"]
     assert np.isclose(lo, 4e-4 - 1.96 * 1e-4, rtol=1e-3) and np.isclose(hi, 4e-4 + 1.96 * 1e-4, rtol=1e-3)
+
+
+def test_a_candidate_that_only_shrinks_the_inputs_noise_gains_nothing():
+    from tcamlab.diagnosis.candidates import gain_corrected_sums
+
+    rng = np.random.default_rng(7)
+    noise = rng.normal(0.0, 1.0, 4000)
+    misfit = 0.3 * np.sin(np.linspace(0.0, 6.0, noise.size))  # smooth on the rows' scale
+
+    def problem(block):
+        return SimpleNamespace(
+            k=SimpleNamespace(fit_block=block),
+            quantities=("displacement",),
+            norm_resid=lambda i, mods, spring, mask: noise,  # the baseline: noise alone
+        )
+
+    shrunk = 0.9 * noise  # a lower gain from a noisy input: 19 % less noise variance
+    plain = gain_corrected_sums(problem(1), shrunk, 0, None, None)
+    corrected = gain_corrected_sums(problem(16), shrunk, 0, None, None)
+    assert plain[0] == pytest.approx(0.81 * np.sum(noise**2))
+    assert corrected[0] == pytest.approx(np.sum(noise**2), rel=0.01)
+    # a smooth misfit still counts in full: what it adds is what it adds row by row
+    worse = gain_corrected_sums(problem(16), shrunk + misfit, 0, None, None)
+    plain_worse = gain_corrected_sums(problem(1), shrunk + misfit, 0, None, None)
+    assert worse[0] - corrected[0] == pytest.approx(plain_worse[0] - plain[0], rel=0.01)
+    assert worse[0] - corrected[0] > 0.5 * np.sum(misfit**2)
