@@ -35,6 +35,19 @@ def _experiment(folder: Path, rig_lines: str = "", unc_lines: str = "", runs=Non
     return path
 
 
+def _pulse_protocol(rig, *, rows: int, on: int, off: int, volts: float) -> pd.DataFrame:
+    """A 100 Hz program: the probe voltage, ``volts`` [V] from row ``on`` to row ``off``, the
+    rig's load throughout."""
+    k = np.arange(rows)
+    return pd.DataFrame(
+        {
+            "time": k / 100.0,
+            "voltage": np.where((k >= on) & (k < off), volts, ss.PROBE_V),
+            "load_mass": np.full(rows, rig.load),
+        }
+    )
+
+
 def test_the_keys_load_in_si_and_default_to_tcamlabs_law(tmp_path):
     rig = load_experiment(_experiment(tmp_path)).rig
     assert (rig.lead_resistance, rig.stretch_factor) == (0.0, 1.0)
@@ -109,13 +122,7 @@ def test_lead_takes_i2_r_lead_off_the_heating_power(setup):
 
 def test_lead_reads_as_the_voltage_across_the_muscle_alone(setup):
     sample, rig = setup
-    proto = pd.DataFrame(
-        {
-            "time": np.arange(600) / 100.0,
-            "voltage": np.where((np.arange(600) >= 100) & (np.arange(600) < 300), 6.0, ss.PROBE_V),
-            "load_mass": np.full(600, rig.load),
-        }
-    )
+    proto = _pulse_protocol(rig, rows=600, on=100, off=300, volts=6.0)
     data = KIND.exact_inputs(sample, rig, proto)
     muscle = data.assign(voltage=data["voltage"] - 0.3 * data["current"])
     lead_rig = rig.replace(lead_resistance=0.3)
@@ -468,13 +475,7 @@ def test_both_stages_fit_the_quadratic_tcr_about_0_unless_the_file_states_it(tmp
 def test_the_inversion_reads_a_stated_quadratic_tcr(setup):
     sample, rig = setup
     # SYNTHETIC (the kind's virtual rig, exact readings): the truth's coating has a quadratic TCR
-    proto = pd.DataFrame(
-        {
-            "time": np.arange(1500) / 100.0,
-            "voltage": np.where((np.arange(1500) >= 200) & (np.arange(1500) < 900), 7.0, ss.PROBE_V),
-            "load_mass": np.full(1500, rig.load),
-        }
-    )
+    proto = _pulse_protocol(rig, rows=1500, on=200, off=900, volts=7.0)
     from tcamlab.rig.selfsensing import ResistanceLaw
 
     data = KIND.exact_inputs(sample, rig, proto, law=ResistanceLaw(tcr2_per_K2=3e-6))

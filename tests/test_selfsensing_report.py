@@ -116,7 +116,9 @@ def test_the_report_table_has_a_row_per_run_and_pooled(logged):
         "load withheld: heating only, own stroke" in html and "What the estimator does without help" in html
     )
     cell = logged[0]["extras"]["ekf_with_and_without_load"]["pooled"]["load_withheld"]["whole_run"]
-    shown = f"{cell['mean_error_of_stroke']:+.2%} / {cell['interval95_of_stroke']:.2%}".replace("%", " %")
+    shown = f"{cell['mean_error_of_stroke']:+.2%} / {cell['interval95_of_stroke']:.2%}".replace(
+        "%", "\u00a0%"
+    )
     assert shown in html
 
 

@@ -590,10 +590,12 @@ def without_help_figure(result) -> Figure | None:
 
 
 def _pair(cell: dict | None) -> str:
-    """``"-0.21 % / 1.25 %"``: mean error / 95 % interval, both as % of the stroke; "–" without rows."""
+    """``"-0.21 % / 1.25 %"``: mean error / 95 % interval, both as % of the stroke, each number
+    held to its % by a no-break space (a narrow table column breaks there otherwise); "–" without
+    rows."""
     if cell is None:
         return "–"
-    return f"{cell['mean_error_of_stroke']:+.2%} / {cell['interval95_of_stroke']:.2%}".replace("%", " %")
+    return f"{cell['mean_error_of_stroke']:+.2%} / {cell['interval95_of_stroke']:.2%}".replace("%", "\u00a0%")
 
 
 def _part_label(entry: dict) -> str:
