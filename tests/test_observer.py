@@ -207,3 +207,20 @@ def test_the_innovation_likelihood_peaks_at_the_true_law():
     ok = np.isfinite(est.nis)
     expected = 0.5 * np.sum(est.nis[ok] + np.log(2 * np.pi * est.innovation_variance[ok]))
     assert est.negative_log_likelihood() == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_law_fit_keeps_the_lead_resistance_a_wire():
+    """No leads in the truth and a prior centred on none: unbounded, the fit's noise made the
+    lead -0.0044 ohm on this run; it stops at 0 and the rest stays at the truth (synthetic:
+    the kind's virtual rig, seed 1, 12 s; measured R_lead 0.0, R0 24.0007 ohm, k_s 1.005)."""
+    from tcamlab.kinds import selfsensing as ss
+
+    exp = load_experiment(ROOT / "experiments" / "selfsensing.toml")
+    t = np.arange(1200) / 100.0
+    v = np.where((t >= 1.0) & (t < 4.0), 6.0, ss.PROBE_V)
+    proto = pd.DataFrame({"time": t, "voltage": v, "load_mass": np.full(t.size, exp.rig.load)})
+    logged = ss.measure(ss.exact_inputs(exp.sample, exp.rig, proto), {}, np.random.default_rng(1), 1.0)
+    fit = so.calibrate_resistance_law(exp.sample, exp.rig, [logged], priors={"lead_resistance": (0.0, 0.3)})
+    assert fit["lead_resistance"] >= 0.0
+    assert fit["initial_resistance"] == pytest.approx(exp.rig.initial_resistance, abs=0.01)
+    assert fit["stretch_factor"] == pytest.approx(1.0, abs=0.02)

@@ -584,7 +584,7 @@ def calibrate_resistance_law(
     is used: the EKF's own innovation likelihood
     (:meth:`EstimateResult.negative_log_likelihood`) is minimised (Powell). R0 and the TCR
     start from the rig (a calibrated file's) with its stated sds, when given, else 1 % and
-    5 %; R_lead and k_s from :data:`LAW_PRIORS`.
+    5 %; R_lead and k_s from :data:`LAW_PRIORS`. R_lead is bounded at 0.
 
     Parameters
     ----------
@@ -634,11 +634,19 @@ def calibrate_resistance_law(
     def nll(u):
         return 0.5 * float(u @ u) + sum(est.negative_log_likelihood() for _, (est, _) in runs_of(u))
 
+    # R_lead >= 0: a negative lead is no wire; it would trade with R0 and the TCR unbounded
+    lo = np.array([-np.inf, -np.inf, -mu[2] / sd[2], -np.inf])
+    u0 = np.maximum(0.0, lo + 0.1)  # off the bound: differences at the bound are one-sided
     if reference == "laser":
-        fit = least_squares(residuals, np.zeros(4), diff_step=1e-3, x_scale=1.0, max_nfev=40)
+        fit = least_squares(
+            residuals, u0, bounds=(lo, np.inf), diff_step=1e-3, x_scale=1.0, max_nfev=40
+        )
         u, cost = fit.x, fit.cost
     elif reference == "innovations":
-        fit = minimize(nll, np.zeros(4), method="Powell", options={"xtol": 1e-2, "ftol": 1e-3, "maxfev": 300})
+        fit = minimize(
+            nll, u0, method="Powell", bounds=[(b, None) if np.isfinite(b) else (None, None) for b in lo],
+            options={"xtol": 1e-2, "ftol": 1e-3, "maxfev": 300},
+        )
         u, cost = fit.x, fit.fun
     else:
         raise ValueError(f"reference {reference!r}: 'laser' or 'innovations'")
