@@ -638,13 +638,14 @@ def calibrate_resistance_law(
     lo = np.array([-np.inf, -np.inf, -mu[2] / sd[2], -np.inf])
     u0 = np.maximum(0.0, lo + 0.1)  # off the bound: differences at the bound are one-sided
     if reference == "laser":
-        fit = least_squares(
-            residuals, u0, bounds=(lo, np.inf), diff_step=1e-3, x_scale=1.0, max_nfev=40
-        )
+        fit = least_squares(residuals, u0, bounds=(lo, np.inf), diff_step=1e-3, x_scale=1.0, max_nfev=40)
         u, cost = fit.x, fit.cost
     elif reference == "innovations":
         fit = minimize(
-            nll, u0, method="Powell", bounds=[(b, None) if np.isfinite(b) else (None, None) for b in lo],
+            nll,
+            u0,
+            method="Powell",
+            bounds=[(b, None) if np.isfinite(b) else (None, None) for b in lo],
             options={"xtol": 1e-2, "ftol": 1e-3, "maxfev": 300},
         )
         u, cost = fit.x, fit.fun
