@@ -428,22 +428,29 @@ def test_a_stated_quadratic_tcr_removes_the_ekfs_drift_with_the_load_unknown(set
     from tcamlab.rig.selfsensing import ResistanceLaw
 
     sample, rig = setup
-    # SYNTHETIC (the kind's virtual rig, protocol and noise seed 7): the truth's coating has a
-    # quadratic TCR of 2e-6 /K^2, everything else is the filter's
-    rng = np.random.default_rng(7)
-    proto = ss.protocol(rig, rng)
-    m = ss.measure(ss.exact_inputs(sample, rig, proto, law=ResistanceLaw(tcr2_per_K2=2e-6)), {}, rng, 1.0)
-    meas = m["displacement"].to_numpy()
 
-    def mean_error(tcr2):
-        p = ss.predict(sample, rig.replace(tcr2=tcr2), m, initial_resistance=rig.initial_resistance,
-                       estimator="ekf", use_load=False)  # fmt: skip
-        e = p["displacement"] - meas
-        return float(np.mean(e - e[:150].mean()) / np.ptp(meas))
+    def mean_errors(seed):
+        # SYNTHETIC (the kind's virtual rig, protocol and noise seed 7-9): the truth's coating has
+        # a quadratic TCR of 2e-6 /K^2, everything else is the filter's
+        rng = np.random.default_rng(seed)
+        proto = ss.protocol(rig, rng)
+        m = ss.measure(ss.exact_inputs(sample, rig, proto, law=ResistanceLaw(tcr2_per_K2=2e-6)), {}, rng, 1.0)
+        meas = m["displacement"].to_numpy()
+        out = []
+        for tcr2 in (0.0, 2e-6):
+            p = ss.predict(sample, rig.replace(tcr2=tcr2), m, initial_resistance=rig.initial_resistance,
+                           estimator="ekf", use_load=False)  # fmt: skip
+            e = p["displacement"] - meas
+            out.append(float(np.mean(e - e[:150].mean()) / np.ptp(meas)))
+        return out
 
-    # measured: +3.3 % of the stroke with the law linear, -0.9 % with tcr2 stated
-    assert mean_error(0.0) > 0.025
-    assert abs(mean_error(2e-6)) < 0.015
+    # measured, % of the stroke, law linear / tcr2 stated: seed 7 +2.0 / -0.96, seed 8 +3.0 /
+    # -0.38, seed 9 +1.9 / -0.49; what is left is mostly the rider's step (law exact, filter
+    # exact: -0.77, -0.39, -0.47)
+    for seed in (7, 8, 9):
+        linear, stated = mean_errors(seed)
+        assert linear > 0.015
+        assert abs(stated) < 0.012 and abs(stated) < 0.5 * linear
 
 
 def test_the_quadratic_tcrs_prior_in_the_estimators_refit(setup):
