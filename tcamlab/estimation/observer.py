@@ -144,12 +144,12 @@ by Siegmund's approximation a false alarm about once in 10^4 noise-only samples,
 100 Hz) with a 50 mN sd, the 5 g rider of the virtual rig's protocol, and a 4 s hold (on the
 kind's rider run: threshold 12 and a 1 s hold left 76 um of the 1.5 mm step after 2 s, a 2 s
 hold 54 um; 6 gave 47 um with a false alarm every 13 s at 100 Hz). The walk is slow because
-between steps it lets the current noise into x (dx = f11 dF): at 1e-6 N^2/s the heating-only
-part's 95 % interval was up to 24 % of its own 0.3 mm stroke on the bench's withheld runs, at
-1e-7 up to 11 %. The hold is 4 s because with that slow walk the filter finishes splitting a
-step between load and temperature only through the hold: on two rider runs (protocol seeds 7
-and 8) a 2 s hold left -30 and -7 um 10 s after the rider, 4 s -17 and -2 um, as the 1e-6 walk
-did (-16 and -3 um)."""
+between steps it lets the current noise into x (dx = f11 dF): on the bench's withheld runs
+(six seeds) the heating-only part's 95 % interval was up to 24 % of its own 0.3 mm stroke at
+1e-6 N^2/s, up to 16 % at 1e-7. The hold is 4 s because with that slow walk the filter finishes
+splitting a step between load and temperature only through the hold: on two rider runs
+(protocol seeds 7 and 8) a 2 s hold left -30 and -7 um 10 s after the rider, a 4 s hold -17 and
+-2 um, as the 1e-6 walk with a 2 s hold did (-16 and -3 um). Measured: docs, self-sensing."""
 
 LOAD_PRIOR_SD = 1e-3
 """Prior sd of the stated load (load_g) at the first row when no load is logged [N]: a hanging
