@@ -146,7 +146,9 @@ def make_runs(sample, rig, law, seed, n=5):
     runs = []
     for _ in range(n):
         proto = ss.protocol(rig, rng)
-        meas = ss.measure(ss.exact_inputs(sample, rig, proto, law=law), {}, rng, 1.0, noisy_zero=True)
+        exact = ss.exact_inputs(sample, rig, proto, law=law)
+        meas = ss.measure(exact, {}, rng, 1.0, noisy_zero=True)
+        meas.attrs["truth"] = exact["true_displacement"].to_numpy(float)  # what the laser reads, noise-free
         meas.attrs["rider_at"] = float(
             proto["time"].to_numpy()[np.argmax(np.diff(proto["load_mass"]) > 0) + 1]
         )
@@ -177,8 +179,10 @@ def calibrated_rig(runs, work: Path):
 
 
 def _score(pred, run):
-    """(mean, 95 % width) of the error over the whole run and before the rider, both as
-    fractions of the run's stroke, and the heating-only part's own stroke fraction."""
+    """(mean, 95 % width, RMS) of the error over the whole run and before the rider, both as
+    fractions of the run's stroke, and the heating-only part's own stroke fraction; then the
+    heating-only part against the noise-free truth (``heating_truth``) and the laser's own 95 %
+    width at rest (``laser_rest``), both as fractions of the run's stroke."""
     from tcamlab.kinds import rest_rows
     from tcamlab.kinds import selfsensing as ss
 
@@ -196,6 +200,14 @@ def _score(pred, run):
             float(np.sqrt(np.mean(e[sel] ** 2))),
         )
     out["heating_stroke"] = float(np.ptp(m[pre])) / stroke
+    truth = run.attrs["truth"]
+    et = pred - (truth - truth[0])
+    et = et[pre] - et[rest_rows(ss.KIND, run)].mean()
+    lo, hi = np.percentile(et, [2.5, 97.5])
+    out["heating_truth"] = (float(np.mean(et)) / stroke, float(hi - lo) / stroke)
+    r = m[rest_rows(ss.KIND, run)]
+    lo, hi = np.percentile(r - r.mean(), [2.5, 97.5])
+    out["laser_rest"] = float(hi - lo) / stroke
     return out
 
 
@@ -263,6 +275,10 @@ def _judge(seed, case, run, res):
               f"(of the part's own stroke {m / own:+.1%} / {w / own:.0%}) [{'PASS' if ok else 'FAIL'}: "
               f"{mean_goal:.0%} / {width_goal:.0%}]; open loop {mi:+.2%} / {wi:.1%}, RMS EKF {rms * 1e6:.0f} um "
               f"vs {rmsi * 1e6:.0f} um [{'PASS' if better else 'FAIL'}: EKF at least as good]")  # fmt: skip
+    own = res["EKF"]["heating_stroke"]
+    tm, tw = res["EKF"]["heating_truth"]
+    print(f"  seed {seed} run{run} load {case:7s} heating, own stroke, against the noise-free truth: "
+          f"mean {tm / own:+.1%} 95% {tw / own:.1%}; the laser alone at rest: 95% {res['EKF']['laser_rest'] / own:.1%}")  # fmt: skip
     return fails
 
 

@@ -122,6 +122,31 @@ def test_the_report_table_has_a_row_per_run_and_pooled(logged):
     assert shown in html
 
 
+def test_the_laser_alone_at_rest_is_the_floor_of_every_interval(logged):
+    """The last row: the laser's 95 % interval over the runs' rest rows, each about its mean (the
+    raw logs read directly), as % of each column's pooled stroke; measured 20 um, the log's 1 um
+    steps, 6.7 % of the heating-only part's own stroke."""
+    from tcamlab.kinds import rest_rows
+
+    metrics, folder = logged
+    info = metrics["extras"]["ekf_with_and_without_load"]
+    rest = []
+    for run in RUNS:
+        raw = pd.read_csv(ROOT / "raw" / f"{run}.csv")
+        frame = pd.DataFrame({"time": raw["time_s"], "voltage": raw["voltage_V"]})
+        laser = raw["displacement_mm"].to_numpy()[rest_rows(ss.KIND, frame)]
+        rest.append(laser - laser.mean())
+    lo, hi = np.percentile(np.concatenate(rest), [2.5, 97.5])
+    floor = info["laser_at_rest"]
+    assert floor["interval95_width_mm"] == pytest.approx(hi - lo, rel=1e-9)
+    assert floor["n"] == sum(r.size for r in rest)
+    for case in ("load_logged", "load_withheld"):
+        for part, cell in info["pooled"][case].items():
+            assert floor[case][part] == pytest.approx((hi - lo) / cell["stroke_mm"], rel=1e-9)
+            assert cell["interval95_of_stroke"] >= floor[case][part]  # no estimator beats its reference
+    assert "laser alone at rest" in (folder / "report.html").read_text()
+
+
 def constructed_run(load=None):
     """12 s at 100 Hz: 2 s at the probe, a 6 V pulse to 5 s, the probe, 4 V from 8 s to the end."""
     t = np.arange(1200) / 100.0

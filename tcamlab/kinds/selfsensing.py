@@ -449,15 +449,24 @@ def estimator_without_help(predictions) -> dict:
     runs' errors together. A run that does not log ``load_N`` has no "load logged" case (None),
     and the pooled "load logged" case pools the runs that do.
 
+    ``laser_at_rest`` is the reference's own floor: the 95 % interval of the laser over the runs'
+    rest rows (each about its mean: the muscle is still there), and that width as a fraction of
+    each case's and part's pooled stroke. No estimator's interval against this laser can be
+    narrower; on a short part (the first pulse, 0.15 mm) it can be most of the interval.
+
     Returns
     -------
     dict
         ``runs`` {name: {logs_load, heating_only_rows, heating_only_rule, load_logged,
         load_withheld}}, ``pooled`` {load_logged, load_withheld}; each case {part:
-        published_metrics or None}.
+        published_metrics or None}; ``laser_at_rest`` {interval95_width_mm, n, load_logged,
+        load_withheld}, each case {part: width / pooled stroke} or None.
     """
     runs, pool = {}, {case: {part: [] for part in PARTS} for case in LOAD_CASES}
+    at_rest = []
     for p in predictions:
+        laser = p.data["displacement"].to_numpy(float)[rest_rows(KIND, p.data)]
+        at_rest.append(laser[np.isfinite(laser)] - np.nanmean(laser))
         k, rule = heating_only_rows(p.data)
         t = p.data["time"].to_numpy(float)
         entry = {
@@ -487,7 +496,24 @@ def estimator_without_help(predictions) -> dict:
             )
             for part in PARTS
         }
-    return {"runs": runs, "pooled": pooled}
+    return {"runs": runs, "pooled": pooled, "laser_at_rest": _laser_floor(np.concatenate(at_rest), pool)}
+
+
+def _laser_floor(rest: np.ndarray, pool: dict) -> dict:
+    """The laser's 95 % interval at rest [mm] and as a fraction of each pooled stroke."""
+    lo, hi = np.percentile(rest, [2.5, 97.5]) if rest.size >= 2 else (np.nan, np.nan)
+    width = float(hi - lo)
+    out = {"interval95_width_mm": width * 1e3, "n": int(rest.size)}
+    for case, block in pool.items():
+        strokes = {
+            part: float(np.nanmean([x[2] for x in block[part]])) if block[part] else 0.0 for part in PARTS
+        }
+        out[case] = (
+            {part: width / st if st > 0 else None for part, st in strokes.items()}
+            if block[PARTS[0]]
+            else None
+        )
+    return out
 
 
 def validation_extras(experiment, predictions, **_) -> tuple[list, dict]:
@@ -598,6 +624,13 @@ def _pair(cell: dict | None) -> str:
     return f"{cell['mean_error_of_stroke']:+.2%} / {cell['interval95_of_stroke']:.2%}".replace("%", "\u00a0%")
 
 
+def _floor_cell(case: dict | None, part: str) -> str:
+    """``"– / 1.10 %"``: the laser's own 95 % interval at rest as % of the part's pooled stroke."""
+    if not case or case.get(part) is None:
+        return "–"
+    return f"– / {case[part]:.2%}".replace("%", "\u00a0%")
+
+
 def _part_label(entry: dict) -> str:
     """Where a run's heating-only part ends, short: ``to 23.4 s (load_N)``, ``whole run``."""
     until = entry["heating_only_until_s"]
@@ -622,6 +655,16 @@ def without_help_table(info: dict) -> Table:
             "",
         ]
     )
+    floor = info.get("laser_at_rest")
+    if floor:
+        rows.append(
+            [
+                "laser alone at rest",
+                *(_floor_cell(floor["load_logged"], p) for p in PARTS),
+                *(_floor_cell(floor["load_withheld"], p) for p in PARTS),
+                f"{floor['interval95_width_mm'] * 1e3:.1f}\u00a0um over {floor['n']} rest rows",
+            ]
+        )
     parts = ("whole run", "heating only", "heating only, own stroke")
     head = [
         "run",
@@ -648,7 +691,10 @@ WITHOUT_HELP_TEXT = (
     "load_N (a change of more than 2 % of the load at rest, at least 1 mN); without a logged load, "
     "the rest and the first heating pulse (to the first row back at the probe), on which the load is "
     "assumed not to change. A run that does not log load_N (or with --ignore load_N) has no load-"
-    "logged case."
+    "logged case. The last row is the laser alone: its 95 % interval over the runs' rest rows, where "
+    "the muscle is still, as % of each column's pooled stroke. No estimator's interval against this "
+    "laser can be narrower; where a cell is close to it, the laser's noise, not the estimator, sets "
+    "that cell."
 )
 """The paragraph over the report's table of the EKF with the load logged and withheld."""
 
