@@ -611,8 +611,6 @@ def calibrate_resistance_law(
         ``initial_resistance`` [ohm], ``tcr`` [1/K], ``lead_resistance`` [ohm], ``stretch_factor`` [-],
         and ``cost`` (the objective at the optimum [-]).
     """
-    from scipy.optimize import least_squares, minimize
-
     pri = {**LAW_PRIORS, **(priors or {})}
     unc = getattr(rig, "uncertainty", None) or {}
     r0, tcr = float(rig.initial_resistance), float(rig.tcr)
@@ -642,24 +640,29 @@ def calibrate_resistance_law(
 
     # R_lead >= 0: a negative lead is no wire; it would trade with R0 and the TCR unbounded
     lo = np.array([-np.inf, -np.inf, -mu[2] / sd[2], -np.inf])
-    u0 = np.maximum(0.0, lo + 0.1)  # off the bound: differences at the bound are one-sided
-    if reference == "laser":
-        fit = least_squares(residuals, u0, bounds=(lo, np.inf), diff_step=1e-3, x_scale=1.0, max_nfev=40)
-        u, cost = fit.x, fit.cost
-    elif reference == "innovations":
-        fit = minimize(
-            nll,
-            u0,
-            method="Powell",
-            bounds=[(b, None) if np.isfinite(b) else (None, None) for b in lo],
-            options={"xtol": 1e-2, "ftol": 1e-3, "maxfev": 300},
-        )
-        u, cost = fit.x, fit.fun
-    else:
+    if reference not in ("laser", "innovations"):
         raise ValueError(f"reference {reference!r}: 'laser' or 'innovations'")
+    u, cost = _law_optimum(residuals if reference == "laser" else nll, lo, least=reference == "laser")
     theta = mu + sd * u
     keys = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor")
     return {**dict(zip(keys, map(float, theta))), "cost": float(cost)}
+
+
+def _law_optimum(objective, lo: np.ndarray, *, least: bool) -> tuple[np.ndarray, float]:
+    """(u, cost) at the optimum of the law's objective in prior-sd units, from a start off the
+    lower bounds ``lo`` (differences at a bound are one-sided): least squares of the residuals
+    (``least``), else Powell on a scalar."""
+    from scipy.optimize import least_squares, minimize
+
+    u0 = np.maximum(0.0, lo + 0.1)
+    if least:
+        fit = least_squares(objective, u0, bounds=(lo, np.inf), diff_step=1e-3, x_scale=1.0, max_nfev=40)
+        return fit.x, float(fit.cost)
+    bounds = [(b, None) if np.isfinite(b) else (None, None) for b in lo]
+    fit = minimize(
+        objective, u0, method="Powell", bounds=bounds, options={"xtol": 1e-2, "ftol": 1e-3, "maxfev": 300}
+    )
+    return fit.x, float(fit.fun)
 
 
 def rest_rows_count(data) -> int:
