@@ -147,6 +147,22 @@ def test_the_laser_alone_at_rest_is_the_floor_of_every_interval(logged):
     assert "laser alone at rest" in (folder / "report.html").read_text()
 
 
+def test_too_few_rest_rows_give_no_laser_floor(tmp_path):
+    """Runs that start 5 rows before the drive moves (15 rest rows in all, under
+    FLOOR_MIN_ROWS): no floor is read and the table has no such row, rather than one made of
+    the extreme rows."""
+    exp = copy_lab(tmp_path / "lab")
+    for run in RUNS:
+        path = tmp_path / "lab" / "raw" / f"{run}.csv"
+        raw = pd.read_csv(path)
+        moved = int(np.flatnonzero(np.abs(raw["voltage_V"] - raw["voltage_V"].iloc[0]) > 0.1)[0])
+        raw.iloc[moved - 5 :].to_csv(path, index=False)
+    metrics = validate(exp, tmp_path / "out")
+    floor = metrics["extras"]["ekf_with_and_without_load"]["laser_at_rest"]
+    assert floor["n"] == 15 and floor["interval95_width_mm"] is None and floor["load_logged"] is None
+    assert "laser alone at rest" not in (tmp_path / "out" / "selfsensing" / "report.html").read_text()
+
+
 def constructed_run(load=None):
     """12 s at 100 Hz: 2 s at the probe, a 6 V pulse to 5 s, the probe, 4 V from 8 s to the end."""
     t = np.arange(1200) / 100.0

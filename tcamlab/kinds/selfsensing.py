@@ -466,7 +466,9 @@ def estimator_without_help(predictions) -> dict:
     at_rest = []
     for p in predictions:
         laser = p.data["displacement"].to_numpy(float)[rest_rows(KIND, p.data)]
-        at_rest.append(laser[np.isfinite(laser)] - np.nanmean(laser))
+        laser = laser[np.isfinite(laser)]
+        if laser.size >= 2:  # one row about its own mean would read as a noiseless laser
+            at_rest.append(laser - laser.mean())
         k, rule = heating_only_rows(p.data)
         t = p.data["time"].to_numpy(float)
         entry = {
@@ -496,12 +498,20 @@ def estimator_without_help(predictions) -> dict:
             )
             for part in PARTS
         }
-    return {"runs": runs, "pooled": pooled, "laser_at_rest": _laser_floor(np.concatenate(at_rest), pool)}
+    rest = np.concatenate(at_rest) if at_rest else np.array([])
+    return {"runs": runs, "pooled": pooled, "laser_at_rest": _laser_floor(rest, pool)}
+
+
+FLOOR_MIN_ROWS = 40
+"""Fewest rest rows (all runs) the laser's 95 % interval at rest is read on: with fewer, its 2.5 %
+and 97.5 % percentiles are the extreme rows themselves."""
 
 
 def _laser_floor(rest: np.ndarray, pool: dict) -> dict:
     """The laser's 95 % interval at rest [mm] and as a fraction of each pooled stroke."""
-    lo, hi = np.percentile(rest, [2.5, 97.5]) if rest.size >= 2 else (np.nan, np.nan)
+    if rest.size < FLOOR_MIN_ROWS:  # too few rest rows to read a 95 % interval on: no floor
+        return {"interval95_width_mm": None, "n": int(rest.size), **dict.fromkeys(pool)}
+    lo, hi = np.percentile(rest, [2.5, 97.5])
     width = float(hi - lo)
     out = {"interval95_width_mm": width * 1e3, "n": int(rest.size)}
     for case, block in pool.items():
@@ -656,7 +666,7 @@ def without_help_table(info: dict) -> Table:
         ]
     )
     floor = info.get("laser_at_rest")
-    if floor:
+    if floor and floor["interval95_width_mm"] is not None:
         rows.append(
             [
                 "laser alone at rest",
