@@ -269,3 +269,18 @@ def test_only_the_curvature_r0_is_read_at_rest():
         if p.read_at_rest
     }
     assert read == {("curvature", "initial_resistance"): ("r1", "r2")}
+
+
+def test_scored_quantities_are_the_outputs_and_what_every_run_logs_of_the_prediction():
+    import pandas as pd
+
+    from tcamlab.kinds import get_kind, scored_quantities
+
+    kind = get_kind("dynamic")
+    pred = {"displacement": 0, "temperature": 0, "current": 0, "resistance": 0}
+    both = [pd.DataFrame(columns=["time", "voltage", "current", "displacement"])] * 2
+    assert scored_quantities(kind, pred, both) == ("displacement", "current")
+    one = [both[0], pd.DataFrame(columns=["time", "voltage", "displacement"])]
+    assert scored_quantities(kind, pred, one) == ("displacement",)  # not every run logs it
+    # an input the model passes through is never scored (its residual would be 0)
+    assert scored_quantities(kind, {**pred, "voltage": 0}, both) == ("displacement", "current")

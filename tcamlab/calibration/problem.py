@@ -24,7 +24,7 @@ from scipy import optimize
 
 from tcamlab import reduction
 from tcamlab.errors import InputError, ModelDomainError, TcamlabError
-from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter
+from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter, scored_quantities
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 from tcamlab.signals import block_means, n_blocks
 from tcamlab.text import did_you_mean
@@ -324,10 +324,9 @@ class CalibrationProblem:
 
     def _quantities(self, i: int) -> tuple[str, ...]:
         """The kind's outputs plus every other predicted column logged in all runs (temperature)."""
-        kind = self.kinds[i]
-        pred = self.predict_run(i, 0, self.u0)
-        extra = [q for q in pred if q not in kind.outputs and all(q in r.data for r in self.runs[i])]
-        return tuple(kind.outputs) + tuple(extra)
+        return scored_quantities(
+            self.kinds[i], self.predict_run(i, 0, self.u0), [r.data for r in self.runs[i]]
+        )
 
     def _noise(self) -> dict[tuple[int, str], float]:
         """Noise sd per (experiment, quantity) [SI], the RMS of :attr:`row_sigma` over the rows;

@@ -20,7 +20,7 @@ from scipy import optimize
 
 from tcamlab.effects import Effect, Mods
 from tcamlab.errors import ConfigError, TcamlabError
-from tcamlab.kinds import get_kind, predict, run_scatter
+from tcamlab.kinds import get_kind, predict, run_scatter, scored_quantities
 
 __all__ = [
     "serial_kernels",
@@ -106,12 +106,30 @@ class Problem:
             if missing:
                 raise ConfigError(f"diagnosis: run {i} has no column(s) {', '.join(missing)}")
         self._fixed_opts = [self._run_options(i) for i in range(len(self.frames))]
+        # what else every run logs of what the model predicts (a voltage-step test's current or
+        # temperature) is scored too, as calibration scores it
+        self.quantities = self._scored_quantities()
+        self.sigma = {q: 1.0 for q in self.quantities}
         # A run's logged zero (the laser's first reading, the load cell's tare) carries the
         # instrument's noise: it is a per-run nuisance, profiled out as in calibration.
         self.zeroed = tuple(q for q in self.quantities if q in self.k.nuisance_zeros)
         self.spring_nuisance = self.k.needs_training and self.rig.spring_constant is None
         # how far a run's sample may depart from the shared one (re-mounting a sensor)
         self.run_to_run = run_scatter(experiment)
+
+    def _scored_quantities(self) -> tuple[str, ...]:
+        """The kind's outputs and every other predicted column all runs log
+        (:func:`tcamlab.kinds.scored_quantities`), from the first run's stated prediction; the
+        outputs alone where the stated model has no prediction there."""
+        try:
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                pred = predict(
+                    self.kind, self.sample, self.rig, self.frames[0], Mods(), **self.options(0, None)
+                )
+        except MODEL_ERRORS:
+            return self.quantities
+        return scored_quantities(self.k, pred, self.frames)
 
     # options -------------------------------------------------------------
     def _run_options(self, i: int) -> dict:

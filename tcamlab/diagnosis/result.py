@@ -82,7 +82,8 @@ class NoiseFloor(Record):
     """Noise floor of every quantity, from the data alone."""
 
     quantities: list
-    """The kind's measured quantities (internal names)."""
+    """The quantities scored (internal names): the kind's outputs, then every other column the
+    model predicts that all runs log (a voltage-step test's current)."""
     method: str
     """The estimator, in words."""
     by_quantity: dict

@@ -48,6 +48,7 @@ __all__ = [
     "no_section",
     "rest_rows",
     "rest_reading",
+    "scored_quantities",
     "stated_source",
     "run_scatter",
 ]
@@ -302,6 +303,27 @@ def no_extras(experiment, predictions, **_) -> tuple[list, dict]:
 def no_section(result) -> None:
     """``extras_section`` of a kind whose validation report has no section of its own."""
     return None
+
+
+def scored_quantities(kind: Kind, prediction: dict, frames) -> tuple[str, ...]:
+    """The quantities a fit scores: the kind's outputs, then every other column the model predicts
+    that every run logs (the voltage-step test's ``temperature``, ``current``, ``resistance``),
+    in the prediction's order. An input is never one, even where the model passes it through.
+
+    Parameters
+    ----------
+    kind : Kind
+    prediction : dict
+        One run's prediction (its keys are what the model predicts).
+    frames : sequence of DataFrame
+        The runs' data, SI column names.
+    """
+    extra = [
+        q
+        for q in prediction
+        if q not in kind.outputs and q not in kind.inputs and all(q in d for d in frames)
+    ]
+    return tuple(kind.outputs) + tuple(extra)
 
 
 def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
