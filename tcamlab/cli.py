@@ -155,6 +155,16 @@ Force = Annotated[
     bool, typer.Option("--force", help="Overwrite this command's existing outputs (default: refuse).")
 ]
 Experiment = Annotated[Path, typer.Argument(help=EXPERIMENT_HELP, metavar="EXPERIMENT.toml")]
+Ignore = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--ignore",
+        metavar="COLUMN",
+        help="Treat this optional logged column as not logged (e.g. load_N: what the self-sensing "
+        "estimator does without the load; current_A: a voltage-step test scored on its displacement "
+        "alone); repeatable; raw files are not modified.",
+    ),
+]
 
 
 def _run(fn, *args, **kwargs):
@@ -285,13 +295,7 @@ def _make_validate(kind: str, example: str):
         max_bytes: MaxBytes = None,
         strict: Strict = False,
         force: Force = False,
-        ignore: list[str] = typer.Option(
-            None,
-            "--ignore",
-            metavar="COLUMN",
-            help="Treat this optional logged column as not logged (e.g. load_N: what the "
-            "self-sensing estimator does without the load); repeatable; raw files are not modified.",
-        ),
+        ignore: Ignore = None,
     ):
         import shlex
 
@@ -800,6 +804,7 @@ def diagnose(
     seed: int = typer.Option(0, "--seed", metavar="N", help="Seed of the bootstrap."),
     force: Force = False,
     drop_na: DropNa = False,
+    ignore: Ignore = None,
 ):
     """Where the model departs from the logs, which effect explains it, and by how much.
 
@@ -820,6 +825,7 @@ def diagnose(
         out_dir=out,
         force=force,
         drop_na=drop_na,
+        ignore=list(dict.fromkeys(ignore or ())),
     )
     if as_json:
         _print_json(outcome.result.to_dict())

@@ -331,7 +331,8 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             [EffectParam("heat_loss_tc", "1/K", 5e-3, 0.0, 5e-2)],
             "natural convection makes the heat loss grow faster than linearly with the temperature rise",
             "Yip and Niemeyer [22]; natural-convection correlations",
-            "a second voltage: the loss term scales with dT^2, resistance with V^2 dT",
+            "log current and voltage: the loss leaves the current at V/R0, R(T) moves it (a second "
+            "voltage tells them apart only through the transient: both add a term in V^2 dT)",
         ),
         _e(
             "shear-modulus-temperature",

@@ -8,6 +8,7 @@ identical inputs (no timestamps, no absolute paths).
 
 from __future__ import annotations
 
+import dataclasses
 import io as _stdio
 import json
 import os
@@ -742,7 +743,7 @@ class DiagnoseOutcome:
 
 
 def diagnose_experiment(
-    path, *, effects=None, seed: int = 0, out_dir=None, force: bool = False, drop_na: bool = False
+    path, *, effects=None, seed: int = 0, out_dir=None, force: bool = False, drop_na: bool = False, ignore=()
 ) -> DiagnoseOutcome:
     """Diagnose the sim-to-real gap of one experiment.
 
@@ -751,17 +752,23 @@ def diagnose_experiment(
     ``out_dir/NAME/diagnosis.{json,html,pdf}`` all or nothing (NAME as
     :func:`output_folder` names it); an existing diagnosis of the experiment is
     replaced only with ``force``, checked before the diagnosis runs. ``drop_na`` drops
-    rows with blank cells (:func:`tcamlab.io.read_run`).
+    rows with blank cells (:func:`tcamlab.io.read_run`). ``ignore``: canonical optional columns
+    treated as not logged (:func:`tcamlab.validation.ignored_columns`), kept in the result's
+    ``settings``.
     """
+    from tcamlab import validation
     from tcamlab.diagnosis import diagnose
 
     exp = load_experiment(path)
+    ignore = validation.ignored_columns(exp.kind, ignore)
     folder = (
         output_folder(out_dir, [exp.path], "diagnosis.json", force=force) if out_dir is not None else None
     )
     if isinstance(effects, str):
         effects = [e.strip() for e in effects.split(",") if e.strip()]
-    result = diagnose(exp, exp.read_runs(drop_na=drop_na), effects=effects or None, seed=seed)
+    runs = validation.without_columns(exp.read_runs(drop_na=drop_na), ignore)
+    result = diagnose(exp, runs, effects=effects or None, seed=seed)
+    result.settings = dataclasses.replace(result.settings, ignored_columns=list(ignore))
     result.next_experiment = next_experiment(exp, result.to_dict(), seed=seed)
     files = _write_diagnosis(result, exp, folder) if folder is not None else []
     return DiagnoseOutcome(result, exp, files)

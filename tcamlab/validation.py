@@ -48,7 +48,7 @@ from tcamlab.numbers import unit_label
 from tcamlab.text import shown_path
 from tcamlab.units import quantity
 
-__all__ = ["ValidationResult", "RunPrediction", "validate", "ignored_columns", "MC_DRAWS"]
+__all__ = ["ValidationResult", "RunPrediction", "validate", "ignored_columns", "without_columns", "MC_DRAWS"]
 
 MC_DRAWS = 1000
 """Monte Carlo draws for the dynamic prediction band."""
@@ -619,7 +619,7 @@ def ignored_columns(kind_name: str, names) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _without(runs: list[RunData], ignored: tuple[str, ...]) -> list[RunData]:
+def without_columns(runs: list[RunData], ignored: tuple[str, ...]) -> list[RunData]:
     """The runs with the internal columns of ``ignored`` (canonical names) dropped from their data,
     as if not logged; the files and the ``[columns]`` mapping they were read with are kept."""
     from dataclasses import replace
@@ -756,7 +756,7 @@ def validate(
     if runs is None:
         kw = {} if max_bytes is None else {"max_bytes": max_bytes}
         runs = experiment.read_runs(drop_na=drop_na, **kw)
-    logged, runs = runs, _without(runs, ignored)
+    logged, runs = runs, without_columns(runs, ignored)
     names = _run_names(runs)
     kind = get_kind(experiment.kind)
     preds = _predict_runs(experiment, kind, runs, names)

@@ -422,3 +422,46 @@ def test_a_current_logged_in_every_run_is_scored_and_tells_heating_effects_apart
         assert res.verdict == "none"
     else:
         assert res.verdict == "attributed" and res.effect == verdict
+
+
+@pytest.mark.slow
+def test_diagnose_ignore_scores_the_displacement_alone(tmp_path):
+    """``diagnose --ignore current_A`` on runs that log the current: the current is not scored,
+    the JSON says so, and the verdict is the displacement's (aliased, as without the column)."""
+    from typer.testing import CliRunner
+
+    from tcamlab.cli import app
+
+    sim = rig.simulate(
+        "dynamic",
+        TEMPLATES / "dynamic.toml",
+        seed=1000,
+        out_dir=tmp_path,
+        effects={"resistance-temperature": 3.0},
+    )
+    _log_the_current(sim, 1000)
+    before = sim.run_paths[0].read_bytes()
+    res = CliRunner().invoke(
+        app, ["diagnose", str(sim.experiment_path), "--ignore", "current_A", "--json", "--seed", "0"]
+    )
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert list(out["noise_floor"]["by_quantity"]) == ["displacement"]
+    assert out["settings"]["ignored_columns"] == ["current_A"]
+    assert out["verdict"] == "aliased"
+    assert sim.run_paths[0].read_bytes() == before  # the raw file is not modified
+
+
+@pytest.mark.parametrize(
+    "name, words",
+    [("displacement_mm", "a required column"), ("curent_A", "did you mean 'current_A'")],
+)
+def test_diagnose_ignore_refuses_a_required_or_unknown_column(name, words):
+    from typer.testing import CliRunner
+
+    from tcamlab.cli import app
+
+    res = CliRunner().invoke(app, ["diagnose", str(ROOT / "experiments" / "dynamic.toml"), "--ignore", name])
+    assert res.exit_code == 2
+    lines = [x for x in res.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and words in lines[0] and f"--ignore {name}" in lines[0]

@@ -182,6 +182,8 @@ class Settings(Record):
     min_fraction_closed: float
     ci_level: float
     fold_details: list
+    ignored_columns: list = field(default_factory=list)
+    """Canonical logged columns treated as not logged (``diagnose --ignore``)."""
 
 
 SCHEMA_VERSION = 2
