@@ -37,6 +37,9 @@ __all__ = [
     "OHMMETER_RESOLUTION_OHM",
     "CAMERA_SD_PER_M",
     "CAMERA_RESOLUTION_PER_M",
+    "CURRENT_SENSE_SD_A",
+    "CURRENT_SENSE_SPAN_A",
+    "CURRENT_SENSE_BITS",
     "quantise",
     "chain_sd",
     "thermometer",
@@ -53,6 +56,8 @@ __all__ = [
     "ohmmeter_sd",
     "camera",
     "camera_sd",
+    "current_sense",
+    "current_sense_sd",
 ]
 
 # --- constants (see the table of tcamlab.rig) -----------------------------------------
@@ -93,6 +98,10 @@ OHMMETER_SD_OHM = 2e-3
 OHMMETER_RESOLUTION_OHM = 1e-3
 """Display resolution of the multimeter [ohm]."""
 
+CURRENT_SENSE_SD_A = 0.05e-3
+"""Noise of a current-sense chain (0.1 ohm shunt into an INA219-class monitor) [A]."""
+CURRENT_SENSE_SPAN_A, CURRENT_SENSE_BITS = 0.4, 12
+"""Span and resolution of the current ADC: quantum 0.4 A / 4095 = 98 uA."""
 CAMERA_SD_PER_M = 0.2
 """Curvature noise of the camera images [1/m]."""
 CAMERA_RESOLUTION_PER_M = 1e-3
@@ -140,6 +149,20 @@ def thermometer(temperature: np.ndarray, rng: np.random.Generator, noise_scale: 
 def thermometer_sd(noise_scale: float = 1.0) -> float:
     """Standard deviation of :func:`thermometer` [degC]."""
     return chain_sd(THERMOMETER_SD_C, THERMOMETER_RESOLUTION_C, noise_scale=noise_scale)
+
+
+def current_sense(current: np.ndarray, rng: np.random.Generator, noise_scale: float) -> np.ndarray:
+    """Logged current [A]: the monitor's noise, then its ADC (codes 0 to 2^bits - 1 over the span)."""
+    cur = np.asarray(current, float)
+    noisy = cur + float(noise_scale) * rng.normal(0.0, CURRENT_SENSE_SD_A, cur.size)
+    q = CURRENT_SENSE_SPAN_A / (2**CURRENT_SENSE_BITS - 1)
+    return np.clip(np.round(noisy / q), 0, 2**CURRENT_SENSE_BITS - 1) * q
+
+
+def current_sense_sd(noise_scale: float = 1.0) -> float:
+    """Standard deviation of :func:`current_sense` [A]."""
+    q = CURRENT_SENSE_SPAN_A / (2**CURRENT_SENSE_BITS - 1)
+    return chain_sd(CURRENT_SENSE_SD_A, q, noise_scale=noise_scale)
 
 
 def laser(

@@ -489,3 +489,49 @@ def test_a_kind_without_a_second_condition_refuses_two(tmp_path):
         rig.simulate("curvature", TEMPLATES / "curvature.toml", seed=1, out_dir=tmp_path, conditions=2)
     with pytest.raises(ConfigError, match="1 or 2"):
         rig.simulate("static", TEMPLATES / "static.toml", seed=1, out_dir=tmp_path, conditions=3)
+
+
+def _with_protocol(tmp_path, channels):
+    """The dynamic template with a [protocol] table of one 10 V pulse, two runs, these channels."""
+    text = (TEMPLATES / "dynamic.toml").read_text()
+    text += (
+        '\n[protocol]\nkind = "dynamic"\nvoltages_V = [10.0]\npulse_s = 1.0\nruns = 2\n'
+        f"channels = {json.dumps(channels)}\n"
+    )
+    path = tmp_path / "next.toml"
+    path.write_text(text)
+    return path
+
+
+def test_a_protocols_channels_add_the_current_and_temperature_to_a_voltage_step_log(tmp_path):
+    """SYNTHETIC (seed 3): current_A and temperature_C are the model's current and temperature
+    through the current sense and the thermometer; the other columns are those of the same
+    protocol without them, draw for draw."""
+    base = ["time_s", "voltage_V", "displacement_mm"]
+    plain = rig.simulate("dynamic", _with_protocol(tmp_path, base), seed=3, out_dir=tmp_path / "a")
+    more = rig.simulate(
+        "dynamic",
+        _with_protocol(tmp_path, [*base, "current_A", "temperature_C"]),
+        seed=3,
+        out_dir=tmp_path / "b",
+    )
+    exp = load_experiment(more.experiment_path)
+    for p0, p1 in zip(plain.run_paths, more.run_paths):
+        a = read_run(p0, "dynamic", exp.columns).data
+        b = read_run(p1, "dynamic", exp.columns).data
+        assert "current" not in a and "temperature" not in a
+        np.testing.assert_array_equal(a["displacement"].to_numpy(), b["displacement"].to_numpy())
+        model = predict("dynamic", exp.sample, exp.rig, b[["time", "voltage"]], NO_MODS)
+        on = b["voltage"].to_numpy() > 0
+        assert model["current"][on] == pytest.approx(10.0 / 40.0)  # the thesis's constant R
+        # the sense's noise (0.05 mA) and its 98 uA quantum, the thermometer's 0.2 degC and 0.1 degC
+        assert np.abs(b["current"].to_numpy() - model["current"]).max() < 0.3e-3
+        assert np.abs(b["temperature"].to_numpy() - model["temperature"]).max() < 1.2
+        assert np.ptp(b["temperature"].to_numpy()) > 20.0  # the pulse heats the coil
+
+
+def test_a_channel_the_voltage_step_rig_cannot_log_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match="'force_N' is not a column the voltage-step rig logs"):
+        rig.simulate(
+            "dynamic", _with_protocol(tmp_path, ["time_s", "force_N"]), seed=1, out_dir=tmp_path / "c"
+        )

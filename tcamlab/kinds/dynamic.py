@@ -522,18 +522,54 @@ def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_
 
 
 def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
-    """Sd of each logged column's chain [SI]: time and commanded voltage exact, laser."""
-    return {"time": 0.0, "voltage": 0.0, "displacement": instruments.laser_sd(noise_scale)}
+    """Sd of each logged column's chain [SI]: time and commanded voltage exact, laser; the current
+    sense and the thermometer where a protocol logs them (:data:`EXTRA_CHANNELS`)."""
+    return {
+        "time": 0.0,
+        "voltage": 0.0,
+        "displacement": instruments.laser_sd(noise_scale),
+        "current": instruments.current_sense_sd(noise_scale),
+        "temperature": instruments.thermometer_sd(noise_scale),
+    }
+
+
+EXTRA_CHANNELS = {"current_A": "current", "temperature_C": "temperature"}
+"""Columns a ``[protocol]`` table's ``channels`` may add to a voltage-step run -> the model's
+prediction each logs: the actuator's current (a sense resistor beside the supply) and its
+temperature (a thermocouple on the coil)."""
+
+
+def protocol_channels(channels) -> tuple[str, ...]:
+    """The predictions the rig logs beyond time, voltage and displacement for a ``[protocol]``
+    table's ``channels`` (:data:`EXTRA_CHANNELS`), in their order; a column this rig cannot log
+    is refused naming it."""
+    known = (*KIND.required_columns, *EXTRA_CHANNELS)
+    for c in channels:
+        if c not in known:
+            raise ConfigError(
+                f"[protocol]: channels: {c!r} is not a column the voltage-step rig logs",
+                "channels from: " + ", ".join(known),
+            )
+    return tuple(EXTRA_CHANNELS[c] for c in channels if c in EXTRA_CHANNELS)
 
 
 def measure(
-    inputs: pd.DataFrame, outputs: dict, rng: np.random.Generator, noise_scale: float, *, noisy_zero=False
+    inputs: pd.DataFrame,
+    outputs: dict,
+    rng: np.random.Generator,
+    noise_scale: float,
+    *,
+    noisy_zero=False,
+    channels=(),
 ) -> pd.DataFrame:
-    """Logged ``time`` [s], ``voltage`` [V] (exact) and ``displacement`` [m] (laser).
+    """Logged ``time`` [s], ``voltage`` [V] (exact) and ``displacement`` [m] (laser); then each of
+    ``channels`` (:func:`protocol_channels`): ``current`` [A] through
+    :func:`tcamlab.instruments.current_sense`, ``temperature`` [degC] through the thermometer.
 
     ``noisy_zero``: the laser zeroes on the first reading
     (:func:`tcamlab.instruments.laser_zeroed`); its zero error [m] is in
-    ``attrs["zero_error"]["displacement"]``.
+    ``attrs["zero_error"]["displacement"]``. The extra channels draw after the laser, so a run
+    without them is the same, draw for draw.
     """
     disp, zero = instruments.laser_zeroed(
         np.asarray(outputs["displacement"], float), rng, noise_scale, noisy_zero=noisy_zero
@@ -545,6 +581,9 @@ def measure(
             "displacement": disp,
         }
     )
+    chains = {"current": instruments.current_sense, "temperature": instruments.thermometer}
+    for q in channels:
+        out[q] = chains[q](np.asarray(outputs[q], float), rng, noise_scale)
     out.attrs["zero_error"] = {"displacement": zero}
     return out
 
@@ -677,8 +716,8 @@ KIND = Kind(
     figures=figures,
     extras_section=extras_section,
     preset=THESIS_TCA,
-    logged_columns=("time", "voltage", "displacement"),
-    decimals={"time_s": 3, "voltage_V": 3, "displacement_mm": 3},
+    logged_columns=("time", "voltage", "displacement", "current", "temperature"),
+    decimals={"time_s": 3, "voltage_V": 3, "displacement_mm": 3, "current_A": 5, "temperature_C": 1},
     written_rig_fields=RIG_FIELDS,
     hidden_rig_fields=(),
     default_runs=3,

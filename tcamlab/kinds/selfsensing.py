@@ -64,10 +64,10 @@ MIN_CURRENT_A = 1e-3
 CONTACT_ITERATIONS = 12
 """Secant steps that undo the inter-coil contact factor in the inversion."""
 
-CURRENT_SD_A = 0.05e-3
-"""Noise of the current-sense chain (0.1 ohm shunt into an INA219-class monitor) [A]."""
-CURRENT_SPAN_A, CURRENT_BITS = 0.4, 12
-"""Span and resolution of the current ADC: quantum 0.4 A / 4095 = 98 uA."""
+CURRENT_SD_A = instruments.CURRENT_SENSE_SD_A
+"""Noise of the current-sense chain [A] (:data:`tcamlab.instruments.CURRENT_SENSE_SD_A`)."""
+CURRENT_SPAN_A, CURRENT_BITS = instruments.CURRENT_SENSE_SPAN_A, instruments.CURRENT_SENSE_BITS
+"""Span and resolution of the current ADC (:mod:`tcamlab.instruments`)."""
 VOLTAGE_SD_V = 5e-3
 """Noise of the voltage divider and ADC input [V]."""
 VOLTAGE_SPAN_V, VOLTAGE_BITS = 12.0, 12

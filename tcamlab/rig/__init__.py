@@ -71,6 +71,9 @@ dynamic.TIMING_JITTER_PROB             0.03                the loop occasionally
                                                            logged time is the Arduino's integer ``millis()``
                                                            of the actual sample, so it is exact
 (displacement)                                             the same laser chain as the static test
+(current_A, temperature_C)                                 only where a [protocol] table's channels ask:
+                                                           instruments.current_sense (0.05 mA, 12 bit over
+                                                           0.4 A) and the thermometer above
 dynamic.KIND.default_runs              3
 **sensing pull test** (thesis sec. 3.3)
 sensing.PULL_STEP_M                    2 mm                linear-actuator step
@@ -166,6 +169,7 @@ from tcamlab.report.atomic import atomic_write_text
 from tcamlab.rig.lies import draw_parameters, stated_sds
 from tcamlab.rig.offlibrary import apply_form, get_form, scale_form
 from tcamlab.rig.runs import (
+    designed_channels,
     designed_programs,
     exact_inputs,
     instrument_sd,
@@ -263,6 +267,9 @@ class _Plan:
     lies: dict[str, Any]
     designed: tuple = ()
     """Each run's program options from the template's ``[protocol]`` table (cycled), or empty."""
+    channels: tuple = ()
+    """The predictions the protocol's ``channels`` add to each run's log (a voltage-step test's
+    ``current``), or empty."""
 
 
 @dataclass(frozen=True)
@@ -468,6 +475,7 @@ def _plan(
         true_parameters=true_parameters,
         lies=lies,
         designed=tuple(designed),
+        channels=designed_channels(kind, exp),
     )
 
 
@@ -609,7 +617,8 @@ def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods, forms=()) -> tuple[li
                 form, info["amplitude"], kind, run.sample, run.rig, inputs, outputs, opts
             )
         zero = {"noisy_zero": True} if plan.lies["noisy_zero"] else {}
-        logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale, **zero)
+        extra = {"channels": plan.channels} if plan.channels else {}
+        logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale, **zero, **extra)
         fname = f"{plan.name}_run{k + 1}.csv"
         path = plan.out / "raw" / fname
         atomic_write_text(path, format_csv(kind, logged))

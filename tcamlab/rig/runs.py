@@ -21,6 +21,7 @@ from tcamlab.params import Rig, Sample
 __all__ = [
     "protocol",
     "designed_programs",
+    "designed_channels",
     "program_options",
     "exact_inputs",
     "instrument_sd",
@@ -50,6 +51,19 @@ def designed_programs(kind: str, experiment) -> list[dict] | None:
     if reader is None:
         raise ConfigError(f"[protocol]: the {kind} rig takes no designed protocol")
     return reader(dict(table), experiment.rig)
+
+
+def designed_channels(kind: str, experiment) -> tuple[str, ...]:
+    """The model's predictions a designed protocol asks the rig to log beyond the kind's own
+    columns (``[protocol]`` ``channels``, read by the kind's ``protocol_channels``: a voltage-step
+    test's current and temperature); empty without such a table or where the kind logs no more.
+    """
+    table = (getattr(experiment, "raw", None) or {}).get("protocol") or {}
+    if "channels" not in table:
+        return ()
+    module = importlib.import_module(get_kind(kind).protocol.__module__)
+    reader = getattr(module, "protocol_channels", None)
+    return tuple(reader(list(table["channels"]))) if reader is not None else ()
 
 
 def protocol(kind: str, rig: Rig, rng: np.random.Generator, **options) -> pd.DataFrame:
