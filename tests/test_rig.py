@@ -535,3 +535,12 @@ def test_a_channel_the_voltage_step_rig_cannot_log_is_refused(tmp_path):
         rig.simulate(
             "dynamic", _with_protocol(tmp_path, ["time_s", "force_N"]), seed=1, out_dir=tmp_path / "c"
         )
+
+
+def test_the_added_channels_chains_are_as_documented():
+    from tcamlab.kinds import dynamic
+
+    sd = dynamic.channel_sd()
+    assert sd["current"] == pytest.approx(math.hypot(0.05e-3, 0.4 / 4095 / math.sqrt(12)))
+    assert sd["temperature"] == pytest.approx(math.hypot(0.2, 0.1 / math.sqrt(12)))
+    assert set(dynamic.instrument_sd()) == {"time", "voltage", "displacement"}  # the default log

@@ -522,12 +522,14 @@ def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_
 
 
 def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
-    """Sd of each logged column's chain [SI]: time and commanded voltage exact, laser; the current
-    sense and the thermometer where a protocol logs them (:data:`EXTRA_CHANNELS`)."""
+    """Sd of each logged column's chain [SI]: time and commanded voltage exact, laser."""
+    return {"time": 0.0, "voltage": 0.0, "displacement": instruments.laser_sd(noise_scale)}
+
+
+def channel_sd(noise_scale: float = 1.0) -> dict[str, float]:
+    """Sd of the chains a protocol's ``channels`` add (:data:`EXTRA_CHANNELS`) [SI]: the current
+    sense [A] and the thermometer [degC]."""
     return {
-        "time": 0.0,
-        "voltage": 0.0,
-        "displacement": instruments.laser_sd(noise_scale),
         "current": instruments.current_sense_sd(noise_scale),
         "temperature": instruments.thermometer_sd(noise_scale),
     }
