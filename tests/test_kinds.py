@@ -8,6 +8,7 @@ it is registered.
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import inspect
 
 import numpy as np
@@ -179,7 +180,10 @@ def test_virtual_rig_parts_agree_with_the_logged_columns(name):
     assert set(kind.simulation_rig_defaults) <= {f.name for f in dataclasses.fields(rig)}
     assert set(kind.program_options) <= set(inspect.signature(kind.protocol).parameters)
     sd = kind.instrument_sd(1.0)
-    assert set(sd) == set(kind.logged_columns) and all(v >= 0 for v in sd.values())
+    # the chains a protocol's channels may add (the voltage-step test's current and temperature)
+    extra = getattr(importlib.import_module(kind.protocol.__module__), "channel_sd", lambda _: {})(1.0)
+    assert not set(sd) & set(extra)
+    assert set(sd) | set(extra) == set(kind.logged_columns) and all(v >= 0 for v in sd.values())
     required = {tio.VARIABLE_MAP[c][0] for c in kind.required_columns}
     # the stated condition, and the second one where the kind has it (static: a logged load)
     conditions = [{}] + ([{"condition": 1}] if "condition" in kind.program_options else [])
@@ -193,6 +197,9 @@ def test_virtual_rig_parts_agree_with_the_logged_columns(name):
         assert tuple(logged.columns) == tuple(c for c in kind.logged_columns if c in logged.columns)
         assert required <= set(logged.columns)
         assert len(logged) == len(proto)
+        if extra:  # every added channel, in the logged columns' order
+            more = kind.measure(inputs, outputs, np.random.default_rng(1), 1.0, channels=tuple(extra))
+            assert tuple(more.columns) == tuple(kind.logged_columns)
         # exact chains only: zero noise leaves a noise-free logged column equal to the exact value
         quiet = kind.measure(inputs, outputs, np.random.default_rng(1), 0.0)
         for c, v in sd.items():
