@@ -465,3 +465,14 @@ def test_diagnose_ignore_refuses_a_required_or_unknown_column(name, words):
     assert res.exit_code == 2
     lines = [x for x in res.output.splitlines() if x.strip()]
     assert len(lines) == 1 and words in lines[0] and f"--ignore {name}" in lines[0]
+
+
+def test_a_pull_test_with_its_spring_still_to_identify_is_scored_on_its_outputs():
+    """The bundled pull test states no S (identified leave-one-run-out): the stated model has no
+    prediction to read extra columns from, so the diagnosis scores the kind's outputs."""
+    from tcamlab.diagnosis.problem import Problem
+
+    exp = load_experiment(ROOT / "experiments" / "sensing.toml")
+    assert exp.rig.spring_constant is None
+    problem = Problem(exp, exp.read_runs())
+    assert problem.spring_nuisance and problem.quantities == ("displacement", "force")

@@ -106,6 +106,7 @@ class Problem:
             if missing:
                 raise ConfigError(f"diagnosis: run {i} has no column(s) {', '.join(missing)}")
         self._fixed_opts = [self._run_options(i) for i in range(len(self.frames))]
+        self.spring_nuisance = self.k.needs_training and self.rig.spring_constant is None
         # what else every run logs of what the model predicts (a voltage-step test's current or
         # temperature) is scored too, as calibration scores it
         self.quantities = self._scored_quantities()
@@ -113,14 +114,16 @@ class Problem:
         # A run's logged zero (the laser's first reading, the load cell's tare) carries the
         # instrument's noise: it is a per-run nuisance, profiled out as in calibration.
         self.zeroed = tuple(q for q in self.quantities if q in self.k.nuisance_zeros)
-        self.spring_nuisance = self.k.needs_training and self.rig.spring_constant is None
         # how far a run's sample may depart from the shared one (re-mounting a sensor)
         self.run_to_run = run_scatter(experiment)
 
     def _scored_quantities(self) -> tuple[str, ...]:
         """The kind's outputs and every other predicted column all runs log
         (:func:`tcamlab.kinds.scored_quantities`), from the first run's stated prediction; the
-        outputs alone where the stated model has no prediction there."""
+        outputs alone where the stated model has no prediction there, or needs a spring constant
+        the runs are still to identify (the pull test's extra columns are inputs anyway)."""
+        if self.spring_nuisance:
+            return self.quantities
         try:
             with np.errstate(all="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore")
