@@ -368,10 +368,11 @@ def test_timing_five_runs(tmp_path, kind):
     sys.stderr.write(f"\ndiagnose {kind} (5 runs): {time.perf_counter() - t0:.1f} s\n")
 
 
-def _log_the_current(sim, seed):
-    """The simulated runs rewritten with a current_A column: the model's current under the rig's
-    true effects plus 0.5 mA of white noise (SYNTHETIC, numpy seed ``seed``), as a sense resistor
-    beside the laser would log it. The rig's comment lines are kept."""
+def _log_the_current(sim, seed, runs=None):
+    """The simulated runs (those indexed in ``runs``, default all) rewritten with a current_A
+    column: the model's current under the rig's true effects plus 0.5 mA of white noise
+    (SYNTHETIC, numpy seed ``seed``), as a sense resistor beside the laser would log it. The
+    rig's comment lines are kept."""
     from io import StringIO
 
     import pandas as pd
@@ -382,7 +383,9 @@ def _log_the_current(sim, seed):
     exp = load_experiment(sim.experiment_path)
     mods = Mods(**sim.truth["mods"])
     rng = np.random.default_rng(seed)
-    for path in sim.run_paths:
+    for j, path in enumerate(sim.run_paths):
+        if runs is not None and j not in runs:
+            continue
         lines = path.read_text().splitlines(keepends=True)
         raw = pd.read_csv(StringIO("".join(x for x in lines if not x.startswith("#"))))
         frame = pd.DataFrame({"time": raw["time_s"], "voltage": raw["voltage_V"]})
@@ -420,6 +423,36 @@ def test_a_current_logged_in_every_run_is_scored_and_tells_heating_effects_apart
     assert 0.45e-3 < res.noise_floor.by_quantity["current"].sigma < 1.2e-3
     if verdict is None:
         assert res.verdict == "none"
+    else:
+        assert res.verdict == "attributed" and res.effect == verdict
+
+
+@pytest.mark.parametrize(
+    "effects, seed, verdict",
+    [
+        pytest.param({"resistance-temperature": 3.0}, 1000, "resistance-temperature", marks=pytest.mark.slow),
+        pytest.param({"convective-heat-loss": 3.0}, 1001, "convective-heat-loss", marks=pytest.mark.slow),
+        ({}, 1002, None),
+    ],
+)
+def test_a_current_only_the_last_run_logs_is_scored_on_that_run(tmp_path, effects, seed, verdict):
+    """A design adds runs that log the current to runs that do not: the current is scored on
+    the run that has it, the others are scored on the displacement alone. Measured on these
+    cases (three runs, the current on the last): R(T) and the convective loss attributed (the
+    displacement alone leaves them aliased), the null `none` at 1.005 noise floors."""
+    sim = rig.simulate("dynamic", TEMPLATES / "dynamic.toml", seed=seed, out_dir=tmp_path, effects=effects)
+    n = len(sim.run_paths)
+    res = diagnose(_log_the_current(sim, seed, runs={n - 1}), n_boot=300)
+    assert list(res.noise_floor.quantities) == ["displacement", "current"]
+    per_run = res.noise_floor.by_quantity["current"].per_run
+    assert all(np.isnan(v) for v in per_run[:-1]) and per_run[-1] > 0
+    assert 0.45e-3 < res.noise_floor.by_quantity["current"].sigma < 1.2e-3
+    rows = [int(r.n) for r in res.runs]
+    # every run's displacement, and the current of the last run only
+    assert res.gap.n_points == sum(rows) + rows[-1]
+    assert "current" not in res.runs[0].by_quantity and "current" in res.runs[-1].by_quantity
+    if verdict is None:
+        assert res.verdict == "none" and res.gap.rmse_over_noise < res.gap.limit
     else:
         assert res.verdict == "attributed" and res.effect == verdict
 

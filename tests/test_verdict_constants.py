@@ -357,7 +357,7 @@ def test_pooled_noise_weights_and_the_99_percent_consistency_interval():
 def test_median_of_three_or_more_runs_keeps_2_over_pi_of_the_dof():
     eff = _second_diff_efficiency()
     for runs, factor in ((2, 1.0), (3, 2 / math.pi)):
-        problem = SimpleNamespace(frames=[np.zeros(12)] * runs)
+        problem = SimpleNamespace(frames=[np.zeros(12)] * runs, logs=lambda i, q: True)
         sigma, dof, _ = noise._quantity_noise(problem, "x", [1.0, 2.0, 3.0][:runs], {}, None)
         assert sigma == pytest.approx(float(np.median([1.0, 2.0, 3.0][:runs])))
         assert dof == pytest.approx(eff * 10 * runs * factor, rel=1e-12)
@@ -380,6 +380,8 @@ def _gap(scale):
         zeroed={"x"},
         run_to_run={},
         norm_resid=lambda i, mods, spring: z[i],
+        logs=lambda i, q: True,
+        n_entries=lambda i, mask=None: 10,
         sigma={"x": 1.0},
         rig=SimpleNamespace(spring_constant=None),
         k=SimpleNamespace(needs_training=False),

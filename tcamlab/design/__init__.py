@@ -6,11 +6,13 @@ Steps (one module each):
    (recalibration and each aliased or stand-in effect) with their fitted parameters.
 2. :mod:`~tcamlab.design.protocols` -- the kind's menu of protocol changes (static: a second
    load, heat-cool, a wider range, a longer dwell; dynamic: a second voltage, a shorter or
-   longer pulse, a pulse train; sensing: a larger pull range, cycles, a second pull rate, a
+   longer pulse, a pulse train, logging the current or the temperature; sensing: a larger pull range, cycles, a second pull rate, a
    finer step, a longer dwell; curvature: finer levels, a larger range; selfsensing: a second
    probe voltage, a load step, a probe ripple, longer heating steps), each with its runs and
    rig time.
-3. :mod:`~tcamlab.design.predict` -- every hypothesis's predicted logs under each protocol,
+3. :mod:`~tcamlab.design.predict` -- every hypothesis's predicted logs under each protocol
+   (the kind's outputs and the channels the protocol adds, each over its noise: the
+   diagnosis's floor, else the added chain's sd),
    with their spread over draws of its parameters, and the protocol's limits (no G_t' <= 0,
    coil not closed, temperature under :data:`~tcamlab.design.predict.TEMPERATURE_LIMIT_C`).
 4. :mod:`~tcamlab.design.score` -- the expected separation J of the hardest pair (the
@@ -28,7 +30,15 @@ from scipy.stats import norm
 from tcamlab import progress
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
 from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive, sensitivity
-from tcamlab.design.protocols import Protocol, cost_minutes, menu, model_inputs, protocol_frames
+from tcamlab.design.protocols import (
+    Protocol,
+    channel_noise,
+    cost_minutes,
+    menu,
+    model_inputs,
+    protocol_frames,
+    protocol_quantities,
+)
 from tcamlab.design.result import CandidateProtocol, DesignResult
 from tcamlab.design.score import information_gain, pair_separation, refit_separation, wald_after
 from tcamlab.design.toml import protocol_toml
@@ -93,6 +103,16 @@ def noise_si(diagnosis: dict) -> dict[str, float]:
     return out
 
 
+def menu_noise(kind: str, protocols, noise: dict) -> dict[str, float]:
+    """``noise`` [SI] with every quantity a protocol of the menu logs beyond the kind's outputs
+    (its ``channels``: :func:`~tcamlab.design.protocols.protocol_quantities`): the diagnosis's
+    floor where it scored the quantity, else the added chain's sd
+    (:func:`~tcamlab.design.protocols.channel_noise`)."""
+    outputs = get_kind(kind).outputs
+    added = [q for p in protocols for q in protocol_quantities(kind, p.table) if q not in outputs]
+    return channel_noise(kind, dict.fromkeys(added), noise)
+
+
 def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0) -> DesignResult:
     """Score the kind's protocols by how well they separate the diagnosis's hypotheses.
 
@@ -131,6 +151,7 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
     hyps = hypotheses(diagnosis, kind)
     base.hypotheses = [{"name": h.name, "parameters": h.intervals} for h in hyps]
     protocols = menu(kind, experiment.sample, experiment.rig)
+    noise = base.noise = menu_noise(kind, protocols, noise)
     cands = []
     with progress.task("designing: scoring protocols", total=len(protocols)) as step:
         for p in protocols:
@@ -183,10 +204,11 @@ def _decide(cands: list[CandidateProtocol], hyps) -> dict:
     return out
 
 
-def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int):
-    """``(prediction, None)`` of hypothesis ``h`` under a protocol's ``frames``, or
-    ``(None or prediction, why)`` where it has no solution there or breaks a limit."""
-    pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed)
+def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int, quantities=None):
+    """``(prediction, None)`` of hypothesis ``h`` under a protocol's ``frames`` (of
+    ``quantities``, default the kind's outputs), or ``(None or prediction, why)`` where it has
+    no solution there or breaks a limit."""
+    pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed, quantities)
     if pred is None:
         return None, point
     why = limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
@@ -287,10 +309,13 @@ def _out_of_reach(res: DesignResult) -> str:
 def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) -> list[CandidateProtocol]:
     """One protocol scored (predictions of every hypothesis, limits, J and D of every pair, each
     effect's statistic at its fit), then the same with :data:`RUN_FACTORS` times its runs where
-    it falls short of :data:`POWERED` at the fit."""
+    it falls short of :data:`POWERED` at the fit. The quantities scored are the kind's outputs
+    and those the protocol's ``channels`` add (:func:`~tcamlab.design.protocols.protocol_quantities`),
+    each over its sd in ``noise``; a channel adds no runs and no rig time."""
     kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
     frames = protocol_frames(kind, rig, proto.table, seed)
     minutes = cost_minutes(frames, kind)
+    quantities = protocol_quantities(kind, proto.table)
     nan = float("nan")
     out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
     frames, why = _inputs(kind, sample, rig, frames, hyps[0])
@@ -299,13 +324,12 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
         return [out]
     preds = []
     for h in hyps:
-        pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed)
+        pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities)
         if why:
             out.feasible, out.limit = False, why
             return [out]
         out.failed_draws[h.name] = pred.failed
         preds.append(pred)
-    outputs = get_kind(kind).outputs
     pairs = [(i, j) for i in range(len(hyps)) for j in range(i + 1, len(hyps))]
     scale = {(i, j): max(1.0, hyps[i].misfit, hyps[j].misfit) for i, j in pairs}
     D = {
@@ -317,7 +341,7 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
                 preds[j].var[q],
                 (noise[q] * scale[i, j]) ** 2,
             )
-            for q in outputs
+            for q in quantities
         )
         for i, j in pairs
     }
@@ -327,8 +351,8 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
         }
         for i, j in pairs
     }
-    stacked = [_normalised_draws(p, noise, outputs) for p in preds]
-    parts = (hyps, stacked, _sensitivities(kind, sample, rig, frames, hyps, noise), D, scale)
+    stacked = [_normalised_draws(p, noise, quantities) for p in preds]
+    parts = (hyps, stacked, _sensitivities(kind, sample, rig, frames, hyps, noise, quantities), D, scale)
     _fill(out, parts, 1)
     return [out] + _more_runs(out, parts)
 
@@ -384,22 +408,23 @@ def _fill(out: CandidateProtocol, parts, m: int) -> None:
         out.detectable[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
 
 
-def _sensitivities(kind, sample, rig, frames, hyps, noise: dict) -> dict:
+def _sensitivities(kind, sample, rig, frames, hyps, noise: dict, quantities=None) -> dict:
     """Effect hypothesis -> its predictions' sensitivity to one posterior sd of each
-    standardised parameter, rows over its noise (None where the model has no solution near the
-    fit; :func:`~tcamlab.design.predict.sensitivity`)."""
-    outputs = get_kind(kind).outputs
+    standardised parameter, rows of each of ``quantities`` (default the kind's outputs) over
+    its noise (None where the model has no solution near the fit;
+    :func:`~tcamlab.design.predict.sensitivity`)."""
+    quantities = get_kind(kind).outputs if quantities is None else quantities
     out = {}
     for h in hyps:
         if not h.effect_values.size:
             continue
         try:
-            sens = sensitivity(kind, sample, rig, frames, h)
+            sens = sensitivity(kind, sample, rig, frames, h, quantities)
         except (*MODEL_ERRORS, ValueError):
             out[h.name] = None
             continue
         scale = max(1.0, h.misfit)  # the pair's noise in J is scaled the same way
-        out[h.name] = np.vstack([sens[q] / (noise[q] * scale) for q in outputs])
+        out[h.name] = np.vstack([sens[q] / (noise[q] * scale) for q in quantities])
     return out
 
 
@@ -416,6 +441,7 @@ def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, se
     h = hypotheses(diagnosis, kind)[0]
     base.hypotheses = [{"name": h.name, "parameters": h.intervals}]
     protos = menu(kind, experiment.sample, experiment.rig)
+    base.noise = menu_noise(kind, protos, base.noise)
     cands = [_score_precision(experiment, p, h, base.noise, n_draws, seed) for p in protos]
     _mark_risky(cands)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
@@ -434,27 +460,29 @@ def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, se
 
 def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: int) -> CandidateProtocol:
     """One protocol scored by the expected information gain about ``h``'s parameters and each
-    parameter's expected sd after / before."""
+    parameter's expected sd after / before (on the kind's outputs and the protocol's channels,
+    as :func:`_score`)."""
     kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
     frames = protocol_frames(kind, rig, proto.table, seed)
     minutes = cost_minutes(frames, kind)
+    quantities = protocol_quantities(kind, proto.table)
     nan = float("nan")
     out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
     frames, why = _inputs(kind, sample, rig, frames, h)
     if why:
         out.feasible, out.limit = False, why
         return out
-    pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed)
+    pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities)
     if why:
         out.feasible, out.limit = False, why
         return out
     out.failed_draws[h.name] = pred.failed
     try:
-        sens = sensitivity(kind, sample, rig, frames, h)
+        sens = sensitivity(kind, sample, rig, frames, h, quantities)
     except (*MODEL_ERRORS, ValueError) as exc:
         out.feasible, out.limit = False, f"{h.name}: no solution near the fit ({str(exc)[:80]})"
         return out
-    gain, post = information_gain(np.vstack([sens[q] / noise[q] for q in get_kind(kind).outputs]))
+    gain, post = information_gain(np.vstack([sens[q] / noise[q] for q in quantities]))
     root = covariance_root(h)
     after, before = np.diag(root @ post @ root.T), np.diag(root @ root.T)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -8,6 +8,10 @@ fixed seed: the correlation matters, since on a heating-only run a drift and a s
 trade off, and independent draws would spread predictions the fit has pinned. The first draw is the fit itself. A quantity whose zero each run profiles out
 (:attr:`tcamlab.kinds.Kind.nuisance_zeros`) has each run's mean removed, as the diagnosis
 scores it: a constant offset per run tells nothing.
+
+The quantities predicted are the kind's outputs, then any the protocol's ``channels`` add (a
+voltage-step run's logged current or temperature, :func:`tcamlab.design.protocols.channels`):
+``quantities`` below, the kind's outputs when not given.
 """
 
 from __future__ import annotations
@@ -81,25 +85,29 @@ def covariance_root(h: Hypothesis) -> np.ndarray:
     return vecs * np.sqrt(np.clip(w, 0.0, None))
 
 
-def run_outputs(kind: str, sample, rig, mods, frames) -> list[dict]:
-    """The kind's outputs [SI] of each run's exact inputs (raises where the model has no solution)."""
+def run_outputs(kind: str, sample, rig, mods, frames, quantities=None) -> list[dict]:
+    """The model's predictions [SI] of each run's exact inputs (raises where the model has no
+    solution, or where one of ``quantities``, default the kind's outputs, is not finite)."""
     k = get_kind(kind)
+    quantities = k.outputs if quantities is None else quantities
     out = []
     for data in frames:
         opts = dict(k.run_options(sample, rig, data).options)
         opts.update(k.variants[k.primary])
         with np.errstate(all="ignore"):
             pred = k.predict(sample, rig, data, mods, **opts)
-        if not all(np.all(np.isfinite(np.asarray(pred[q], float))) for q in k.outputs):
+        if not all(np.all(np.isfinite(np.asarray(pred[q], float))) for q in quantities):
             raise ValueError("non-finite prediction")
         out.append(pred)
     return out
 
 
-def _stack(kind: str, preds: list[dict], zero: bool) -> dict:
+def _stack(kind: str, preds: list[dict], zero: bool, quantities=None) -> dict:
+    """Each of ``quantities`` (default the kind's outputs), rows of every run stacked; with
+    ``zero``, each run's mean removed from those the kind profiles out (its ``nuisance_zeros``)."""
     k = get_kind(kind)
     out = {}
-    for q in k.outputs:
+    for q in k.outputs if quantities is None else quantities:
         parts = [np.asarray(p[q], float) for p in preds]
         if zero and q in k.nuisance_zeros:
             parts = [x - x.mean() for x in parts]
@@ -107,22 +115,25 @@ def _stack(kind: str, preds: list[dict], zero: bool) -> dict:
     return out
 
 
-def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_DRAWS, seed: int = 0):
+def predictive(
+    kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_DRAWS, seed: int = 0, quantities=None
+):
     """(:class:`Prediction`, the fit's per-run outputs) of hypothesis ``h`` on ``frames``, or
-    (None, reason) when the model has no solution at the fit itself."""
+    (None, reason) when the model has no solution at the fit itself. ``quantities``: those
+    predicted (default the kind's outputs)."""
     rows, point = [], None
     zs = []
     for j, (u, theta, z) in enumerate(_draws(h, n_draws, seed)):
         s, r, mods = h.at(u, theta, sample, rig, kind)
         try:
-            preds = run_outputs(kind, s, r, mods, frames)
+            preds = run_outputs(kind, s, r, mods, frames, quantities)
         except (*MODEL_ERRORS, ValueError) as exc:
             if j == 0:
                 return None, f"{h.name}: no solution ({str(exc).split(';')[0][:80]})"
             continue
         if j == 0:
             point = preds
-        rows.append(_stack(kind, preds, True))
+        rows.append(_stack(kind, preds, True, quantities))
         zs.append(z)
     draws = {q: np.array([r[q] for r in rows]) for q in rows[0]}
     # centred on the fit (the first draw), not on the draws' mean, which drifts where the model bends
@@ -132,18 +143,19 @@ def predictive(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int = N_D
         for q, d in draws.items()
     }
     failed = 1.0 - len(rows) / n_draws
-    return Prediction(mean, var, _stack(kind, point, False), failed, draws, np.array(zs)), point
+    return Prediction(mean, var, _stack(kind, point, False, quantities), failed, draws, np.array(zs)), point
 
 
 SENSITIVITY_STEP = 0.1
 """Step of the central differences of :func:`sensitivity`, in posterior sds of each parameter."""
 
 
-def sensitivity(kind: str, sample, rig, frames, h: Hypothesis) -> dict:
+def sensitivity(kind: str, sample, rig, frames, h: Hypothesis, quantities=None) -> dict:
     """Quantity -> d(predicted rows) / d(z) [SI per posterior sd], shape (rows, parameters), at
     the fit, by central differences of :data:`SENSITIVITY_STEP` posterior sds along each
-    standardised parameter ((u, theta) = (u0, theta0) + root z). Each run's zero removed
-    as in :func:`predictive`. Raises where the model has no solution."""
+    standardised parameter ((u, theta) = (u0, theta0) + root z), for each of ``quantities``
+    (default the kind's outputs). Each run's zero removed as in :func:`predictive`. Raises
+    where the model has no solution."""
     u0, root = h.u(), covariance_root(h)
     p, k = u0.size, h.effect_values.size
     cols: dict = {}
@@ -154,7 +166,7 @@ def sensitivity(kind: str, sample, rig, frames, h: Hypothesis) -> dict:
             z[m] = sgn * SENSITIVITY_STEP
             x = root @ z
             s, r, mods = h.at(u0 + x[:p], h.effect_values + x[p:], sample, rig, kind)
-            ys.append(_stack(kind, run_outputs(kind, s, r, mods, frames), True))
+            ys.append(_stack(kind, run_outputs(kind, s, r, mods, frames, quantities), True, quantities))
         for q in ys[0]:
             cols.setdefault(q, []).append((ys[0][q] - ys[1][q]) / (2.0 * SENSITIVITY_STEP))
     return {q: np.array(c).T for q, c in cols.items()}

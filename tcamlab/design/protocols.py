@@ -2,7 +2,9 @@
 
 The menus belong to the kinds (``design_menu`` beside each kind's ``protocol`` in
 :mod:`tcamlab.kinds.static` and :mod:`tcamlab.kinds.dynamic`); so does the reading of a
-``[protocol]`` table into runs (``protocol_runs``, which the virtual rig uses too).
+``[protocol]`` table into runs (``protocol_runs``, which the virtual rig uses too) and into the
+predictions its ``channels`` add to the kind's outputs (``protocol_channels``, with each added
+chain's sd in ``channel_sd``; a kind without them logs its outputs only).
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ __all__ = [
     "protocol_frames",
     "model_inputs",
     "cost_minutes",
+    "protocol_quantities",
+    "channel_noise",
     "RUN_SETUP_S",
 ]
 
@@ -61,6 +65,32 @@ def menu(kind: str, sample, rig) -> list[Protocol]:
             "kinds with a menu: static, dynamic, sensing, curvature, selfsensing",
         )
     return [Protocol(name, table) for name, table in make(sample, rig)]
+
+
+def protocol_quantities(kind: str, table: dict) -> tuple[str, ...]:
+    """The predictions a protocol logs: the kind's outputs, then those its ``channels`` add (the
+    kind's ``protocol_channels``: a voltage-step run's ``current`` and ``temperature``); the
+    outputs alone for a kind without it or a table without ``channels``."""
+    outputs = tuple(get_kind(kind).outputs)
+    reader = getattr(kind_module(kind), "protocol_channels", None)
+    if reader is None or "channels" not in table:
+        return outputs
+    added = [q for q in reader(list(table["channels"])) if q not in outputs]
+    return outputs + tuple(dict.fromkeys(added))
+
+
+def channel_noise(kind: str, quantities, noise: dict) -> dict[str, float]:
+    """``noise`` [SI] with the sd of each of ``quantities`` it lacks: the chain the protocol adds
+    (the kind's ``channel_sd``, the virtual rig's instrument at its stated noise). A quantity
+    the diagnosis scored keeps its noise floor."""
+    missing = [q for q in quantities if q not in noise]
+    if not missing:
+        return dict(noise)
+    sd = getattr(kind_module(kind), "channel_sd", lambda: {})()
+    unknown = [q for q in missing if q not in sd]
+    if unknown:
+        raise ConfigError(f"design: no noise floor or instrument sd for {unknown[0]!r} on the {kind} rig")
+    return {**noise, **{q: float(sd[q]) for q in missing}}
 
 
 def protocol_frames(kind: str, rig, table: dict, seed: int = 0) -> list[pd.DataFrame]:

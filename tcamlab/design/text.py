@@ -4,21 +4,28 @@ from __future__ import annotations
 
 import math
 
+from tcamlab.kinds import get_kind
 from tcamlab.units import display
 
 __all__ = ["design_lines"]
 
 
-def _diff(c) -> str:
-    """Largest predicted difference of the hardest pair, in display units."""
+def _diff(c, kind: str) -> str:
+    """Largest predicted difference of the hardest pair, in display units (a channel the
+    protocol adds beyond the kind's outputs to 3 significant figures)."""
     if not c.pairs:
         return "-"
     pair = min(c.pairs, key=c.pairs.get)
+    outputs = get_kind(kind).outputs
     parts = []
     for q, v in c.max_difference[pair].items():
         unit, fac = display(q)
-        parts.append(f"{q} {v * fac:.3f} {unit}")
+        parts.append(f"{q} {v * fac:{'.3f' if q in outputs else '.3g'}} {unit}")
     return ", ".join(parts)
+
+
+def _per_hour(x: float) -> str:
+    return f"{x:7.2f}" if abs(x) < 1e4 else f"{x:7.3g}"
 
 
 def _num(x: float) -> str:
@@ -55,7 +62,7 @@ def design_lines(result) -> list[str]:
         lines.append(
             f"{mark}{c.name:41s} {_num(c.separation_refit):>8s} {_num(c.beyond_repeat):>8s} {_at_fit(c, result.out_of_reach):>8s} "
             f"{_num(c.separation):>8s} "
-            f"{c.runs:4d} {c.minutes:6.0f} {c.per_hour:7.2f}  {_diff(c)}"
+            f"{c.runs:4d} {c.minutes:6.0f} {_per_hour(c.per_hour)}  {_diff(c, result.kind)}"
         )
     return lines
 

@@ -260,11 +260,11 @@ def score_folds(problem: Problem, baseline: BaselineFit, n_boot: int, seed: int)
         for i, m in held:
             zb = problem.norm_resid(i, baseline.mods, spring[k], m)
             before[k] += np.sum(zb**2)
-            n[k] += zb.size
+            n[k] += problem.n_entries(i, m)
             nm = int(m.sum())
             for j, q in enumerate(problem.quantities):
                 before_q[k, j] += np.sum((zb[j * nm : (j + 1) * nm] * problem.sigma[q]) ** 2)
-                n_q[k, j] += nm
+                n_q[k, j] += nm if problem.logs(i, q) else 0
     details = [
         {
             "held_out": [

@@ -117,7 +117,7 @@ def between_run_spread(problem: Problem, base_res) -> dict:
         if np.max(np.abs(X - X.mean(axis=0))) > 0.02 * span:
             return {"available": False, "reason": f"runs do not share the {c} input"}
     out = {"available": True}
-    for q in problem.quantities:
+    for q in (q for q in problem.quantities if all(problem.logs(i, q) for i in range(len(frames)))):
         unit, fac = display(q)
         # spread of the residuals (the model removes the input dependence)
         R = np.vstack([base_res[i][q] for i in range(len(frames))])
@@ -214,19 +214,20 @@ def _quantity_noise(
     problem: Problem, q: str, per_run: list, spread: dict, residuals
 ) -> tuple[float, float, str]:
     """(sigma [SI], dof, method) of one quantity; records in ``spread`` whether the runs agree."""
-    n_runs = len(problem.frames)
-    vals = np.array([v for v in per_run if np.isfinite(v) and v > 0])
+    runs = [i for i in range(len(problem.frames)) if problem.logs(i, q)]
+    n_runs = len(runs)
+    vals = np.array([per_run[i] for i in runs if np.isfinite(per_run[i]) and per_run[i] > 0])
     if vals.size == 0:
-        resid = np.concatenate([r[q] for r in residuals])
+        resid = np.concatenate([residuals[i][q] for i in runs])
         vals = np.array([max(float(np.std(resid)), 1e-300)])
     sigma = float(np.median(vals))
     dof = (
         SECOND_DIFF_EFFICIENCY
-        * sum(max(len(d) - 2, 0) for d in problem.frames)
+        * sum(max(len(problem.frames[i]) - 2, 0) for i in runs)
         * (MEDIAN_EFFICIENCY if n_runs >= 3 else 1.0)
     )
     method = "second difference"
-    if spread.get("available") and vals.size == n_runs:
+    if spread.get("available") and q in spread and vals.size == n_runs:
         between_var = (spread[q]["sd"] / display(q)[1]) ** 2
         pooled = pool_noise_estimates(np.asarray(per_run) ** 2, between_var, len(problem.frames[0]), dof)
         spread[q]["consistent"] = pooled is not None
@@ -275,8 +276,12 @@ def run_noise_sigma(
 def estimate_noise(problem: Problem, baseline: BaselineFit) -> NoiseFloor:
     """Each quantity's noise floor from the baseline residuals; sets ``problem.sigma``."""
     res = baseline.residuals
+    unlogged = (float("nan"), None, 0.0, 0.0)
     per = {
-        q: [run_noise_sigma(problem, i, q, r[q], baseline.spring) for i, r in enumerate(res)]
+        q: [
+            run_noise_sigma(problem, i, q, r[q], baseline.spring) if problem.logs(i, q) else unlogged
+            for i, r in enumerate(res)
+        ]
         for q in problem.quantities
     }
     spread = between_run_spread(problem, res)
@@ -287,10 +292,11 @@ def estimate_noise(problem: Problem, baseline: BaselineFit) -> NoiseFloor:
         steps = [st for _, st, _, _ in per[q] if st is not None]
         unit, fac = display(q)
         step = float(np.median(steps)) * fac if steps else None
-        hidden = float(np.median([h for _, _, h, _ in per[q]]))
+        logged = [per[q][i] for i in range(len(res)) if problem.logs(i, q)]
+        hidden = float(np.median([h for _, _, h, _ in logged]))
         if hidden >= 0.01:
             method += f" + {hidden:.0%} of the variance: the error of its {step:.3g} {unit} quantisation step"
-        slow = float(np.median([v for *_, v in per[q]]))
+        slow = float(np.median([v for *_, v in logged]))
         if slow >= 0.001:
             method += f" + {slow:.1%} of the variance: the noise left in a slower instrument's averaged input"
         by_q[q] = QuantityNoise(problem.sigma[q] * fac, unit, [v * fac for v in per_run], dof, method, step)
@@ -331,6 +337,9 @@ def run_effect_columns(problem: Problem, baseline: BaselineFit, i: int) -> np.nd
             continue
         parts = []
         for q in problem.quantities:
+            if not problem.logs(i, q):  # its residual is a constant zero
+                parts.append(np.zeros(len(problem.frames[i])))
+                continue
             g = (pred[q] - base[q]) * (rel / step)
             parts.append((g - np.mean(g) if q in problem.zeroed else g) / problem.sigma[q])
         cols.append(np.concatenate(parts))
@@ -367,11 +376,13 @@ def check_gap(
             for i in range(len(problem.frames))
         ]
     )
-    N = z_all.size
+    runs = range(len(problem.frames))
+    N = sum(problem.n_entries(i) for i in runs)
     # each profiled zero takes one degree of freedom: the RMSE is over N - R, so its
     # no-gap value is about 1 and F(N_q - R_q, nu) per quantity is its distribution
-    n_rows = sum(len(d) for d in problem.frames)
-    per_q = [n_rows - (len(problem.frames) if q in problem.zeroed else 0) for q in Q]
+    per_q = [
+        sum(len(problem.frames[i]) - (q in problem.zeroed) for i in runs if problem.logs(i, q)) for q in Q
+    ]
     dof_points = sum(per_q)
     rms = float(np.sqrt(np.sum(z_all**2) / dof_points))
     dofs = [noise.by_quantity[q].dof for q in Q]
@@ -398,20 +409,21 @@ def _baseline_summary(problem: Problem, baseline: BaselineFit, z_all: np.ndarray
     by_q = {}
     for q in problem.quantities:
         unit, fac = display(q)
-        r = np.concatenate([res[q] for res in baseline.residuals])
+        r = np.concatenate([res[q] for i, res in enumerate(baseline.residuals) if problem.logs(i, q)])
         by_q[q] = {
             "rmse": float(np.sqrt(np.mean(r**2))) * fac,
             "bias": float(np.mean(r)) * fac,
             "rmse_over_noise": float(np.sqrt(np.mean(r**2)) / problem.sigma[q]),
             "unit": unit,
         }
-    sse, n, k = float(np.sum(z_all**2)), z_all.size, baseline.n_params
+    sse, k = float(np.sum(z_all**2)), baseline.n_params
+    n = sum(problem.n_entries(i) for i in range(len(problem.frames)))
     if problem.rig.spring_constant is not None:
         source = "rig"
     else:
         source = "identified on training runs" if problem.k.needs_training else None
     return Baseline(
-        rmse_over_noise=float(np.sqrt(np.mean(z_all**2))),
+        rmse_over_noise=float(np.sqrt(sse / n)),
         n=int(n),
         by_quantity=by_q,
         aic=sse + 2 * k,

@@ -111,6 +111,9 @@ class Problem:
         # temperature) is scored too, as calibration scores it
         self.quantities = self._scored_quantities()
         self.sigma = {q: 1.0 for q in self.quantities}
+        # a column only some runs log (the current, on the runs a design added) is scored on
+        # those runs; elsewhere its residual is a constant zero the fits cannot move
+        self.logged = [frozenset(q for q in self.quantities if q in d) for d in self.frames]
         # A run's logged zero (the laser's first reading, the load cell's tare) carries the
         # instrument's noise: it is a per-run nuisance, profiled out as in calibration.
         self.zeroed = tuple(q for q in self.quantities if q in self.k.nuisance_zeros)
@@ -132,7 +135,22 @@ class Problem:
                 )
         except MODEL_ERRORS:
             return self.quantities
-        return scored_quantities(self.k, pred, self.frames)
+        return scored_quantities(self.k, pred, self.frames, every=False)
+
+    def logs(self, i: int, q: str) -> bool:
+        """Whether run i logs quantity q (every run logs the kind's outputs)."""
+        return q in self.logged[i]
+
+    def entries(self, i: int, mask=None) -> np.ndarray:
+        """Which entries of run i's stacked residuals (:meth:`scaled`) are measured: False
+        where the run does not log the quantity (those entries are zero whatever the model)."""
+        n = len(self.frames[i]) if mask is None else int(np.count_nonzero(mask))
+        return np.repeat([self.logs(i, q) for q in self.quantities], n)
+
+    def n_entries(self, i: int, mask=None) -> int:
+        """Measured entries of run i's stacked residuals on the rows in ``mask``."""
+        n = len(self.frames[i]) if mask is None else int(np.count_nonzero(mask))
+        return n * len(self.logged[i])
 
     # options -------------------------------------------------------------
     def _run_options(self, i: int) -> dict:
@@ -210,6 +228,9 @@ class Problem:
         """
         out = {}
         for q in self.quantities:
+            if not self.logs(i, q):
+                out[q] = np.zeros(len(self.frames[i]))
+                continue
             r = self.measured(i, q) - pred[q]
             if q in self.zeroed:
                 r = r - float(np.mean(r if mask is None else r[mask]))
@@ -218,7 +239,7 @@ class Problem:
 
     def n_zeros(self, rows) -> int:
         """Nuisance zeros profiled out on the given (run, mask) pairs."""
-        return len(self.zeroed) * len(rows)
+        return sum(self.logs(i, q) for i, _ in rows for q in self.zeroed)
 
     def scaled(self, i: int, pred: dict, mask=None) -> np.ndarray:
         """Normalised residuals of run i's rows in ``mask`` (quantities stacked)."""

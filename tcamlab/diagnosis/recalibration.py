@@ -201,7 +201,9 @@ class Recalibration:
                     edges[i].update((np.flatnonzero(np.diff(m.astype(np.int8))) + 1).tolist())
             held_inputs = [c for c in problem.k.inputs if c != "time"]
             for i, d in enumerate(frames):
-                if not reduction.enabled(len(d)):
+                # a run without one of the scored columns is scored row by row (its moments
+                # would need the missing column's zeros in their layout)
+                if not reduction.enabled(len(d)) or len(problem.logged[i]) < len(problem.quantities):
                     continue
                 stated = self.cal.predict_run(0, i, self.cal.u0, Mods())
                 out[i] = reduction.checked_reduction(
@@ -379,7 +381,7 @@ class Recalibration:
             if np.any(with_term == FAIL_RESIDUAL) or np.any(without == FAIL_RESIDUAL):
                 return float("nan")
             d2 += float(np.sum((with_term - without) ** 2))
-            n += with_term.size
+            n += self.problem.n_entries(i)
         return math.sqrt(d2 / max(n, 1))
 
     def prior_chi2(self, u: np.ndarray) -> float:
@@ -450,20 +452,28 @@ class Recalibration:
             mods = effect.mods(x[p:] * scales) if k else Mods()
             sizes = [resid(i, x[:p], mods, m).size for i, m in rows]
             r = self._every_row(rows, x[:p], mods, r, defined_on)
+        n = self._measured(rows, r.size)
         if best is None:
-            return JointFit(x[:p], x[p:], x[p:] * scales, float(r @ r), r.size, None, False)
+            return JointFit(x[:p], x[p:], x[p:] * scales, float(r @ r), n, None, False)
         return JointFit(
             best.x[:p],
             best.x[p:],
             best.x[p:] * scales,
             float(r @ r),
-            int(r.size),
+            n,
             best.jac,
             bool(best.success),
             fun=best.fun,
             box=(lo, hi),
             sizes=sizes,
         )
+
+    def _measured(self, rows, size: int) -> int:
+        """Of ``size`` data residuals laid out over ``rows``, those of a column the run logs
+        (the others are constant zeros: :meth:`Problem.resid`)."""
+        total = sum(self._n_rows(i, m) * len(self.problem.quantities) for i, m in rows)
+        logged = sum(self.problem.n_entries(i, m) for i, m in rows)
+        return int(size) if logged == total else int(round(size * logged / max(total, 1)))
 
     def _n_rows(self, i: int, mask) -> int:
         return len(self.problem.frames[i]) if mask is None else int(np.count_nonzero(mask))

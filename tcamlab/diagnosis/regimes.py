@@ -61,7 +61,7 @@ def label_rows(problem: Problem, baseline: BaselineFit) -> Labels:
     labels: dict[str, list] = {}
     zs, qlab = [], []
     for i, d in enumerate(problem.frames):
-        for q in problem.quantities:
+        for q in (q for q in problem.quantities if problem.logs(i, q)):
             zs.append(baseline.residuals[i][q] / problem.sigma[q])
             qlab.append(np.full(len(d), q, dtype=object))
             for g, v in problem.k.regimes(d, q, problem.frames).items():
@@ -115,7 +115,7 @@ def run_statistics(problem: Problem, baseline: BaselineFit, noise, names) -> lis
     out = []
     for i, d in enumerate(problem.frames):
         by_q = {}
-        for q in problem.quantities:
+        for q in (q for q in problem.quantities if problem.logs(i, q)):
             unit, fac = display(q)
             r = baseline.residuals[i][q]
             by_q[q] = {
@@ -134,7 +134,7 @@ def run_statistics(problem: Problem, baseline: BaselineFit, noise, names) -> lis
 def _with_zero(problem: Problem, i: int, pred: dict) -> dict:
     """Predictions plus the run's profiled zero: measured - residual [SI]."""
     res = problem.resid(i, pred)
-    return {q: problem.measured(i, q) - res[q] for q in problem.quantities}
+    return {q: problem.measured(i, q) - res[q] for q in problem.quantities if problem.logs(i, q)}
 
 
 def plot_series(problem: Problem, baseline: BaselineFit, labels: Labels, best) -> dict:
@@ -157,7 +157,7 @@ def plot_series(problem: Problem, baseline: BaselineFit, labels: Labels, best) -
                 best_pred = _with_zero(problem, i, best(i))
             except MODEL_ERRORS:
                 best_pred = None
-        measured = {q: problem.measured(i, q) for q in problem.quantities}
+        measured = {q: problem.measured(i, q) for q in problem.quantities if problem.logs(i, q)}
         runs.append(
             {
                 "x": x,

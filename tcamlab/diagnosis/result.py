@@ -68,7 +68,8 @@ class QuantityNoise(Record):
     """That display unit."""
     per_run: list
     """Second-difference sd of each run, with the quantisation error it cannot see
-    (:func:`tcamlab.io.quantisation.unseen_variance`) [display unit]."""
+    (:func:`tcamlab.io.quantisation.unseen_variance`) [display unit]; NaN for a run that
+    does not log the quantity."""
     dof: float
     """Effective degrees of freedom of ``sigma**2`` [-]."""
     method: str
@@ -83,7 +84,8 @@ class NoiseFloor(Record):
 
     quantities: list
     """The quantities scored (internal names): the kind's outputs, then every other column the
-    model predicts that all runs log (a voltage-step test's current)."""
+    model predicts that some run logs (a voltage-step test's current), each scored on the runs
+    that log it."""
     method: str
     """The estimator, in words."""
     by_quantity: dict

@@ -305,7 +305,7 @@ def no_section(result) -> None:
     return None
 
 
-def scored_quantities(kind: Kind, prediction: dict, frames) -> tuple[str, ...]:
+def scored_quantities(kind: Kind, prediction: dict, frames, every: bool = True) -> tuple[str, ...]:
     """The quantities a fit scores: the kind's outputs, then every other column the model predicts
     that every run logs (the voltage-step test's ``temperature``, ``current``, ``resistance``),
     in the prediction's order. An input is never one, even where the model passes it through.
@@ -317,11 +317,15 @@ def scored_quantities(kind: Kind, prediction: dict, frames) -> tuple[str, ...]:
         One run's prediction (its keys are what the model predicts).
     frames : sequence of DataFrame
         The runs' data, SI column names.
+    every : bool
+        True: a column every run logs; False: a column any run logs (each run is then scored on
+        the columns it has, :meth:`tcamlab.diagnosis.problem.Problem.logs`).
     """
+    has = all if every else any
     extra = [
         q
         for q in prediction
-        if q not in kind.outputs and q not in kind.inputs and all(q in d for d in frames)
+        if q not in kind.outputs and q not in kind.inputs and has(q in d for d in frames)
     ]
     return tuple(kind.outputs) + tuple(extra)
 

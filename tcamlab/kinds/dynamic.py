@@ -497,7 +497,10 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
 def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     """Candidate protocols of a voltage-step test [(name, ``[protocol]`` table)]: the thesis's
     step repeated, a second voltage (0.8 x, 1.2 x), a shorter (0.5 x) or longer (2 x) pulse,
-    a train of three pulses. Two runs per voltage."""
+    a train of three pulses; then the step repeated logging the current (:data:`EXTRA_CHANNELS`:
+    I = V / R(T) shows a resistance that changes with temperature, which the displacement
+    confuses with a heat loss that does), the same at a second voltage 0.8 x, and the step
+    repeated logging the temperature. Two runs per voltage; a channel adds no run."""
     v0, p0 = round(float(rig.voltage), 3), round(float(rig.pulse), 3)
     base = {
         "kind": "dynamic",
@@ -513,7 +516,22 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     menu.append(("shorter pulse 0.5x", {**base, "pulse_s": round(0.5 * p0, 3)}))
     menu.append(("longer pulse 2x", {**base, "pulse_s": round(2.0 * p0, 3)}))
     menu.append(("pulse train of 3", {**base, "pulses": 3, "period_s": round(2.0 * p0 + 2.0, 3)}))
-    return menu
+    return menu + _logging_menu(base, v0)
+
+
+def _logging_menu(base: dict, v0: float) -> list[tuple[str, dict]]:
+    """The protocols of :func:`design_menu` that log a channel beyond the displacement
+    (:data:`EXTRA_CHANNELS`): the same runs, the same rig time."""
+    current = {**base, "channels": [*base["channels"], "current_A"]}
+    second = [v0, round(SECOND_VOLTAGE_FACTOR * v0, 3)]
+    return [
+        ("log the current", current),
+        (
+            f"log the current, second voltage {SECOND_VOLTAGE_FACTOR:g}x",
+            {**current, "voltages_V": second, "runs": 4},
+        ),
+        ("log the temperature", {**base, "channels": [*base["channels"], "temperature_C"]}),
+    ]
 
 
 def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_MODS) -> pd.DataFrame:

@@ -81,8 +81,11 @@ def _residuals(result, q: str, which: str) -> list[np.ndarray] | None:
     out = []
     for run in result._series.get("runs", []):
         pred = run.get(which)
-        if pred is None or q not in pred:
+        if pred is None:
             return None
+        if q not in run["measured"]:  # a run that does not log it: no points, same x
+            out.append(np.full(len(run["x"]), np.nan))
+            continue
         out.append((np.asarray(run["measured"][q], float) - np.asarray(pred[q], float)) * fac)
     return out
 
