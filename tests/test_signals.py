@@ -162,3 +162,25 @@ def test_block_means_keep_a_constant_misfits_sum_of_squares_and_the_noises_varia
     noise = np.random.default_rng(3).normal(0.0, 1.0, 64_000)
     assert np.var(signals.block_means(noise, 1, 16)) == pytest.approx(1.0, abs=0.03)
     assert signals.n_blocks(6, 4) == 2 and signals.n_blocks(6, 1) == 6
+
+
+def test_step_rows_marks_the_rows_either_side_of_a_commanded_step_only():
+    v = np.r_[np.zeros(50), np.full(100, 4.0), np.zeros(50)]
+    rows = signals.step_rows([v])
+    assert np.flatnonzero(rows).tolist() == [49, 50, 149, 150]
+    # a column that moves on most rows (an oven's reading) is not piecewise constant
+    ramp = np.linspace(20.0, 80.0, 200) + np.random.default_rng(0).normal(0, 0.1, 200)
+    assert not signals.step_rows([ramp]).any()
+
+
+def test_second_differences_across_a_step_are_left_out_of_the_noise():
+    """White noise of sd 1 plus a residual that jumps by 30 at two steps (what a model misses of a
+    step response): taken in, the jumps read as noise; left out, the sd is the noise's."""
+    rng = np.random.default_rng(3)
+    v = np.r_[np.zeros(300), np.full(400, 4.0), np.zeros(300)]
+    r = rng.normal(0.0, 1.0, v.size) + np.where(v > 0, 30.0, 0.0)
+    assert signals.second_difference_sigma(r) > 1.2
+    assert signals.second_difference_sigma(r, signals.step_rows([v])) == pytest.approx(1.0, rel=0.08)
+    # a mask that leaves nothing out, or does not fit, changes nothing
+    assert signals.second_difference_sigma(r, np.zeros(v.size, bool)) == signals.second_difference_sigma(r)
+    assert signals.second_difference_sigma(r, np.ones(3, bool)) == signals.second_difference_sigma(r)

@@ -261,7 +261,7 @@ def run_noise_sigma(
     differences miss: the quantisation error of a slowly moving reading on a coarse converter
     (:mod:`tcamlab.io.quantisation`), then the noise left in a slower instrument's averaged
     input (:func:`slow_input_variance`)) of quantity ``q`` in run ``i``."""
-    seen = second_difference_sigma(residual)
+    seen = second_difference_sigma(residual, problem.step_rows(i))
     if not np.isfinite(seen):
         return seen, None, 0.0, 0.0
     measured = problem.measured(i, q)

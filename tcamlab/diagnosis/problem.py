@@ -21,6 +21,7 @@ from scipy import optimize
 from tcamlab.effects import Effect, Mods
 from tcamlab.errors import ConfigError, TcamlabError
 from tcamlab.kinds import get_kind, predict, run_scatter, scored_quantities
+from tcamlab.signals import step_rows
 
 __all__ = [
     "serial_kernels",
@@ -140,6 +141,14 @@ class Problem:
     def logs(self, i: int, q: str) -> bool:
         """Whether run i logs quantity q (every run logs the kind's outputs)."""
         return q in self.logged[i]
+
+    def step_rows(self, i: int) -> np.ndarray:
+        """Rows of run i next to a step of a commanded input that is piecewise constant (the
+        voltage of a voltage-step test; :func:`tcamlab.signals.step_rows`), which the noise
+        floor leaves out. A measured input's changes are its noise and quantisation."""
+        d = self.frames[i]
+        commanded = [c for c in self.k.inputs if c != "time" and c not in self.k.noisy_inputs]
+        return step_rows([d[c] for c in commanded if c in d])
 
     def entries(self, i: int, mask=None) -> np.ndarray:
         """Which entries of run i's stacked residuals (:meth:`scaled`) are measured: False
