@@ -46,3 +46,37 @@ def lab(tmp_path):
     )
     shutil.copytree(ROOT / "raw", tmp_path / "raw")
     return tmp_path
+
+
+@pytest.fixture
+def log_the_current():
+    """A function rewriting a simulation's runs with a logged current (below)."""
+    return _log_the_current
+
+
+def _log_the_current(sim, seed, runs=None):
+    """The simulated runs (those indexed in ``runs``, default all) rewritten with a current_A
+    column: the model's current under the rig's true effects plus 0.5 mA of white noise
+    (SYNTHETIC, numpy seed ``seed``), as a sense resistor beside the laser would log it. The
+    rig's comment lines are kept."""
+    from io import StringIO
+
+    import pandas as pd
+
+    from tcamlab.config import load_experiment
+    from tcamlab.effects import Mods
+    from tcamlab.kinds import predict
+
+    exp = load_experiment(sim.experiment_path)
+    mods = Mods(**sim.truth["mods"])
+    rng = np.random.default_rng(seed)
+    for j, path in enumerate(sim.run_paths):
+        if runs is not None and j not in runs:
+            continue
+        lines = path.read_text().splitlines(keepends=True)
+        raw = pd.read_csv(StringIO("".join(x for x in lines if not x.startswith("#"))))
+        frame = pd.DataFrame({"time": raw["time_s"], "voltage": raw["voltage_V"]})
+        current = predict("dynamic", exp.sample, exp.rig, frame, mods)["current"]
+        raw.insert(2, "current_A", np.round(current + rng.normal(0.0, 0.5e-3, current.size), 5))
+        path.write_text("".join(x for x in lines if x.startswith("#")) + raw.to_csv(index=False))
+    return load_experiment(sim.experiment_path)

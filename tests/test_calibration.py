@@ -590,3 +590,33 @@ def test_profiling_random_effects_leaves_the_marginal_chi_square():
     assert z.shape == r.shape
     assert z @ z == pytest.approx(r @ np.linalg.solve(np.eye(20) + g @ g.T, r), rel=1e-10)
     assert np.allclose(profile_random_effects(r, *random_effect_basis(np.zeros((20, 1)))), r)
+
+
+def test_a_current_only_one_run_logs_is_calibrated_on_that_run(tmp_path, log_the_current):
+    """Runs a design added may log the current the first runs lack: calibrate scores it on
+    the run that has it, and that run's current pins R and beta of R(T) for every run
+    (SYNTHETIC: the voltage-step rig, seed 1000, R(T) at 3x, beta 2.96e-3 /K; the current of
+    the last run is the model's under it plus 0.5 mA of noise). Measured: beta 2.78e-3
+    [1.90e-3, 3.76e-3], R 40.00 ohm; the current from 9.6 to 0.52 noise floors."""
+    sim = simulate(
+        "dynamic",
+        TEMPLATES / "dynamic.toml",
+        seed=1000,
+        out_dir=tmp_path,
+        effects={"resistance-temperature": 3.0},
+    )
+    n = len(sim.run_paths)
+    exp = log_the_current(sim, 1000, runs={n - 1})
+    res = calibrate([exp])
+    fit = {q.quantity: q for q in res.fit}
+    rows = res.curves[-1].measured["current"].size
+    assert fit["displacement"].n == n * rows and fit["current"].n == rows
+    assert fit["displacement"].rmse_over_sigma_calibrated < 1.2
+    assert fit["current"].rmse_over_sigma_stated > 5.0 > 1.2 > fit["current"].rmse_over_sigma_calibrated
+    est = {p.name: p for p in res.parameters}
+    beta = sim.truth["mods"]["resistance_tc"]
+    assert est["heater_tcr"].profile_95[0] < beta < est["heater_tcr"].profile_95[1]
+    assert est["resistance"].identification == "pinned"
+    assert [set(c.measured) for c in res.curves] == [{"displacement"}] * (n - 1) + [
+        {"displacement", "current"}
+    ]

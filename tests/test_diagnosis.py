@@ -368,33 +368,6 @@ def test_timing_five_runs(tmp_path, kind):
     sys.stderr.write(f"\ndiagnose {kind} (5 runs): {time.perf_counter() - t0:.1f} s\n")
 
 
-def _log_the_current(sim, seed, runs=None):
-    """The simulated runs (those indexed in ``runs``, default all) rewritten with a current_A
-    column: the model's current under the rig's true effects plus 0.5 mA of white noise
-    (SYNTHETIC, numpy seed ``seed``), as a sense resistor beside the laser would log it. The
-    rig's comment lines are kept."""
-    from io import StringIO
-
-    import pandas as pd
-
-    from tcamlab.effects import Mods
-    from tcamlab.kinds import predict
-
-    exp = load_experiment(sim.experiment_path)
-    mods = Mods(**sim.truth["mods"])
-    rng = np.random.default_rng(seed)
-    for j, path in enumerate(sim.run_paths):
-        if runs is not None and j not in runs:
-            continue
-        lines = path.read_text().splitlines(keepends=True)
-        raw = pd.read_csv(StringIO("".join(x for x in lines if not x.startswith("#"))))
-        frame = pd.DataFrame({"time": raw["time_s"], "voltage": raw["voltage_V"]})
-        current = predict("dynamic", exp.sample, exp.rig, frame, mods)["current"]
-        raw.insert(2, "current_A", np.round(current + rng.normal(0.0, 0.5e-3, current.size), 5))
-        path.write_text("".join(x for x in lines if x.startswith("#")) + raw.to_csv(index=False))
-    return load_experiment(sim.experiment_path)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "effects, seed, verdict",
@@ -405,7 +378,7 @@ def _log_the_current(sim, seed, runs=None):
     ],
 )
 def test_a_current_logged_in_every_run_is_scored_and_tells_heating_effects_apart(
-    tmp_path, effects, seed, verdict
+    tmp_path, log_the_current, effects, seed, verdict
 ):
     """The voltage-step test at one voltage: from the displacement alone R(T) and a convective
     loss are aliased (both add a term in V^2 dT to the heat balance; measured: `aliased` on the
@@ -416,7 +389,7 @@ def test_a_current_logged_in_every_run_is_scored_and_tells_heating_effects_apart
         plain = diagnose(load_experiment(sim.experiment_path), n_boot=300)
         assert plain.verdict == "aliased"
         assert {plain.effect, *plain.aliased_with} == {"resistance-temperature", "convective-heat-loss"}
-    res = diagnose(_log_the_current(sim, seed), n_boot=300)
+    res = diagnose(log_the_current(sim, seed), n_boot=300)
     assert list(res.noise_floor.quantities) == ["displacement", "current"]
     # 0.5 mA of noise; 0.91 mA on the first case while the second differences took the thesis
     # model's jumps in the current residual at the pulse's edges, 0.48 mA without them
@@ -435,14 +408,16 @@ def test_a_current_logged_in_every_run_is_scored_and_tells_heating_effects_apart
         ({}, 1002, None),
     ],
 )
-def test_a_current_only_the_last_run_logs_is_scored_on_that_run(tmp_path, effects, seed, verdict):
+def test_a_current_only_the_last_run_logs_is_scored_on_that_run(
+    tmp_path, log_the_current, effects, seed, verdict
+):
     """A design adds runs that log the current to runs that do not: the current is scored on
     the run that has it, the others are scored on the displacement alone. Measured on these
     cases (three runs, the current on the last): R(T) and the convective loss attributed (the
     displacement alone leaves them aliased), the null `none` at 1.005 noise floors."""
     sim = rig.simulate("dynamic", TEMPLATES / "dynamic.toml", seed=seed, out_dir=tmp_path, effects=effects)
     n = len(sim.run_paths)
-    res = diagnose(_log_the_current(sim, seed, runs={n - 1}), n_boot=300)
+    res = diagnose(log_the_current(sim, seed, runs={n - 1}), n_boot=300)
     assert list(res.noise_floor.quantities) == ["displacement", "current"]
     per_run = res.noise_floor.by_quantity["current"].per_run
     assert all(np.isnan(v) for v in per_run[:-1]) and per_run[-1] > 0
@@ -458,7 +433,7 @@ def test_a_current_only_the_last_run_logs_is_scored_on_that_run(tmp_path, effect
 
 
 @pytest.mark.slow
-def test_diagnose_ignore_scores_the_displacement_alone(tmp_path):
+def test_diagnose_ignore_scores_the_displacement_alone(tmp_path, log_the_current):
     """``diagnose --ignore current_A`` on runs that log the current: the current is not scored,
     the JSON says so, and the verdict is the displacement's (aliased, as without the column)."""
     from typer.testing import CliRunner
@@ -472,7 +447,7 @@ def test_diagnose_ignore_scores_the_displacement_alone(tmp_path):
         out_dir=tmp_path,
         effects={"resistance-temperature": 3.0},
     )
-    _log_the_current(sim, 1000)
+    log_the_current(sim, 1000)
     before = sim.run_paths[0].read_bytes()
     res = CliRunner().invoke(
         app, ["diagnose", str(sim.experiment_path), "--ignore", "current_A", "--json", "--seed", "0"]

@@ -182,7 +182,7 @@ def _curves(problem, u: np.ndarray) -> list[RunCurves]:
         kind = problem.kinds[i]
         for j, run in enumerate(problem.runs[i]):
             before, after = problem.predict_run(i, j, problem.stated_u0), problem.predict_run(i, j, u)
-            qs = problem.quantities[i]
+            qs = problem.run_quantities(i, j)
             measured = {q: problem.measured(i, j, q) for q in qs}
             zero = {q: float(np.mean(measured[q] - after[q])) for q in qs if problem.is_zeroed(i, q)}
             cols = [c for c in dict.fromkeys((kind.x_column, "time")) if c in run.data]

@@ -242,24 +242,26 @@ class CalibrationProblem:
         self._cache = [OrderedDict() for _ in self.experiments]
         self.quantities = [self._quantities(i) for i in range(len(self.experiments))]
         self.sigma = self._noise()
-        self.size = sum(len(r.data) * len(q) for rs, q in zip(self.runs, self.quantities) for r in rs)
+        self.size = sum(
+            len(r.data) * len(self.run_quantities(i, j))
+            for i, rs in enumerate(self.runs)
+            for j, r in enumerate(rs)
+        )
         self.reductions, self._active = {}, False
         self.run_effects = self._run_effects()
         # a long run is fitted on its blocks' moments (tcamlab.reduction); see full_rows()
         self.reductions = self._reductions()
         self._active = any(r is not None for r in self.reductions.values())
         self.n_reduced = sum(
-            len(self.runs[i][j].data) * len(self.quantities[i])
-            if red is None
-            else red.size * len(self.quantities[i])
+            (len(self.runs[i][j].data) if red is None else red.size) * len(self.run_quantities(i, j))
             for (i, j), red in self.reductions.items()
         )
         # a kind read from noisy inputs is fitted on block means (Kind.fit_block); see full_rows()
         self._blocking = not self._active and any(k.fit_block > 1 for k in self.kinds)
         self.n_blocked = sum(
-            n_blocks(len(r.data), self.kinds[i].fit_block) * len(q)
-            for i, (rs, q) in enumerate(zip(self.runs, self.quantities))
-            for r in rs
+            n_blocks(len(r.data), self.kinds[i].fit_block) * len(self.run_quantities(i, j))
+            for i, rs in enumerate(self.runs)
+            for j, r in enumerate(rs)
         )
 
     # construction ----------------------------------------------------------------------
@@ -296,7 +298,7 @@ class CalibrationProblem:
         several = len(self.experiments) > 1
         for i, kind in enumerate(self.kinds):
             for p in kind.calibration:
-                if p.needs and not all(any(c in r.data for c in p.needs) for r in self.runs[i]):
+                if p.needs and not any(c in r.data for c in p.needs for r in self.runs[i]):
                     continue  # e.g. dynamic R without a logged current or resistance
                 if p.effect is not None and not self.effect_params:
                     continue  # the diagnosis's recalibration: the effect is a candidate
@@ -323,10 +325,17 @@ class CalibrationProblem:
         return [s for s in specs if s.name in names]
 
     def _quantities(self, i: int) -> tuple[str, ...]:
-        """The kind's outputs plus every other predicted column logged in all runs (temperature)."""
+        """The kind's outputs plus every other predicted column a run logs (temperature,
+        current), each scored on the runs that log it (:meth:`run_quantities`)."""
         return scored_quantities(
-            self.kinds[i], self.predict_run(i, 0, self.u0), [r.data for r in self.runs[i]]
+            self.kinds[i], self.predict_run(i, 0, self.u0), [r.data for r in self.runs[i]], every=False
         )
+
+    def run_quantities(self, i: int, j: int) -> tuple[str, ...]:
+        """The quantities scored on run ``j`` of experiment ``i``: those of :attr:`quantities`
+        it logs (a run a design added may log the current the others lack)."""
+        data = self.runs[i][j].data
+        return tuple(q for q in self.quantities[i] if q in data)
 
     def _noise(self) -> dict[tuple[int, str], float]:
         """Noise sd per (experiment, quantity) [SI], the RMS of :attr:`row_sigma` over the rows;
@@ -337,14 +346,15 @@ class CalibrationProblem:
             preds = [self.predict_run(i, j, self.u0) for j in range(len(self.runs[i]))]
             slopes = [self._input_slopes(i, j, p) for j, p in enumerate(preds)]
             for q in qs:
-                resid = [self.measured(i, j, q) - p[q] for j, p in enumerate(preds)]
+                js = [j for j in range(len(preds)) if q in self.run_quantities(i, j)]
+                resid = [self.measured(i, j, q) - preds[j][q] for j in js]
                 self._check_finite(i, q, resid)
-                rows = self.row_noise(resid, [{x: g[x][q] for x in g} for g in slopes])
+                rows = self.row_noise(resid, [{x: slopes[j][x][q] for x in slopes[j]} for j in js])
                 if rows is None:
                     raise InputError(
                         f"{self.experiments[i].path}: the noise of {q} cannot be estimated (a constant log?)"
                     )
-                for j, sd in enumerate(rows):
+                for j, sd in zip(js, rows):
                     self.row_sigma[(i, j, q)] = sd
                 out[(i, q)] = float(np.sqrt(np.mean(np.concatenate(rows) ** 2)))
         return out
@@ -437,10 +447,10 @@ class CalibrationProblem:
         zeros are projected out (a flat-prior zero absorbs any constant part first).
         """
         out, start = [], 0
-        for i, qs in enumerate(self.quantities):
+        for i in range(len(self.experiments)):
             scatter = run_scatter(self.experiments[i])
             for j, run in enumerate(self.runs[i]):
-                n = len(run.data) * len(qs)
+                n = len(run.data) * len(self.run_quantities(i, j))
                 g = self._effect_columns(i, j, scatter) if scatter else np.zeros((n, 0))
                 if g.shape[1]:
                     out.append((slice(start, start + n), *random_effect_basis(g)))
@@ -466,14 +476,14 @@ class CalibrationProblem:
             if pred is None:
                 continue  # no effect column where the model has no solution either side
             parts = []
-            for q in self.quantities[i]:
+            for q in self.run_quantities(i, j):
                 g = (pred[q] - base[q]) * (rel / step)
                 sd = self.row_sigma[(i, j, q)]
                 if self.is_zeroed(i, q):
                     g = g - self.zero_of(i, j, q, g)
                 parts.append(g / sd)
             cols.append(np.concatenate(parts))
-        n = sum(len(self.runs[i][j].data) for _ in self.quantities[i])
+        n = len(self.runs[i][j].data) * len(self.run_quantities(i, j))
         return np.column_stack(cols) if cols else np.zeros((n, 0))
 
     def _reductions(self) -> dict:
@@ -481,10 +491,10 @@ class CalibrationProblem:
         of at least :data:`~tcamlab.reduction.MIN_ROWS` rows, none where a run has a random
         effect (its columns are laid out row by row)."""
         out = {}
-        for i, qs in enumerate(self.quantities):
+        for i in range(len(self.experiments)):
             held = [c for c in self.kinds[i].inputs if c != "time"]
             for j, run in enumerate(self.runs[i]):
-                red = None
+                red, qs = None, self.run_quantities(i, j)
                 if self._reduce and reduction.enabled(len(run.data)) and not self.run_effects:
                     stated = self.predict_run(i, j, self.u0)
                     red = reduction.checked_reduction(
@@ -602,11 +612,11 @@ class CalibrationProblem:
                 red = self._reduced(i, j)
                 if red is None:
                     pred = self.predict_run(i, j, u)
-                    out.extend((j, q, self.measured(i, j, q) - pred[q]) for q in self.quantities[i])
+                    out.extend((j, q, self.measured(i, j, q) - pred[q]) for q in self.run_quantities(i, j))
                     continue
                 pred = self.predict_run(i, j, u, frame=red.frame)
                 slopes = red.slopes(lambda f, j=j: self.predict_run(i, j, u, frame=f), pred)
-                for q in self.quantities[i]:
+                for q in self.run_quantities(i, j):
                     level, rest = red.residual(q, pred[q], slopes.get(q))
                     out.append((j, q, np.concatenate([level, rest])))
         except (TcamlabError, ArithmeticError, FloatingPointError, ZeroDivisionError, ValueError):
@@ -651,9 +661,9 @@ class CalibrationProblem:
     def zero_labels(self) -> list[tuple[int, int, str]]:
         return [
             (i, j, q)
-            for i, qs in enumerate(self.quantities)
+            for i in range(len(self.experiments))
             for j in range(len(self.runs[i]))
-            for q in qs
+            for q in self.run_quantities(i, j)
             if self.is_zeroed(i, q)
         ]
 

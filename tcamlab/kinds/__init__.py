@@ -93,9 +93,9 @@ class CalibrationParam:
     positive : bool
         Fitted as its logarithm (a Gaussian prior in log space, sd_log = sd / value).
     needs : tuple of str
-        Columns of which every run must log at least one for the parameter to be calibrated
-        (dynamic R: ``current`` or ``resistance``); without them it stays at its stated
-        value. Empty: always calibrated.
+        Columns of which some run must log at least one for the parameter to be calibrated
+        (dynamic R: ``current`` or ``resistance``; a shared parameter, so one run's reading
+        pins it for all); without them it stays at its stated value. Empty: always calibrated.
     zero_sd : float or None
         Prior sd [SI] when the stated value is 0 and the file states no sd (a relative
         default means nothing there; dynamic beta). Relative sds are then relative to it.

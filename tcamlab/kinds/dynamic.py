@@ -702,7 +702,7 @@ CALIBRATION = (
 (the thesis's own sds are 32 %, 181 % and 14 %). rho and the G_t slope are calibrated too:
 the displacement sees the temperature only through them, so without them the pulse would
 seem to fix C_th and lambda separately on the strength of the sample's stated rho alone.
-R (at ambient) is calibrated only where every run logs ``current_A`` (R = V/I) or
+R (at ambient) is calibrated only where some run logs ``current_A`` (R = V/I) or
 ``resistance_ohm`` (its default prior sd 5 %, an ohmmeter reading of the actuator): without
 them the heating power V^2/R is one more factor along C_th's unpinned direction, and R stays
 at its stated value. beta of R(T) (``heater_tcr_per_K``, 0 in the thesis) is calibrated under

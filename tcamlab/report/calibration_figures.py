@@ -233,7 +233,7 @@ def residual_figure(curves: Sequence, quantities: Sequence[str], sigma: dict):
             for ax, which in zip(row, ("stated", "calibrated")):
                 colour = COLOURS[which]
                 x_all = []
-                for c in curves:
+                for c in (c for c in curves if q in c.measured):  # a run may not log q
                     x, r = envelope(c.inputs[c.x] * xf, (c.measured[q] - getattr(c, which)[q]) * f)
                     pts = ax.plot(
                         x,

@@ -280,9 +280,9 @@ def _experiment_figures(result, name: str) -> list[Figure]:
         zero = " plus each run's fitted zero" if any(q in c.zero for c in curves) else ""
         figs.append(
             _figure(
-                overlay_figure(curves, q),
+                overlay_figure([c for c in curves if q in c.measured], q),
                 f"{name}: measured {q} (points) against the model at the stated values (dashed) "
-                f"and at the calibrated values{zero} (solid), every run." + _thinned(curves),
+                f"and at the calibrated values{zero} (solid), every run that logs it." + _thinned(curves),
             )
         )
     figs.append(
