@@ -46,9 +46,10 @@ def merge(full: dict, parts: list[dict]) -> dict:
 def main(args: list[str]) -> None:
     full, parts, out_json, out_md = _load(args[0]), [_load(a) for a in args[1:-2]], args[-2], args[-1]
     d = merge(full, parts)
+    d["scores"] = score(d["results"])  # stored as a run's own file stores them (its page reads them)
     with gzip.open(out_json, "wt", encoding="utf-8") as f:
         json.dump(d, f)
-    res = BenchmarkResult(scores=score(d["results"]), results=d["results"], settings=d["settings"])
+    res = BenchmarkResult(scores=d["scores"], results=d["results"], settings=d["settings"])
     Path(out_md).write_text(markdown(res), encoding="utf-8")
     print(f"wrote {out_json} and {out_md} ({len(d['results'])} cases)")
 

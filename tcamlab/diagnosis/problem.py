@@ -129,11 +129,7 @@ class Problem:
         if self.spring_nuisance:
             return self.quantities
         try:
-            with np.errstate(all="ignore"), warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                pred = predict(
-                    self.kind, self.sample, self.rig, self.frames[0], Mods(), **self.options(0, None)
-                )
+            pred = self.predict(0, Mods(), None)
         except MODEL_ERRORS:
             return self.quantities
         return scored_quantities(self.k, pred, self.frames, every=False)
