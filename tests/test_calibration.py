@@ -597,7 +597,8 @@ def test_a_current_only_one_run_logs_is_calibrated_on_that_run(tmp_path, log_the
     the run that has it, and that run's current pins R and beta of R(T) for every run
     (SYNTHETIC: the voltage-step rig, seed 1000, R(T) at 3x, beta 2.96e-3 /K; the current of
     the last run is the model's under it plus 0.5 mA of noise). Measured: beta 2.78e-3
-    [1.90e-3, 3.76e-3], R 40.00 ohm; the current from 9.6 to 0.52 noise floors."""
+    [1.90e-3, 3.76e-3], R 40.00 ohm; the current's noise 0.48 mA (its second differences across
+    the pulse's edges left out) and its residual from 18.3 to 0.99 noise floors."""
     sim = simulate(
         "dynamic",
         TEMPLATES / "dynamic.toml",
@@ -613,6 +614,7 @@ def test_a_current_only_one_run_logs_is_calibrated_on_that_run(tmp_path, log_the
     assert fit["displacement"].n == n * rows and fit["current"].n == rows
     assert fit["displacement"].rmse_over_sigma_calibrated < 1.2
     assert fit["current"].rmse_over_sigma_stated > 5.0 > 1.2 > fit["current"].rmse_over_sigma_calibrated
+    assert 0.45e-3 < fit["current"].sigma < 0.55e-3
     est = {p.name: p for p in res.parameters}
     beta = sim.truth["mods"]["resistance_tc"]
     assert est["heater_tcr"].profile_95[0] < beta < est["heater_tcr"].profile_95[1]
@@ -620,3 +622,18 @@ def test_a_current_only_one_run_logs_is_calibrated_on_that_run(tmp_path, log_the
     assert [set(c.measured) for c in res.curves] == [{"displacement"}] * (n - 1) + [
         {"displacement", "current"}
     ]
+
+
+def test_row_noise_leaves_out_the_second_differences_across_a_commanded_step():
+    """A residual of white noise (sd 1) that jumps by 30 where the commanded input steps: with
+    the step's rows left out, the rows' sd is the noise's; taken in, the jumps inflate it."""
+    from tcamlab.calibration.problem import CalibrationProblem
+    from tcamlab.signals import step_rows
+
+    rng = np.random.default_rng(4)
+    v = np.r_[np.zeros(300), np.full(400, 4.0), np.zeros(300)]
+    r = rng.normal(0.0, 1.0, v.size) + np.where(v > 0, 30.0, 0.0)
+    plain = CalibrationProblem.row_noise([r], [{}])[0]
+    skipped = CalibrationProblem.row_noise([r], [{}], [step_rows([v])])[0]
+    assert float(np.median(plain)) > 1.2
+    assert float(np.median(skipped)) == pytest.approx(1.0, rel=0.08)

@@ -26,7 +26,7 @@ from tcamlab import reduction
 from tcamlab.errors import InputError, ModelDomainError, TcamlabError
 from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter, scored_quantities
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
-from tcamlab.signals import block_means, n_blocks
+from tcamlab.signals import block_means, n_blocks, step_rows
 from tcamlab.text import did_you_mean
 
 __all__ = [
@@ -349,7 +349,11 @@ class CalibrationProblem:
                 js = [j for j in range(len(preds)) if q in self.run_quantities(i, j)]
                 resid = [self.measured(i, j, q) - preds[j][q] for j in js]
                 self._check_finite(i, q, resid)
-                rows = self.row_noise(resid, [{x: slopes[j][x][q] for x in slopes[j]} for j in js])
+                rows = self.row_noise(
+                    resid,
+                    [{x: slopes[j][x][q] for x in slopes[j]} for j in js],
+                    [self._steps(i, j) for j in js],
+                )
                 if rows is None:
                     raise InputError(
                         f"{self.experiments[i].path}: the noise of {q} cannot be estimated (a constant log?)"
@@ -358,6 +362,13 @@ class CalibrationProblem:
                     self.row_sigma[(i, j, q)] = sd
                 out[(i, q)] = float(np.sqrt(np.mean(np.concatenate(rows) ** 2)))
         return out
+
+    def _steps(self, i: int, j: int) -> np.ndarray:
+        """Rows of run ``j`` of experiment ``i`` either side of a step of a commanded input (the
+        voltage of a voltage-step test), left out of the noise estimate (:meth:`row_noise`)."""
+        kind, data = self.kinds[i], self.runs[i][j].data
+        commanded = [c for c in kind.inputs if c != "time" and c not in kind.noisy_inputs and c in data]
+        return step_rows([data[c] for c in commanded])
 
     def _check_finite(self, i: int, q: str, resid: list[np.ndarray]) -> None:
         """Refuse stated values at which the model's residuals of ``q`` are not finite, or so
@@ -399,7 +410,9 @@ class CalibrationProblem:
         return out
 
     @staticmethod
-    def row_noise(resid: list[np.ndarray], slopes: list[dict[str, np.ndarray]]) -> list[np.ndarray] | None:
+    def row_noise(
+        resid: list[np.ndarray], slopes: list[dict[str, np.ndarray]], skips: list | None = None
+    ) -> list[np.ndarray] | None:
         """Each row's noise sd [SI] under errors in the inputs (effective variance).
 
         The model reads noisy inputs x, so a residual carries the output's own noise plus
@@ -411,14 +424,18 @@ class CalibrationProblem:
         run (the sensing pull: d delta / d R is largest near rest, where R0 and E are
         pinned), one sd would be too small exactly where the information is. No row's sd
         falls below :data:`ROW_SIGMA_FLOOR` of the single-sd estimate (a row where G = 0,
-        e.g. one the model pins to zero, would otherwise get unbounded weight).
+        e.g. one the model pins to zero, would otherwise get unbounded weight). ``skips`` holds,
+        per run, the rows whose second difference is left out (True), or None: those either
+        side of a commanded input's step (:func:`~tcamlab.signals.step_rows`), where the
+        residual jumps by what the model misses of the step response.
         """
         d2, big = [], []
-        for r, g in zip(resid, slopes):
+        for r, g, skip in zip(resid, slopes, skips or [None] * len(resid)):
             if r.size < 3:
                 continue
-            d2.append((r[2:] - 2.0 * r[1:-1] + r[:-2]) ** 2 / 6.0)
-            big.append(_slope_sum(g, r.size)[1:-1])
+            keep = slice(None) if skip is None or np.size(skip) != r.size else ~np.asarray(skip, bool)[1:-1]
+            d2.append(((r[2:] - 2.0 * r[1:-1] + r[:-2]) ** 2 / 6.0)[keep])
+            big.append(_slope_sum(g, r.size)[1:-1][keep])
         if not d2:
             return None
         y, gx = np.concatenate(d2), np.concatenate(big)
