@@ -98,6 +98,8 @@ def _panel(ax, result, res, colours, title, sigma, unit):
     ax.axhline(0.0, color="0.3", lw=0.8)
     many = len(res) > len(_RUN_COLOURS)
     for i, (x, r, c) in enumerate(zip(xs, res, colours)):
+        if not np.isfinite(r).any():  # a run that does not log this quantity: no legend entry
+            continue
         label = None if many else f"run {i + 1}"
         if many and i == 0:
             label = f"runs 1-{len(res)} (dark to light)"
@@ -166,7 +168,7 @@ def residual_figure(result, q: str) -> Figure | None:
         fontsize=8,
     )
     caption = (
-        f"{q} residuals (measured - predicted, {r_unit}) against {xlabel.split(' [')[0]}, every run: "
+        f"{q} residuals (measured - predicted, {r_unit}) against {xlabel.split(' [')[0]}, every run that logs it: "
         "the thesis model"
         + (
             f" (left) and with {name} fitted on all runs (right; held-out scores in the table)"
