@@ -24,9 +24,9 @@ from scipy import optimize
 
 from tcamlab import reduction
 from tcamlab.errors import InputError, ModelDomainError, TcamlabError
-from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter, scored_quantities
+from tcamlab.kinds import CalibrationParam, get_kind, rest_reading, run_scatter, scored_quantities, step_rows
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
-from tcamlab.signals import block_means, n_blocks, step_rows
+from tcamlab.signals import block_means, n_blocks
 from tcamlab.text import did_you_mean
 
 __all__ = [
@@ -352,7 +352,7 @@ class CalibrationProblem:
                 rows = self.row_noise(
                     resid,
                     [{x: slopes[j][x][q] for x in slopes[j]} for j in js],
-                    [self._steps(i, j) for j in js],
+                    [step_rows(self.kinds[i], self.runs[i][j].data) for j in js],
                 )
                 if rows is None:
                     raise InputError(
@@ -362,13 +362,6 @@ class CalibrationProblem:
                     self.row_sigma[(i, j, q)] = sd
                 out[(i, q)] = float(np.sqrt(np.mean(np.concatenate(rows) ** 2)))
         return out
-
-    def _steps(self, i: int, j: int) -> np.ndarray:
-        """Rows of run ``j`` of experiment ``i`` either side of a step of a commanded input (the
-        voltage of a voltage-step test), left out of the noise estimate (:meth:`row_noise`)."""
-        kind, data = self.kinds[i], self.runs[i][j].data
-        commanded = [c for c in kind.inputs if c != "time" and c not in kind.noisy_inputs and c in data]
-        return step_rows([data[c] for c in commanded])
 
     def _check_finite(self, i: int, q: str, resid: list[np.ndarray]) -> None:
         """Refuse stated values at which the model's residuals of ``q`` are not finite, or so

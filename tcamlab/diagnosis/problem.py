@@ -20,8 +20,7 @@ from scipy import optimize
 
 from tcamlab.effects import Effect, Mods
 from tcamlab.errors import ConfigError, TcamlabError
-from tcamlab.kinds import get_kind, predict, run_scatter, scored_quantities
-from tcamlab.signals import step_rows
+from tcamlab.kinds import get_kind, predict, run_scatter, scored_quantities, step_rows
 
 __all__ = [
     "serial_kernels",
@@ -139,18 +138,9 @@ class Problem:
         return q in self.logged[i]
 
     def step_rows(self, i: int) -> np.ndarray:
-        """Rows of run i next to a step of a commanded input that is piecewise constant (the
-        voltage of a voltage-step test; :func:`tcamlab.signals.step_rows`), which the noise
-        floor leaves out. A measured input's changes are its noise and quantisation."""
-        d = self.frames[i]
-        commanded = [c for c in self.k.inputs if c != "time" and c not in self.k.noisy_inputs]
-        return step_rows([d[c] for c in commanded if c in d])
-
-    def entries(self, i: int, mask=None) -> np.ndarray:
-        """Which entries of run i's stacked residuals (:meth:`scaled`) are measured: False
-        where the run does not log the quantity (those entries are zero whatever the model)."""
-        n = len(self.frames[i]) if mask is None else int(np.count_nonzero(mask))
-        return np.repeat([self.logs(i, q) for q in self.quantities], n)
+        """Rows of run i next to a commanded step, which the noise floor leaves out
+        (:func:`tcamlab.kinds.step_rows`)."""
+        return step_rows(self.k, self.frames[i])
 
     def n_entries(self, i: int, mask=None) -> int:
         """Measured entries of run i's stacked residuals on the rows in ``mask``."""

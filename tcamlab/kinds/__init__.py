@@ -49,6 +49,7 @@ __all__ = [
     "rest_rows",
     "rest_reading",
     "scored_quantities",
+    "step_rows",
     "stated_source",
     "run_scatter",
 ]
@@ -328,6 +329,24 @@ def scored_quantities(kind: Kind, prediction: dict, frames, every: bool = True) 
         if q not in kind.outputs and q not in kind.inputs and has(q in d for d in frames)
     ]
     return tuple(kind.outputs) + tuple(extra)
+
+
+def step_rows(kind: Kind, data: pd.DataFrame):
+    """Rows next to a step of a commanded input that is piecewise constant (the voltage of a
+    voltage-step test; :func:`tcamlab.signals.step_rows`), which noise floors leave out: the
+    residual jumps there by what the model misses of the step response. A measured input
+    (:attr:`Kind.noisy_inputs`) changes by its noise and quantisation, and does not count.
+
+    Parameters
+    ----------
+    kind : Kind
+    data : DataFrame
+        One run, SI column names.
+    """
+    from tcamlab import signals
+
+    commanded = [c for c in kind.inputs if c != "time" and c not in kind.noisy_inputs and c in data]
+    return signals.step_rows([data[c] for c in commanded])
 
 
 def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
