@@ -121,10 +121,15 @@ def status(diagnosis: dict) -> str:
 
 
 def _names(diagnosis: dict) -> list[str]:
-    """Recalibration first, then the named effect and each alias and stand-in."""
+    """Recalibration first, then the named effect and each alias and stand-in.
+
+    An ``aliased`` verdict keeps recalibration too: it ruled recalibration out on the first
+    runs only, by a margin the new runs may undo, and the second diagnosis tests it again,
+    so the design must also tell each alias from it."""
     verdict, effect = diagnosis.get("verdict"), diagnosis.get("effect")
     stand_ins = list((diagnosis.get("recalibration") or {}).get("stand_ins") or {})
-    names = [RECALIBRATION] if verdict == "miscalibrated" or not effect else []
+    aliased = bool(diagnosis.get("aliased_with"))
+    names = [RECALIBRATION] if verdict == "miscalibrated" or not effect or aliased else []
     names += [effect] if effect else []
     names += list(diagnosis.get("aliased_with") or []) + stand_ins
     return list(dict.fromkeys(names))

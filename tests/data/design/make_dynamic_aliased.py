@@ -4,7 +4,8 @@ Synthetic data (tcamlab's virtual rig, seed 1000): the dynamic template's three 
 voltage, no current logged, with a resistance that rises with temperature at 3x the noise,
 diagnosed by ``tcamlab diagnose``: ``aliased``, convective-heat-loss and
 resistance-temperature fit the withheld runs alike (both add a V^2 dT term to the heat
-balance). Only the fields ``tcamlab.design`` reads are kept.
+balance). Only the fields ``tcamlab.design`` reads are kept, and only the hypotheses it
+weighs (the two aliases and recalibration).
 
 Run from the repository's root: ``python tests/data/design/make_dynamic_aliased.py``.
 """
@@ -16,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-KEEP = ("convective-heat-loss", "resistance-temperature")
+KEEP = ("recalibration", "convective-heat-loss", "resistance-temperature")
 
 
 def main() -> None:
