@@ -204,7 +204,14 @@ def test_the_report_prints_what_is_stored_and_computes_nothing():
     table = paired_table(res)
     assert table.caption.startswith("Paired tests against a ")
     assert table.rows == [["b", "0.25", "0.125 to 0.5", "p = 0.004", "4 of 5", "0.19", "yes", "no"]]
-    assert paired_lines(res)[1].endswith("sign test p = 0.19) - NOT clearly worse")
+    assert paired_lines(res)[1].endswith(
+        "sign test p = 0.19) - NOT clearly worse: worse by the paired test, but its shrinkage "
+        "interval overlaps the best's"
+    )
+    tied = [{**stored[0], "ci95": [-0.1, 0.5]}]
+    assert paired_lines(SimpleNamespace(paired_tests=tied))[1].endswith(
+        "NOT clearly worse: the interval includes 0"
+    )
     # the same from the diagnosis.json mapping
     as_json = {"paired_tests": stored}
     assert paired_sentence(as_json) == text and paired_table(as_json).rows == table.rows

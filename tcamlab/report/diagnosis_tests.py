@@ -111,7 +111,17 @@ def paired_lines(result) -> list[str]:
         f"held-out mean squared residual minus the best's [noise sd²], paired bootstrap over "
         f"{tests[0]['folds']} folds ({tests[0]['n_boot']} resamples, seed {tests[0]['seed']}):"
     )
-    return [head] + [_one(t) + ("" if t["clearly_worse"] else " - NOT clearly worse") for t in tests]
+    return [head] + [_one(t) + _not_clearly(t) for t in tests]
+
+
+def _not_clearly(t: dict) -> str:
+    """Why a candidate is not clearly worse, in words ("" when it is): a significant paired
+    test alone is not enough, the shrinkage intervals must not overlap either."""
+    if t["clearly_worse"]:
+        return ""
+    if t["ci95"][0] <= 0.0:
+        return " - NOT clearly worse: the interval includes 0"
+    return " - NOT clearly worse: worse by the paired test, but its shrinkage interval overlaps the best's"
 
 
 def paired_table(result) -> Table | None:
