@@ -16,11 +16,12 @@ the stated file's parameters each moved by one stated sd (sign drawn; lambda's r
 sd capped at 30 %, its thesis sd of 181 % would heat the rig past G_t' = 0), with a lead
 resistance U(0.2, 0.5) ohm, a quadratic TCR N(0, 2e-6) /K^2 and a stretch factor 1 +- 0.15.
 ``tcamlab.calibration.calibrate`` identifies R0, TCR, C_th, lambda and b on runs 1-3, and
-:func:`tcamlab.estimation.observer.calibrate_resistance_law` then R0, TCR, the lead and the
-stretch factor (runs 1-2 with --quick); runs 4-5 are scored, each estimate after its own
-rest-row zero, against the laser. Quick mode (CI): one seed; full mode: ``--seeds`` seeds.
-``--innovations`` adds the same cases with the law's nuisances fitted by the EKF's innovation
-likelihood instead of the laser (``calibrate`` still uses the laser for the thermal constants).
+:func:`tcamlab.estimation.observer.calibrate_resistance_law` then R0, TCR, the lead, the
+stretch factor and the quadratic TCR (runs 1-2 with --quick); runs 4-5 are scored, each
+estimate after its own rest-row zero, against the laser. Quick mode (CI): one seed; full
+mode: ``--seeds`` seeds. ``--innovations`` adds the same cases with the law's nuisances fitted
+by the EKF's innovation likelihood instead of the laser (``calibrate`` still uses the laser for
+the thermal constants).
 """
 
 from __future__ import annotations
@@ -227,12 +228,12 @@ def withheld(seed, quick, work, references=("laser",)):
         train = runs[: 2 if quick else 3]
         fit = so.calibrate_resistance_law(exp.sample, cal, train, use_load=use, reference=ref)
         scores[(case, "fit")] = fit
-        rig = cal.replace(initial_resistance=fit["initial_resistance"], tcr=fit["tcr"])
+        rig = cal.replace(initial_resistance=fit["initial_resistance"], tcr=fit["tcr"], tcr2=fit["tcr2"])
         for k, run in enumerate(runs[3:]):
             data = run if use else run.drop(columns=["load"])
             ekf = so.predict_displacement(
                 exp.sample, rig, data, use_load=use, initial_resistance=fit["initial_resistance"],
-                lead_resistance=fit["lead_resistance"], stretch_factor=fit["stretch_factor"],
+                lead_resistance=fit["lead_resistance"], stretch_factor=fit["stretch_factor"], tcr2=fit["tcr2"],
             )["displacement"]  # fmt: skip
             inv = ss.predict_displacement(exp.sample, cal, data, initial_resistance=cal.initial_resistance)
             scores[(case, k + 4)] = {"EKF": _score(ekf, run), "inversion": _score(inv["displacement"], run)}
@@ -255,7 +256,7 @@ def report_targets(seeds, quick, references=("laser",)):
         for (case, run), res in scores.items():
             if run == "fit":
                 print(f"  load {case}: calibrated law R0 {res['initial_resistance']:.4g} ohm, TCR {res['tcr']:.4g} /K, "
-                      f"lead {res['lead_resistance']:.3f} ohm, k_s {res['stretch_factor']:.3f}")  # fmt: skip
+                      f"lead {res['lead_resistance']:.3f} ohm, k_s {res['stretch_factor']:.3f}, tcr2 {res['tcr2']:.2e} /K^2")  # fmt: skip
                 continue
             fails += _judge(seed, case, run, res)
     return fails

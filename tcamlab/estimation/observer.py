@@ -581,7 +581,7 @@ memory), so the thinned rows weigh the priors about right."""
 def calibrate_resistance_law(
     sample: Sample, rig: Rig, runs, *, use_load=True, priors=None, reference="laser"
 ) -> dict:
-    """R0, TCR, R_lead and k_s of the resistance law from training runs (MAP).
+    """R0, TCR, R_lead, k_s and tcr2 of the resistance law from training runs (MAP).
 
     The calibrated nuisances of the resistance law (:func:`combined_resistance`). With
     ``reference="laser"`` the EKF (:func:`predict_displacement`) is fitted to the laser of
@@ -590,7 +590,9 @@ def calibrate_resistance_law(
     is used: the EKF's own innovation likelihood
     (:meth:`EstimateResult.negative_log_likelihood`) is minimised (Powell). R0 and the TCR
     start from the rig (a calibrated file's) with its stated sds, when given, else 1 % and
-    5 %; R_lead and k_s from :data:`LAW_PRIORS`. R_lead is bounded at 0.
+    5 %; R_lead and k_s from :data:`LAW_PRIORS`; the quadratic TCR from the rig's ``tcr2``
+    (0 for the linear law) with its stated sd, else
+    :data:`tcamlab.kinds.selfsensing.TCR2_ZERO_SD`. R_lead is bounded at 0.
 
     Parameters
     ----------
@@ -608,23 +610,27 @@ def calibrate_resistance_law(
     Returns
     -------
     dict
-        ``initial_resistance`` [ohm], ``tcr`` [1/K], ``lead_resistance`` [ohm], ``stretch_factor`` [-],
-        and ``cost`` (the objective at the optimum [-]).
+        ``initial_resistance`` [ohm], ``tcr`` [1/K], ``lead_resistance`` [ohm],
+        ``stretch_factor`` [-], ``tcr2`` [1/K^2] (pass it to :func:`predict_displacement`'s
+        ``tcr2`` with the others), and ``cost`` (the objective at the optimum [-]).
     """
+    from tcamlab.kinds.selfsensing import TCR2_ZERO_SD  # lazy: the kinds pull in pandas
+
     pri = {**LAW_PRIORS, **(priors or {})}
     unc = getattr(rig, "uncertainty", None) or {}
-    r0, tcr = float(rig.initial_resistance), float(rig.tcr)
-    mu = np.array([r0, tcr, pri["lead_resistance"][0], pri["stretch_factor"][0]])
+    r0, tcr, tcr2 = float(rig.initial_resistance), float(rig.tcr), float(getattr(rig, "tcr2", 0.0))
+    mu = np.array([r0, tcr, pri["lead_resistance"][0], pri["stretch_factor"][0], tcr2])
     sd = np.array([unc.get("initial_resistance", 0.01 * r0), unc.get("tcr", 0.05 * tcr),
-                   pri["lead_resistance"][1], pri["stretch_factor"][1]])  # fmt: skip
+                   pri["lead_resistance"][1], pri["stretch_factor"][1],
+                   unc.get("tcr2", TCR2_ZERO_SD)])  # fmt: skip
 
     def runs_of(u):
         theta = mu + sd * u
-        fitted = replace(rig, initial_resistance=theta[0], tcr=theta[1])
+        fitted = replace(rig, initial_resistance=theta[0], tcr=theta[1], tcr2=theta[4])
         for data in runs:
             yield data, filter_run(
                 sample, fitted, data, initial_resistance=theta[0], use_load=use_load,
-                lead_resistance=theta[2], stretch_factor=theta[3],
+                lead_resistance=theta[2], stretch_factor=theta[3], tcr2=theta[4],
             )  # fmt: skip
 
     def residuals(u):
@@ -639,12 +645,12 @@ def calibrate_resistance_law(
         return 0.5 * float(u @ u) + sum(est.negative_log_likelihood() for _, (est, _) in runs_of(u))
 
     # R_lead >= 0: a negative lead is no wire; it would trade with R0 and the TCR unbounded
-    lo = np.array([-np.inf, -np.inf, -mu[2] / sd[2], -np.inf])
+    lo = np.array([-np.inf, -np.inf, -mu[2] / sd[2], -np.inf, -np.inf])
     if reference not in ("laser", "innovations"):
         raise ValueError(f"reference {reference!r}: 'laser' or 'innovations'")
     u, cost = _law_optimum(residuals if reference == "laser" else nll, lo, least=reference == "laser")
     theta = mu + sd * u
-    keys = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor")
+    keys = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor", "tcr2")
     return {**dict(zip(keys, map(float, theta))), "cost": float(cost)}
 
 
