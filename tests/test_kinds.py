@@ -199,7 +199,8 @@ def test_virtual_rig_parts_agree_with_the_logged_columns(name):
         assert len(logged) == len(proto)
         if extra:  # every added channel, in the logged columns' order
             more = kind.measure(inputs, outputs, np.random.default_rng(1), 1.0, channels=tuple(extra))
-            assert tuple(more.columns) == tuple(kind.logged_columns)
+            assert tuple(more.columns) == tuple(c for c in kind.logged_columns if c in more.columns)
+            assert set(extra) <= set(more.columns)
         # exact chains only: zero noise leaves a noise-free logged column equal to the exact value
         quiet = kind.measure(inputs, outputs, np.random.default_rng(1), 0.0)
         for c, v in sd.items():
@@ -207,6 +208,14 @@ def test_virtual_rig_parts_agree_with_the_logged_columns(name):
                 assert np.array_equal(quiet[c].to_numpy(), inputs[c].to_numpy(float)), c
     if kind.name == "static":
         assert "load" in logged.columns  # the second condition logs its load
+    if "load_N" in kind.program_options:  # a run at another load logs it, and the model reads it
+        heavy = kind.exact_inputs(
+            sample, rig, kind.protocol(rig, np.random.default_rng(0), load_N=2 * rig.force), Mods()
+        )
+        logged = kind.measure(heavy, kind.predict(sample, rig, heavy), np.random.default_rng(1), 1.0)
+        assert np.allclose(logged["load"], 2 * rig.force)
+        stated = kind.predict(sample, rig, heavy.drop(columns="load"))["displacement"]
+        assert not np.allclose(kind.predict(sample, rig, heavy)["displacement"], stated)
 
 
 @pytest.mark.parametrize("name", KIND_NAMES)

@@ -543,4 +543,6 @@ def test_the_added_channels_chains_are_as_documented():
     sd = dynamic.channel_sd()
     assert sd["current"] == pytest.approx(math.hypot(0.05e-3, 0.4 / 4095 / math.sqrt(12)))
     assert sd["temperature"] == pytest.approx(math.hypot(0.2, 0.1 / math.sqrt(12)))
-    assert set(dynamic.instrument_sd()) == {"time", "voltage", "displacement"}  # the default log
+    # the default log, and the load of a run at a second load (a known weight: exact)
+    assert set(dynamic.instrument_sd()) == {"time", "voltage", "load", "displacement"}
+    assert dynamic.instrument_sd()["load"] == 0.0

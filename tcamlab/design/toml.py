@@ -13,7 +13,7 @@ runs' files there once they are made)."""
 
 KEY_DOCS = {
     "kind": "rig kind the protocol is for",
-    "loads_g": "hanging loads [g]; runs cycle through them (static)",
+    "loads_g": "hanging loads [g]; runs cycle through them (static, dynamic)",
     "oven": '"heating" (set points up) or "heat-cool" (up, then back down) (static)',
     "temperature_C": "first and last oven set point [degC] (static)",
     "step_C": "oven set point step [degC] (static)",

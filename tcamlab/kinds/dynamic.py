@@ -25,7 +25,7 @@ from tcamlab.errors import ConfigError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions
 from tcamlab.kinds.static import RHO_ZERO_SD, SLOPE_ZERO_SD
 from tcamlab.models import dynamic as _dyn
-from tcamlab.params import THESIS_TCA, Rig, Sample
+from tcamlab.params import G_ACCEL, THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure, Section, Table
 from tcamlab.report.figures import draw_band, legend_label, new_figure
 from tcamlab.signals import second_difference_sigma
@@ -77,7 +77,7 @@ def predict(
     res = _dyn.response(
         t,
         v,
-        load=rig.load,
+        load=run_load(rig, data),
         damping=rig.damping,
         thermal_mass=rig.thermal_mass,
         heat_loss=rig.heat_loss,
@@ -98,6 +98,16 @@ def predict(
     # R(T) = R (1 + beta (T - T_a)) as in (2.18), beta the rig's plus the effect's; I = V / R(T)
     resistance = rig.resistance * (1.0 + (rig.heater_tcr + mods.resistance_tc) * (temp - rig.ambient))
     return {"displacement": disp, "temperature": temp, "current": v / resistance, "resistance": resistance}
+
+
+def run_load(rig: Rig, data: pd.DataFrame) -> float:
+    """The hanging mass of a run [kg]: the mean of its logged ``load`` [N] over g (a run made at
+    another load than the stated one, a designed protocol's ``loads_g``), else the rig's. The
+    model takes one load per run: the weight hangs still through the pulse."""
+    if "load" not in data:
+        return float(rig.load)
+    force = data["load"].to_numpy(float)
+    return float(np.mean(force[np.isfinite(force)])) / G_ACCEL
 
 
 def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, **_) -> RunOptions:
@@ -422,6 +432,7 @@ def protocol(
     pulses: int = 1,
     period_s: float | None = None,
     duration_s: float | None = None,
+    load_N: float | None = None,
 ) -> pd.DataFrame:
     """The exact voltage step of one run.
 
@@ -439,11 +450,15 @@ def protocol(
         Pulses in a train, each ``period_s`` [s] after the last (default 2 x the pulse + 2 s).
     duration_s : float, optional
         Logged duration [s] (default :data:`DYNAMIC_DURATION_S`, longer for a train).
+    load_N : float, optional
+        This run's hanging weight [N], logged as ``load`` (a designed protocol's ``loads_g``);
+        default the rig's, not logged.
 
     Returns
     -------
     pandas.DataFrame
-        ``time`` [s] (integer ms of the actual samples), ``voltage`` [V] (as commanded).
+        ``time`` [s] (integer ms of the actual samples), ``voltage`` [V] (as commanded), and
+        ``load`` [N] with ``load_N``.
     """
     pulse = float(rig.pulse if pulse_s is None else pulse_s)
     period = 2.0 * pulse + 2.0 if period_s is None else float(period_s)
@@ -464,11 +479,29 @@ def protocol(
     level = float(rig.voltage) * (SECOND_VOLTAGE_FACTOR if condition else 1.0)
     level = level if voltage_V is None else float(voltage_V)
     volt = np.where(on, round(level, 3), 0.0)
-    return pd.DataFrame({"time": ms / 1000.0, "voltage": volt})
+    out = pd.DataFrame({"time": ms / 1000.0, "voltage": volt})
+    if load_N is not None:
+        out["load"] = float(load_N)
+    return out
 
 
-PROTOCOL_KEYS = ("kind", "voltages_V", "pulse_s", "pulses", "period_s", "duration_s", "runs", "channels")
+PROTOCOL_KEYS = (
+    "kind",
+    "voltages_V",
+    "loads_g",
+    "pulse_s",
+    "pulses",
+    "period_s",
+    "duration_s",
+    "runs",
+    "channels",
+)
 """Keys of a dynamic ``[protocol]`` table (docs/design.md)."""
+
+DESIGN_LOAD_FACTOR = 2.0
+"""The design menu's second hanging load, times the stated one: the coil's own compliance
+scales with the load and the untwisting torque does not, so a G(T) that softens the coil
+(``shear-modulus-temperature``) parts from a recalibrated G_t slope there."""
 
 RUN_OVERHEAD_S = 120.0
 """Rig time per run beyond its logged duration [s]: the coil cools back to ambient."""
@@ -484,14 +517,18 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
             f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
         )
     volts = [float(v) for v in table.get("voltages_V", [rig.voltage])]
-    n = int(table.get("runs", len(volts)))
-    if n < 1 or not volts or min(volts) <= 0:
-        raise ConfigError("[protocol]: runs must be >= 1 and voltages_V positive")
+    loads = [float(g) * 1e-3 * G_ACCEL for g in table.get("loads_g", [])]
+    n = int(table.get("runs", max(len(volts), len(loads))))
+    if n < 1 or not volts or min(volts) <= 0 or min(loads, default=1.0) <= 0:
+        raise ConfigError("[protocol]: runs must be >= 1, voltages_V and loads_g positive")
     common = {"pulse_s": float(table.get("pulse_s", rig.pulse)), "pulses": int(table.get("pulses", 1))}
     for key in ("period_s", "duration_s"):
         if key in table:
             common[key] = float(table[key])
-    return [{"voltage_V": volts[k % len(volts)], **common} for k in range(n)]
+    out = [{"voltage_V": volts[k % len(volts)], **common} for k in range(n)]
+    for k, run in enumerate(out if loads else ()):
+        run["load_N"] = loads[k % len(loads)]
+    return out
 
 
 def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
@@ -516,6 +553,11 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
     menu.append(("shorter pulse 0.5x", {**base, "pulse_s": round(0.5 * p0, 3)}))
     menu.append(("longer pulse 2x", {**base, "pulse_s": round(2.0 * p0, 3)}))
     menu.append(("pulse train of 3", {**base, "pulses": 3, "period_s": round(2.0 * p0 + 2.0, 3)}))
+    g0 = round(float(rig.load) * 1e3, 3)
+    loads = {"loads_g": [g0, round(DESIGN_LOAD_FACTOR * g0, 3)], "runs": 4}
+    menu.append(
+        (f"second load {DESIGN_LOAD_FACTOR:g}x", {**base, **loads, "channels": [*base["channels"], "load_N"]})
+    )
     return menu + _logging_menu(base, v0)
 
 
@@ -540,8 +582,9 @@ def exact_inputs(sample: Sample, rig: Rig, proto: pd.DataFrame, mods: Mods = NO_
 
 
 def instrument_sd(noise_scale: float = 1.0) -> dict[str, float]:
-    """Sd of each logged column's chain [SI]: time and commanded voltage exact, laser."""
-    return {"time": 0.0, "voltage": 0.0, "displacement": instruments.laser_sd(noise_scale)}
+    """Sd of each logged column's chain [SI]: time and commanded voltage exact, the hanging load
+    of a run made at a second load exact (a known weight), laser."""
+    return {"time": 0.0, "voltage": 0.0, "load": 0.0, "displacement": instruments.laser_sd(noise_scale)}
 
 
 def channel_sd(noise_scale: float = 1.0) -> dict[str, float]:
@@ -563,7 +606,7 @@ def protocol_channels(channels) -> tuple[str, ...]:
     """The predictions the rig logs beyond time, voltage and displacement for a ``[protocol]``
     table's ``channels`` (:data:`EXTRA_CHANNELS`), in their order; a column this rig cannot log
     is refused naming it."""
-    known = (*KIND.required_columns, *EXTRA_CHANNELS)
+    known = (*KIND.required_columns, "load_N", *EXTRA_CHANNELS)
     for c in channels:
         if c not in known:
             raise ConfigError(
@@ -601,6 +644,8 @@ def measure(
             "displacement": disp,
         }
     )
+    if "load" in inputs:  # a hanging weight, known as weighed
+        out["load"] = inputs["load"].to_numpy(float)
     chains = {"current": instruments.current_sense, "temperature": instruments.thermometer}
     for q in channels:
         out[q] = chains[q](np.asarray(outputs[q], float), rng, noise_scale)
@@ -719,7 +764,7 @@ KIND = Kind(
     description="voltage-step test (thesis section 2.5.2): displacement against time, "
     "model (2.14)-(2.19) with a band for the measured points (prediction band once calibrated)",
     required_columns=("time_s", "voltage_V", "displacement_mm"),
-    optional_columns=("temperature_C", "current_A", "resistance_ohm"),
+    optional_columns=("temperature_C", "current_A", "resistance_ohm", "load_N"),
     min_rows=10,
     inputs=("time", "voltage"),
     outputs=("displacement",),
@@ -731,13 +776,20 @@ KIND = Kind(
     validation_extras=validation_extras,
     x_column="time",
     regimes=regimes,
-    shared_inputs=("voltage",),
+    shared_inputs=("voltage", "load"),
     report_rig_fields=(*RIG_FIELDS, "heater_tcr"),
     figures=figures,
     extras_section=extras_section,
     preset=THESIS_TCA,
-    logged_columns=("time", "voltage", "displacement", "current", "temperature"),
-    decimals={"time_s": 3, "voltage_V": 3, "displacement_mm": 3, "current_A": 5, "temperature_C": 1},
+    logged_columns=("time", "voltage", "load", "displacement", "current", "temperature"),
+    decimals={
+        "time_s": 3,
+        "voltage_V": 3,
+        "load_N": 6,
+        "displacement_mm": 3,
+        "current_A": 5,
+        "temperature_C": 1,
+    },
     written_rig_fields=RIG_FIELDS,
     hidden_rig_fields=(),
     default_runs=3,
@@ -749,7 +801,7 @@ KIND = Kind(
     # C_th, lambda and b: the template states the thesis's sds
     benchmark_uncertainty={},
     benchmark_pairs=(("response-delay", "convective-heat-loss"),),
-    program_options=("condition", "voltage_V", "pulse_s", "pulses", "period_s", "duration_s"),
+    program_options=("condition", "voltage_V", "pulse_s", "pulses", "period_s", "duration_s", "load_N"),
     exact_inputs=exact_inputs,
     instrument_sd=instrument_sd,
     measure=measure,
