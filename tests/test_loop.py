@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from tcamlab.benchmark import closed_loop_scores, loop_tasks
 from tcamlab.design import DECISIVE
 from tcamlab.design.protocols import kind_module
@@ -128,3 +130,37 @@ def test_simulate_runs_a_sensing_protocol_file_on_the_same_muscle(tmp_path):
     assert res.exit_code == 0, res.output
     both = load_experiment(tmp_path / "experiments" / "sn2.toml")
     assert len(both.runs) == 3 + table["runs"]
+
+
+@pytest.mark.slow
+def test_a_second_hanging_load_tells_a_softening_coil_from_a_recalibration(tmp_path):
+    # Synthetic (virtual rig, seed 1000): the voltage-step template's three runs at one load
+    # and one voltage, the shear modulus softening the coil at 10x the noise. On one load a
+    # recalibrated G_t slope fits as well (miscalibrated, the effect a stand-in); the coil's
+    # compliance scales with the load and the torque does not, so the design hangs a second
+    # load, and with those runs added the effect is named.
+    import json
+
+    from tcamlab.config import load_experiment
+    from tcamlab.diagnosis import diagnose
+    from tcamlab.loop import close_loop
+    from tcamlab.rig import simulate
+    from tcamlab.templates import TEMPLATES
+
+    sim = simulate(
+        "dynamic", TEMPLATES / "dynamic.toml", seed=1000, out_dir=tmp_path,
+        effects={"shear-modulus-temperature": 10.0}, name="gt",
+    )  # fmt: skip
+    exp = load_experiment(sim.experiment_path)
+    first = diagnose(exp, seed=0, workers=1).to_dict()
+    assert first["verdict"] == "miscalibrated"
+    assert "shear-modulus-temperature" in first["recalibration"]["stand_ins"]
+    truth = json.loads(sim.truth_path.read_text())
+    summary, second = close_loop(exp, first, truth, tmp_path, seed=1000)
+    assert summary["chosen"]["protocol"] == "second load 2x" and summary["chosen"]["decisive"]
+    assert summary["chosen"]["runs"] == 4
+    logged = load_experiment(tmp_path / "experiments" / "gt-next.toml")  # every run so far
+    runs = logged.read_runs()
+    loads = sorted({round(float(r.data["load"].mean()), 6) for r in runs if "load" in r.data})
+    assert loads == pytest.approx([0.05 * 9.80665, 0.1 * 9.80665], abs=1e-6)  # N, 50 g and 100 g
+    assert (second["verdict"], second["effect"]) == ("attributed", "shear-modulus-temperature")
