@@ -192,9 +192,10 @@ def test_the_protocol_file_logs_the_current_on_the_virtual_rig(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_loop_logs_the_current_the_design_asks_for(tmp_path):
+def test_the_loop_logs_the_channel_the_design_asks_for(tmp_path):
     # Synthetic (virtual rig, seeds 1000 and 1001): the case of DYNAMIC_ALIASED made afresh,
-    # diagnosed, designed, and the designed protocol run on the same muscle.
+    # diagnosed, designed, and the designed protocol run on the same muscle. With recalibration
+    # weighed beside the two aliases, the thermocouple separates every pair: the temperature.
     from tcamlab.diagnosis import diagnose
     from tcamlab.pipeline import simulate_experiment
 
@@ -211,7 +212,7 @@ def test_the_loop_logs_the_current_the_design_asks_for(tmp_path):
     assert d1["verdict"] == "aliased"
     assert {d1["effect"], *d1["aliased_with"]} == {"resistance-temperature", "convective-heat-loss"}
     res = design(exp, d1)
-    assert res.best.name == "log the current" and res.best.decisive
+    assert res.best.name == "log the temperature" and res.best.decisive
     nxt = tmp_path / "experiments" / "rt.next.toml"
     nxt.write_text(protocol_toml(exp.raw, res.best.table, "t"), encoding="utf-8")
     second = simulate_experiment(
@@ -220,4 +221,17 @@ def test_the_loop_logs_the_current_the_design_asks_for(tmp_path):
     both = load_experiment(second.experiment_path)
     assert len(both.runs) == 3 + res.best.runs
     new = [pd.read_csv(tmp_path / "experiments" / p) for p in both.raw["runs"][3:]]
-    assert all("current_A" in log.columns for log in new)
+    assert all("temperature_C" in log.columns and "current_A" not in log.columns for log in new)
+
+
+def test_an_aliased_verdict_weighs_recalibration_where_its_fit_is_given():
+    from tcamlab.design.hypotheses import hypotheses
+
+    names = [h.name for h in hypotheses(DYNAMIC_ALIASED, "dynamic")]
+    assert names == ["recalibration", "convective-heat-loss", "resistance-temperature"]
+    # a diagnosis file cut by hand to the aliases' fits: the aliases alone, not an error
+    cut = {
+        **DYNAMIC_ALIASED,
+        "ranking": [c for c in DYNAMIC_ALIASED["ranking"] if c["effect"] != "recalibration"],
+    }
+    assert [h.name for h in hypotheses(cut, "dynamic")] == ["convective-heat-loss", "resistance-temperature"]

@@ -120,15 +120,16 @@ def status(diagnosis: dict) -> str:
     return "ambiguous" if diagnosis.get("aliased_with") or stand_ins else "clear"
 
 
-def _names(diagnosis: dict) -> list[str]:
+def _names(diagnosis: dict, fitted) -> list[str]:
     """Recalibration first, then the named effect and each alias and stand-in.
 
-    An ``aliased`` verdict keeps recalibration too: it ruled recalibration out on the first
-    runs only, by a margin the new runs may undo, and the second diagnosis tests it again,
-    so the design must also tell each alias from it."""
+    An ``aliased`` verdict keeps recalibration too, where its fit is among ``fitted`` (a
+    diagnosis always has it; a file cut by hand may not): the verdict ruled recalibration
+    out on the first runs only, by a margin the new runs may undo, and the second diagnosis
+    tests it again, so the design must also tell each alias from it."""
     verdict, effect = diagnosis.get("verdict"), diagnosis.get("effect")
     stand_ins = list((diagnosis.get("recalibration") or {}).get("stand_ins") or {})
-    aliased = bool(diagnosis.get("aliased_with"))
+    aliased = bool(diagnosis.get("aliased_with")) and RECALIBRATION in fitted
     names = [RECALIBRATION] if verdict == "miscalibrated" or not effect or aliased else []
     names += [effect] if effect else []
     names += list(diagnosis.get("aliased_with") or []) + stand_ins
@@ -141,7 +142,7 @@ def hypotheses(diagnosis: dict, kind: str) -> list[Hypothesis]:
     by = {c["effect"]: c for c in diagnosis.get("ranking", [])}
     cal = {p.field: p for p in get_kind(kind).calibration}
     out = []
-    for name in _names(diagnosis):
+    for name in _names(diagnosis, by):
         if name not in by:
             raise ConfigError(f"diagnosis: no fit of {name!r} in its ranking")
         out.append(_hypothesis(by[name], cal, kind))
