@@ -996,6 +996,7 @@ def benchmark_diagnose(
         "(same muscle, new noise) and diagnose again; scores before and after (kinds with a "
         "protocol menu; --quick: one case per family and kind).",
     ),
+    force: Force = False,
 ):
     """Withheld-effect benchmark of the diagnosis: attribution accuracy and shrinkage.
 
@@ -1020,6 +1021,7 @@ def benchmark_diagnose(
         conditions=conditions,
         templates=template or None,
         closed_loop=closed_loop,
+        force=force,
     )
     _print_benchmark(res, out)
 

@@ -871,18 +871,27 @@ def design_experiment(
 # -- benchmark and effects ----------------------------------------------------------------
 
 
-def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, templates=None, **options):
+BENCHMARK_FILES = ("benchmark.json", "benchmark.md", "benchmark.html", "benchmark.pdf")
+"""The files a diagnosis benchmark writes in its output folder."""
+
+
+def benchmark_diagnosis(out_dir, *, kinds=None, effects=None, templates=None, force=False, **options):
     """Withheld-effect benchmark of the diagnosis (:func:`tcamlab.benchmark.run_benchmark`).
 
     ``kinds`` (default :data:`tcamlab.benchmark.BENCHMARK_KINDS`, or the kinds of
     ``templates``) are checked first, so a typo fails before minutes of simulation;
     ``templates`` are experiment files whose sample and rig replace their kind's bundled
     template (one per kind); ``options`` are ``quick``, ``scheduler``, ``workers``, ``seeds``,
-    ``lies``, ``families``, ``conditions``.
+    ``lies``, ``families``, ``conditions``. A folder that already holds a benchmark's files
+    is refused before anything runs unless ``force``.
     """
     from tcamlab.benchmark import BENCHMARK_KINDS, run_benchmark
     from tcamlab.rig import CONDITIONS
 
+    existing = [Path(out_dir) / n for n in BENCHMARK_FILES if (Path(out_dir) / n).exists()]
+    if existing and not force:
+        more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+        raise InputError(f"{existing[0]}: benchmark output exists{more}", "pass --force to overwrite it")
     by_kind = _benchmark_templates(templates or ())
     default = tuple(by_kind) or BENCHMARK_KINDS
     if options.get("conditions", 1) == 2:  # the kinds that have a second condition

@@ -491,3 +491,21 @@ def test_benchmark_refuses_an_unknown_effect_before_simulating(tmp_path):
     )
     assert r.exit_code == 2 and "unknown effect 'hysteresis' of static" in r.output
     assert not out.exists()
+
+
+def test_benchmark_refuses_to_overwrite_a_benchmark_before_simulating(tmp_path, monkeypatch):
+    import tcamlab.benchmark
+
+    out = tmp_path / "bench"
+    out.mkdir()
+    (out / "benchmark.md").write_text("an earlier run\n")
+    ran = []
+    monkeypatch.setattr(tcamlab.benchmark, "run_benchmark", lambda *a, **k: ran.append(1))
+    r = runner.invoke(app, ["benchmark", "diagnose", "--quick", "--kind", "static", "--out", str(out)])
+    assert r.exit_code == 2 and "benchmark.md: benchmark output exists" in r.output
+    assert "--force" in r.output and "Traceback" not in r.output and not ran
+    assert (out / "benchmark.md").read_text() == "an earlier run\n"
+    r = runner.invoke(
+        app, ["benchmark", "diagnose", "--quick", "--kind", "static", "--out", str(out), "--force"]
+    )
+    assert ran == [1]
