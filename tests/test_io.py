@@ -483,6 +483,27 @@ def test_temperature_below_absolute_zero(tmp_path):
     )
 
 
+def test_a_hanging_load_that_does_not_pull(tmp_path):
+    rows = ["time_s,voltage_V,displacement_mm,load_N"] + [f"{0.1 * i:.1f},0,0,{-0.49:.2f}" for i in range(30)]
+    p = write(tmp_path, "\n".join(rows) + "\n", "dyn.csv")
+    err = raises_input(
+        [str(p), "column 'load_N'", "averages -0.49 N", "must be positive"], read_run, p, "dynamic"
+    )
+    assert "scale = -1" in err.hint
+    # the suggested fix works: the weight reads back as 0.49 N
+    run = read_run(p, "dynamic", tomllib.loads(err.hint.rsplit(" as ", 1)[1]))
+    assert run.data["load"].iloc[0] == pytest.approx(0.49)
+    zero = write(tmp_path, "\n".join(r.replace("-0.49", "0.00") for r in rows) + "\n", "zero.csv")
+    err = raises_input([str(zero), "averages 0 N"], read_run, zero, "dynamic")
+    assert "load_g" in err.hint
+    # an oven test's coil may hang free (zero), never pushed
+    static = ["time_s,temperature_C,displacement_mm,load_N"] + [f"{i},{25 + i},0,{{}}" for i in range(30)]
+    free = write(tmp_path, "\n".join(static).format(*["0"] * 30) + "\n", "free.csv")
+    assert read_run(free, "static").data["load"].max() == 0.0
+    pushed = write(tmp_path, "\n".join(static).format(*["-0.2"] * 30) + "\n", "pushed.csv")
+    raises_input([str(pushed), "column 'load_N'", "at least 0"], read_run, pushed, "static")
+
+
 def test_pull_force_of_wrong_sign(tmp_path):
     rows = ["displacement_mm,force_N,resistance_ohm", "0,0.0004,30"] + [
         f"{i},{-0.05 * i},{30 + 0.5 * i}" for i in range(1, 8)

@@ -282,6 +282,10 @@ ABSOLUTE_ZERO_C: float = -273.15
 """Absolute zero [degC]."""
 
 _NONNEGATIVE = ("resistance", "r1", "r2")
+_HANGING_LOAD_KINDS = {"static": False, "dynamic": True}
+"""Kinds whose logged ``load`` is a hanging weight, whose mean must not push -> whether it must
+be strictly positive (the voltage-step model moves a mass; the oven test's coil may hang free).
+A pull test's load cell is not among them: it reads zero at rest."""
 _MAX_PREAMBLE_LINES = 10_000
 _COLUMNS_HINT = (
     "map the file's header to the canonical name in the experiment file's "
@@ -1353,7 +1357,25 @@ def _check_values(data: dict, kind: str, where: _Where, n_dropped: int) -> None:
             "absolute zero (-273.15 degC)",
             "check the temperature unit (degC, degF or K) in [columns]",
         )
+    _check_hanging_load(data, kind, where)
     _check_kelvin(data, where)
+
+
+def _check_hanging_load(data: dict, kind: str, where: _Where) -> None:
+    """Refuse a hanging-load column whose mean does not pull (zero, or a sign flipped)."""
+    if kind not in _HANGING_LOAD_KINDS or "load" not in data or not data["load"].size:
+        return
+    mean = float(np.mean(data["load"]))
+    if mean > 0 or (mean == 0 and not _HANGING_LOAD_KINDS[kind]):
+        return
+    hint = "log the weight in newtons (m g), or leave the column out to use the rig's load_g"
+    if mean < 0:
+        hint = f"if the load cell reads tension as negative, map it in [columns] as {_flipped('load_N', where.selected['load'][0])}"
+    raise InputError(
+        f"{where.shown}: column {where.column('load')}: the hanging load averages {mean:.6g} N; "
+        f"a hanging weight pulls, so it must be {'positive' if _HANGING_LOAD_KINDS[kind] else 'at least 0'}",
+        hint,
+    )
 
 
 def _check_kelvin(data: dict, where: _Where) -> None:
@@ -1593,15 +1615,20 @@ def _check_pull_force(shown: str, data: dict[str, np.ndarray], selected: dict) -
     if int(negative.sum()) * 2 > n_loaded:
         spec = selected["force"][0]
         median = float(np.median(force[loaded]))
-        entry: dict[str, Any] = {"from": spec.header}
-        if spec.unit != VARIABLE_MAP["force_N"][1] or spec.unit_given:
-            entry["unit"] = spec.unit
-        entry["scale"] = -spec.scale
-        if spec.offset:
-            entry["offset"] = -spec.offset
         raise InputError(
             f"{shown}: column {spec.label} (force_N): {int(negative.sum())} of {n_loaded} rows "
             f"with displacement > 0 read a negative force (median {median:.4g} N); a pull test "
             "stretches the sensor, so the force should be positive",
-            f"if the load cell reads tension as negative, map it in [columns] as {_toml_entry('force_N', entry)}",
+            f"if the load cell reads tension as negative, map it in [columns] as {_flipped('force_N', spec)}",
         )
+
+
+def _flipped(canonical: str, spec) -> str:
+    """The ``[columns]`` entry that reads ``spec``'s column with its sign flipped (TOML)."""
+    entry: dict[str, Any] = {"from": spec.header}
+    if spec.unit != VARIABLE_MAP[canonical][1] or spec.unit_given:
+        entry["unit"] = spec.unit
+    entry["scale"] = -spec.scale
+    if spec.offset:
+        entry["offset"] = -spec.offset
+    return _toml_entry(canonical, entry)

@@ -21,7 +21,7 @@ import pandas as pd
 
 from tcamlab import band, instruments
 from tcamlab.effects import NO_MODS, Mods
-from tcamlab.errors import ConfigError
+from tcamlab.errors import ConfigError, ModelDomainError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions
 from tcamlab.kinds.static import RHO_ZERO_SD, SLOPE_ZERO_SD
 from tcamlab.models import dynamic as _dyn
@@ -107,7 +107,14 @@ def run_load(rig: Rig, data: pd.DataFrame) -> float:
     if "load" not in data:
         return float(rig.load)
     force = data["load"].to_numpy(float)
-    return float(np.mean(force[np.isfinite(force)])) / G_ACCEL
+    mean = float(np.mean(force[np.isfinite(force)]))
+    if not mean > 0:
+        # said in the logged column's words, not as the model's mass in kg
+        raise ModelDomainError(
+            f"dynamic model: the logged load_N averages {mean:g} N; a hanging load pulls, so it must be positive",
+            "log the hanging weight in newtons (m g), or leave load_N out to use the rig's load_g",
+        )
+    return mean / G_ACCEL
 
 
 def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, **_) -> RunOptions:

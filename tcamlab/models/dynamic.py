@@ -152,15 +152,15 @@ def _pack(
     p[K.P_NCOIL] = n
     p[K.P_FEXT] = load * G_ACCEL
     p[K.P_CSLOPE] = coil_shear_slope
-    for name, value in (
-        ("load", load),
-        ("damping", damping),
-        ("thermal_mass", thermal_mass),
-        ("heat_loss", heat_loss),
-        ("resistance", resistance),
+    for name, value, unit in (
+        ("load", load, "kg"),
+        ("damping", damping, "N s/m"),
+        ("thermal_mass", thermal_mass, "J/K"),
+        ("heat_loss", heat_loss, "W/K"),
+        ("resistance", resistance, "ohm"),
     ):
         if not value > 0:
-            raise ModelDomainError(f"dynamic model: {name} = {value} must be positive")
+            raise ModelDomainError(f"dynamic model: {name} = {value:g} {unit} must be positive")
     return p
 
 
