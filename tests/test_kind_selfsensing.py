@@ -250,6 +250,30 @@ def test_the_rigs_resistance_law_option_changes_r_as_its_formula_says(setup):
     assert run.temperature[-1] < base.temperature[-1] - 0.5
 
 
+def test_a_law_with_a_cubic_stretch_and_no_swelling_is_what_the_rig_logs(setup):
+    """SYNTHETIC: the forms tcamlab's estimator does not fit, on a 3 s powered run."""
+    from tcamlab.models import selfsensing as ssm
+    from tcamlab.rig.selfsensing import ResistanceLaw, powered_run
+
+    sample, rig = setup
+    t = np.arange(300) / 100.0
+    v = np.where(t >= 0.5, 6.0, ss.PROBE_V)
+    law = ResistanceLaw(lead_ohm=0.3, stretch_factor=1.1, stretch_cubic=-0.06, swelling=False)
+    run = powered_run(sample, rig, t, v, np.full(t.size, rig.load), law=law)
+    u = (
+        ssm.geometric_ratio(run.extension, spring_constant=rig.spring_constant, **sample.sensor_kwargs())
+        - 1.0
+    )
+    dT = run.temperature - rig.ambient
+    expected = 0.3 + rig.initial_resistance * (1.0 + 1.1 * u - 0.06 * u**3) * (1.0 + rig.tcr * dT)
+    np.testing.assert_allclose(run.resistance, expected, rtol=1e-11)
+    # both terms are there: the same law with swelling differs by rho dT, the cubic by c3 u^3
+    swollen = powered_run(sample, rig, t, v, np.full(t.size, rig.load), law=ResistanceLaw(
+        lead_ohm=0.3, stretch_factor=1.1, stretch_cubic=-0.06))  # fmt: skip
+    assert np.max(np.abs(swollen.resistance / run.resistance - 1.0)) > 1e-3
+    assert np.min(np.abs(0.06 * u**3)) > 0.02  # at rest, u is about 0.76
+
+
 def _diagnosed(tmp_path, seed: int, runs: int, effects: dict) -> dict:
     from tcamlab import rig as virtual_rig
     from tcamlab.templates import TEMPLATES

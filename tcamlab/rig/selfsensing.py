@@ -58,8 +58,11 @@ GRID_HALF_WIDTH_M = 15e-3
 class ResistanceLaw:
     """A true resistance law other than tcamlab's (SYNTHETIC; the virtual rig's option).
 
-    R = R_lead + R0 (1 + k_s (g(x) - 1)) (1 + tcr dT + tcr2 dT^2) / (1 + rho dT)^2,
-    dT = T - T_a; the voltage is read across leads and muscle, so only I^2 R_muscle heats.
+    R = R_lead + R0 (1 + k_s u + c3 u^3) (1 + tcr dT + tcr2 dT^2) / (1 + rho dT)^2,
+    u = g(x) - 1, dT = T - T_a; the voltage is read across leads and muscle, so only
+    I^2 R_muscle heats. The cubic stretch term and a law without the swelling divisor are forms
+    tcamlab's estimator does not fit: a rig made with them tests what it does with a law it
+    cannot represent.
 
     Attributes
     ----------
@@ -69,11 +72,30 @@ class ResistanceLaw:
         Quadratic temperature coefficient of the coating [1/K^2].
     stretch_factor : float
         k_s, the stretch sensitivity relative to chapter 3's map [-].
+    stretch_cubic : float
+        c3, a cubic stretch term on u = g(x) - 1 [-] (u, counted from the unloaded coil, is
+        about 0.76 at the template's rest under 50 g and moves 0.01 per mm; there c3 = 0.06
+        steepens R(x) by 10 %).
+    swelling : bool
+        Whether R falls with the wire's radial swelling, (1 + rho dT)^-2 (chapter 3); False: a
+        law without that term.
     """
 
     lead_ohm: float = 0.0
     tcr2_per_K2: float = 0.0
     stretch_factor: float = 1.0
+    stretch_cubic: float = 0.0
+    swelling: bool = True
+
+    def stretch(self, g):
+        """1 + k_s u + c3 u^3 with u = g - 1 [-]; plain floats stay floats (the ODE's path)."""
+        u = g - 1.0
+        return 1.0 + self.stretch_factor * u + self.stretch_cubic * u * u * u
+
+    def heat(self, dT, tcr: float, rho: float):
+        """(1 + tcr dT + tcr2 dT^2), over (1 + rho dT)^2 where the law swells [-]."""
+        coat = 1.0 + tcr * dT + self.tcr2_per_K2 * dT * dT
+        return coat / (1.0 + rho * dT) ** 2 if self.swelling else coat
 
 
 TCAMLAB_LAW = ResistanceLaw()
@@ -82,8 +104,7 @@ TCAMLAB_LAW = ResistanceLaw()
 
 def law_resistance(g, dT, r0, tcr, rho, law: ResistanceLaw = TCAMLAB_LAW):
     """(R_total, R_muscle) of :class:`ResistanceLaw` [ohm] from g(x) [-] and dT [K]; vectorised."""
-    heat = (1.0 + tcr * dT + law.tcr2_per_K2 * dT * dT) / (1.0 + rho * dT) ** 2
-    muscle = r0 * (1.0 + law.stretch_factor * (g - 1.0)) * heat
+    muscle = r0 * law.stretch(g) * law.heat(dT, tcr, rho)
     return law.lead_ohm + muscle, muscle
 
 
@@ -170,11 +191,9 @@ def _scalar_resistance(g: CubicSpline, r0, tcr, ta, rho, x0, t0, mods: Mods, law
         dx = x - xs[i]
         gx = ((c3[i] * dx + c2[i]) * dx + c1[i]) * dx + c0[i]
         dT = temp - ta
-        heat = (1.0 + tcr * dT + law.tcr2_per_K2 * dT * dT) / (1.0 + rho * dT) ** 2
+        heat = law.heat(dT, tcr, rho)
         contact = 1.0 - mods.contact_slope * max(0.0, x0 - x - mods.contact_onset)
-        muscle = (
-            r0 * (1.0 + law.stretch_factor * (gx - 1.0)) * heat * (1.0 + mods.r0_drift * (tt - t0)) * contact
-        )
+        muscle = r0 * law.stretch(gx) * heat * (1.0 + mods.r0_drift * (tt - t0)) * contact
         return law.lead_ohm + muscle, muscle
 
     return r
