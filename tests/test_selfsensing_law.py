@@ -399,6 +399,34 @@ def test_a_refit_the_filter_cannot_run_keeps_the_open_loop_fit(tmp_path, setup, 
     assert "chapter 3's domain" in fit.held["initial_resistance"]
 
 
+def test_the_estimators_refit_weighs_down_the_rows_after_an_unlogged_load_change(setup):
+    from tcamlab.calibration import estimator
+    from tcamlab.estimation.observer import filter_run, rest_rows_count
+
+    sample, rig = setup
+    # SYNTHETIC (virtual rig, seed 1, tcamlab's own law, stated = true): 6 V from 1 s to 4 s and
+    # from 10 s to 13 s, a 5 g rider at 7 s, and no load_N: the withheld EKF lags the rider for
+    # seconds and says so through its displacement variance, so the refit weighs those rows down
+    t = np.arange(2000) / 100.0
+    v = np.where(((t >= 1.0) & (t < 4.0)) | ((t >= 10.0) & (t < 13.0)), 6.0, ss.PROBE_V)
+    proto = pd.DataFrame(
+        {"time": t, "voltage": v, "load_mass": np.where(t >= 7.0, rig.load + 5e-3, rig.load)}
+    )
+    data = ss.measure(KIND.exact_inputs(sample, rig, proto), {}, np.random.default_rng(1), 1.0).drop(
+        columns="load"
+    )
+    names = list(estimator.CORE)
+    mu, sd = (np.array(x) for x in zip(*(estimator.refit_prior(rig, n) for n in names)))
+    fitted = estimator._residual_fn(sample, rig, [data], names, mu, sd, (False,))(np.zeros(len(names)))
+    est, x_rest = filter_run(sample, rig, data, initial_resistance=rig.initial_resistance, use_load=False)
+    e = est.displacement + est.extension0 - x_rest - data["displacement"].to_numpy(float)
+    e = (e - e[: rest_rows_count(data)].mean())[:: estimator.THIN] / estimator.ERROR_SD
+    w = fitted[len(names) :] / e  # the weight the refit gives each thinned row
+    tt = t[:: estimator.THIN]
+    assert np.all(w[tt < 6.9] > 0.9) and np.all(w <= 1.0 + 1e-9)
+    assert np.max(w[(tt > 7.5) & (tt < 10.0)]) < 0.5  # the detector's hold: the load is not known
+
+
 def test_the_quadratic_tcr_key_loads_in_si_and_defaults_to_linear(tmp_path):
     assert load_experiment(_experiment(tmp_path)).rig.tcr2 == 0.0
     rig = load_experiment(_experiment(tmp_path, "tcr2_per_K2 = 1.5e-6\n", "tcr2_per_K2 = 5e-7\n")).rig

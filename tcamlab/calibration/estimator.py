@@ -9,7 +9,8 @@ sensitive to, R0 and the TCR, with the resistance law's nuisances R_lead (lead a
 bounded at 0 ohm), k_s (stretch sensitivity) and tcr2 (the coating's quadratic TCR, about 0
 when the file states none) where the runs identify them, through the
 estimator ``validate`` scores: the EKF (load logged where the runs log it, and withheld),
-against the laser of the training runs, each run after its rest-row zero.
+against the laser of the training runs, each run after its rest-row zero, each row weighted
+down where the filter's own displacement variance grows (an unlogged load change).
 
 A nuisance is held at its stated value, with the reason, when at the fit its estimate is
 correlated with another fitted parameter beyond :data:`MAX_CORRELATION` (the runs cannot tell
@@ -101,7 +102,7 @@ class EstimatorFit:
         The EKF cases fitted: ``"load logged"`` (runs that log load_N), ``"load withheld"``.
     rms_before_um, rms_after_um : float
         RMS of the thinned, zeroed EKF error over the training runs at ``open_loop`` and at
-        ``values`` [um].
+        ``values``, each row weighted as the fit weighs it (:func:`fit_for_estimator`) [um].
     """
 
     experiment: str
@@ -137,10 +138,12 @@ def refit_prior(rig, name: str) -> tuple[float, float]:
 
 
 def _residual_fn(sample, rig, frames, names, mu, sd, cases):
-    """u -> stacked (prior, thinned zeroed EKF error / ERROR_SD) residuals [-]."""
+    """u -> stacked (prior, thinned zeroed EKF error / ERROR_SD) residuals [-], each row's error
+    weighted by :func:`tcamlab.estimation.observer.law_fit_weights` (down where the filter's own
+    displacement variance grows past its rest level: the load's lag after an unlogged change)."""
     from dataclasses import replace
 
-    from tcamlab.estimation.observer import filter_run, rest_rows_count
+    from tcamlab.estimation.observer import filter_run, law_fit_weights, rest_rows_count
 
     def fn(u):
         theta = dict(zip(names, mu + sd * u))
@@ -156,7 +159,8 @@ def _residual_fn(sample, rig, frames, names, mu, sd, cases):
                     tcr2=fitted.tcr2,
                 )  # fmt: skip
                 e = est.displacement + est.extension0 - x_rest - data["displacement"].to_numpy(float)
-                e = e - np.nanmean(e[: rest_rows_count(data)])
+                rest = rest_rows_count(data)
+                e = (e - np.nanmean(e[:rest])) * law_fit_weights(est.variance[:, 1], rest, ERROR_SD)
                 out.append(np.nan_to_num(e[::THIN], nan=0.0) / ERROR_SD)
         return np.concatenate(out)
 
@@ -259,6 +263,11 @@ def refit_for_estimator(experiment, rig, frames) -> EstimatorFit:
 
 def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
     """Refit R0, TCR and, where identified, R_lead, k_s and tcr2 through the EKF (module docstring).
+
+    Each row's error is weighted down where the filter's own displacement variance grows past its
+    rest level (:func:`tcamlab.estimation.observer.law_fit_weights`): after a load change nobody
+    logged the withheld EKF lags the load for seconds, and fitted unweighted that lag bent R0, the
+    TCR and tcr2 to cancel it on the training runs, at the withheld runs' cost.
 
     Parameters
     ----------
