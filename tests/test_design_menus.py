@@ -18,7 +18,7 @@ from tcamlab.design.hypotheses import hypotheses
 from tcamlab.design.protocols import protocol_frames
 from tcamlab.design.toml import KEY_DOCS
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
-from tcamlab.kinds import curvature, get_kind, sensing, static
+from tcamlab.kinds import curvature, dynamic, get_kind, sensing, static
 from tcamlab.models import sensing as sensing_model
 from tcamlab.rig import simulate
 from tcamlab.templates import TEMPLATES
@@ -213,6 +213,86 @@ def test_curvature_refuses_bad_keys_and_values(table, key):
     with pytest.raises(ConfigError, match=key) as err:
         curvature.protocol_runs(table, template("curvature").rig)
     assert err.value.hint
+
+
+@pytest.mark.parametrize(
+    ("table", "key"),
+    [
+        ({"loads_g": []}, "loads_g"),
+        ({"loads_g": [50.0, 0.0]}, "loads_g"),
+        ({"loads_g": ["a"]}, "loads_g"),
+        ({"loads_g": 50.0}, "loads_g"),
+        ({"voltages_V": 10.0}, "voltages_V"),
+        ({"voltages_V": [10.0, -8.0]}, "voltages_V"),
+        ({"voltages_V": [True]}, "voltages_V"),
+        ({"pulse_s": 0.0}, "pulse_s"),
+        ({"pulse_s": float("inf")}, "pulse_s"),
+        ({"pulses": 2.5}, "pulses"),
+        ({"pulses": 0}, "pulses"),
+        ({"period_s": "10"}, "period_s"),
+        ({"duration_s": -1.0}, "duration_s"),
+        ({"runs": "2"}, "runs"),
+        ({"runs": 0}, "runs"),
+    ],
+)
+def test_dynamic_refuses_bad_keys_and_values(table, key):
+    with pytest.raises(ConfigError, match=key) as err:
+        dynamic.protocol_runs(table, template("dynamic").rig)
+    assert err.value.hint
+
+
+@pytest.mark.parametrize(
+    ("table", "key"),
+    [
+        ({"loads_g": []}, "loads_g"),
+        ({"loads_g": "50"}, "loads_g"),
+        ({"oven": "cool"}, "oven"),
+        ({"oven": 1}, "oven"),
+        ({"temperature_C": [150.0, 25.0]}, "temperature_C"),
+        ({"temperature_C": [25.0]}, "temperature_C"),
+        ({"temperature_C": ["25", 150.0]}, "temperature_C"),
+        ({"step_C": 0}, "step_C"),
+        ({"dwell_s": -300.0}, "dwell_s"),
+        ({"runs": 1.5}, "runs"),
+    ],
+)
+def test_static_refuses_bad_keys_and_values(table, key):
+    with pytest.raises(ConfigError, match=key) as err:
+        static.protocol_runs(table, template("static").rig)
+    assert err.value.hint
+
+
+def test_every_protocol_hint_is_itself_a_valid_value():
+    """The hint of each refused value, read as TOML, is accepted in its place."""
+    import tomllib
+
+    cases = [
+        (dynamic, {"loads_g": []}),
+        (dynamic, {"voltages_V": 10.0}),
+        (dynamic, {"pulse_s": 0.0}),
+        (dynamic, {"runs": "2"}),
+        (static, {"oven": "cool"}),
+        (static, {"temperature_C": [25.0]}),
+        (static, {"step_C": 0}),
+        (static, {"dwell_s": -300.0}),
+    ]
+    for mod, table in cases:
+        rig = template(mod.__name__.rsplit(".", 1)[1]).rig
+        with pytest.raises(ConfigError) as err:
+            mod.protocol_runs(table, rig)
+        fix = tomllib.loads(err.value.hint.rsplit("e.g. ", 1)[-1].split(": ", 1)[-1])
+        assert mod.protocol_runs(fix, rig), (table, err.value.hint)
+
+
+def test_a_bad_protocol_value_is_refused_naming_the_file(tmp_path):
+    exp = template("dynamic")
+    text = exp.path.read_text(encoding="utf-8") + '\n[protocol]\nkind = "dynamic"\nloads_g = [0.0]\n'
+    path = tmp_path / "mine.toml"
+    path.write_text(text, encoding="utf-8")
+    from tcamlab.rig.runs import designed_programs
+
+    with pytest.raises(ConfigError, match=r"^mine\.toml: \[protocol\]: loads_g"):
+        designed_programs("dynamic", load_experiment(path, require_runs=False))
 
 
 def test_the_elongation_limit_is_where_the_sensing_map_ends():

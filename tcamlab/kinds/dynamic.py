@@ -23,6 +23,7 @@ from tcamlab import band, instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError, ModelDomainError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions
+from tcamlab.kinds import protocol_values as pv
 from tcamlab.kinds.static import RHO_ZERO_SD, SLOPE_ZERO_SD
 from tcamlab.models import dynamic as _dyn
 from tcamlab.params import G_ACCEL, THESIS_TCA, Rig, Sample
@@ -505,6 +506,12 @@ PROTOCOL_KEYS = (
 )
 """Keys of a dynamic ``[protocol]`` table (docs/design.md)."""
 
+MAX_PROTOCOL_RUNS = 1000
+"""Most runs a ``[protocol]`` table may ask for (a typo guard, not a rig limit)."""
+
+MAX_PULSES = 100
+"""Most pulses in one run's train."""
+
 DESIGN_LOAD_FACTOR = 2.0
 """The design menu's second hanging load, times the stated one: the coil's own compliance
 scales with the load and the untwisting torque does not, so a G(T) that softens the coil
@@ -523,15 +530,19 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         raise ConfigError(
             f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
         )
-    volts = [float(v) for v in table.get("voltages_V", [rig.voltage])]
-    loads = [float(g) * 1e-3 * G_ACCEL for g in table.get("loads_g", [])]
-    n = int(table.get("runs", max(len(volts), len(loads))))
-    if n < 1 or not volts or min(volts) <= 0 or min(loads, default=1.0) <= 0:
-        raise ConfigError("[protocol]: runs must be >= 1, voltages_V and loads_g positive")
-    common = {"pulse_s": float(table.get("pulse_s", rig.pulse)), "pulses": int(table.get("pulses", 1))}
+    volts = pv.positive_list(table, "voltages_V", [rig.voltage], "e.g. voltages_V = [10.0, 8.0]")
+    grams = (
+        pv.positive_list(table, "loads_g", [], "e.g. loads_g = [50.0, 100.0]") if "loads_g" in table else []
+    )
+    loads = [g * 1e-3 * G_ACCEL for g in grams]
+    n = pv.whole(table, "runs", max(len(volts), len(loads)), MAX_PROTOCOL_RUNS, "runs to make, e.g. runs = 2")
+    common = {
+        "pulse_s": pv.positive(table, "pulse_s", rig.pulse, "e.g. pulse_s = 1.0"),
+        "pulses": pv.whole(table, "pulses", 1, MAX_PULSES, "1: one pulse; pulses = 3: a train of three"),
+    }
     for key in ("period_s", "duration_s"):
         if key in table:
-            common[key] = float(table[key])
+            common[key] = pv.positive(table, key, 0.0, f"e.g. {key} = 10.0")
     out = [{"voltage_V": volts[k % len(volts)], **common} for k in range(n)]
     for k, run in enumerate(out if loads else ()):
         run["load_N"] = loads[k % len(loads)]

@@ -28,6 +28,7 @@ from tcamlab import instruments
 from tcamlab.effects import NO_MODS, SLACK_RAMP, Mods
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
+from tcamlab.kinds import protocol_values as pv
 from tcamlab.models import sensing as _sens
 from tcamlab.params import SILVER_TCR, THESIS_TCS, THESIS_TCS_SPRING_CONSTANT, Rig, Sample
 from tcamlab.report.document import Cell, Figure, Section, Table
@@ -350,22 +351,6 @@ def elongation_limit(sample: Sample, rig: Rig) -> float:
     return lo
 
 
-def _positive(table: dict, key: str, default: float, hint: str) -> float:
-    """A positive finite number from the table (or the default), else ConfigError naming the key."""
-    value = table.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < np.inf:
-        raise ConfigError(f"[protocol]: {key} must be a positive number, got {value!r}", hint)
-    return float(value)
-
-
-def _whole(table: dict, key: str, default: int, top: int, hint: str) -> int:
-    """An integer 1..top from the table (or the default), else ConfigError naming the key."""
-    value = table.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
-        raise ConfigError(f"[protocol]: {key} must be an integer from 1 to {top}, got {value!r}", hint)
-    return int(value)
-
-
 def protocol_runs(table: dict, rig: Rig) -> list[dict]:
     """Each run's :func:`protocol` options from a ``[protocol]`` table (docs/design.md).
 
@@ -378,8 +363,8 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         raise ConfigError(
             f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
         )
-    pull = _positive(table, "pull_mm", PULL_MAX_M * 1e3, "the thesis pulls to 50 mm") * 1e-3
-    step = _positive(table, "step_mm", PULL_STEP_M * 1e3, "the thesis steps 2 mm") * 1e-3
+    pull = pv.positive(table, "pull_mm", PULL_MAX_M * 1e3, "the thesis pulls to 50 mm") * 1e-3
+    step = pv.positive(table, "step_mm", PULL_STEP_M * 1e3, "the thesis steps 2 mm") * 1e-3
     if abs(pull / step - round(pull / step)) > 1e-6:
         raise ConfigError(
             f"[protocol]: pull_mm ({pull * 1e3:g}) is not a whole number of step_mm ({step * 1e3:g})",
@@ -388,14 +373,14 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
     speeds = table.get("speeds_mm_per_s", [PULL_SPEED_M_PER_S * 1e3])
     if not isinstance(speeds, list) or not speeds:
         raise ConfigError("[protocol]: speeds_mm_per_s must be a list of speeds [mm/s]", "e.g. [10.0, 2.5]")
-    speeds = [_positive({"speeds_mm_per_s": v}, "speeds_mm_per_s", 0, "e.g. [10.0, 2.5]") for v in speeds]
+    speeds = [pv.positive({"speeds_mm_per_s": v}, "speeds_mm_per_s", 0, "e.g. [10.0, 2.5]") for v in speeds]
     common = {
         "pull_max_m": pull,
         "step_m": step,
-        "dwell_s": _positive(table, "dwell_s", PULL_DWELL_S, "the thesis dwells 5 s per step"),
-        "cycles": _whole(table, "cycles", 1, MAX_CYCLES, "1 is up to the largest pull and back once"),
+        "dwell_s": pv.positive(table, "dwell_s", PULL_DWELL_S, "the thesis dwells 5 s per step"),
+        "cycles": pv.whole(table, "cycles", 1, MAX_CYCLES, "1 is up to the largest pull and back once"),
     }
-    n = _whole(table, "runs", len(speeds), 1000, "runs to make, e.g. 2")
+    n = pv.whole(table, "runs", len(speeds), 1000, "runs to make, e.g. 2")
     return [{**common, "speed_m_per_s": speeds[k % len(speeds)] * 1e-3} for k in range(n)]
 
 

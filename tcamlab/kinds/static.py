@@ -19,6 +19,7 @@ from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, no_extras, no_section
+from tcamlab.kinds import protocol_values as pv
 from tcamlab.models import static as _static
 from tcamlab.params import THESIS_TCA, Rig, Sample
 from tcamlab.report.document import Figure
@@ -217,6 +218,9 @@ def set_points(first: float, last: float, step: float) -> np.ndarray:
 PROTOCOL_KEYS = ("kind", "loads_g", "oven", "temperature_C", "step_C", "dwell_s", "runs", "channels")
 """Keys of a static ``[protocol]`` table (docs/design.md)."""
 
+MAX_PROTOCOL_RUNS = 1000
+"""Most runs a ``[protocol]`` table may ask for (a typo guard, not a rig limit)."""
+
 MAX_OVEN_C = 170.0
 """Highest oven set point a design may propose [degC]: nylon 6,6 keeps well below its
 softening range there, and the model's G_t' limit (~160 degC at the thesis values) usually
@@ -238,18 +242,21 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         raise ConfigError(
             f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
         )
-    loads = [float(x) * 1e-3 for x in table.get("loads_g", [rig.load * 1e3])]
-    first, last = table.get("temperature_C", [OVEN_STEPS_C[0], OVEN_STEPS_C[-1]])
-    step = float(table.get("step_C", OVEN_STEPS_C[1] - OVEN_STEPS_C[0]))
-    n = int(table.get("runs", len(loads)))
-    if n < 1 or not loads or min(loads) <= 0:
-        raise ConfigError("[protocol]: runs must be >= 1 and loads_g positive")
+    loads = [
+        g * 1e-3 for g in pv.positive_list(table, "loads_g", [rig.load * 1e3], "e.g. loads_g = [50.0, 100.0]")
+    ]
+    span = [OVEN_STEPS_C[0], OVEN_STEPS_C[-1]]
+    first, last = pv.number_pair(table, "temperature_C", span, "e.g. temperature_C = [25.0, 150.0]")
+    step = pv.positive(table, "step_C", OVEN_STEPS_C[1] - OVEN_STEPS_C[0], "e.g. step_C = 5.0")
+    n = pv.whole(table, "runs", len(loads), MAX_PROTOCOL_RUNS, "runs to make, e.g. runs = 2")
+    oven = pv.choice(table, "oven", "heating", OVEN_PROGRAMS)
+    dwell = pv.positive(table, "dwell_s", OVEN_DWELL_S, "e.g. dwell_s = 300.0")
     return [
         {
-            "oven": str(table.get("oven", "heating")),
+            "oven": oven,
             "load_N": rig.force * loads[k % len(loads)] / rig.load,
-            "set_points_C": (float(first), float(last), step),
-            "dwell_s": float(table.get("dwell_s", OVEN_DWELL_S)),
+            "set_points_C": (first, last, step),
+            "dwell_s": dwell,
         }
         for k in range(n)
     ]

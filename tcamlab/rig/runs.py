@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -50,7 +51,19 @@ def designed_programs(kind: str, experiment) -> list[dict] | None:
     reader = getattr(module, "protocol_runs", None)
     if reader is None:
         raise ConfigError(f"[protocol]: the {kind} rig takes no designed protocol")
-    return reader(dict(table), experiment.rig)
+    return _in_file(experiment, reader, dict(table), experiment.rig)
+
+
+def _in_file(experiment, fn, *args):
+    """``fn(*args)``, a ConfigError's message led by the experiment file's name (the one line
+    then says which file's ``[protocol]`` table holds the bad value)."""
+    try:
+        return fn(*args)
+    except ConfigError as exc:
+        path = getattr(experiment, "path", None)
+        if path is None or exc.message.startswith(f"{Path(path).name}: "):
+            raise
+        raise ConfigError(f"{Path(path).name}: {exc.message}", exc.hint) from None
 
 
 def designed_channels(kind: str, experiment) -> tuple[str, ...]:
@@ -63,7 +76,18 @@ def designed_channels(kind: str, experiment) -> tuple[str, ...]:
         return ()
     module = importlib.import_module(get_kind(kind).protocol.__module__)
     reader = getattr(module, "protocol_channels", None)
-    return tuple(reader(list(table["channels"]))) if reader is not None else ()
+    if reader is None:
+        return ()
+    return tuple(_in_file(experiment, _channels, reader, table["channels"]))
+
+
+def _channels(reader, channels) -> tuple[str, ...]:
+    if not isinstance(channels, list) or not all(isinstance(c, str) for c in channels):
+        raise ConfigError(
+            f"[protocol]: channels must be a list of column names, got {channels!r}",
+            'e.g. channels = ["time_s", "voltage_V", "displacement_mm"]',
+        )
+    return tuple(reader(list(channels)))
 
 
 def protocol(kind: str, rig: Rig, rng: np.random.Generator, **options) -> pd.DataFrame:
