@@ -133,7 +133,7 @@ def estimator_values(doc: dict, fit) -> list[str]:
         "Second stage (the estimator's own fit): R0 and the TCR, with R_lead and k_s where the runs",
         "identify them, refitted through the causal EKF against the laser ("
         + ", ".join(fit.cases)
-        + f"); EKF error rms {fit.rms_before_um:.1f} um -> {fit.rms_after_um:.1f} um.",
+        + f"); EKF error rms (rows weighted by the filter's certainty) {fit.rms_before_um:.1f} um -> {fit.rms_after_um:.1f} um.",
     ]
     for name, key in ESTIMATOR_KEYS.items():
         before, after = fit.open_loop[name], fit.values[name]

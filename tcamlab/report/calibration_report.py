@@ -388,7 +388,7 @@ def estimator_section(result) -> Section | None:
         "factor k_s where the runs identify them, are refitted through the EKF against the laser "
         "("
         + "; ".join(
-            f"{f.experiment}: {', '.join(f.cases)}, error rms {f.rms_before_um:.1f} um -> "
+            f"{f.experiment}: {', '.join(f.cases)}, weighted error rms {f.rms_before_um:.1f} um -> "
             f"{f.rms_after_um:.1f} um"
             if f.fitted
             else f"{f.experiment}: not refitted"
