@@ -295,6 +295,19 @@ def test_a_bad_protocol_value_is_refused_naming_the_file(tmp_path):
         designed_programs("dynamic", load_experiment(path, require_runs=False))
 
 
+@pytest.mark.parametrize("kind", ["static", "dynamic"])
+def test_a_load_the_coil_cannot_hold_names_the_protocol_and_writes_nothing(tmp_path, kind):
+    # The first load is fine, the second (1e9 g) is not: no run file may be left behind.
+    exp = template(kind)
+    text = exp.path.read_text(encoding="utf-8") + f'\n[protocol]\nkind = "{kind}"\nloads_g = [50.0, 1e9]\n'
+    path = tmp_path / "mine.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ModelDomainError, match=r"^mine\.toml: \[protocol\]: ") as err:
+        simulate(kind, path, seed=2, out_dir=tmp_path / "sim")
+    assert "loads_g" in err.value.hint
+    assert not (tmp_path / "sim").exists() or not any((tmp_path / "sim").rglob("*.csv"))
+
+
 def test_the_elongation_limit_is_where_the_sensing_map_ends():
     exp = template("sensing")
     top = sensing.elongation_limit(exp.sample, exp.rig)

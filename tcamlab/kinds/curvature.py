@@ -33,6 +33,7 @@ from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, no_extras, no_section, rest_rows, stated_source
+from tcamlab.kinds import protocol_values as pv
 from tcamlab.models import curvature as _curv
 from tcamlab.models import sensing as _sens
 from tcamlab.params import THESIS_ROBOT, Rig, Sample
@@ -269,9 +270,7 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
             f"[protocol]: cable_mm ({top * 1e3:g}) is not a whole number of cable_step_mm ({step * 1e3:g})",
             "e.g. cable_mm = 10.0 with cable_step_mm = 0.5",
         )
-    n = table.get("runs", 1)
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ConfigError(f"[protocol]: runs must be a positive integer, got {n!r}", "e.g. runs = 2")
+    n = pv.runs(table, 1)
     return [{"cable_max_m": top, "cable_step_m": step, "pose_s": POSE_S} for _ in range(n)]
 
 

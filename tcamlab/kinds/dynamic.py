@@ -506,9 +506,6 @@ PROTOCOL_KEYS = (
 )
 """Keys of a dynamic ``[protocol]`` table (docs/design.md)."""
 
-MAX_PROTOCOL_RUNS = 1000
-"""Most runs a ``[protocol]`` table may ask for (a typo guard, not a rig limit)."""
-
 MAX_PULSES = 100
 """Most pulses in one run's train."""
 
@@ -535,7 +532,7 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         pv.positive_list(table, "loads_g", [], "e.g. loads_g = [50.0, 100.0]") if "loads_g" in table else []
     )
     loads = [g * 1e-3 * G_ACCEL for g in grams]
-    n = pv.whole(table, "runs", max(len(volts), len(loads)), MAX_PROTOCOL_RUNS, "runs to make, e.g. runs = 2")
+    n = pv.runs(table, max(len(volts), len(loads)))
     common = {
         "pulse_s": pv.positive(table, "pulse_s", rig.pulse, "e.g. pulse_s = 1.0"),
         "pulses": pv.whole(table, "pulses", 1, MAX_PULSES, "1: one pulse; pulses = 3: a train of three"),

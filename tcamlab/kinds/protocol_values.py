@@ -13,7 +13,10 @@ import math
 
 from tcamlab.errors import ConfigError
 
-__all__ = ["positive", "whole", "positive_list", "number_pair", "choice"]
+__all__ = ["MAX_RUNS", "positive", "whole", "runs", "positive_list", "number_pair", "choice"]
+
+MAX_RUNS = 1000
+"""Most runs a ``[protocol]`` table may ask for (a typo guard, not a rig limit)."""
 
 
 def _is_number(value) -> bool:
@@ -34,6 +37,11 @@ def whole(table: dict, key: str, default: int, top: int, hint: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
         raise ConfigError(f"[protocol]: {key} must be an integer from 1 to {top}, got {value!r}", hint)
     return int(value)
+
+
+def runs(table: dict, default: int) -> int:
+    """The table's ``runs``: an integer from 1 to :data:`MAX_RUNS` (or ``default``)."""
+    return whole(table, "runs", default, MAX_RUNS, "runs to make, e.g. runs = 2")
 
 
 def positive_list(table: dict, key: str, default: list, hint: str) -> list[float]:

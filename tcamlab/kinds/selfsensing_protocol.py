@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from tcamlab.errors import ConfigError
+from tcamlab.kinds import protocol_values as pv
 from tcamlab.params import Rig, Sample
 
 RATE_HZ = 100
@@ -247,11 +248,7 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         "ripple_v": ripple_v,
         "ripple_hz": _number(table, "ripple_Hz", RIPPLE_HZ, 1e-3, RATE_HZ / 4, "e.g. 0.5 Hz"),
     }
-    runs = table.get("runs", len(probes))
-    if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= 1000:
-        raise ConfigError(
-            f"[protocol]: runs must be an integer from 1 to 1000, got {runs!r}", "runs to make, e.g. 2"
-        )
+    runs = pv.runs(table, len(probes))
     return [{"probe_v": probes[k % len(probes)], **common} for k in range(runs)]
 
 

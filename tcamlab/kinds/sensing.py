@@ -380,7 +380,7 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         "dwell_s": pv.positive(table, "dwell_s", PULL_DWELL_S, "the thesis dwells 5 s per step"),
         "cycles": pv.whole(table, "cycles", 1, MAX_CYCLES, "1 is up to the largest pull and back once"),
     }
-    n = pv.whole(table, "runs", len(speeds), 1000, "runs to make, e.g. 2")
+    n = pv.runs(table, len(speeds))
     return [{**common, "speed_m_per_s": speeds[k % len(speeds)] * 1e-3} for k in range(n)]
 
 

@@ -218,9 +218,6 @@ def set_points(first: float, last: float, step: float) -> np.ndarray:
 PROTOCOL_KEYS = ("kind", "loads_g", "oven", "temperature_C", "step_C", "dwell_s", "runs", "channels")
 """Keys of a static ``[protocol]`` table (docs/design.md)."""
 
-MAX_PROTOCOL_RUNS = 1000
-"""Most runs a ``[protocol]`` table may ask for (a typo guard, not a rig limit)."""
-
 MAX_OVEN_C = 170.0
 """Highest oven set point a design may propose [degC]: nylon 6,6 keeps well below its
 softening range there, and the model's G_t' limit (~160 degC at the thesis values) usually
@@ -248,7 +245,7 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
     span = [OVEN_STEPS_C[0], OVEN_STEPS_C[-1]]
     first, last = pv.number_pair(table, "temperature_C", span, "e.g. temperature_C = [25.0, 150.0]")
     step = pv.positive(table, "step_C", OVEN_STEPS_C[1] - OVEN_STEPS_C[0], "e.g. step_C = 5.0")
-    n = pv.whole(table, "runs", len(loads), MAX_PROTOCOL_RUNS, "runs to make, e.g. runs = 2")
+    n = pv.runs(table, len(loads))
     oven = pv.choice(table, "oven", "heating", OVEN_PROGRAMS)
     dwell = pv.positive(table, "dwell_s", OVEN_DWELL_S, "e.g. dwell_s = 300.0")
     return [

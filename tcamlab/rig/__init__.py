@@ -156,10 +156,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from tcamlab import config as tconfig
 from tcamlab.effects import NO_MODS, Mods
-from tcamlab.errors import ConfigError
+from tcamlab.errors import ConfigError, ModelDomainError
 from tcamlab.instruments import LASER_QUANTUM_M
 from tcamlab.jsonutil import dumps_json, to_jsonable
 from tcamlab.kinds import REGISTRY, get_kind, predict
@@ -605,29 +606,46 @@ def same_truth(truth: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods, forms=()) -> tuple[list[Path], list[dict]]:
-    """Predict, measure and write each run's CSV; (paths, each run's truth)."""
-    kind = plan.kind
+    """Predict, measure and write each run's CSV; (paths, each run's truth).
+
+    Every run is made before any is written: a run the model refuses (a designed load the
+    coil cannot hold) leaves no partial experiment behind."""
+    logs = [_measure_run(plan, run, mods, forms) for run in runs]
     paths, truths = [], []
-    for k, run in enumerate(runs):
-        inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
-        opts = true_options(kind, run.sample, run.rig, inputs)
-        outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
-        for form, info in forms:
-            inputs, outputs = apply_form(
-                form, info["amplitude"], kind, run.sample, run.rig, inputs, outputs, opts
-            )
-        zero = {"noisy_zero": True} if plan.lies["noisy_zero"] else {}
-        extra = {"channels": plan.channels} if plan.channels else {}
-        logged = measure(kind, inputs, outputs, run.rng, plan.noise_scale, **zero, **extra)
+    for k, (run, logged) in enumerate(zip(runs, logs)):
         fname = f"{plan.name}_run{k + 1}.csv"
         path = plan.out / "raw" / fname
-        atomic_write_text(path, format_csv(kind, logged))
+        atomic_write_text(path, format_csv(plan.kind, logged))
         paths.append(path)
         truth = {"file": f"raw/{fname}", "sample": run.sample.model_kwargs(), "rig": rig_truth(run.rig)}
-        if zero:
+        if plan.lies["noisy_zero"]:
             truth["zero_error"] = dict(logged.attrs.get("zero_error", {}))
         truths.append(truth)
     return paths, truths
+
+
+def _measure_run(plan: _Plan, run: _Run, mods: Mods, forms) -> pd.DataFrame:
+    """One run's logged table: the true response under its program, measured."""
+    kind = plan.kind
+    try:
+        inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
+        opts = true_options(kind, run.sample, run.rig, inputs)
+        outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
+    except ModelDomainError as exc:
+        if not plan.designed:
+            raise
+        # The designed program, not the rig keys the model's hint names, asked for it.
+        raise ModelDomainError(
+            f"{plan.exp.path.name}: [protocol]: a run it asks for is outside the model's range: {exc.message}",
+            "lower the [protocol] table's loads_g, voltages or temperatures",
+        ) from None
+    for form, info in forms:
+        inputs, outputs = apply_form(
+            form, info["amplitude"], kind, run.sample, run.rig, inputs, outputs, opts
+        )
+    zero = {"noisy_zero": True} if plan.lies["noisy_zero"] else {}
+    extra = {"channels": plan.channels} if plan.channels else {}
+    return measure(kind, inputs, outputs, run.rng, plan.noise_scale, **zero, **extra)
 
 
 def _write_experiment(plan: _Plan, run_paths: list[Path]) -> Path:
