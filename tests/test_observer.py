@@ -309,3 +309,22 @@ def test_fitting_tcr2_cuts_the_unknown_load_error_of_a_bent_coating(bent_law_run
     held = so.calibrate_resistance_law(exp.sample, held_rig, [logged], use_load=False, priors=priors)
     assert held["tcr2"] == pytest.approx(0.0, abs=1e-9)
     assert _law_rms(exp, logged, truth, fit) < 0.65 * _law_rms(exp, logged, truth, held)
+
+
+def test_the_law_fit_keeps_the_lower_of_two_basins():
+    # r1 has roots at u = -1.5 and u = 0.5; r2 makes the one at -1.5 the lower cost (0 against
+    # 0.18). From 0 alone the fit stops at 0.5; from the stretch starts it finds -1.5.
+    from scipy.optimize import least_squares
+
+    def fn(u):
+        return np.array([(u[0] + 1.5) * (u[0] - 0.5), 0.3 * (u[0] + 1.5), u[1]])
+
+    lo = np.array([-np.inf, -np.inf])
+    alone = least_squares(fn, np.zeros(2), bounds=(lo, np.inf))
+    assert alone.x[0] == pytest.approx(0.5, abs=0.1)
+    best = so.best_least_squares(fn, np.zeros(2), lo, 100, stretch_index=0)
+    assert best.x[0] == pytest.approx(-1.5, abs=1e-3)
+    assert best.cost < 1e-6
+    # a start below the stretch factor's bound is moved inside it
+    bounded = so.best_least_squares(fn, np.zeros(2), np.array([-1.0, -np.inf]), 100, stretch_index=0)
+    assert bounded.x[0] >= -1.0

@@ -226,7 +226,7 @@ def held_nuisances(jac: np.ndarray, names) -> dict:
 def _least_squares(sample, rig, frames, names, cases):
     """The bounded MAP fit of ``names`` (R_lead >= 0, k_s > 0): (theta [SI], prior sd [SI], the
     scipy fit, the thinned residuals at the start [-])."""
-    from scipy.optimize import least_squares
+    from tcamlab.estimation.observer import best_least_squares
 
     mu, sd = (np.array(x) for x in zip(*(refit_prior(rig, n) for n in names)))
     lo = np.array([(-mu[k] / sd[k] if n == "lead_resistance" else -np.inf) for k, n in enumerate(names)])
@@ -236,7 +236,10 @@ def _least_squares(sample, rig, frames, names, cases):
     # start off the bound: the finite differences of a start on R_lead = 0 are one-sided and
     # the trust region collapsed there (measured); the prior stays centred on the stated value
     u0 = np.maximum(np.zeros(len(names)), lo + START_OFF_BOUND)
-    fit = least_squares(fn, u0, bounds=(lo, np.inf), diff_step=1e-3, x_scale=1.0, max_nfev=MAX_EVALUATIONS)
+    # from k_s's prior centre and 1.5 sd either side: the cost has a second basin where k_s
+    # stays near 1 and the TCR pays for a stretch law that is not chapter 3's (observer module)
+    ks = names.index("stretch_factor") if "stretch_factor" in names else None
+    fit = best_least_squares(fn, u0, lo, MAX_EVALUATIONS, stretch_index=ks)
     return mu + sd * fit.x, sd, fit, before
 
 
