@@ -16,7 +16,7 @@ import pytest
 from tcamlab import diagnosis
 from tcamlab.config import load_experiment
 from tcamlab.diagnosis import RECALIBRATION, diagnose
-from tcamlab.diagnosis.verdict import SWITCHED_OFF, named_parameters, verdict
+from tcamlab.diagnosis.verdict import EVIDENCE_Z, SWITCHED_OFF, named_parameters, term_evidence, verdict
 from tcamlab.templates import template_path
 
 rig = pytest.importorskip("tcamlab.rig")
@@ -88,8 +88,14 @@ def test_null_dynamic_with_noisy_zeros_is_none(tmp_path):
 class _C:
     """A minimal ranking entry for the verdict rules."""
 
-    def __init__(self, effect, fc, lo, plausible=True, params=None, after=1.5, shift=None, cov=None):
+    def __init__(
+        self, effect, fc, lo, plausible=True, params=None, after=1.5, shift=None, cov=None, term=None
+    ):
         self.effect = effect
+        # term: (value, standard error, at_bound) of a one-parameter effect
+        value, se, bound = term or (0.0, 1.0, False)
+        self.parameters = {} if term is None else {"p": {"value": value, "stderr": se, "at_bound": bound}}
+        self.joint_cov = None if term is None else np.diag([1.0, se**2])
         self.shift_u = None if shift is None else np.asarray(shift, float)
         self.shift_cov = None if cov is None else np.asarray(cov, float)
         self.heldout_rmse_after_noise = after
@@ -319,6 +325,53 @@ def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
     v = verdict([rec, stand, same], True, after, idx, b_n, 3.0, 1.1)
     assert v[:3] == ("miscalibrated", None, ["resistance-temperature"])
     assert "resistance-temperature (with thermal_mass at its stated value) fits" in v[3]
+
+
+def test_a_stand_in_whose_term_the_runs_fix_far_from_zero_is_named_first_of_aliased():
+    # Held-out runs alike (recalibration nests the effect at a zero term); the effect keeps
+    # C_th at its stated value and its term is 8 standard errors from zero on all runs.
+    moved = {
+        "symbol": "C_th",
+        "value": 2.0,
+        "ci95": [1.8, 2.2],
+        "unit": "J/K",
+        "stated": 1.0,
+        "shift_in_stated_sds": 1.5,
+        "shift_in_prior_sds": 1.5,
+    }
+    kept = dict(moved, value=1.0, ci95=[0.9, 1.1], shift_in_stated_sds=0.0, shift_in_prior_sds=0.0)
+    idx = np.random.default_rng(0).integers(0, 5, size=(200, 5))
+    b_n = np.full(200, 500.0)
+    after = _after({RECALIBRATION: 110, "resistance-temperature": 110})
+
+    def run(term, after_rmse=1.5):
+        rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": moved})
+        eff = _C(
+            "resistance-temperature", 0.9, 0.3, params={"thermal_mass": kept}, after=after_rmse, term=term
+        )
+        return verdict([rec, eff], True, after, idx, b_n, 3.0, 1.1)
+
+    v = run((8.0, 1.0, False))
+    assert v[:3] == ("aliased", "resistance-temperature", [RECALIBRATION])
+    assert "8.0 standard errors from zero" in v[3]
+    # just below the bar, at a bound (no Laplace interval) or worse on the withheld runs: a stand-in
+    for term, rmse in (
+        ((0.98 * EVIDENCE_Z, 1.0, False), 1.5),
+        ((8.0, 1.0, True), 1.5),
+        ((8.0, 1.0, False), 1.51),
+    ):
+        assert run(term, rmse)[:3] == ("miscalibrated", None, ["resistance-temperature"])
+
+
+def test_term_evidence_is_the_wald_statistic_of_the_effects_parameters_jointly():
+    one = _C("a", 0.9, 0.3, term=(-10.0, 2.0, False))
+    assert term_evidence(one) == pytest.approx(5.0)
+    assert term_evidence(_C(RECALIBRATION, 0.9, 0.3)) == 0.0
+    # two parameters each 3 sds out (chi-square 18 on 2 dof, tail 1.2e-4): z 3.84, below 3 * sqrt(2)
+    two = _C("b", 0.9, 0.3)
+    two.parameters = {n: {"value": 3.0, "stderr": 1.0, "at_bound": False} for n in ("x", "y")}
+    two.joint_cov = np.eye(3)
+    assert term_evidence(two) == pytest.approx(3.84, abs=0.01)
 
 
 def test_an_effect_that_restores_a_jointly_moved_pair_is_kept_beside_miscalibrated():

@@ -28,6 +28,8 @@ __all__ = [
     "verdict",
     "qualifies",
     "closes_the_rest",
+    "term_evidence",
+    "EVIDENCE_Z",
     "switched_off",
     "SWITCHED_OFF",
     "beats",
@@ -328,6 +330,46 @@ def largest_shift(c, names=None) -> tuple[str | None, float]:
     return out
 
 
+EVIDENCE_Z = 5.0
+"""A stand-in whose term is this many standard errors from zero on all runs (Wald, its
+parameters jointly: the chi-square with the same tail) is named first of ``aliased``, with
+recalibration the alternative, where held-out runs cannot tell them apart. Recalibration is
+the effect with its term at zero (nested), so the in-sample Wald statistic is the likelihood
+ratio between them. Five: on 18 null, lying-null and calibration-only cases (static and
+dynamic, seeds 5000-7002) the largest effect term was 4.3 standard errors (an oven lag on a
+static null, whose gap was not significant) and 3.4 among the miscalibrated ones; a designed
+second load put a 10x dynamic G(T) at 8.3, with recalibration 0.008 noise sds behind it."""
+
+
+def term_evidence(c: CandidateResult) -> float:
+    """The Wald statistic of an effect's term, as standard errors from zero: sqrt of the chi-square
+    of its parameters under their joint covariance, mapped to the one-parameter z with the same
+    upper tail (0 for recalibration, a parameter at a bound or no covariance)."""
+    k = len(c.parameters or {})
+    cov = c.joint_cov
+    if not k or cov is None or any(p.get("at_bound") for p in c.parameters.values()):
+        return 0.0
+    theta = np.array([p["value"] for p in c.parameters.values()], float)
+    sub = np.asarray(cov, float)[-k:, -k:]
+    if not np.all(np.isfinite(sub)):
+        return 0.0
+    chi2 = float(theta @ np.linalg.pinv(sub) @ theta)
+    return float(stats.norm.isf(stats.chi2.sf(chi2, k) / 2.0))
+
+
+def _evidenced(stand_ins: list[str], effects, recal) -> list[CandidateResult]:
+    """The stand-ins whose term is at least :data:`EVIDENCE_Z` standard errors from zero and
+    whose held-out RMSE is no worse than recalibration's, best held-out first."""
+    by = {c.effect: c for c in effects}
+    out = [
+        by[e]
+        for e in stand_ins
+        if term_evidence(by[e]) >= EVIDENCE_Z
+        and by[e].heldout_rmse_after_noise <= recal.heldout_rmse_after_noise
+    ]
+    return sorted(out, key=lambda c: c.heldout_rmse_after_noise)
+
+
 def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_errors):
     """``miscalibrated``, or ``aliased`` when the shift is implausible and an effect with
     plausible parameters fits the withheld runs as well.
@@ -374,6 +416,19 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
         for c in as_well
         if not set(own_errors.get(c.effect, ())) & set(named) and stands_in(c, recal, named)
     ]
+    strong = _evidenced(stand_ins, effects, recal)
+    if strong:
+        best = strong[0]
+        return (
+            "aliased",
+            best.effect,
+            [RECALIBRATION, *(e for e in stand_ins if e != best.effect)],
+            closes + f"; but {best.effect} fits the withheld runs as well with "
+            f"{', '.join(taken_over(best, recal, named)) or 'the moved parameters'} at the stated "
+            f"values, and its term is {term_evidence(best):.1f} standard errors from zero on all "
+            f"runs (at least {EVIDENCE_Z:g}): the runs favour the effect, the withheld runs alone "
+            "cannot confirm it",
+        )
     if stand_ins:
         by = {c.effect: c for c in effects}
         listed = stand_ins_text({e: taken_over(by[e], recal, named) for e in stand_ins})
