@@ -16,7 +16,14 @@ import pytest
 from tcamlab import diagnosis
 from tcamlab.config import load_experiment
 from tcamlab.diagnosis import RECALIBRATION, diagnose
-from tcamlab.diagnosis.verdict import EVIDENCE_Z, SWITCHED_OFF, named_parameters, term_evidence, verdict
+from tcamlab.diagnosis.verdict import (
+    EVIDENCE_TERM,
+    EVIDENCE_Z,
+    SWITCHED_OFF,
+    named_parameters,
+    term_evidence,
+    verdict,
+)
 from tcamlab.templates import template_path
 
 rig = pytest.importorskip("tcamlab.rig")
@@ -344,11 +351,12 @@ def test_a_stand_in_whose_term_the_runs_fix_far_from_zero_is_named_first_of_alia
     b_n = np.full(200, 500.0)
     after = _after({RECALIBRATION: 110, "resistance-temperature": 110})
 
-    def run(term, after_rmse=1.5):
+    def run(term, after_rmse=1.5, term_rms=2.0):
         rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": moved})
         eff = _C(
             "resistance-temperature", 0.9, 0.3, params={"thermal_mass": kept}, after=after_rmse, term=term
         )
+        eff.term_rms = term_rms
         return verdict([rec, eff], True, after, idx, b_n, 3.0, 1.1)
 
     v = run((8.0, 1.0, False))
@@ -361,6 +369,8 @@ def test_a_stand_in_whose_term_the_runs_fix_far_from_zero_is_named_first_of_alia
         ((8.0, 1.0, False), 1.51),
     ):
         assert run(term, rmse)[:3] == ("miscalibrated", None, ["resistance-temperature"])
+    # a term smaller than the noise: what the priors held recalibration back from, not an effect
+    assert run((8.0, 1.0, False), term_rms=0.98 * EVIDENCE_TERM)[0] == "miscalibrated"
 
 
 def test_term_evidence_is_the_wald_statistic_of_the_effects_parameters_jointly():
