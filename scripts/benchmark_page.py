@@ -67,6 +67,8 @@ def command(settings: dict) -> str:
         parts += [f"--kind {k}" for k in kinds]
     for family in settings.get("families") or []:
         parts.append(f"--family {family}")
+    if settings.get("lies"):
+        parts.append("--lies")
     parts.append("--out reports/benchmark")
     return " \\\n    ".join(parts)
 
