@@ -435,11 +435,10 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
             "aliased",
             best.effect,
             [RECALIBRATION, *(e for e in stand_ins if e != best.effect)],
-            closes + f"; but {best.effect} fits the withheld runs as well with "
-            f"{', '.join(taken_over(best, recal, named)) or 'the moved parameters'} at the stated "
-            f"values, and its term is {term_evidence(best):.1f} standard errors from zero on all "
-            f"runs (at least {EVIDENCE_Z:g}): the runs favour the effect, the withheld runs alone "
-            "cannot confirm it",
+            closes + f"; but {stand_ins_text({best.effect: taken_over(best, recal, named)})} fits "
+            f"the withheld runs as well, and its term is {term_evidence(best):.1f} standard errors "
+            f"from zero on all runs (at least {EVIDENCE_Z:g}): the runs favour the effect, the "
+            "withheld runs alone cannot confirm it",
         )
     if stand_ins:
         by = {c.effect: c for c in effects}
