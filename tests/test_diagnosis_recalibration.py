@@ -298,26 +298,29 @@ def test_benchmark_scores_miscalibrated_right_on_a_lying_null_and_a_miss_on_an_e
     assert lying["miscalibrated_naming_a_moved_parameter"] == 1
 
 
+# C_th as recalibration moves it (its interval excludes the stated value) and as an effect keeps it.
+MOVED = {
+    "symbol": "C_th",
+    "value": 2.0,
+    "ci95": [1.8, 2.2],
+    "unit": "J/K",
+    "stated": 1.0,
+    "shift_in_stated_sds": 1.5,
+    "shift_in_prior_sds": 1.5,
+}
+KEPT = dict(MOVED, value=1.0, ci95=[0.9, 1.1], shift_in_stated_sds=0.0, shift_in_prior_sds=0.0)
+
+
 def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
     # Recalibration moves C_th (interval excludes the stated value); an effect that fits the
     # withheld runs as well *with C_th at its stated value* stands in for the shift: the verdict
     # stays miscalibrated (parsimony) but names it in aliased_with. One that moves C_th the same
     # way does not.
-    moved = {
-        "symbol": "C_th",
-        "value": 2.0,
-        "ci95": [1.8, 2.2],
-        "unit": "J/K",
-        "stated": 1.0,
-        "shift_in_stated_sds": 1.5,
-        "shift_in_prior_sds": 1.5,
-    }
-    kept = dict(moved, value=1.0, ci95=[0.9, 1.1], shift_in_stated_sds=0.0, shift_in_prior_sds=0.0)
     idx = np.random.default_rng(0).integers(0, 5, size=(200, 5))
     b_n = np.full(200, 500.0)
-    rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": moved})
-    stand = _C("resistance-temperature", 0.9, 0.3, params={"thermal_mass": kept})
-    same = _C("response-delay", 0.9, 0.3, params={"thermal_mass": moved})
+    rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": MOVED})
+    stand = _C("resistance-temperature", 0.9, 0.3, params={"thermal_mass": KEPT})
+    same = _C("response-delay", 0.9, 0.3, params={"thermal_mass": MOVED})
     after = _after({RECALIBRATION: 110, stand.effect: 110, same.effect: 110})
     v = verdict([rec, stand, same], True, after, idx, b_n, 3.0, 1.1)
     assert v[:3] == ("miscalibrated", None, ["resistance-temperature"])
@@ -325,10 +328,10 @@ def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
     # A second parameter moved too (an effect beside a parameter error, the realistic case):
     # an effect that takes over C_th's shift while lambda stays moved is still a stand-in;
     # one that takes over neither is not.
-    lam = dict(moved, symbol="lambda", stated=5.0, value=6.0, ci95=[5.5, 6.5])
-    rec.recalibrated = {"thermal_mass": moved, "heat_loss": lam}
-    stand.recalibrated = {"thermal_mass": kept, "heat_loss": lam}
-    same.recalibrated = {"thermal_mass": moved, "heat_loss": lam}
+    lam = dict(MOVED, symbol="lambda", stated=5.0, value=6.0, ci95=[5.5, 6.5])
+    rec.recalibrated = {"thermal_mass": MOVED, "heat_loss": lam}
+    stand.recalibrated = {"thermal_mass": KEPT, "heat_loss": lam}
+    same.recalibrated = {"thermal_mass": MOVED, "heat_loss": lam}
     v = verdict([rec, stand, same], True, after, idx, b_n, 3.0, 1.1)
     assert v[:3] == ("miscalibrated", None, ["resistance-temperature"])
     assert "resistance-temperature (with thermal_mass at its stated value) fits" in v[3]
@@ -337,24 +340,14 @@ def test_an_effect_that_stands_in_for_the_shift_is_kept_beside_miscalibrated():
 def test_a_stand_in_whose_term_the_runs_fix_far_from_zero_is_named_first_of_aliased():
     # Held-out runs alike (recalibration nests the effect at a zero term); the effect keeps
     # C_th at its stated value and its term is 8 standard errors from zero on all runs.
-    moved = {
-        "symbol": "C_th",
-        "value": 2.0,
-        "ci95": [1.8, 2.2],
-        "unit": "J/K",
-        "stated": 1.0,
-        "shift_in_stated_sds": 1.5,
-        "shift_in_prior_sds": 1.5,
-    }
-    kept = dict(moved, value=1.0, ci95=[0.9, 1.1], shift_in_stated_sds=0.0, shift_in_prior_sds=0.0)
     idx = np.random.default_rng(0).integers(0, 5, size=(200, 5))
     b_n = np.full(200, 500.0)
     after = _after({RECALIBRATION: 110, "resistance-temperature": 110})
 
     def run(term, after_rmse=1.5, term_rms=2.0):
-        rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": moved})
+        rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": MOVED})
         eff = _C(
-            "resistance-temperature", 0.9, 0.3, params={"thermal_mass": kept}, after=after_rmse, term=term
+            "resistance-temperature", 0.9, 0.3, params={"thermal_mass": KEPT}, after=after_rmse, term=term
         )
         eff.term_rms = term_rms
         return verdict([rec, eff], True, after, idx, b_n, 3.0, 1.1)
