@@ -511,9 +511,11 @@ def run_task(task: dict) -> dict:
                 from tcamlab.loop import close_loop
 
                 stage = "loop"
+                first = res.to_dict()
                 loop, second = close_loop(
-                    exp, res.to_dict(), truth, tmp, seed=task["seed"], n_boot=task.get("n_boot", 500)
+                    exp, first, truth, tmp, seed=task["seed"], n_boot=task.get("n_boot", 500)
                 )
+                loop.update(_truth_reach(exp, first, task, loop))
                 out["loop"] = loop
                 out["after"] = _digest(second, truth, kind, task) if second is not None else None
         except Exception as exc:  # a failed case is recorded, not fatal
@@ -529,6 +531,19 @@ def run_task(task: dict) -> dict:
     out.update(_digest(res.to_dict(), truth, kind, task))
     out["seconds"] = time.perf_counter() - t0
     return out
+
+
+def _truth_reach(exp, first: dict, task: dict, loop: dict) -> dict:
+    """``{"truth_reach": {effect: {parameter: smallest detectable [SI]}}}`` for a case's single
+    true effect (not an off-library form) that the design did not weigh
+    (:func:`tcamlab.loop.reach_sizes`), so that :func:`_reach` knows for every case whether
+    the menu could show the truth; empty otherwise."""
+    from tcamlab.loop import reach_sizes
+
+    effects = list(task.get("effects") or {})
+    if len(effects) != 1 or task.get("nearest") or effects[0] in (loop.get("smallest_detectable") or {}):
+        return {}
+    return {"truth_reach": {effects[0]: reach_sizes(exp, first, effects[0])}}
 
 
 def _digest(d: dict, truth: dict, kind: str, task: dict) -> dict:
@@ -973,14 +988,17 @@ def closed_loop_scores(results: list[dict]) -> dict:
 
 
 def _reach(r: dict) -> bool | None:
-    """Whether the menu could show the case's true effect at its true size (None: no effect, or
-    the design did not weigh it; :func:`tcamlab.loop.within_reach`)."""
+    """Whether the menu could show the case's true effect at its true size (None: no effect, an
+    off-library form, or a run made before the truth's reach was asked of every case;
+    :func:`tcamlab.loop.within_reach`). Where the design did not weigh the true effect, its
+    reach comes from a design that does (``truth_reach``, :func:`_truth_reach`)."""
     from tcamlab.loop import within_reach
 
     if not r.get("effects") or r.get("nearest"):
         return None
-    eff = true_effect(r)
-    return within_reach(eff, (r.get("truth_values") or {}).get(eff, {}), r["loop"])
+    eff, loop = true_effect(r), r["loop"]
+    sizes = {**(loop.get("smallest_detectable") or {}), **(loop.get("truth_reach") or {})}
+    return within_reach(eff, (r.get("truth_values") or {}).get(eff, {}), {"smallest_detectable": sizes})
 
 
 def _within_reach_scores(rows: list[dict], after: list[dict]) -> dict:

@@ -28,6 +28,7 @@ __all__ = [
     "LOOP_SEED_OFFSET",
     "at_least_default",
     "within_reach",
+    "reach_sizes",
 ]
 
 DEFAULT_PROTOCOL = {
@@ -137,6 +138,29 @@ def loop_summary(res, kind: str) -> dict:
         "decisive": bool(res.best is not None and res.best.decisive),
         "smallest_detectable": res.smallest_detectable(),
     }
+
+
+def reach_sizes(experiment, first: dict, effect: str, **design_options) -> dict:
+    """{parameter: the smallest |value| of ``effect``'s parameters any feasible protocol of the
+    menu would tell from zero with the runs so far [SI]}, from a design that weighs the effect
+    against recalibration whatever the diagnosis's verdict (its fit on the runs so far, as every
+    candidate of the ranking has one).
+
+    A benchmark asks it of a case's true effect where the design did not weigh it (a clear
+    first diagnosis, or one whose hypotheses left the truth out), so that whether the menu
+    could show the truth (:func:`within_reach`) is known for every case, not only for those
+    whose first diagnosis already suspected it. Empty when the effect has no fit in the ranking.
+    ``design_options`` go to :func:`tcamlab.design.design`."""
+    if not any(c.get("effect") == effect for c in first.get("ranking", [])):
+        return {}
+    asked = {
+        **first,
+        "verdict": "miscalibrated",
+        "effect": None,
+        "aliased_with": [],
+        "recalibration": {**(first.get("recalibration") or {}), "stand_ins": {effect: []}},
+    }
+    return design(experiment, asked, **design_options).smallest_detectable().get(effect, {})
 
 
 def within_reach(effect: str, true_values: dict, summary: dict) -> bool | None:

@@ -86,6 +86,27 @@ def test_wald_after_by_hand():
     assert wald_after(np.zeros((0, 2)), root, theta)[0] == pytest.approx(1.0)
 
 
+def test_the_reach_of_an_effect_the_verdict_left_out():
+    # how small a G(T) slope the menu could show is the same whether the diagnosis left G(T)
+    # standing (ALIASED) or named E(T) alone: the benchmark asks it of every true effect
+    from tcamlab.loop import reach_sizes
+
+    exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
+    g = "shear-modulus-temperature"
+    weighed = design(exp, ALIASED, n_draws=16).smallest_detectable()[g]
+    clear = {
+        **ALIASED,
+        "verdict": "attributed",
+        "effect": "youngs-modulus-temperature",
+        "aliased_with": [],
+        "recalibration": None,
+    }
+    assert g not in design(exp, clear, n_draws=16).smallest_detectable()
+    left_out = reach_sizes(exp, clear, g, n_draws=16)
+    assert left_out["coil_shear_slope"] == pytest.approx(weighed["coil_shear_slope"], rel=1e-6)
+    assert reach_sizes(exp, clear, "glass-transition", n_draws=16) == {}  # no fit of it
+
+
 def test_an_effect_no_protocol_reaches_is_said_and_not_counted_on():
     # In ALIASED a G(T) slope fitted at 4.1e3 Pa/K (95 % -2.8e4 to 3.6e4): at one load or two,
     # recalibration absorbs a slope of that size, so no protocol decides on it; the fitted E(T)

@@ -14,7 +14,7 @@ import pytest
 import tcamlab.design
 from tcamlab.config import load_experiment
 from tcamlab.design import design, protocol_toml
-from tcamlab.design.hypotheses import hypotheses
+from tcamlab.design.hypotheses import hypotheses, status
 from tcamlab.design.protocols import protocol_frames
 from tcamlab.design.toml import KEY_DOCS
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
@@ -484,3 +484,15 @@ def test_the_static_menu_has_finer_steps_and_the_glass_window():
     assert len(fine[0]) == 51 and len(knee[0]) == 26
     t = knee[0]["temperature"].to_numpy()
     assert 34.0 < t.min() and t.max() < 61.0 and np.median(np.diff(t)) == pytest.approx(1.0, abs=0.5)
+
+
+def test_the_design_weighs_what_a_miscalibrated_verdict_leaves_beside_the_shift():
+    # the curvature diagnosis above with axial compression left beside the shift instead of
+    # standing in for it: still a hypothesis for the design, with recalibration
+    d = json.loads(json.dumps(CURVATURE_ALIASED))
+    d["aliased_with"], d["recalibration"] = [], {"stand_ins": {}}
+    assert status(d) == "clear"
+    assert [h.name for h in hypotheses(d, "curvature")] == ["recalibration"]
+    d["recalibration"]["beside"] = {"axial-compression": 1.7}
+    assert status(d) == "ambiguous"
+    assert [h.name for h in hypotheses(d, "curvature")] == ["recalibration", "axial-compression"]

@@ -20,6 +20,7 @@ from tcamlab.diagnosis.verdict import (
     EVIDENCE_TERM,
     EVIDENCE_Z,
     SWITCHED_OFF,
+    beside_shift,
     named_parameters,
     term_evidence,
     verdict,
@@ -364,6 +365,33 @@ def test_a_stand_in_whose_term_the_runs_fix_far_from_zero_is_named_first_of_alia
         assert run(term, rmse)[:3] == ("miscalibrated", None, ["resistance-temperature"])
     # a term smaller than the noise: what the priors held recalibration back from, not an effect
     assert run((8.0, 1.0, False), term_rms=0.98 * EVIDENCE_TERM)[0] == "miscalibrated"
+
+
+def test_effects_the_withheld_runs_leave_beside_the_shift_are_kept_for_the_design():
+    # Recalibration moves C_th and closes the gap; E1 also closes it with C_th moved as well
+    # (no stand-in), its term 2.5 noise sds: the runs leave it standing beside the shift.
+    idx = np.random.default_rng(0).integers(0, 5, size=(200, 5))
+    b_n = np.full(200, 500.0)
+    rec = _C(RECALIBRATION, 0.9, 0.3, True, {"thermal_mass": MOVED})
+
+    def eff(name, term_rms, fc=0.9, lo=0.3):
+        c = _C(name, fc, lo, params={"thermal_mass": MOVED})
+        c.term_rms = term_rms
+        return c
+
+    ranking = [rec, eff("E1", 2.5), eff("small", 0.98 * EVIDENCE_TERM), eff("weak", 2.5, fc=0.4)]
+    ranking.append(eff("own", 2.5))
+    ranking.append(eff("stand", 2.5))
+    even = {c.effect: 110 for c in ranking}
+    own = {"own": ["thermal_mass"]}
+    # a term under a noise sd, an effect that does not close the gap, a named parameter's own
+    # error and a listed stand-in are not kept
+    assert beside_shift(ranking, ["stand"], _after(even), idx, b_n, own) == {"E1": 2.5}
+    # recalibration clearly better on the withheld runs rules it out, unless a named
+    # parameter sits at the model's domain edge (no posterior fit to compare)
+    worse = _after({**even, "E1": 112})
+    assert beside_shift(ranking, ["stand"], worse, idx, b_n, own) == {}
+    assert beside_shift(ranking, ["stand"], worse, idx, b_n, own, at_edge=True) == {"E1": 2.5}
 
 
 def test_term_evidence_is_the_wald_statistic_of_the_effects_parameters_jointly():

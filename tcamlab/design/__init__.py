@@ -402,10 +402,15 @@ def _fill(out: CandidateProtocol, parts, m: int) -> None:
             out.at_fit[h.name] = float("nan")
             continue
         p, k = h.u().size, h.effect_values.size
-        w, sd = wald_after(np.sqrt(m) * sens[h.name], covariance_root(h)[p:, :], h.effect_values)
+        root = covariance_root(h)[p:, :]
+        w, sd = wald_after(np.sqrt(m) * sens[h.name], root, h.effect_values)
         out.at_fit[h.name] = w
         names = list(h.intervals)[p : p + k]
         out.detectable[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
+        if m == 1:  # the most runs the design would ask of this protocol
+            most = max(RUN_FACTORS)
+            sd = wald_after(np.sqrt(most) * sens[h.name], root, h.effect_values)[1]
+            out.detectable_most[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
 
 
 def _sensitivities(kind, sample, rig, frames, hyps, noise: dict, quantities=None) -> dict:

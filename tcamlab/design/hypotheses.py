@@ -110,25 +110,29 @@ def _to_u(value: float, prior_sd: float, positive: bool) -> float:
 
 
 def status(diagnosis: dict) -> str:
-    """``"ambiguous"`` when the diagnosis left hypotheses it could not tell apart (aliases or
-    stand-ins), ``"clear"`` when it named one explanation, ``"none"`` (no gap) or
-    ``"unexplained"`` (no candidate explains the gap: nothing to separate)."""
+    """``"ambiguous"`` when the diagnosis left hypotheses it could not tell apart (aliases,
+    stand-ins, or effects a ``miscalibrated`` verdict cannot rule out beside the shift),
+    ``"clear"`` when it named one explanation, ``"none"`` (no gap) or ``"unexplained"`` (no
+    candidate explains the gap: nothing to separate)."""
     verdict = diagnosis.get("verdict")
     if verdict in ("none", "unexplained"):
         return str(verdict)
-    stand_ins = (diagnosis.get("recalibration") or {}).get("stand_ins")
-    return "ambiguous" if diagnosis.get("aliased_with") or stand_ins else "clear"
+    rec = diagnosis.get("recalibration") or {}
+    left = rec.get("stand_ins") or rec.get("beside")
+    return "ambiguous" if diagnosis.get("aliased_with") or left else "clear"
 
 
 def _names(diagnosis: dict, fitted) -> list[str]:
-    """Recalibration first, then the named effect and each alias and stand-in.
+    """Recalibration first, then the named effect and each alias, stand-in and effect left
+    standing beside the shift (``recalibration.beside``).
 
     An ``aliased`` verdict keeps recalibration too, where its fit is among ``fitted`` (a
     diagnosis always has it; a file cut by hand may not): the verdict ruled recalibration
     out on the first runs only, by a margin the new runs may undo, and the second diagnosis
     tests it again, so the design must also tell each alias from it."""
     verdict, effect = diagnosis.get("verdict"), diagnosis.get("effect")
-    stand_ins = list((diagnosis.get("recalibration") or {}).get("stand_ins") or {})
+    rec = diagnosis.get("recalibration") or {}
+    stand_ins = list(rec.get("stand_ins") or {}) + list(rec.get("beside") or {})
     aliased = bool(diagnosis.get("aliased_with")) and RECALIBRATION in fitted
     names = [RECALIBRATION] if verdict == "miscalibrated" or not effect or aliased else []
     names += [effect] if effect else []

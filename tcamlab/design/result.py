@@ -78,6 +78,9 @@ class CandidateProtocol:
     detectable: dict = field(default_factory=dict)
     """Effect hypothesis -> {parameter: smallest |value| the runs so far and this protocol's would
     tell from zero, sqrt(``DECISIVE``) sds after [SI]}."""
+    detectable_most: dict = field(default_factory=dict)
+    """``detectable`` with :data:`~tcamlab.design.RUN_FACTORS`'s largest multiple of the
+    protocol's runs (a protocol of the menu only): the most the design would ask of it."""
     run_factor: int = 1
     """1 for a protocol of the kind's menu; m for the same with m times its runs, scored where
     the menu's protocol falls short of deciding at the fitted sizes only by its runs."""
@@ -133,11 +136,13 @@ class DesignResult:
     from zero at their fitted sizes (``smallest``: the size the best of them would [SI])."""
 
     def smallest_detectable(self) -> dict:
-        """Effect -> {parameter: the smallest |value| any feasible protocol of the menu would tell
-        from zero with the runs so far [SI]} (min over protocols of ``detectable``)."""
+        """Effect -> {parameter: the smallest |value| any feasible protocol of the menu, with up
+        to the most runs the design would ask of it, would tell from zero with the runs so far
+        [SI]} (min over the menu's protocols of ``detectable_most``: the same whichever
+        variants with more runs the design scored, which depends on the other hypotheses)."""
         out: dict = {}
         for c in self.candidates:
-            for name, params in (c.detectable if c.feasible else {}).items():
+            for name, params in (c.detectable_most if c.feasible and c.run_factor == 1 else {}).items():
                 for n, v in params.items():
                     out.setdefault(name, {})[n] = min(v, out.get(name, {}).get(n, float("inf")))
         return out
