@@ -983,8 +983,27 @@ def closed_loop_scores(results: list[dict]) -> dict:
             "rate": _rate(int(sum(flags)), len(flags)),
         },
         "within_reach": _within_reach_scores(rows, after),
+        "design_promise": promise_scores(rows),
         "cases": [_loop_row(r, a) for r, a in zip(rows, after)],
     }
+
+
+def promise_scores(rows: list[dict]) -> dict:
+    """How well the design foresaw the precision its runs would give: over every effect
+    parameter of every case, the standard error the second diagnosis reports over the one the
+    design promised for the chosen protocol (``realised_sd`` / ``promised_sd`` of
+    :func:`tcamlab.loop.loop_summary`): n, median and the 10th and 90th percentiles [-]."""
+    ratios = [
+        sd / promised
+        for r in rows
+        for effect, params in ((r.get("loop") or {}).get("realised_sd") or {}).items()
+        for n, sd in params.items()
+        if (promised := r["loop"]["promised_sd"].get(effect, {}).get(n))
+    ]
+    if not ratios:
+        return {"n": 0, "median": None, "p10": None, "p90": None}
+    p10, med, p90 = np.percentile(ratios, [10, 50, 90])
+    return {"n": len(ratios), "median": float(med), "p10": float(p10), "p90": float(p90)}
 
 
 def _reach(r: dict) -> bool | None:
@@ -1470,6 +1489,18 @@ def _loop_tables(c: dict) -> list:
         for st, w in sorted(by.items(), key=lambda kv: float(kv[0])):
             fig = f"top-1 at {st}x, leaving out the {w['out_of_reach']} out of the menu's reach"
             rows.append([fam, fig, str(w["n"]), "-", _fmt(w["rate"]), LOOP_TARGETS["top-1"]])
+    pr = c.get("design_promise") or {}
+    if pr.get("n"):
+        rows.append(
+            [
+                "all",
+                "effect parameters' sd after the designed runs over the sd the design promised: median (10-90 %)",
+                str(pr["n"]),
+                "-",
+                f"{pr['median']:.2f} ({pr['p10']:.2f}-{pr['p90']:.2f})",
+                "about 1",
+            ]
+        )
     d = c["at_least_default"]
     rows.append(
         [

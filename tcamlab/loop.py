@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from tcamlab.config import load_experiment
-from tcamlab.design import design, protocol_toml
+from tcamlab.design import DECISIVE, design, protocol_toml
 from tcamlab.diagnosis import diagnose
 from tcamlab.errors import ConvergenceError, IntegrationError, ModelDomainError
 from tcamlab.report.atomic import atomic_write_text
@@ -29,6 +29,7 @@ __all__ = [
     "at_least_default",
     "within_reach",
     "reach_sizes",
+    "realised_sd",
 ]
 
 DEFAULT_PROTOCOL = {
@@ -98,7 +99,23 @@ def close_loop(experiment, first: dict, truth: dict, out_dir, *, seed: int, n_bo
         return summary, None
     both = load_experiment(sim.experiment_path)
     summary["runs_total"] = len(both.runs)
-    return summary, diagnose(both, n_boot=n_boot, seed=0, workers=1).to_dict()
+    second = diagnose(both, n_boot=n_boot, seed=0, workers=1).to_dict()
+    summary["realised_sd"] = realised_sd(second, summary["promised_sd"])
+    return summary, second
+
+
+def realised_sd(diagnosis: dict, promised: dict) -> dict:
+    """{effect: {parameter: standard error [SI]}} that ``diagnosis`` reports for each parameter
+    the design promised an sd of (``promised_sd`` of :func:`loop_summary`), leaving out a
+    parameter fitted at a bound (no Laplace interval there)."""
+    by = {c["effect"]: c.get("parameters") or {} for c in diagnosis.get("ranking", [])}
+    out: dict = {}
+    for effect, params in promised.items():
+        for n in params:
+            p = by.get(effect, {}).get(n) or {}
+            if p.get("stderr") and not p.get("at_bound"):
+                out.setdefault(effect, {})[n] = float(p["stderr"])
+    return out
 
 
 def _default(res, kind: str):
@@ -126,8 +143,10 @@ def _protocol(c) -> dict | None:
 
 def loop_summary(res, kind: str) -> dict:
     """What a benchmark keeps of a design: its status, the protocol chosen and the fixed
-    default's figures from the same design (separation J, runs), and whether the chosen one
-    separates at least as well with no more runs (:func:`at_least_default`)."""
+    default's figures from the same design (separation J, runs), whether the chosen one
+    separates at least as well with no more runs (:func:`at_least_default`), and the sd the
+    design expects each effect parameter to have after the chosen runs (``promised_sd``
+    [SI]; :func:`close_loop` adds the sd the second diagnosis reports, ``realised_sd``)."""
     best, default = _protocol(res.best), _protocol(_default(res, kind))
     return {
         "status": res.status,
@@ -137,6 +156,11 @@ def loop_summary(res, kind: str) -> dict:
         "at_least_default": at_least_default(best, default),
         "decisive": bool(res.best is not None and res.best.decisive),
         "smallest_detectable": res.smallest_detectable(),
+        # the sd the design expects each effect parameter to have once the chosen runs are in
+        "promised_sd": {
+            h: {n: v / float(np.sqrt(DECISIVE)) for n, v in params.items()}
+            for h, params in (res.best.detectable if res.best is not None else {}).items()
+        },
     }
 
 

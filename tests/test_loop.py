@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from tcamlab.benchmark import closed_loop_scores, loop_tasks
+from tcamlab.benchmark import closed_loop_scores, loop_tasks, promise_scores
 from tcamlab.design import DECISIVE
 from tcamlab.design.protocols import kind_module
-from tcamlab.loop import DEFAULT_PROTOCOL, at_least_default, within_reach
+from tcamlab.loop import DEFAULT_PROTOCOL, at_least_default, realised_sd, within_reach
 
 
 def _p(j, runs, feasible=True, decisive=None):
@@ -164,3 +164,24 @@ def test_a_second_hanging_load_tells_a_softening_coil_from_a_recalibration(tmp_p
     loads = sorted({round(float(r.data["load"].mean()), 6) for r in runs if "load" in r.data})
     assert loads == pytest.approx([0.05 * 9.80665, 0.1 * 9.80665], abs=1e-6)  # N, 50 g and 100 g
     assert (second["verdict"], second["effect"]) == ("attributed", "shear-modulus-temperature")
+
+
+def test_the_design_promise_is_scored_against_the_second_diagnosis():
+    promised = {"g": {"slope": 2.0e3}, "d": {"delay": 1e-3}}
+    second = {
+        "ranking": [
+            {"effect": "g", "parameters": {"slope": {"value": 5e3, "stderr": 2.4e3, "at_bound": False}}},
+            # at a bound: no Laplace interval, not compared
+            {"effect": "d", "parameters": {"delay": {"value": 0.0, "stderr": 1e-4, "at_bound": True}}},
+        ]
+    }
+    got = realised_sd(second, promised)
+    assert got == {"g": {"slope": 2.4e3}}
+    rows = [{"loop": {"promised_sd": promised, "realised_sd": got}}] + [
+        {"loop": {"promised_sd": {"g": {"slope": 1.0}}, "realised_sd": {"g": {"slope": x}}}}
+        for x in (0.5, 1.0)
+    ]
+    sc = promise_scores(rows)
+    assert sc["n"] == 3 and sc["median"] == pytest.approx(1.0)
+    assert sc["p10"] == pytest.approx(0.6) and sc["p90"] == pytest.approx(1.16)
+    assert promise_scores([{"loop": {}}]) == {"n": 0, "median": None, "p10": None, "p90": None}
