@@ -583,8 +583,8 @@ def beside_shift(ranking, aliased, after_folds, boot_idx, b_n, own_errors, at_ed
     gap, E(T) and G(T) 100.3 % with terms of 2.9 and 2.7 noise sds, and neither took over a
     shift (recalibration, its G_t slope held at the domain edge, fitted the withheld runs
     0.1 % of the gap better, a difference the paired bootstrap calls clear), so the design
-    weighed recalibration alone and chose finer temperature steps, although a second load
-    with heat-cool, run three times, would put the true E(T) slope 8 standard errors from
+    weighed recalibration alone and chose finer temperature steps, although the menu's best
+    protocol for it, run three times, would put the true E(T) slope 8 standard errors from
     zero."""
     recal = next((c for c in ranking if c.effect == RECALIBRATION), None)
     if recal is None:
