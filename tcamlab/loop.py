@@ -167,8 +167,8 @@ def loop_summary(res, kind: str) -> dict:
 def reach_sizes(experiment, first: dict, effect: str, **design_options) -> dict:
     """{parameter: the smallest |value| of ``effect``'s parameters any feasible protocol of the
     menu would tell from zero with the runs so far [SI]}, from a design that weighs the effect
-    against recalibration whatever the diagnosis's verdict (its fit on the runs so far, as every
-    candidate of the ranking has one).
+    against recalibration (and any effect the diagnosis left beside the shift) whatever the
+    diagnosis's verdict (its fit on the runs so far, as every candidate of the ranking has one).
 
     A benchmark asks it of a case's true effect where the design did not weigh it (a clear
     first diagnosis, or one whose hypotheses left the truth out), so that whether the menu

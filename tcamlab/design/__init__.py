@@ -402,15 +402,17 @@ def _fill(out: CandidateProtocol, parts, m: int) -> None:
             out.at_fit[h.name] = float("nan")
             continue
         p, k = h.u().size, h.effect_values.size
-        root = covariance_root(h)[p:, :]
-        w, sd = wald_after(np.sqrt(m) * sens[h.name], root, h.effect_values)
-        out.at_fit[h.name] = w
-        names = list(h.intervals)[p : p + k]
-        out.detectable[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
+        root, names = covariance_root(h)[p:, :], list(h.intervals)[p : p + k]
+        out.at_fit[h.name], out.detectable[h.name] = _told_from_zero(sens[h.name], root, h, names, m)
         if m == 1:  # the most runs the design would ask of this protocol
-            most = max(RUN_FACTORS)
-            sd = wald_after(np.sqrt(most) * sens[h.name], root, h.effect_values)[1]
-            out.detectable_most[h.name] = {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
+            out.detectable_most[h.name] = _told_from_zero(sens[h.name], root, h, names, max(RUN_FACTORS))[1]
+
+
+def _told_from_zero(B, root, h, names, m: int) -> tuple[float, dict]:
+    """(Wald statistic of ``h``'s effect at its fit, {parameter: the size told from zero,
+    sqrt(``DECISIVE``) sds after [SI]}) with ``m`` copies of a protocol's runs (sensitivity ``B``)."""
+    w, sd = wald_after(np.sqrt(m) * B, root, h.effect_values)
+    return w, {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
 
 
 def _sensitivities(kind, sample, rig, frames, hyps, noise: dict, quantities=None) -> dict:

@@ -649,6 +649,7 @@ def decide(
 ) -> Decision:
     """The verdict from the single candidates, then from pairs when no single one explains the gap."""
     after = {name: f.after for name, f in fits.items()}
+    errors = _own_errors(rec, effects)
     v, effect, aliased, reason = verdict(
         ranking,
         gap.significant,
@@ -658,7 +659,7 @@ def decide(
         gap.rmse_over_noise,
         gap.limit,
         baseline.floor2,
-        own_errors=_own_errors(rec, effects),
+        own_errors=errors,
     )
     combination = None
     best = ranking[0] if ranking else None
@@ -677,7 +678,6 @@ def decide(
     reason += mark_domain_edges(recalibration, rec, fits)
     if v == "miscalibrated" and recalibration is not None:
         edge = any(p.get("at_domain_edge") for p in recalibration["parameters"].values())
-        errors = _own_errors(rec, effects)
         left = beside_shift(ranking, aliased, after, scores.boot_idx, scores.boot_n, errors, edge)
         recalibration["beside"] = left
         reason += _beside_text(left)
