@@ -158,7 +158,6 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
             cands.extend(_score(experiment, p, hyps, noise, n_draws, seed))
             step()
     _mark_risky(cands)
-    _beyond_repeat(cands)
     base.out_of_reach = _decide(cands, hyps)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates, base.best = cands, _best(cands)
@@ -167,7 +166,9 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
 
 
 def _decide(cands: list[CandidateProtocol], hyps) -> dict:
-    """Mark the protocols expected to decide; return the effects out of every protocol's reach.
+    """Mark the protocols expected to decide; return the effects out of every protocol's reach
+    (the protocols' J then counts only the pairs within reach, :func:`_separation_within_reach`,
+    and what each adds beyond the repeat, :func:`_beyond_repeat`).
 
     An effect is out of reach when no protocol of the menu, with up to the largest of
     :data:`RUN_FACTORS` times its runs, would tell it from zero at its fitted size (``at_fit``
@@ -194,6 +195,8 @@ def _decide(cands: list[CandidateProtocol], hyps) -> dict:
             for n, v in need.items()
         }
     within = [h.name for h in effects if h.name not in out]
+    _separation_within_reach(cands, set(out))
+    _beyond_repeat(cands)
     for c in cands:
         c.decisive = bool(
             c.feasible
@@ -202,6 +205,30 @@ def _decide(cands: list[CandidateProtocol], hyps) -> dict:
             and all(np.nan_to_num(c.at_fit.get(n, 0.0), nan=0.0) >= POWERED for n in within)
         )
     return out
+
+
+def _separation_within_reach(cands: list[CandidateProtocol], out_of_reach: set) -> None:
+    """Each protocol's J and D over the pairs of hypotheses within reach (both left as they are
+    when no pair is).
+
+    An effect out of reach predicts, under every protocol, what recalibration predicts to
+    within the noise at its fitted size, so its pair with recalibration has a J near zero
+    everywhere: as the hardest pair it would hold every protocol short of deciding between the
+    hypotheses that can be told apart. Static E(T) at 3x (synthetic, parameters one stated sd
+    off): with G(T) fitted at 5e3 Pa/K (out of reach) in the pairs, "second load 2x" scored J
+    1.6 and nothing decided; recalibration against E(T) alone scored 163. Its pairs stay in
+    ``refit`` and ``pairs`` for the reader."""
+    if not out_of_reach:
+        return
+
+    def kept(scores: dict) -> dict:
+        return {k: v for k, v in scores.items() if not out_of_reach.intersection(k.split(" vs "))}
+
+    for c in cands:
+        refit, pairs = kept(c.refit), kept(c.pairs)
+        if refit and pairs:
+            c.separation_refit, c.separation = float(min(refit.values())), float(min(pairs.values()))
+            c.log_bayes_factor = c.separation_refit / 2.0
 
 
 def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int, quantities=None):
