@@ -143,6 +143,41 @@ def test_an_effect_no_protocol_reaches_is_said_and_not_counted_on():
     )
 
 
+def test_an_effect_out_of_reach_does_not_set_the_separation():
+    # G(T) is out of reach in ALIASED: its pairs predict within the noise of recalibration's,
+    # so a protocol's J (the hardest pair) is taken over the pairs within reach. Were G(T)'s
+    # pairs counted, "second load 2x" would score the recalibration vs G(T) pair (about 11).
+    exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
+    res = design(exp, ALIASED, n_draws=16)
+    g, e = "shear-modulus-temperature", "youngs-modulus-temperature"
+    by = {c.name: c for c in res.candidates}
+    two = by["second load 2x"]
+    assert two.refit[f"recalibration vs {g}"] < two.refit[f"recalibration vs {e}"] / 5
+    assert two.separation_refit == pytest.approx(two.refit[f"recalibration vs {e}"])
+    assert two.separation == pytest.approx(two.pairs[f"recalibration vs {e}"])
+    repeat = by["repeat (same protocol)"]
+    assert two.beyond_repeat == pytest.approx(two.separation_refit - repeat.separation_refit)
+    assert g not in res.message.split(":")[0] and two.decisive
+
+
+def test_the_separation_stays_whole_when_no_pair_is_within_reach():
+    from types import SimpleNamespace
+
+    from tcamlab.design import _separation_within_reach
+
+    c = SimpleNamespace(
+        refit={"recalibration vs a": 0.5, "recalibration vs b": 3.0, "a vs b": 2.0},
+        pairs={"recalibration vs a": 0.7, "recalibration vs b": 4.0, "a vs b": 2.5},
+        separation_refit=0.5,
+        separation=0.7,
+        log_bayes_factor=0.25,
+    )
+    _separation_within_reach([c], {"a", "b"})
+    assert (c.separation_refit, c.separation) == (0.5, 0.7)
+    _separation_within_reach([c], {"a"})
+    assert (c.separation_refit, c.separation, c.log_bayes_factor) == (3.0, 4.0, 1.5)
+
+
 def test_static_menu_stays_where_g_is_positive():
     exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
     for slope in (exp.sample.shear_modulus_slope, 1.6 * exp.sample.shear_modulus_slope):
