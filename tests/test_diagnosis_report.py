@@ -541,6 +541,16 @@ def test_next_experiment_section_lists_the_protocols_with_the_best_marked():
     assert next_experiment_section(None) is None and next_experiment_section({}) is None
 
 
+def test_a_hypothesis_without_a_statistic_at_its_fit_shows_a_dash():
+    # a hypothesis with no solution near its fit under a protocol: NaN in the design, null in
+    # its JSON; the weakest effect is then unknown, not the smallest of the others
+    design = _design()
+    design["candidates"][0]["at_fit"] = {"glass-transition": 30.0, "youngs-modulus-temperature": None}
+    (table,) = next_experiment_section(design).tables
+    row = [c.text for c in table.formatted_rows()[0]]
+    assert row[:5] == ["slow oven ramp (best)", "9.25", "9.5", "\u2013", "yes"]
+
+
 def test_diagnosis_report_renders_the_next_experiment_only_when_present(glass):
     result, exp = glass
     assert [s.heading for s in diagnosis_document(result, exp).sections] == ["Sim-to-real gap diagnosis"]

@@ -316,9 +316,10 @@ def _finite(x):
 
 def _separation_cells(c: dict, out_of_reach: dict) -> list:
     """J, J beyond the repeat, the weakest within-reach effect's Wald statistic at its fit (None
-    without one) and whether the protocol decides."""
-    at_fit = [v for n, v in (c.get("at_fit") or {}).items() if n not in out_of_reach]
-    weakest = _finite(min(at_fit)) if at_fit else None
+    without one, or when one has none: a hypothesis without a solution near its fit, stored
+    as null) and whether the protocol decides."""
+    at_fit = [_finite(v) for n, v in (c.get("at_fit") or {}).items() if n not in out_of_reach]
+    weakest = min(at_fit) if at_fit and None not in at_fit else None
     return [
         _finite(c.get("separation_refit")),
         _finite(c.get("beyond_repeat")),
