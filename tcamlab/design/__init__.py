@@ -55,6 +55,7 @@ __all__ = [
     "DECISIVE",
     "POWERED",
     "RUN_FACTORS",
+    "REACH_PROBABILITY",
 ]
 
 DECISIVE = 2.0 * float(np.log(100.0))
@@ -70,6 +71,15 @@ POWERED = (float(np.sqrt(DECISIVE)) + float(norm.ppf(0.8))) ** 2
 reach :data:`DECISIVE` with a probability of 0.8 if the effect is as large as fitted
 ((sqrt(9.2) + 0.84)^2 = 15.0). Below it the protocol is also scored with more runs
 (:data:`RUN_FACTORS`)."""
+
+REACH_PROBABILITY = 0.5
+"""Posterior probability [-] at or above which an effect the design could not tell from zero at
+its fitted size still counts as within reach: the chance, under the first fit's normal
+approximation, that it is at least as large as the best protocol would tell from zero. A fit
+that cannot pin an effect says nothing about its size: a laser drift at 3x the noise was fitted
+4e-11 m/s (95 % -3.3e-8 to 3.3e-8) on three heating runs, while a heat-cool program tells 1.6e-10
+from zero; judged at the fitted size alone it was put out of reach and the design chose a
+second load, after which the diagnosis stayed `miscalibrated`."""
 
 RUN_FACTORS = (2, 3)
 """Multiples of a protocol's runs the design also scores where the protocol falls short of
@@ -172,29 +182,31 @@ def _decide(cands: list[CandidateProtocol], hyps) -> dict:
 
     An effect is out of reach when no protocol of the menu, with up to the largest of
     :data:`RUN_FACTORS` times its runs, would tell it from zero at its fitted size (``at_fit``
-    below :data:`DECISIVE` under every feasible one): then, if it is the truth at about that
-    size, nothing here will show it, and the design says so instead of counting on J, whose
-    spread over a wide posterior promises otherwise. A protocol decides when its J beyond the
-    repeat is at least :data:`DECISIVE` and it expects every effect within reach at
-    :data:`POWERED` at its fitted size; with every effect out of reach, none decides.
+    below :data:`DECISIVE` under every feasible one) and it is unlikely to be larger
+    (:func:`reach_probability` below :data:`REACH_PROBABILITY`): then, if it is the truth,
+    nothing here will show it, and the design says so instead of counting on J, whose spread
+    over a wide posterior promises otherwise. A protocol decides when its J beyond the repeat
+    is at least :data:`DECISIVE` and it expects every effect within reach at :data:`POWERED`
+    at its plausible size (:func:`_sized_statistic`); with every effect out of reach, none
+    decides.
     """
     ok = [c for c in cands if c.feasible]
     effects = [h for h in hyps if h.effect_values.size]
-    reach = {
-        h.name: max((np.nan_to_num(c.at_fit.get(h.name, 0.0), nan=0.0) for c in ok), default=0.0)
-        for h in effects
-    }
+    at_fit = {h.name: max((_statistic(c, h.name) for c in ok), default=0.0) for h in effects}
     out = {}
     for h in effects:
-        if reach[h.name] >= DECISIVE:
+        if (
+            at_fit[h.name] >= DECISIVE
+            or max((reach_probability(h, c) for c in ok), default=0.0) >= REACH_PROBABILITY
+        ):
             continue
-        best = max(ok, key=lambda c: np.nan_to_num(c.at_fit.get(h.name, 0.0), nan=0.0), default=None)
+        best = max(ok, key=lambda c: _statistic(c, h.name), default=None)
         need = best.detectable.get(h.name, {}) if best is not None else {}
         out[h.name] = {
             n: {"fitted": float(h.intervals[n]["value"]), "smallest": v, "unit": h.intervals[n].get("unit")}
             for n, v in need.items()
         }
-    within = [h.name for h in effects if h.name not in out]
+    within = [h for h in effects if h.name not in out]
     _separation_within_reach(cands, set(out))
     _beyond_repeat(cands)
     for c in cands:
@@ -202,9 +214,46 @@ def _decide(cands: list[CandidateProtocol], hyps) -> dict:
             c.feasible
             and within
             and c.beyond_repeat >= DECISIVE
-            and all(np.nan_to_num(c.at_fit.get(n, 0.0), nan=0.0) >= POWERED for n in within)
+            and all(_sized_statistic(c, h) >= POWERED for h in within)
         )
     return out
+
+
+def _statistic(c: CandidateProtocol, name: str) -> float:
+    """Effect ``name``'s Wald statistic at its fit under ``c`` (0 where it has none)."""
+    return float(np.nan_to_num(c.at_fit.get(name, 0.0), nan=0.0))
+
+
+def _sized_statistic(c: CandidateProtocol, h: Hypothesis) -> float:
+    """Effect ``h``'s Wald statistic under ``c`` at its plausible size: its fitted size, or one
+    standard error of the first fit in a parameter where that is larger (then sd^2 over the sd
+    after ``c``'s runs, ``c.detectable`` being sqrt(DECISIVE) of the latter). Where the first
+    fit cannot tell the effect from zero its fitted size is chance, and power there would ask
+    the impossible: the drift above, fitted at 4e-11 m/s, made every protocol fall short."""
+    need = c.detectable.get(h.name) or {}
+    names = list(h.intervals)[h.values.size : h.values.size + h.effect_values.size]
+    w = _statistic(c, h.name)
+    for name, sd in zip(names, h.effect_sd):
+        d = need.get(name)
+        if d is not None and np.isfinite(d) and d > 0 and np.isfinite(sd):
+            w = max(w, DECISIVE * float(sd / d) ** 2)
+    return w
+
+
+def reach_probability(h: Hypothesis, c: CandidateProtocol) -> float:
+    """Probability [-] that effect hypothesis ``h`` is at least as large as protocol ``c`` would
+    tell from zero, in any one of its parameters: P(|theta| >= d) with theta normal about the
+    fitted value with the fit's standard error and d the size ``c`` tells from zero
+    (``c.detectable``; 0 where ``c`` has none)."""
+    need = c.detectable.get(h.name) or {}
+    names = list(h.intervals)[h.values.size : h.values.size + h.effect_values.size]
+    best = 0.0
+    for name, v, sd in zip(names, h.effect_values, h.effect_sd):
+        d = need.get(name)
+        if d is None or not (np.isfinite(d) and np.isfinite(sd) and sd > 0):
+            continue
+        best = max(best, float(norm.sf((d - v) / sd) + norm.cdf((-d - v) / sd)))
+    return best
 
 
 def _separation_within_reach(cands: list[CandidateProtocol], out_of_reach: set) -> None:

@@ -1,11 +1,16 @@
-"""Make ``static_aliased.diagnosis.json``: a diagnosis the design tests read.
+"""Make the static diagnoses the design tests read (only the fields ``tcamlab.design`` reads).
 
-Synthetic data (tcamlab's virtual rig, seed 1): the static template's three heating runs at
-one load with a temperature-dependent Young's modulus at 3x the noise, diagnosed by
-``tcamlab diagnose``; recalibration, youngs-modulus-temperature and shear-modulus-temperature
-fit the withheld runs alike. Only the fields ``tcamlab.design`` reads are kept.
+Synthetic data (tcamlab's virtual rig), the static template's three heating runs at one load,
+diagnosed by ``tcamlab diagnose``:
 
-Run from the repository's root: ``python tests/data/design/make_aliased.py``.
+- ``static_aliased.diagnosis.json`` (seed 1): a temperature-dependent Young's modulus at 3x
+  the noise; recalibration, youngs-modulus-temperature and shear-modulus-temperature fit the
+  withheld runs alike.
+- ``static_drift.diagnosis.json`` (seed 6): a laser drifting at 3x the noise; `miscalibrated`,
+  with the drift fitted near zero and a wide interval beside E(T) and G(T).
+
+Run from the repository's root: ``python tests/data/design/make_aliased.py [aliased|drift]``
+(both without an argument).
 """
 
 import json
@@ -15,13 +20,19 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-KEEP = ("recalibration", "youngs-modulus-temperature", "shear-modulus-temperature")
+TEMPERATURE = ("recalibration", "youngs-modulus-temperature", "shear-modulus-temperature")
+CASES = {
+    # name: (seed, the effect simulated at 3x, the ranking's entries kept)
+    "aliased": (1, "youngs-modulus-temperature", TEMPERATURE),
+    "drift": (6, "displacement-drift", (*TEMPERATURE, "displacement-drift")),
+}
 
 
-def main() -> None:
+def make(name: str) -> None:
+    seed, effect, keep_effects = CASES[name]
     with tempfile.TemporaryDirectory() as tmp:
-        sim = ["simulate", "static", "--experiment", "static", "--seed", "1", "--out", tmp]
-        sim += ["--effect", "youngs-modulus-temperature=3", "--name", "aliased"]
+        sim = ["simulate", "static", "--experiment", "static", "--seed", str(seed), "--out", tmp]
+        sim += ["--effect", f"{effect}=3", "--name", "aliased"]
         subprocess.run([sys.executable, "-m", "tcamlab", *sim], check=True, capture_output=True)
         exp = str(Path(tmp) / "experiments" / "aliased.toml")
         out = subprocess.run(
@@ -36,9 +47,10 @@ def main() -> None:
         }
     }
     fields = ("effect", "recalibrated", "recalibrated_shift", "parameters")
-    keep["ranking"] = [{k: c[k] for k in fields} for c in d["ranking"] if c["effect"] in KEEP]
-    (HERE / "static_aliased.diagnosis.json").write_text(json.dumps(keep, indent=1) + "\n", encoding="utf-8")
+    keep["ranking"] = [{k: c[k] for k in fields} for c in d["ranking"] if c["effect"] in keep_effects]
+    (HERE / f"static_{name}.diagnosis.json").write_text(json.dumps(keep, indent=1) + "\n", encoding="utf-8")
 
 
 if __name__ == "__main__":
-    main()
+    for name in sys.argv[1:] or list(CASES):
+        make(name)
