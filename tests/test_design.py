@@ -174,11 +174,7 @@ def test_reach_probability_by_hand():
     from tcamlab.design import reach_probability
 
     h = SimpleNamespace(
-        name="e",
-        values=np.zeros(1),
-        effect_values=np.array([0.0, 1.0]),
-        effect_sd=np.array([1.0, 0.5]),
-        intervals={"u": {}, "a": {}, "b": {}},
+        name="e", effect_names=["a", "b"], effect_values=np.array([0.0, 1.0]), effect_sd=np.array([1.0, 0.5])
     )
     # a about 0 +- 1, told from zero from 0.6745: P(|a| >= 0.6745) = 0.5
     c = SimpleNamespace(detectable={"e": {"a": float(norm.ppf(0.75)), "b": 10.0}})

@@ -231,9 +231,8 @@ def _sized_statistic(c: CandidateProtocol, h: Hypothesis) -> float:
     fit cannot tell the effect from zero its fitted size is chance, and power there would ask
     the impossible: the drift above, fitted at 4e-11 m/s, made every protocol fall short."""
     need = c.detectable.get(h.name) or {}
-    names = list(h.intervals)[h.values.size : h.values.size + h.effect_values.size]
     w = _statistic(c, h.name)
-    for name, sd in zip(names, h.effect_sd):
+    for name, sd in zip(h.effect_names, h.effect_sd):
         d = need.get(name)
         if d is not None and np.isfinite(d) and d > 0 and np.isfinite(sd):
             w = max(w, DECISIVE * float(sd / d) ** 2)
@@ -246,9 +245,8 @@ def reach_probability(h: Hypothesis, c: CandidateProtocol) -> float:
     fitted value with the fit's standard error and d the size ``c`` tells from zero
     (``c.detectable``; 0 where ``c`` has none)."""
     need = c.detectable.get(h.name) or {}
-    names = list(h.intervals)[h.values.size : h.values.size + h.effect_values.size]
     best = 0.0
-    for name, v, sd in zip(names, h.effect_values, h.effect_sd):
+    for name, v, sd in zip(h.effect_names, h.effect_values, h.effect_sd):
         d = need.get(name)
         if d is None or not (np.isfinite(d) and np.isfinite(sd) and sd > 0):
             continue
@@ -477,8 +475,7 @@ def _fill(out: CandidateProtocol, parts, m: int) -> None:
         if sens[h.name] is None:
             out.at_fit[h.name] = float("nan")
             continue
-        p, k = h.u().size, h.effect_values.size
-        root, names = covariance_root(h)[p:, :], list(h.intervals)[p : p + k]
+        root, names = covariance_root(h)[h.u().size :, :], h.effect_names
         out.at_fit[h.name], out.detectable[h.name] = _told_from_zero(sens[h.name], root, h, names, m)
         if m == 1:  # the most runs the design would ask of this protocol
             out.detectable_most[h.name] = _told_from_zero(sens[h.name], root, h, names, max(RUN_FACTORS))[1]

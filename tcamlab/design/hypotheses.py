@@ -81,6 +81,13 @@ class Hypothesis:
             )
         return self.cov_u
 
+    @property
+    def effect_names(self) -> list[str]:
+        """The effect's parameter names, in the order of ``effect_values`` (empty for
+        recalibration; ``intervals`` lists the recalibrated parameters first)."""
+        p = self.values.size
+        return list(self.intervals)[p : p + self.effect_values.size]
+
     def u(self) -> np.ndarray:
         """Fitted coordinates of ``values``."""
         return np.array(
