@@ -118,6 +118,10 @@ def test_an_effect_no_protocol_reaches_is_said_and_not_counted_on():
     assert set(res.out_of_reach) == {"shear-modulus-temperature"}
     need = res.out_of_reach["shear-modulus-temperature"]["coil_shear_slope"]
     assert need["smallest"] > 5 * abs(need["fitted"])
+    # and the first fit makes a slope that large unlikely: 4.1e3 +- 1.6e4 against 3.3e4 or more
+    assert (
+        0.0 < need["chance"] < 0.1 and f"a {need['chance']:.0%} chance that it is that large" in res.message
+    )
     assert "out of reach" in res.message and "shear-modulus-temperature" in res.message
     assert by["second load 2x"].at_fit["youngs-modulus-temperature"] >= 2 * np.log(100)
     assert by["repeat (same protocol)"].at_fit["youngs-modulus-temperature"] < 1.0

@@ -195,15 +195,18 @@ def _decide(cands: list[CandidateProtocol], hyps) -> dict:
     at_fit = {h.name: max((_statistic(c, h.name) for c in ok), default=0.0) for h in effects}
     out = {}
     for h in effects:
-        if (
-            at_fit[h.name] >= DECISIVE
-            or max((reach_probability(h, c) for c in ok), default=0.0) >= REACH_PROBABILITY
-        ):
+        chance = max((reach_probability(h, c) for c in ok), default=0.0)
+        if at_fit[h.name] >= DECISIVE or chance >= REACH_PROBABILITY:
             continue
         best = max(ok, key=lambda c: _statistic(c, h.name), default=None)
         need = best.detectable.get(h.name, {}) if best is not None else {}
         out[h.name] = {
-            n: {"fitted": float(h.intervals[n]["value"]), "smallest": v, "unit": h.intervals[n].get("unit")}
+            n: {
+                "fitted": float(h.intervals[n]["value"]),
+                "smallest": v,
+                "unit": h.intervals[n].get("unit"),
+                "chance": chance,
+            }
             for n, v in need.items()
         }
     within = [h for h in effects if h.name not in out]
@@ -367,13 +370,17 @@ def _message(res: DesignResult, hyps) -> str:
 
 def _out_of_reach(res: DesignResult) -> str:
     """The effects no protocol of the menu would tell from zero at their fitted sizes, with
-    the smallest size the best one would (empty when none)."""
+    the smallest size the best one would and the chance that the effect is that large (empty
+    when none)."""
     parts = []
     for name, params in res.out_of_reach.items():
         sizes = [
             f"{n} fitted {p['fitted']:.3g}, the best protocol needs {p['smallest']:.3g} {p.get('unit') or ''}".rstrip()
             for n, p in params.items()
         ]
+        chance = max((p.get("chance", 0.0) for p in params.values()), default=None)
+        if chance is not None:
+            sizes.append(f"a {chance:.0%} chance that it is that large")
         parts.append(f"{name} ({'; '.join(sizes) or 'no solution near its fit'})")
     if not parts:
         return ""
