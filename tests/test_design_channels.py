@@ -235,3 +235,30 @@ def test_an_aliased_verdict_weighs_recalibration_where_its_fit_is_given():
         "ranking": [c for c in DYNAMIC_ALIASED["ranking"] if c["effect"] != "recalibration"],
     }
     assert [h.name for h in hypotheses(cut, "dynamic")] == ["convective-heat-loss", "resistance-temperature"]
+
+
+def test_a_fit_hotter_than_the_limit_on_the_runs_made_forbids_only_hotter_protocols(monkeypatch):
+    # The sample survived the runs already made, so a fit that puts them above the temperature
+    # limit can rule out only what heats further. (Synthetic, stated G_t' = 0 and a convective
+    # loss at 3x: the R(T) fit put the pulse at 182 degC against 170, and every protocol, the
+    # repeat of what was run included, came out of bounds.) Here every fit of DYNAMIC_ALIASED
+    # peaks near 100 degC, above a limit lowered to 40.
+    monkeypatch.setattr(tcamlab.design.predict, "TEMPERATURE_LIMIT_C", 40.0)
+    res = design(template(), DYNAMIC_ALIASED, n_draws=N_DRAWS)
+    c = by_name(res)
+    assert c["repeat (same protocol)"].feasible and c["shorter pulse 0.5x"].feasible
+    assert c["log the current"].feasible
+    assert not c["pulse train of 3"].feasible
+    assert "it predicts for the runs already made" in c["pulse train of 3"].limit
+    assert res.best is not None and res.best.name == "log the temperature"
+
+
+def test_the_limit_alone_holds_where_the_runs_made_stay_below_it():
+    from tcamlab.design.predict import TEMPERATURE_LIMIT_C, limits
+
+    frames = [{"temperature": np.array([20.0, 60.0])}]
+    hot = [{"temperature": np.array([20.0, TEMPERATURE_LIMIT_C + 5.0]), "displacement": np.zeros(2)}]
+    assert "limit" in limits("dynamic", None, frames, hot)
+    assert "limit" in limits("dynamic", None, frames, hot, ceiling=TEMPERATURE_LIMIT_C - 30.0)
+    assert limits("dynamic", None, frames, hot, ceiling=TEMPERATURE_LIMIT_C + 5.0) is None
+    assert "runs already made" in limits("dynamic", None, frames, hot, ceiling=TEMPERATURE_LIMIT_C + 2.0)

@@ -29,7 +29,15 @@ from scipy.stats import norm
 
 from tcamlab import progress
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
-from tcamlab.design.predict import N_DRAWS, covariance_root, limits, predictive, sensitivity
+from tcamlab.design.predict import (
+    N_DRAWS,
+    covariance_root,
+    hottest,
+    limits,
+    predictive,
+    run_outputs,
+    sensitivity,
+)
 from tcamlab.design.protocols import (
     Protocol,
     channel_noise,
@@ -162,10 +170,10 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
     base.hypotheses = [{"name": h.name, "parameters": h.intervals} for h in hyps]
     protocols = menu(kind, experiment.sample, experiment.rig)
     noise = base.noise = menu_noise(kind, protocols, noise)
-    cands = []
+    cands, ceilings = [], _ceilings(experiment, protocols[0], hyps, seed)
     with progress.task("designing: scoring protocols", total=len(protocols)) as step:
         for p in protocols:
-            cands.extend(_score(experiment, p, hyps, noise, n_draws, seed))
+            cands.extend(_score(experiment, p, hyps, noise, n_draws, seed, ceilings))
             step()
     _mark_risky(cands)
     base.out_of_reach = _decide(cands, hyps)
@@ -233,12 +241,9 @@ def _sized_statistic(c: CandidateProtocol, h: Hypothesis) -> float:
     after ``c``'s runs, ``c.detectable`` being sqrt(DECISIVE) of the latter). Where the first
     fit cannot tell the effect from zero its fitted size is chance, and power there would ask
     the impossible: the drift above, fitted at 4e-11 m/s, made every protocol fall short."""
-    need = c.detectable.get(h.name) or {}
     w = _statistic(c, h.name)
-    for name, sd in zip(h.effect_names, h.effect_sd):
-        d = need.get(name)
-        if d is not None and np.isfinite(d) and d > 0 and np.isfinite(sd):
-            w = max(w, DECISIVE * float(sd / d) ** 2)
+    for _, _, sd, d in _effect_sizes(c, h):
+        w = max(w, DECISIVE * (sd / d) ** 2)
     return w
 
 
@@ -247,14 +252,20 @@ def reach_probability(h: Hypothesis, c: CandidateProtocol) -> float:
     tell from zero, in any one of its parameters: P(|theta| >= d) with theta normal about the
     fitted value with the fit's standard error and d the size ``c`` tells from zero
     (``c.detectable``; 0 where ``c`` has none)."""
+    return max(
+        (float(norm.sf((d - v) / sd) + norm.cdf((-d - v) / sd)) for _, v, sd, d in _effect_sizes(c, h)),
+        default=0.0,
+    )
+
+
+def _effect_sizes(c: CandidateProtocol, h: Hypothesis):
+    """``(name, fitted value, standard error, size c tells from zero)`` of each of effect
+    ``h``'s parameters for which all three are finite and the last two positive."""
     need = c.detectable.get(h.name) or {}
-    best = 0.0
     for name, v, sd in zip(h.effect_names, h.effect_values, h.effect_sd):
         d = need.get(name)
-        if d is None or not (np.isfinite(d) and np.isfinite(sd) and sd > 0):
-            continue
-        best = max(best, float(norm.sf((d - v) / sd) + norm.cdf((-d - v) / sd)))
-    return best
+        if d is not None and np.isfinite([d, v, sd]).all() and d > 0 and sd > 0:
+            yield name, float(v), float(sd), float(d)
 
 
 def _separation_within_reach(cands: list[CandidateProtocol], out_of_reach: set) -> None:
@@ -281,15 +292,35 @@ def _separation_within_reach(cands: list[CandidateProtocol], out_of_reach: set) 
             c.log_bayes_factor = c.separation_refit / 2.0
 
 
-def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int, quantities=None):
+def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int, quantities=None, ceiling=None):
     """``(prediction, None)`` of hypothesis ``h`` under a protocol's ``frames`` (of
     ``quantities``, default the kind's outputs), or ``(None or prediction, why)`` where it has
-    no solution there or breaks a limit."""
+    no solution there or breaks a limit (``ceiling``: :func:`_ceilings`)."""
     pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed, quantities)
     if pred is None:
         return None, point
-    why = limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point)
+    why = limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point, ceiling)
     return pred, (f"{h.name}: {why}" if why else None)
+
+
+def _ceilings(experiment, proto: Protocol, hyps, seed: int) -> dict[str, float]:
+    """The hottest temperature [degC] each hypothesis's fit predicts under the protocol already
+    run (the menu's first entry, its repeat). The sample survived those runs, so a fit that
+    heats it past the limit there rules out only what would heat it further: a dynamic R(T) fit
+    (synthetic, stated G_t' = 0, convective loss at 3x) put the pulse run at 182 degC, and
+    every protocol, the repeat included, was out of bounds. None where the fit has no
+    solution there (its protocols are then judged by the limit alone)."""
+    kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
+    frames = protocol_frames(kind, rig, proto.table, seed)
+    inputs, why = _inputs(kind, sample, rig, frames, hyps[0])
+    out = {}
+    for h in [] if why else hyps:
+        s, r, mods = h.at(h.u(), h.effect_values, sample, rig, kind)
+        try:
+            out[h.name] = hottest(inputs, run_outputs(kind, s, r, mods, inputs))
+        except (*MODEL_ERRORS, ValueError):
+            continue
+    return out
 
 
 def _mark_risky(cands: list[CandidateProtocol]) -> None:
@@ -387,7 +418,9 @@ def _out_of_reach(res: DesignResult) -> str:
     return "; out of reach of every protocol here at its fitted size: " + ", ".join(parts)
 
 
-def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) -> list[CandidateProtocol]:
+def _score(
+    experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int, ceilings=None
+) -> list[CandidateProtocol]:
     """One protocol scored (predictions of every hypothesis, limits, J and D of every pair, each
     effect's statistic at its fit), then the same with :data:`RUN_FACTORS` times its runs where
     it falls short of :data:`POWERED` at the fit. The quantities scored are the kind's outputs
@@ -405,7 +438,8 @@ def _score(experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int) ->
         return [out]
     preds = []
     for h in hyps:
-        pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities)
+        ceiling = (ceilings or {}).get(h.name)
+        pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities, ceiling)
         if why:
             out.feasible, out.limit = False, why
             return [out]
@@ -529,7 +563,8 @@ def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, se
     base.hypotheses = [{"name": h.name, "parameters": h.intervals}]
     protos = menu(kind, experiment.sample, experiment.rig)
     base.noise = menu_noise(kind, protos, base.noise)
-    cands = [_score_precision(experiment, p, h, base.noise, n_draws, seed) for p in protos]
+    ceiling = _ceilings(experiment, protos[0], [h], seed).get(h.name)
+    cands = [_score_precision(experiment, p, h, base.noise, n_draws, seed, ceiling) for p in protos]
     _mark_risky(cands)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates = cands
@@ -545,7 +580,9 @@ def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, se
     return base
 
 
-def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: int) -> CandidateProtocol:
+def _score_precision(
+    experiment, proto: Protocol, h, noise, n_draws: int, seed: int, ceiling=None
+) -> CandidateProtocol:
     """One protocol scored by the expected information gain about ``h``'s parameters and each
     parameter's expected sd after / before (on the kind's outputs and the protocol's channels,
     as :func:`_score`)."""
@@ -559,7 +596,7 @@ def _score_precision(experiment, proto: Protocol, h, noise, n_draws: int, seed: 
     if why:
         out.feasible, out.limit = False, why
         return out
-    pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities)
+    pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities, ceiling)
     if why:
         out.feasible, out.limit = False, why
         return out

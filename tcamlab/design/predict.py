@@ -25,7 +25,16 @@ from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
 from tcamlab.models import static as _static
 
-__all__ = ["Prediction", "predictive", "sensitivity", "limits", "TEMPERATURE_LIMIT_C", "N_DRAWS"]
+__all__ = [
+    "Prediction",
+    "predictive",
+    "sensitivity",
+    "limits",
+    "hottest",
+    "run_outputs",
+    "TEMPERATURE_LIMIT_C",
+    "N_DRAWS",
+]
 
 N_DRAWS = 30
 """Parameter draws per hypothesis and protocol (the first is the fit itself)."""
@@ -172,14 +181,24 @@ def sensitivity(kind: str, sample, rig, frames, h: Hypothesis, quantities=None) 
     return {q: np.array(c).T for q, c in cols.items()}
 
 
-def limits(kind: str, sample, frames, point: list[dict]) -> str | None:
-    """Why a protocol is out of bounds for a hypothesis's fit, or None: a temperature above
-    :data:`TEMPERATURE_LIMIT_C` (input or predicted), or a static coil contracted shut (its
-    length down to the solid length of its coils, n d0)."""
+def hottest(frames, point: list[dict]) -> float:
+    """The highest temperature [degC] of a protocol's inputs and of a prediction under it
+    (-inf where neither has one)."""
     temps = [x for f, p in zip(frames, point) for x in (f.get("temperature"), p.get("temperature"))]
-    hottest = max((float(np.max(np.asarray(t, float))) for t in temps if t is not None), default=-np.inf)
-    if hottest > TEMPERATURE_LIMIT_C:
-        return f"{hottest:.0f} degC, above the {TEMPERATURE_LIMIT_C:.0f} degC limit"
+    return max((float(np.max(np.asarray(t, float))) for t in temps if t is not None), default=-np.inf)
+
+
+def limits(kind: str, sample, frames, point: list[dict], ceiling: float | None = None) -> str | None:
+    """Why a protocol is out of bounds for a hypothesis's fit, or None: a temperature above
+    :data:`TEMPERATURE_LIMIT_C` (input or predicted), or above ``ceiling`` [degC] where that is
+    higher (the hottest the fit predicts for the runs already made, which the sample survived),
+    or a static coil contracted shut (its length down to the solid length of its coils, n d0)."""
+    top = max(TEMPERATURE_LIMIT_C, -np.inf if ceiling is None else ceiling)
+    hot = hottest(frames, point)
+    if hot > top + 1e-6:  # the same program again differs from the one run in rounding only
+        if top > TEMPERATURE_LIMIT_C:
+            return f"{hot:.1f} degC, above the {top:.1f} degC it predicts for the runs already made"
+        return f"{hot:.0f} degC, above the {TEMPERATURE_LIMIT_C:.0f} degC limit"
     if kind == "static":
         n = float(_static.n_coils(sample.fiber_length, sample.coil_length, sample.coil_diameter))
         room = sample.coil_length - n * sample.fiber_diameter
