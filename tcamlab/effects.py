@@ -353,9 +353,10 @@ EFFECTS: dict[tuple[str, str], Effect] = {
             # and two realistic R(T) cases at 10x were named response delay. A
             # logger started after the step is an error of the time origin, not a delay.
             [EffectParam("delay", "s", 0.05, 0.0, 2.0)],
-            "a pure delay between the command and the response (driver, logging latency)",
+            "a pure delay of the displacement record behind the logged voltage (the laser's "
+            "response time, logging latency); the heating, temperature and current are not delayed",
             "thesis sec. 2.5.2 (Arduino-driven motor driver)",
-            "log the command and the driver output on one clock",
+            "log the temperature on the same clock: it follows the heating without the laser's delay",
         ),
         # -- sensing pull test -------------------------------------------------------
         _e(

@@ -302,7 +302,9 @@ def test_delay_shifts_the_output_in_time(dyn_base):
     out = _dynamic(Mods(delay=m * DT))
     np.testing.assert_allclose(out["displacement"][m:], dyn_base["displacement"][:-m], rtol=0, atol=1e-12)
     np.testing.assert_allclose(out["displacement"][:m], 0.0, atol=1e-15)
-    np.testing.assert_allclose(out["temperature"][m:], dyn_base["temperature"][:-m], rtol=0, atol=1e-9)
+    # the laser's record lags; the heating, and so the temperature and current, do not
+    np.testing.assert_array_equal(out["temperature"], dyn_base["temperature"])
+    np.testing.assert_array_equal(out["current"], dyn_base["current"])
     # half a sample: linear interpolation between neighbours
     half = _dynamic(Mods(delay=DT / 2))["displacement"]
     b = dyn_base["displacement"]

@@ -93,9 +93,12 @@ def predict(
     )
     disp, temp = res.displacement, res.temperature
     if mods.delay:
-        # Shift the output, not the held input: continuous in the delay, so fits work.
+        # The laser's record lags the logged voltage (its response time and the logger's
+        # sampling, thesis 2.5.2: one Arduino drives the MC33926 and samples the laser; the
+        # driver switches in microseconds). The heating is not delayed, so neither are the
+        # temperature and the current. Shift the output, not the held input: continuous in the
+        # delay, so fits work.
         disp = np.interp(t - mods.delay, t, disp, left=0.0)
-        temp = np.interp(t - mods.delay, t, temp, left=temp[0])
     # R(T) = R (1 + beta (T - T_a)) as in (2.18), beta the rig's plus the effect's; I = V / R(T)
     resistance = rig.resistance * (1.0 + (rig.heater_tcr + mods.resistance_tc) * (temp - rig.ambient))
     return {"displacement": disp, "temperature": temp, "current": v / resistance, "resistance": resistance}
