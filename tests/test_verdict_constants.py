@@ -44,8 +44,10 @@ from tcamlab.diagnosis.verdict import (
     MIN_PARTIAL_FRACTION,
     PAIR_POOL,
     SWITCHED_OFF,
+    WHOLE_FRACTION,
     beats,
     closes_the_rest,
+    leaves_a_gap,
     moved_jointly,
     named_parameters,
     pair_verdict,
@@ -165,6 +167,30 @@ def test_attributed_only_when_every_other_candidate_is_clearly_worse():
     assert (v, effect, aliased) == ("aliased", "E1", ["E2"])
 
 
+def test_an_effect_that_leaves_a_gap_of_its_own_is_not_named():
+    after = {RECALIBRATION: 200.0 + 2 * S, "E1": S.copy()}
+    recal = cand(RECALIBRATION, fraction=0.5, after=2.0)
+
+    def judged(fraction, left):
+        return verdict.verdict(
+            [cand("E1", fraction=fraction, after=left), recal], True, after, BOOT, 1.0, 3.0, 1.2
+        )
+
+    v, effect, aliased, reason = judged(0.79, 1.5)
+    assert (v, effect, aliased) == ("unexplained", None, [])
+    assert (
+        "E1 closes 79% of the gap" in reason and "1.50 x the noise floor" in reason and "limit 1.20" in reason
+    )
+    # at 90 % closed, or leaving no more than the no-gap limit, it is the explanation
+    assert judged(0.9, 1.5)[:2] == ("attributed", "E1")
+    assert judged(0.9 * (1 - 1e-9), 1.5)[0] == "unexplained"
+    assert judged(0.79, 1.2)[:2] == ("attributed", "E1")
+    assert judged(0.79, 1.2 * (1 + 1e-9))[0] == "unexplained"
+    assert WHOLE_FRACTION == 0.9
+    assert leaves_a_gap(cand(fraction=0.5, after=1.3), 1.2)
+    assert not leaves_a_gap(cand(fraction=0.5, after=1.3), 1.3)
+
+
 def test_no_gap_is_none():
     assert verdict.verdict([cand()], False, {}, BOOT, 1.0, 1.1, 1.2)[0] == "none"
 
@@ -256,6 +282,15 @@ def test_pair_qualifies_at_half_the_gap_and_clearly_better_than_each_member():
     assert pair_verdict([_pair(0.5)], after, BOOT, 1.0, order) is not None
     after["E2"] = S.copy()  # as good as the pair: an interval [0, 0] is not above 0
     assert pair_verdict([_pair(0.5)], after, BOOT, 1.0, order) is None
+
+
+def test_a_pair_that_leaves_a_gap_of_its_own_is_not_named():
+    after = {"E1": 10 + S, "E2": 10 + S, RECALIBRATION: 10 + S, "E1+E2": S.copy()}
+    order = {"E1": 0, "E2": 1}
+    pair = cand("E1+E2", fraction=0.6, after=1.5, members=("E1", "E2"))
+    assert pair_verdict([pair], after, BOOT, 1.0, order) is not None  # no limit given
+    assert pair_verdict([pair], after, BOOT, 1.0, order, 1.5)[:2] == ("attributed", "E1")
+    assert pair_verdict([pair], after, BOOT, 1.0, order, 1.4) is None
 
 
 def test_pair_pool_takes_the_best_four_closing_at_least_5_percent():

@@ -65,8 +65,9 @@ Steps
      runs, its bootstrap shrinkage interval excludes 0, it beats
      recalibration alone (paired bootstrap of the held-out MSE difference)
      while closing at least :data:`MIN_FRACTION_CLOSED` of the gap it leaves
-     (:func:`~tcamlab.diagnosis.verdict.closes_the_rest`), and no other such
-     effect is indistinguishable from it;
+     (:func:`~tcamlab.diagnosis.verdict.closes_the_rest`), does not leave a
+     gap of its own (:func:`~tcamlab.diagnosis.verdict.leaves_a_gap`), and no
+     other such effect is indistinguishable from it;
    * ``miscalibrated`` -- recalibration alone closes at least
      :data:`MIN_FRACTION_CLOSED` (interval above 0) and no effect beats it;
      the parameters that moved are named with values, intervals and shifts
@@ -75,7 +76,8 @@ Steps
      or recalibration needs a shift beyond its priors
      (:data:`~tcamlab.diagnosis.recalibration.PLAUSIBLE_LEVEL`) while an
      effect with plausible parameters fits as well;
-   * ``unexplained`` -- the gap is significant and no candidate qualifies.
+   * ``unexplained`` -- the gap is significant and no candidate qualifies, or
+     the best effect closes part of it but leaves a significant gap of its own.
 
 5. **Two effects.** When no single candidate qualifies, candidates that alone
    close at least :data:`MIN_PARTIAL_FRACTION` of the gap (the best

@@ -22,6 +22,8 @@ from tcamlab.numbers import fmt, fmt_interval, reading_text, shift_text
 __all__ = [
     "MIN_FRACTION_CLOSED",
     "MIN_PARTIAL_FRACTION",
+    "WHOLE_FRACTION",
+    "leaves_a_gap",
     "PAIR_POOL",
     "Decision",
     "decide",
@@ -58,6 +60,16 @@ remove on withheld data to count as an explanation: it must explain the
 majority of the gap, not just part of it."""
 
 
+WHOLE_FRACTION = 0.9
+"""An explanation that closes less than this share of the gap on withheld data must leave no
+more than the no-gap limit there (:func:`leaves_a_gap`): where what it leaves is itself a
+significant gap, it is part of the story, not the story. In every stored benchmark run
+(2026-11-28, eight files), none of the 643 effects named right on in-library data closed less
+while leaving more; the 11 named effects that did were all wrong: a sensor warming through the
+run (off the library's form) named hysteresis, closing 77-79 % and leaving 1.2-2.7 x the
+noise, and a pair (oven lag and E(T)) named a drift."""
+
+
 MIN_PARTIAL_FRACTION = 0.05
 """When no single candidate explains the gap, candidates that alone close at
 least this share of it (and improve the withheld runs) are paired."""
@@ -89,6 +101,21 @@ def qualifies(c: CandidateResult) -> bool:
         and c.fraction_closed >= MIN_FRACTION_CLOSED
         and c.shrinkage_ci95[0] > 0
         and not switched_off(c)
+    )
+
+
+def leaves_a_gap(c: CandidateResult, limit: float) -> bool:
+    """Whether an explanation closes less than :data:`WHOLE_FRACTION` of the gap and leaves a
+    held-out RMSE [noise floors] above the no-gap ``limit``."""
+    return bool(c.fraction_closed < WHOLE_FRACTION and c.heldout_rmse_after_noise > limit)
+
+
+def _gap_left_text(c: CandidateResult, limit: float) -> str:
+    return (
+        f"{c.effect} closes {pct(c.fraction_closed)} of the gap on withheld data but leaves "
+        f"{c.heldout_rmse_after_noise:.2f} x the noise floor there, above the no-gap limit "
+        f"{limit:.2f}: it is part of the explanation at most (the effect may act in another "
+        "form than the library's, or another effect acts too)"
     )
 
 
@@ -176,8 +203,12 @@ def verdict(
         and closes_the_rest(c, recal, floor2)
         and (recal is None or beats(after_folds, c.effect, RECALIBRATION, boot_idx, b_n))
     ]
+    partial = [c for c in winners if leaves_a_gap(c, limit)]
+    winners = [c for c in winners if c not in partial]
     if winners:
         return _effect_verdict(winners, after_folds, boot_idx, b_n, recal)
+    if partial:
+        return "unexplained", None, [], _gap_left_text(partial[0], limit)
     if recal is not None and qualifies(recal):
         return _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_errors or {})
     best = ranking[0] if ranking else None
@@ -456,13 +487,14 @@ def _recalibration_verdict(recal, effects, after_folds, boot_idx, b_n, own_error
     return "miscalibrated", None, [], closes + "; no effect fitted with recalibration beats it"
 
 
-def pair_verdict(combos, after_folds, boot_idx, b_n, order):
+def pair_verdict(combos, after_folds, boot_idx, b_n, order, limit: float = np.inf):
     """Verdict from pairs of effects, or None when no pair qualifies.
 
     A pair qualifies when it closes at least :data:`MIN_FRACTION_CLOSED` of the
     gap on withheld data with a shrinkage interval above 0 and is clearly
     better than each of its members alone and than recalibration alone (paired
-    bootstrap of the held-out MSE difference above 0): both effects are needed. The best qualifying pair
+    bootstrap of the held-out MSE difference above 0), and does not leave a gap of its own
+    (:func:`leaves_a_gap` at ``limit``): both effects are needed. The best qualifying pair
     names the effect (the member that ranks higher alone); other qualifying
     pairs that fit the withheld runs indistinguishably well make it ``aliased``.
     """
@@ -476,6 +508,7 @@ def pair_verdict(combos, after_folds, boot_idx, b_n, order):
             np.isfinite(c.fraction_closed)
             and c.fraction_closed >= MIN_FRACTION_CLOSED
             and c.shrinkage_ci95[0] > 0
+            and not leaves_a_gap(c, limit)
         ):
             continue
         a_pair = boot(c.effect)
@@ -492,7 +525,7 @@ def pair_verdict(combos, after_folds, boot_idx, b_n, order):
     combination = {"effects": members, **best.to_dict()}
     both = " and ".join(members)
     closes = (
-        f"no single candidate closes {MIN_FRACTION_CLOSED:.0%} of the gap; {both} together "
+        f"no single candidate explains the gap; {both} together "
         f"close {pct(best.fraction_closed)} of it on withheld data (held-out RMSE shrinks "
         f"by {best.shrinkage:.0%}), and the pair beats either alone"
     )
@@ -550,7 +583,7 @@ def _pair_pool(ranking) -> list[str]:
     ][:PAIR_POOL]
 
 
-def _search_pairs(problem, rec, effects, ranking, fits, scores, baseline, workers):
+def _search_pairs(problem, rec, effects, ranking, fits, scores, baseline, workers, limit=np.inf):
     """Fit pairs of partial explanations (forward selection, one step); the pair verdict or None."""
     by_name = {e.name: e for e in effects}
     pool = [n for n in _pair_pool(ranking) if n in by_name]
@@ -563,7 +596,7 @@ def _search_pairs(problem, rec, effects, ranking, fits, scores, baseline, worker
     fits.update(pair_fits)
     after = {name: f.after for name, f in fits.items()}
     order = {c.effect: i for i, c in enumerate(ranking)}
-    return pair_verdict(combos, after, scores.boot_idx, scores.boot_n, order), combos
+    return pair_verdict(combos, after, scores.boot_idx, scores.boot_n, order, limit), combos
 
 
 def beside_shift(ranking, aliased, after_folds, boot_idx, b_n, own_errors, at_edge=False) -> dict[str, float]:
@@ -664,7 +697,9 @@ def decide(
     combination = None
     best = ranking[0] if ranking else None
     if v == "unexplained" and gap.significant:
-        picked, combos = _search_pairs(problem, rec, effects, ranking, fits, scores, baseline, workers)
+        picked, combos = _search_pairs(
+            problem, rec, effects, ranking, fits, scores, baseline, workers, gap.limit
+        )
         if picked is not None:
             v, effect, aliased, reason, combination = picked
             best = next(c for c in combos if c.effect == combination["effect"])
