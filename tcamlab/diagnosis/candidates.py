@@ -12,6 +12,7 @@ defined on the withheld run's inputs.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -129,7 +130,7 @@ def _candidate_job(job):
     for k, held in enumerate(held_sets):
         fit = rec.refit_without(full, eff, {i for i, _ in held}) if whole_runs else None
         held_z = _held_resid(rec, eff, fit, held) if fit is not None else None
-        if held_z is None or _step_failed(held_z, _held_resid(rec, eff, full, held)):
+        if held_z is None or _step_failed(held_z, functools.partial(_held_resid, rec, eff, full, held)):
             # blocks of one run, or a step out of the model's domain or past where the model
             # is near linear: refit on the training rows
             fit = rec.fit(eff, train[k], [full.x], box, MAX_NFEV_FOLD, defined_on=held)
@@ -178,13 +179,14 @@ loss 4 % of the stated): the one step left the loss's held-out rows at 3.14 time
 refitted in full 1.011, beside recalibration's 1.011."""
 
 
-def _step_failed(held_z: list, in_sample: list) -> bool:
+def _step_failed(held_z: list, in_sample) -> bool:
     """Whether a fold's one-step refit is out of the model's domain (a failed row) or not to be
-    trusted (:data:`ONE_STEP_TRUST`)."""
+    trusted (:data:`ONE_STEP_TRUST`). ``in_sample()`` gives the all-runs fit's residuals on the
+    same rows (a model run, so only made where the rows did not fail)."""
     if any(np.any(z == FAIL_RESIDUAL) for z in held_z):
         return True
     after = sum(float(z @ z) for z in held_z)
-    before = sum(float(z @ z) for z in in_sample if np.all(z != FAIL_RESIDUAL))
+    before = sum(float(z @ z) for z in in_sample() if np.all(z != FAIL_RESIDUAL))
     return after > ONE_STEP_TRUST * before
 
 
