@@ -187,6 +187,12 @@ def test_an_effect_that_leaves_a_gap_of_its_own_is_not_named():
     assert judged(0.79, 1.2)[:2] == ("attributed", "E1")
     assert judged(0.79, 1.2 * (1 + 1e-9))[0] == "unexplained"
     assert WHOLE_FRACTION == 0.9
+    # nor is it an alias of an effect that explains the whole gap
+    after["E2"] = S.copy()
+    ranking = [cand("E1"), cand("E2", fraction=0.8, after=1.5), recal]
+    assert verdict.verdict(ranking, True, after, BOOT, 1.0, 3.0, 1.2)[:3] == ("attributed", "E1", [])
+    ranking[1] = cand("E2", fraction=0.8, after=1.2)
+    assert verdict.verdict(ranking, True, after, BOOT, 1.0, 3.0, 1.2)[:3] == ("aliased", "E1", ["E2"])
     assert leaves_a_gap(cand(fraction=0.5, after=1.3), 1.2)
     assert not leaves_a_gap(cand(fraction=0.5, after=1.3), 1.3)
 

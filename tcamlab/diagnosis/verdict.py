@@ -63,7 +63,8 @@ majority of the gap, not just part of it."""
 WHOLE_FRACTION = 0.9
 """An explanation that closes less than this share of the gap on withheld data must leave no
 more than the no-gap limit there (:func:`leaves_a_gap`): where what it leaves is itself a
-significant gap, it is part of the story, not the story. In every stored benchmark run
+significant gap, it is part of the story, not the story, and no alias of an effect that
+explains the whole gap. In every stored benchmark run
 (2026-11-28, eight files), none of the 643 effects named right on in-library data closed less
 while leaving more; the 11 named effects that did were all wrong: a sensor warming through the
 run (off the library's form) named hysteresis, closing 77-79 % and leaving 1.2-2.7 x the
