@@ -64,11 +64,11 @@ WHOLE_FRACTION = 0.9
 """An explanation that closes less than this share of the gap on withheld data must leave no
 more than the no-gap limit there (:func:`leaves_a_gap`): where what it leaves is itself a
 significant gap, it is part of the story, not the story, and no alias of an effect that
-explains the whole gap. In the six benchmark runs stored
-before this rule (2026-11-24 to 28), none of the 643 effects named right on in-library data closed less
-while leaving more; the 11 named effects that did were all wrong: a sensor warming through the
-run (off the library's form) named hysteresis, closing 77-79 % and leaving 1.2-2.7 x the
-noise, and a pair (oven lag and E(T)) named a drift."""
+explains the whole gap. In the six benchmark runs stored before this rule (2026-11-24 to 28),
+none of the 643 effects named right on in-library data closed less while leaving more; the 11
+named effects that did were all wrong: a sensor warming through the run (off the library's
+form) named hysteresis, closing 77-79 % and leaving 1.2-2.7 x the noise, and a pair (oven lag
+and E(T)) named a drift."""
 
 
 MIN_PARTIAL_FRACTION = 0.05
