@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 from tcamlab.cli import app
 from tcamlab.config import load_experiment
 from tcamlab.design import design, protocol_toml
+from tcamlab.design.hypotheses import partial_effects, status
 from tcamlab.design.score import pair_separation, refit_separation, separation, wald_after
 from tcamlab.kinds import dynamic, static
 from tcamlab.models import static as static_model
@@ -279,6 +280,49 @@ def test_clear_diagnosis_needs_no_separating_experiment():
     assert by["second load 1.5x"].information_gain > by["repeat (same protocol)"].information_gain
     res = design(exp, {**ALIASED, "verdict": "unexplained", "aliased_with": [], "recalibration": {}})
     assert res.status == "unexplained" and res.best is None and "outside the library" in res.message
+
+
+def _partly_explained(fraction: float) -> dict:
+    """The aliased static fixture recast as an ``unexplained`` verdict where E(T) alone closes
+    ``fraction`` of the gap and leaves 1.3 x the noise (no-gap limit 1.05)."""
+    ranking = []
+    for c in ALIASED["ranking"]:
+        part = c["effect"] == "youngs-modulus-temperature"
+        ranking.append(
+            {
+                **c,
+                "fraction_closed": fraction if part else 0.3,
+                "shrinkage_ci95": [0.2, 0.3] if part else [0.05, 0.1],
+                "heldout_rmse_after_noise": 1.3 if part else 1.6,
+                "term_rms_noise": 2.0 if part else 0.5,
+            }
+        )
+    return {
+        **ALIASED,
+        "verdict": "unexplained",
+        "aliased_with": [],
+        "recalibration": {},
+        "gap": {"limit": 1.05},
+        "ranking": ranking,
+    }
+
+
+def test_an_effect_that_explains_part_of_the_gap_is_weighed_against_recalibration():
+    assert partial_effects(_partly_explained(0.79)) == ["youngs-modulus-temperature"]
+    # below half of the gap it is no part of the story worth a protocol
+    assert partial_effects(_partly_explained(0.45)) == []
+    assert status(_partly_explained(0.45)) == "unexplained"
+    exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
+    res = design(exp, _partly_explained(0.79), n_draws=12)
+    assert res.status == "partial" and res.best is not None
+    assert [h["name"] for h in res.hypotheses] == ["recalibration", "youngs-modulus-temperature"]
+    assert res.message.startswith(
+        "no candidate explains the whole gap (youngs-modulus-temperature closes 79% and leaves "
+        "1.30 x the noise on withheld runs, no-gap limit 1.05)"
+    )
+    # E(T) against recalibration: a second load tells them apart, a repeat does not
+    by = {c.name: c for c in res.candidates}
+    assert by["second load 2x"].separation_refit > 10 * by["repeat (same protocol)"].separation_refit
 
 
 def test_protocol_file_round_trips_through_the_rig(tmp_path):

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.stats import norm
 
 from tcamlab import progress
-from tcamlab.design.hypotheses import Hypothesis, hypotheses, status
+from tcamlab.design.hypotheses import Hypothesis, hypotheses, partial_effects, status
 from tcamlab.design.predict import (
     N_DRAWS,
     covariance_root,
@@ -163,7 +163,7 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
     )
     if st == "clear":
         return _precision(experiment, diagnosis, base, n_draws, seed)
-    if st != "ambiguous":
+    if st not in ("ambiguous", "partial"):
         base.message = _clear_message(diagnosis, st)
         return base
     hyps = hypotheses(diagnosis, kind)
@@ -179,8 +179,27 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
     base.out_of_reach = _decide(cands, hyps)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates, base.best = cands, _best(cands)
-    base.message = _message(base, hyps)
+    base.message = _partial_words(diagnosis) + _message(base, hyps)
     return base
+
+
+def _partial_words(diagnosis: dict) -> str:
+    """What an ``unexplained`` verdict's partial explanations close (empty otherwise)."""
+    names = partial_effects(diagnosis)
+    if not names:
+        return ""
+    by = {c["effect"]: c for c in diagnosis.get("ranking") or []}
+    limit = (diagnosis.get("gap") or {}).get("limit", float("nan"))
+    parts = [
+        f"{n} closes {by[n]['fraction_closed']:.0%} and leaves {by[n]['heldout_rmse_after_noise']:.2f} x the noise"
+        for n in names
+    ]
+    return (
+        f"no candidate explains the whole gap ({'; '.join(parts)} on withheld runs, no-gap limit "
+        f"{limit:.2f}): the protocol below tests {'it' if len(names) == 1 else 'them'} against "
+        "recalibration, so that the next diagnosis can keep or rule out each part (an effect "
+        "outside the library may act beside or instead of it); "
+    )
 
 
 def _decide(cands: list[CandidateProtocol], hyps) -> dict:

@@ -102,8 +102,9 @@ class DesignResult:
     experiment : str
         The experiment's name.
     status : str
-        ``ambiguous`` (hypotheses to separate), ``clear``, ``none`` or ``unexplained`` (nothing
-        to separate).
+        ``ambiguous`` (hypotheses to separate), ``partial`` (no candidate explains the whole
+        gap; those that explain part of it are weighed against recalibration), ``clear``,
+        ``none`` or ``unexplained`` (nothing to separate).
     verdict : str
         The diagnosis's verdict.
     hypotheses : list of dict
