@@ -20,7 +20,7 @@ import pandas as pd
 
 from tcamlab import progress
 from tcamlab.config import Experiment
-from tcamlab.errors import ConfigError, ConvergenceError, IntegrationError, ModelDomainError
+from tcamlab.errors import ConfigError, ConvergenceError, InputError, IntegrationError, ModelDomainError
 from tcamlab.io import VARIABLE_MAP, RunData, input_files, sha256_file
 from tcamlab.kinds import Kind, get_kind, rest_rows
 from tcamlab.metrics import (
@@ -662,9 +662,10 @@ def _in_run(exp: Experiment, name: str, fn, *args, **kwargs):
     """
     try:
         return fn(*args, **kwargs)
-    except _MODEL_ERRORS as exc:
+    except (*_MODEL_ERRORS, InputError) as exc:
+        # an input error that names its file already (a column, a row) keeps its own words
         prefix = f"{exp.path.name}, run {name}: "
-        if exc.message.startswith(prefix):
+        if exc.message.startswith(prefix) or (isinstance(exc, InputError) and exp.path.name in exc.message):
             raise
         raise type(exc)(prefix + exc.message, exc.hint) from None
 

@@ -351,6 +351,22 @@ def test_missing_mapped_column(tmp_path):
     )
 
 
+def test_a_missing_column_hint_carries_the_unit_its_near_header_names(tmp_path):
+    # "voltage_mV" holds the voltage in mV: the proposed line must say so, or the column
+    # would be read in V, 1000 x off, without a word
+    p = write(tmp_path, dynamic_text(header="time_s,voltage_mV,displacement_mm"))
+    err = raises_input(["the file has 'voltage_mV'"], read_run, p, "dynamic")
+    line = str(err).split("[columns] as ", 1)[1].rstrip(")")
+    assert line == 'voltage_V = { from = "voltage_mV", unit = "mV" }'
+    entry = tomllib.loads(line)["voltage_V"]
+    frame = read_run(p, "dynamic", {"voltage_V": entry}).data
+    assert frame["voltage"].iloc[1] == pytest.approx(0.010)
+    # a header in the canonical unit needs none
+    p = write(tmp_path, dynamic_text(header="time_s,volt_V,displacement_mm"), "b.csv")
+    err = raises_input(["the file has 'volt_V'"], read_run, p, "dynamic")
+    assert str(err).endswith('voltage_V = { from = "volt_V" })')
+
+
 def test_unknown_columns_key_and_bad_unit(tmp_path):
     p = write(tmp_path, dynamic_text())
     raises_input(["'force_N' is not a column of a dynamic run"], read_run, p, "dynamic", {"force_N": "F"})

@@ -192,6 +192,39 @@ def test_missing_spring_constant_is_one_line_input_error(setup, exact):
         KIND.run_options(sample, rig.replace(spring_constant=None), exact)
 
 
+def test_a_zero_load_is_refused_in_one_line_naming_file_and_key(tmp_path):
+    # the estimator's moving mass is the hanging load: 0 g divided by zero in the filter
+    src = ROOT / "experiments" / "selfsensing.toml"
+    text = src.read_text().replace("../raw/", str(ROOT / "raw") + "/")
+    exp = tmp_path / "zero.toml"
+    exp.write_text(text.replace("load_g = 50.0", "load_g = 0"))
+    assert "load_g = 0" in exp.read_text()
+    for cmd in ("validate", "calibrate"):
+        res = runner.invoke(app, [cmd, str(exp), "--out", str(tmp_path / cmd)])
+        assert res.exit_code == 2, res.output
+        line = res.output.strip().splitlines()[-1]
+        assert "zero.toml" in line and "load_g = 0 g" in line and "e.g. load_g = 50" in line
+        assert "Traceback" not in res.output
+
+
+def test_a_resistance_law_the_log_cannot_carry_names_its_rig_key(setup, exact):
+    from tcamlab.errors import ConvergenceError, ModelDomainError
+
+    sample, rig = setup
+    opts = KIND.run_options(sample, rig, exact).options
+    low = float(np.min(exact["voltage"] / exact["current"]))
+    # leads that take all of V / I somewhere: no muscle resistance left
+    with pytest.raises(ModelDomainError, match=f"lead_resistance_ohm = {low + 1:g} is not below"):
+        ss.predict_displacement(sample, rig.replace(lead_resistance=low + 1), exact, **opts)
+    ss.predict_displacement(sample, rig.replace(lead_resistance=0.3), exact, **opts)  # a real lead
+    # a bend of R(T) that turns the coating's factor negative within the run
+    with pytest.raises(ModelDomainError, match="tcr2_per_K2 = -0.001 /K"):
+        ss.predict_displacement(sample, rig.replace(tcr2=-1e-3), exact, **opts)
+    # a law no delta inverts: the hint lists the [rig] values R was read with
+    with pytest.raises((ModelDomainError, ConvergenceError), match="stretch_factor = 1e-06 in"):
+        ss.predict_displacement(sample, rig.replace(stretch_factor=1e-6), exact, **opts)
+
+
 def test_no_current_is_one_line_input_error(setup, exact):
     from tcamlab.errors import InputError
 

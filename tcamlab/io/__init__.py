@@ -1124,8 +1124,13 @@ def _missing_column(
     near = close_matches(spec.header, [h for h in headers if _of_dimension(h, canon)])
     if near:
         entry = {"from": near[0]}
+        said, _ = _header_unit(near[0])
         if spec.unit_given or spec.unit != VARIABLE_MAP[canon][1]:
             entry["unit"] = spec.unit
+        elif said and unit_key(said) not in (None, unit_key(VARIABLE_MAP[canon][1])):
+            # the header names its unit ("current_mA"): the line must say it, or the
+            # column is read in the canonical unit, a factor of 1000 off without a word
+            entry["unit"] = said
         if spec.scale != 1.0:
             entry["scale"] = spec.scale
         if spec.offset != 0.0:

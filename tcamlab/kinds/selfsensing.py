@@ -33,7 +33,7 @@ import pandas as pd
 
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
-from tcamlab.errors import InputError
+from tcamlab.errors import ConvergenceError, InputError, ModelDomainError
 from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
 from tcamlab.kinds.selfsensing_protocol import (  # noqa: F401  (the program's names stay importable here)
     CHIRP_F0_HZ,
@@ -106,6 +106,29 @@ def _readable(current: np.ndarray, what: str = "the run") -> np.ndarray:
     return ok
 
 
+def _law_hint(rig: Rig, r0: float) -> str:
+    """The hint of a resistance the law cannot invert: the [rig] values it was read with."""
+    return (
+        f"the muscle's R = V / I - R_lead is read with initial_resistance_ohm = {r0:.4g}, "
+        f"lead_resistance_ohm = {rig.lead_resistance:g}, tcr_per_K = {rig.tcr:g}, tcr2_per_K2 = "
+        f"{rig.tcr2:g} and stretch_factor = {rig.stretch_factor:g} in [rig]: check them, and the "
+        "current column's unit"
+    )
+
+
+def _check_lead(lead: float, r: np.ndarray) -> None:
+    """ModelDomainError naming ``lead_resistance_ohm`` when the leads would take all of the
+    logged V / I [ohm] somewhere: the muscle would have no resistance left there."""
+    low = float(np.min(r)) if r.size else np.inf
+    if lead > 0 and not lead < low:
+        raise ModelDomainError(
+            f"selfsensing: rig lead_resistance_ohm = {lead:g} is not below the logged V / I, "
+            f"as low as {low:.4g} ohm: the muscle would have no resistance left",
+            hint="R_lead is the leads' and contacts' share of V / I, a fraction of an ohm on most "
+            "rigs (a four-wire reading gives it); e.g. lead_resistance_ohm = 0.3",
+        )
+
+
 def predict_displacement(
     sample: Sample, rig: Rig, data: pd.DataFrame, mods: Mods = NO_MODS, *, initial_resistance: float
 ) -> dict[str, np.ndarray]:
@@ -135,6 +158,7 @@ def predict_displacement(
     i = data["current"].to_numpy(float)
     ok = _readable(i)
     lead = rig.lead_resistance
+    _check_lead(lead, v[ok] / i[ok])
     p = np.where(ok, v * i - lead * i * i, 0.0)  # only the muscle heats
     rest = rest_rows(KIND, data)
     t0 = ssm.rest_temperature(float(np.mean(p[rest])), rig.heat_loss, rig.ambient)
@@ -145,7 +169,10 @@ def predict_displacement(
     r = (pd.Series(r).ffill().bfill().to_numpy() - lead) / (1.0 + mods.r0_drift * (t - t[0]))
     kw = _model_kwargs(sample, rig, initial_resistance, rig.tcr + mods.tcr_extra)
     r = linear_coating(r, temp - rig.ambient, kw["tcr"], rig.tcr2)
-    delta = invert_muscle(r, temp, kw, rig.stretch_factor)
+    try:
+        delta = invert_muscle(r, temp, kw, rig.stretch_factor)
+    except (ModelDomainError, ConvergenceError) as exc:
+        raise type(exc)(f"selfsensing: {exc.message}", _law_hint(rig, initial_resistance)) from None
     # the model's rest extension, not the rest rows' mean of delta: that mean would cancel a
     # common error of R, hiding it from the noise floor and the nuisance zero alike
     mass = float(data["load"].iloc[0]) / G_ACCEL if "load" in data else rig.load
@@ -166,7 +193,17 @@ def linear_coating(r_muscle, rise, tcr: float, tcr2: float = 0.0) -> np.ndarray:
         return r_muscle
     dT = np.asarray(rise, float)
     linear = 1.0 + tcr * dT
-    return np.asarray(r_muscle, float) * linear / (linear + tcr2 * dT * dT)
+    bent = linear + tcr2 * dT * dT
+    if np.any(bent <= 0):
+        k = int(np.argmin(bent))
+        raise ModelDomainError(
+            f"selfsensing: rig tcr2_per_K2 = {tcr2:g} /K^2 with tcr_per_K = {tcr:g} /K leaves "
+            f"the coating no resistance {float(dT.flat[k]):.1f} K above ambient (1 + TCR dT + "
+            f"tcr2 dT^2 = {float(bent.flat[k]):.3g})",
+            hint="tcr2_per_K2 is a small bend of R(T), |tcr2| dT^2 well below TCR dT "
+            "(e.g. tcr2_per_K2 = 2e-6); check its sign and unit",
+        )
+    return np.asarray(r_muscle, float) * linear / bent
 
 
 def invert_muscle(r_muscle, temperature, kw: dict, stretch_factor: float = 1.0) -> np.ndarray:
@@ -287,17 +324,29 @@ def initial_resistance(sample: Sample, rig: Rig, data: pd.DataFrame, provenance=
     return r_rest / unit, f"(mean R of the {rows.size} rows at rest - R_lead) / model R/R0 there"
 
 
-def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, provenance=None, **_) -> RunOptions:
-    """R0 of the run by the module's rule, with its source.
+def run_options(
+    sample: Sample, rig: Rig, data: pd.DataFrame, *, provenance=None, where="", **_
+) -> RunOptions:
+    """R0 of the run by the module's rule, with its source; ``where`` (the experiment file)
+    prefixes the errors.
 
     Raises
     ------
     InputError
-        Without a spring constant S: chapter 3's map from R to delta needs it.
+        Without a spring constant S: chapter 3's map from R to delta needs it; or without a
+        hanging load: the estimator's moving mass is the load (the muscle's own is neglected).
     """
+    at = f"{where}: " if where else ""
+    if not rig.load > 0:
+        raise InputError(
+            f"{at}selfsensing run: rig load_g = {rig.load * 1e3:g} g; the estimator's moving mass is "
+            "the hanging load (the muscle's own mass is neglected), so it must be above 0",
+            hint="set load_g in [rig] to the hanging load, e.g. load_g = 50 (with load_N logged "
+            "it is only the prior of the first row)",
+        )
     if rig.spring_constant is None:
         raise InputError(
-            "selfsensing run needs the muscle's spring constant S (chapter 3's R-to-delta map)",
+            f"{at}selfsensing run needs the muscle's spring constant S (chapter 3's R-to-delta map)",
             hint="set spring_constant_N_per_m in [rig] (tcamlab fit-spring on a pull test of the muscle)",
         )
     r0, source = initial_resistance(sample, rig, data, provenance)
