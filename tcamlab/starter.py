@@ -954,6 +954,21 @@ def _warnings(exp, runs) -> list[str]:
     return out
 
 
+def _check_protocol(exp, report: CheckReport) -> None:
+    """A ``[protocol]`` table (a designed protocol) read as the virtual rig would read it: a bad
+    value is a problem here too, not only when a rig runs the file."""
+    from tcamlab.errors import TcamlabError
+    from tcamlab.rig.runs import designed_channels, designed_programs
+
+    if "protocol" not in (exp.raw or {}):
+        return
+    try:
+        designed_programs(exp.kind, exp)
+        designed_channels(exp.kind, exp)
+    except TcamlabError as exc:
+        report.problems.append(exc.one_line())
+
+
 def check_experiment(path: str | os.PathLike, rows: int = 3, *, drop_na: bool = False) -> CheckReport:
     """Load an experiment file and read its runs without writing anything; every problem at once.
 
@@ -983,6 +998,7 @@ def check_experiment(path: str | os.PathLike, rows: int = 3, *, drop_na: bool = 
         return report
     report.kind = exp.kind
     report.parameters = _parameter_lines_of(exp)
+    _check_protocol(exp, report)
     columns = exp.run_columns or (exp.columns,) * len(exp.runs)
     joins = exp.run_joins or (None,) * len(exp.runs)
     read = []

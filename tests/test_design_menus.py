@@ -275,6 +275,20 @@ def test_every_protocol_hint_is_itself_a_valid_value():
         (static, {"temperature_C": [25.0]}),
         (static, {"step_C": 0}),
         (static, {"dwell_s": -300.0}),
+        # values a hand-edited file may carry, each bounded where the rig would run for years
+        # or fill the memory (a pull at 1e-6 mm/s took 23 GB before the kernel stopped it)
+        (dynamic, {"pulse_s": 1e-6}),
+        (dynamic, {"duration_s": 1e9}),
+        (dynamic, {"pulses": 3, "period_s": 0.5}),
+        (dynamic, {"duration_s": 0.3}),
+        (dynamic, {"runs": 1, "voltages_V": [10.0, 8.0]}),
+        (static, {"dwell_s": 1e12}),
+        (static, {"channels": ["time_s", "displacement_um"]}),
+        (sensing, {"speeds_mm_per_s": [1e-6]}),
+        (sensing, {"dwell_s": 1e9}),
+        (sensing, {"cycles": 0}),
+        (curvature, {"cable_mm": -1.0}),
+        (curvature, {"channels": ["time_s"]}),
     ]
     for mod, table in cases:
         rig = template(mod.__name__.rsplit(".", 1)[1]).rig
@@ -282,6 +296,34 @@ def test_every_protocol_hint_is_itself_a_valid_value():
             mod.protocol_runs(table, rig)
         fix = tomllib.loads(err.value.hint.rsplit("e.g. ", 1)[-1].split(": ", 1)[-1])
         assert mod.protocol_runs(fix, rig), (table, err.value.hint)
+
+
+@pytest.mark.parametrize(
+    "mod, table, words",
+    [
+        (static, {"temperature_C": [25.0, 151.0], "step_C": 10.0}, "not a whole number of steps"),
+        (static, {"step_C": 1e-4}, "at most 1000"),
+        (static, {"temperature_C": [-300.0, 25.0]}, "below absolute zero"),
+        (static, {"loads_g": [50.0, 75.0, 100.0], "runs": 2}, "fewer than the 3 conditions"),
+        (static, {"channels": ["time_s", "temperature_C"]}, "lacks 'displacement_mm'"),
+        (static, {"channels": ["temperature_C", "displacement_mm", "displacement_mm"]}, "twice"),
+        (sensing, {"step_mm": 0.001, "pull_mm": 50.0}, "at most 1000"),
+        (sensing, {"dwell_s": 3600.0, "step_mm": 0.1, "cycles": 10}, "longer than a day"),
+        (curvature, {"cable_step_mm": 1e-7}, "at most 1000"),
+        (dynamic, {"channels": ["time_s", "voltage_V"]}, "lacks 'displacement_mm'"),
+    ],
+)
+def test_a_protocol_that_cannot_be_run_as_written_is_refused(mod, table, words):
+    with pytest.raises(ConfigError, match=words) as err:
+        mod.protocol_runs(table, template(mod.__name__.rsplit(".", 1)[1]).rig)
+    assert err.value.hint and "\n" not in err.value.one_line()
+
+
+def test_the_menus_protocols_pass_their_own_checks():
+    for mod in (static, dynamic, sensing, curvature):
+        exp = template(mod.__name__.rsplit(".", 1)[1])
+        for name, table in mod.design_menu(exp.sample, exp.rig):
+            assert mod.protocol_runs({k: v for k, v in table.items()}, exp.rig), name
 
 
 def test_a_bad_protocol_value_is_refused_naming_the_file(tmp_path):

@@ -213,6 +213,9 @@ def protocol(
 PROTOCOL_KEYS = ("kind", "cable_mm", "cable_step_mm", "runs", "channels")
 """Keys of a curvature ``[protocol]`` table (docs/design.md)."""
 
+KIND_COLUMNS = ("cable_mm", "r1_ohm", "r2_ohm", "kappa1_per_mm", "kappa2_per_mm")
+"""Columns a camera curvature run logs, every one required (a ``[protocol]``'s ``channels``)."""
+
 POSE_S = 60.0
 """Rig time per pose of a designed run [s]: the actuator steps, the silicone settles and
 the camera photographs the robot."""
@@ -257,19 +260,20 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         )
     values = {}
     for key, default, hint in (
-        ("cable_mm", CABLE_MAX_M * 1e3, "the default program pulls to 10 mm"),
-        ("cable_step_mm", CABLE_STEP_M * 1e3, "the default program steps 1 mm"),
+        ("cable_mm", CABLE_MAX_M * 1e3, "e.g. cable_mm = 10.0"),
+        ("cable_step_mm", CABLE_STEP_M * 1e3, "e.g. cable_step_mm = 1.0"),
     ):
         v = table.get(key, default)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < np.inf:
             raise ConfigError(f"[protocol]: {key} must be a positive number, got {v!r}", hint)
         values[key] = float(v) * 1e-3
     top, step = values["cable_mm"], values["cable_step_mm"]
-    if abs(top / step - round(top / step)) > 1e-6:
-        raise ConfigError(
-            f"[protocol]: cable_mm ({top * 1e3:g}) is not a whole number of cable_step_mm ({step * 1e3:g})",
-            "e.g. cable_mm = 10.0 with cable_step_mm = 0.5",
-        )
+    pv.levels(
+        top / step,
+        f"cable_mm ({top * 1e3:g}) over cable_step_mm ({step * 1e3:g})",
+        "e.g. cable_mm = 10.0 with cable_step_mm = 0.5",
+    )
+    pv.channels(table, KIND_COLUMNS, KIND_COLUMNS, list(KIND_COLUMNS), "the camera rig")
     n = pv.runs(table, 1)
     return [{"cable_max_m": top, "cable_step_m": step, "pose_s": POSE_S} for _ in range(n)]
 
@@ -290,7 +294,7 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
         "cable_mm": round(CABLE_MAX_M * 1e3, 3),
         "cable_step_mm": step_mm,
         "runs": 2,
-        "channels": ["cable_mm", "r1_ohm", "r2_ohm", "kappa1_per_mm", "kappa2_per_mm"],
+        "channels": list(KIND_COLUMNS),
     }
     menu = [("repeat (same protocol)", base)]
     menu.append(("finer levels 0.5 mm", {**base, "cable_step_mm": 0.5}))
@@ -416,7 +420,7 @@ E, which the logs pin only together with S, as S/E)."""
 KIND = Kind(
     name="curvature",
     description="camera curvature test (thesis section 4.3): segment curvatures predicted from R1, R2 by (4.1)",
-    required_columns=("cable_mm", "r1_ohm", "r2_ohm", "kappa1_per_mm", "kappa2_per_mm"),
+    required_columns=KIND_COLUMNS,
     optional_columns=("time_s",),
     min_rows=2,
     inputs=("cable", "r1", "r2"),

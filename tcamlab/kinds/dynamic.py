@@ -537,16 +537,48 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
     loads = [g * 1e-3 * G_ACCEL for g in grams]
     n = pv.runs(table, max(len(volts), len(loads)))
     common = {
-        "pulse_s": pv.positive(table, "pulse_s", rig.pulse, "e.g. pulse_s = 1.0"),
-        "pulses": pv.whole(table, "pulses", 1, MAX_PULSES, "1: one pulse; pulses = 3: a train of three"),
+        "pulse_s": pv.bounded(
+            table, "pulse_s", rig.pulse, 2.0 / DYNAMIC_RATE_HZ, MAX_DURATION_S, "e.g. pulse_s = 1.0"
+        ),
+        "pulses": pv.whole(table, "pulses", 1, MAX_PULSES, "e.g. pulses = 3"),
     }
-    for key in ("period_s", "duration_s"):
-        if key in table:
-            common[key] = pv.positive(table, key, 0.0, f"e.g. {key} = 10.0")
+    _train_timing(table, common)
+    pv.channels(table, LOGGED, KIND.required_columns, list(KIND.required_columns), "the voltage-step rig")
     out = [{"voltage_V": volts[k % len(volts)], **common} for k in range(n)]
     for k, run in enumerate(out if loads else ()):
         run["load_N"] = loads[k % len(loads)]
     return out
+
+
+MAX_DURATION_S = 3600.0
+"""Longest logged run of a ``[protocol]`` table [s]: an hour at 100 Hz, 360,000 rows."""
+
+
+def _train_timing(table: dict, common: dict) -> None:
+    """``period_s`` and ``duration_s`` of the table into ``common``, refused where the pulses
+    of a train would overlap or the log would end before the last pulse does."""
+    pulse, pulses = common["pulse_s"], common["pulses"]
+    if "period_s" in table:
+        common["period_s"] = pv.bounded(table, "period_s", 0.0, 0.0, MAX_DURATION_S, "e.g. period_s = 4.0")
+        if pulses > 1 and not common["period_s"] > pulse:
+            raise ConfigError(
+                f"[protocol]: period_s = {common['period_s']:g} is not longer than pulse_s = {pulse:g}: "
+                "the train's pulses would merge into one (the default period is twice the pulse plus 2 s)",
+                f"e.g. period_s = {2.0 * pulse + 2.0:g}",
+            )
+    period = common.get("period_s", 2.0 * pulse + 2.0)
+    end = PULSE_START_S + (pulses - 1) * period + pulse
+    pv.run_length(end, "pulses and period_s", "e.g. pulses = 3 with period_s = 4.0")
+    if "duration_s" in table:
+        common["duration_s"] = pv.bounded(
+            table, "duration_s", 0.0, 0.0, MAX_DURATION_S, "e.g. duration_s = 10.0"
+        )
+        if not common["duration_s"] >= end + 1.0 / DYNAMIC_RATE_HZ:
+            raise ConfigError(
+                f"[protocol]: duration_s = {common['duration_s']:g} ends before the last pulse does "
+                f"({end:g} s after the log starts; without duration_s the log runs long enough)",
+                f"e.g. duration_s = {np.ceil(end + DYNAMIC_DURATION_S - PULSE_START_S):g}",
+            )
 
 
 def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
@@ -620,17 +652,15 @@ prediction each logs: the actuator's current (a sense resistor beside the supply
 temperature (a thermocouple on the coil)."""
 
 
+LOGGED = ("time_s", "voltage_V", "displacement_mm", "load_N", *EXTRA_CHANNELS)
+"""Every column a voltage-step run may log (a ``[protocol]``'s ``channels``)."""
+
+
 def protocol_channels(channels) -> tuple[str, ...]:
     """The predictions the rig logs beyond time, voltage and displacement for a ``[protocol]``
     table's ``channels`` (:data:`EXTRA_CHANNELS`), in their order; a column this rig cannot log
     is refused naming it."""
-    known = (*KIND.required_columns, "load_N", *EXTRA_CHANNELS)
-    for c in channels:
-        if c not in known:
-            raise ConfigError(
-                f"[protocol]: channels: {c!r} is not a column the voltage-step rig logs",
-                "channels from: " + ", ".join(known),
-            )
+    pv.channels({"channels": channels}, LOGGED, (), list(KIND.required_columns), "the voltage-step rig")
     return tuple(EXTRA_CHANNELS[c] for c in channels if c in EXTRA_CHANNELS)
 
 

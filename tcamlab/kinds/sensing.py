@@ -317,6 +317,9 @@ PROTOCOL_KEYS = (
 input (only the ``ambient-temperature`` effect's constant offset), so a logged temperature
 is not a protocol option."""
 
+KIND_COLUMNS = ("time_s", "displacement_mm", "force_N", "resistance_ohm")
+"""Columns a pull test logs (a ``[protocol]`` table's ``channels``); all but time required."""
+
 MAX_CYCLES = 10
 """Most loading-unloading cycles a run may program [-]."""
 
@@ -363,23 +366,32 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         raise ConfigError(
             f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
         )
-    pull = pv.positive(table, "pull_mm", PULL_MAX_M * 1e3, "the thesis pulls to 50 mm") * 1e-3
-    step = pv.positive(table, "step_mm", PULL_STEP_M * 1e3, "the thesis steps 2 mm") * 1e-3
-    if abs(pull / step - round(pull / step)) > 1e-6:
-        raise ConfigError(
-            f"[protocol]: pull_mm ({pull * 1e3:g}) is not a whole number of step_mm ({step * 1e3:g})",
-            "e.g. pull_mm = 50.0 with step_mm = 2.0",
-        )
+    pull = pv.positive(table, "pull_mm", PULL_MAX_M * 1e3, "e.g. pull_mm = 50.0") * 1e-3
+    step = pv.positive(table, "step_mm", PULL_STEP_M * 1e3, "e.g. step_mm = 2.0") * 1e-3
+    steps = pv.levels(
+        pull / step,
+        f"pull_mm ({pull * 1e3:g}) over step_mm ({step * 1e3:g})",
+        "e.g. pull_mm = 50.0 with step_mm = 2.0",
+    )
     speeds = table.get("speeds_mm_per_s", [PULL_SPEED_M_PER_S * 1e3])
+    hint = "e.g. speeds_mm_per_s = [10.0, 2.5]"
     if not isinstance(speeds, list) or not speeds:
-        raise ConfigError("[protocol]: speeds_mm_per_s must be a list of speeds [mm/s]", "e.g. [10.0, 2.5]")
-    speeds = [pv.positive({"speeds_mm_per_s": v}, "speeds_mm_per_s", 0, "e.g. [10.0, 2.5]") for v in speeds]
+        raise ConfigError("[protocol]: speeds_mm_per_s must be a list of speeds [mm/s]", hint)
+    speeds = [pv.bounded({"speeds_mm_per_s": v}, "speeds_mm_per_s", 0, 1e-3, 1e3, hint) for v in speeds]
     common = {
         "pull_max_m": pull,
         "step_m": step,
-        "dwell_s": pv.positive(table, "dwell_s", PULL_DWELL_S, "the thesis dwells 5 s per step"),
-        "cycles": pv.whole(table, "cycles", 1, MAX_CYCLES, "1 is up to the largest pull and back once"),
+        "dwell_s": pv.bounded(table, "dwell_s", PULL_DWELL_S, 0.0, 3600.0, "e.g. dwell_s = 5.0"),
+        "cycles": pv.whole(table, "cycles", 1, MAX_CYCLES, "e.g. cycles = 3"),
     }
+    # each cycle goes up and back down in ``steps`` steps, dwelling at each
+    per_cycle = 2.0 * (steps * common["dwell_s"] + pull / (min(speeds) * 1e-3))
+    pv.run_length(
+        common["cycles"] * per_cycle,
+        "cycles, pull_mm, step_mm, dwell_s and speeds_mm_per_s",
+        "e.g. speeds_mm_per_s = [10.0] with dwell_s = 5.0",
+    )
+    pv.channels(table, KIND_COLUMNS, KIND_COLUMNS[1:], list(KIND_COLUMNS), "the pull-test rig")
     n = pv.runs(table, len(speeds))
     return [{**common, "speed_m_per_s": speeds[k % len(speeds)] * 1e-3} for k in range(n)]
 
@@ -405,7 +417,7 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
         "dwell_s": PULL_DWELL_S,
         "cycles": 1,
         "runs": 2,
-        "channels": ["time_s", "displacement_mm", "force_N", "resistance_ohm"],
+        "channels": list(KIND_COLUMNS),
     }
     menu = [("repeat (same protocol)", base)]
     if pull > base["pull_mm"]:
@@ -485,7 +497,7 @@ KIND = Kind(
     name="sensing",
     description="sensing pull test (thesis section 3.3): displacement and force predicted from "
     "resistance, (3.1)-(3.7) with F = S delta",
-    required_columns=("displacement_mm", "force_N", "resistance_ohm"),
+    required_columns=KIND_COLUMNS[1:],
     optional_columns=("time_s", "temperature_C"),
     min_rows=3,
     inputs=("resistance",),

@@ -216,6 +216,12 @@ def set_points(first: float, last: float, step: float) -> np.ndarray:
 
 
 PROTOCOL_KEYS = ("kind", "loads_g", "oven", "temperature_C", "step_C", "dwell_s", "runs", "channels")
+
+STATIC_CHANNELS = ("time_s", "temperature_C", "load_N", "displacement_mm")
+"""Columns an oven run logs (a ``[protocol]`` table's ``channels`` lists them)."""
+
+KIND_REQUIRED = ("temperature_C", "displacement_mm")
+"""Of those, the ones every static run must log."""
 """Keys of a static ``[protocol]`` table (docs/design.md)."""
 
 MAX_OVEN_C = 170.0
@@ -242,12 +248,26 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
     loads = [
         g * 1e-3 for g in pv.positive_list(table, "loads_g", [rig.load * 1e3], "e.g. loads_g = [50.0, 100.0]")
     ]
+    from tcamlab.io import ABSOLUTE_ZERO_C  # io reads the kinds' registry at import
+
     span = [OVEN_STEPS_C[0], OVEN_STEPS_C[-1]]
     first, last = pv.number_pair(table, "temperature_C", span, "e.g. temperature_C = [25.0, 150.0]")
+    if not first > ABSOLUTE_ZERO_C:
+        raise ConfigError(
+            f"[protocol]: temperature_C starts below absolute zero ({first:g} degC)",
+            "e.g. temperature_C = [25.0, 150.0]",
+        )
     step = pv.positive(table, "step_C", OVEN_STEPS_C[1] - OVEN_STEPS_C[0], "e.g. step_C = 5.0")
+    # the last set point is the stated one: a step that does not divide the range would overshoot it
+    pv.levels(
+        (last - first) / step,
+        "temperature_C's range over step_C",
+        "e.g. temperature_C = [25.0, 150.0] with step_C = 5.0",
+    )
     n = pv.runs(table, len(loads))
     oven = pv.choice(table, "oven", "heating", OVEN_PROGRAMS)
-    dwell = pv.positive(table, "dwell_s", OVEN_DWELL_S, "e.g. dwell_s = 300.0")
+    dwell = pv.bounded(table, "dwell_s", OVEN_DWELL_S, 1.0, pv.MAX_RUN_S, "e.g. dwell_s = 300.0")
+    pv.channels(table, STATIC_CHANNELS, KIND_REQUIRED, list(STATIC_CHANNELS), "the oven rig")
     return [
         {
             "oven": oven,
@@ -286,7 +306,7 @@ def design_menu(sample: Sample, rig: Rig) -> list[tuple[str, dict]]:
         "step_C": 5.0,
         "dwell_s": OVEN_DWELL_S,
         "runs": 2,
-        "channels": ["time_s", "temperature_C", "load_N", "displacement_mm"],
+        "channels": list(STATIC_CHANNELS),
     }
     menu = [("repeat (same protocol)", base)]
     for f in (1.5, 2.0):
@@ -391,7 +411,7 @@ KIND = Kind(
     name="static",
     description="static oven test (thesis section 2.5.1): displacement against temperature, "
     "constant-G model (2.12) and G(T) model (2.13)",
-    required_columns=("temperature_C", "displacement_mm"),
+    required_columns=KIND_REQUIRED,
     optional_columns=("time_s", "load_N"),
     min_rows=3,
     inputs=("temperature",),

@@ -147,6 +147,7 @@ along their ``scale`` vector (:func:`scale_effect`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -372,8 +373,9 @@ def simulate(
     )
     runs = _draw_runs(plan)
     sd = _strength_floor(plan)
-    effect_truth, mods = _scale_effects(plan, effects or {}, runs, sd)
-    forms = _scale_forms(plan, offlibrary or {}, runs, sd, mods)
+    with _designed_range(plan):
+        effect_truth, mods = _scale_effects(plan, effects or {}, runs, sd)
+        forms = _scale_forms(plan, offlibrary or {}, runs, sd, mods)
     run_paths, runs_truth = _write_runs(plan, runs, mods, forms)
     exp_path = _write_experiment(plan, run_paths)
     truth = _truth(plan, effect_truth, mods, sd, runs_truth, forms)
@@ -624,21 +626,28 @@ def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods, forms=()) -> tuple[li
     return paths, truths
 
 
-def _measure_run(plan: _Plan, run: _Run, mods: Mods, forms) -> pd.DataFrame:
-    """One run's logged table: the true response under its program, measured."""
-    kind = plan.kind
+@contextlib.contextmanager
+def _designed_range(plan: _Plan):
+    """A model error under a designed protocol names the file's ``[protocol]`` table: the
+    program, not the rig keys the model's own hint names, asked for it."""
     try:
-        inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
-        opts = true_options(kind, run.sample, run.rig, inputs)
-        outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
+        yield
     except ModelDomainError as exc:
         if not plan.designed:
             raise
-        # The designed program, not the rig keys the model's hint names, asked for it.
         raise ModelDomainError(
             f"{plan.exp.path.name}: [protocol]: a run it asks for is outside the model's range: {exc.message}",
-            "lower the [protocol] table's loads_g, voltages or temperatures",
+            "lower the [protocol] table's loads_g, voltages, temperatures, pull_mm or cable_mm",
         ) from None
+
+
+def _measure_run(plan: _Plan, run: _Run, mods: Mods, forms) -> pd.DataFrame:
+    """One run's logged table: the true response under its program, measured."""
+    kind = plan.kind
+    with _designed_range(plan):
+        inputs = exact_inputs(kind, run.sample, run.rig, run.proto, mods)
+        opts = true_options(kind, run.sample, run.rig, inputs)
+        outputs = predict(kind, run.sample, run.rig, inputs, mods, **opts)
     for form, info in forms:
         inputs, outputs = apply_form(
             form, info["amplitude"], kind, run.sample, run.rig, inputs, outputs, opts

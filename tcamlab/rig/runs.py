@@ -46,7 +46,11 @@ def designed_programs(kind: str, experiment) -> list[dict] | None:
     if table is None:
         return None
     if table.get("kind", kind) != kind:
-        raise ConfigError(f"[protocol]: a {table.get('kind')!r} protocol in a {kind!r} experiment")
+        where = Path(getattr(experiment, "path", "") or "").name
+        raise ConfigError(
+            f"{where + ': ' if where else ''}[protocol]: a {table.get('kind')!r} protocol in a {kind!r} experiment",
+            f'kind = "{kind}" in [protocol] (a protocol table is for the experiment\'s own rig)',
+        )
     module = importlib.import_module(get_kind(kind).protocol.__module__)
     reader = getattr(module, "protocol_runs", None)
     if reader is None:
