@@ -141,7 +141,8 @@ def test_a_column_of_another_dimension_is_never_proposed(tmp_path):
     out = _check(tmp_path, "time_s,Displacement (rad),temperature_C\n" + rows)
     assert 'from = "Displacement (rad)"' not in out
     out = _check(tmp_path, "time_s,displacement_um,temperature_C\n" + rows)  # same dimension: proposed
-    assert 'displacement_mm = { from = "displacement_um" }' in out
+    # with the unit its header names: read as mm it would be 1000 x off
+    assert 'displacement_mm = { from = "displacement_um", unit = "um" }' in out
 
 
 def test_a_headerless_file_is_never_told_to_reuse_a_mapped_column(tmp_path):
