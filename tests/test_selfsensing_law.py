@@ -551,3 +551,30 @@ def test_on_runs_of_tcamlabs_own_law_the_open_loop_r0_interval_holds_the_truth(t
     lo, hi = r0.profile_95
     assert lo < 24.0 < hi
     assert hi - lo < 0.2  # pinned: 0.06 ohm wide
+
+
+def test_a_refitted_quadratic_tcr_is_written_with_the_refits_sd():
+    # the open-loop stage wrote tcr2 = 1.45e-7 +- 1.39e-7; the refit moved it to -1.22e-6 (the
+    # bundled data's figures): the file must not keep an sd that does not cover the value
+    from types import SimpleNamespace
+
+    from tcamlab.calibration import calibrated_file
+
+    names = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor", "tcr2")
+    fit = SimpleNamespace(
+        experiment="e.toml",
+        fitted=("initial_resistance", "tcr", "tcr2"),
+        held={"lead_resistance": "held", "stretch_factor": "held"},
+        cases=("load logged",),
+        rms_before_um=50.0,
+        rms_after_um=40.0,
+        open_loop=dict(zip(names, (24.0, 0.0038, 0.0, 1.0, 1.45e-7))),
+        values=dict(zip(names, (23.98, 0.00381, 0.0, 1.0, -1.22e-6))),
+        sd={"initial_resistance": 0.02, "tcr": 1e-5, "tcr2": 4e-7},
+        used_by={},
+    )
+    doc = {"rig": {"tcr2_per_K2": 1.45e-7, "uncertainty": {"tcr2_per_K2": 1.39e-7}}}
+    calibrated_file.estimator_values(doc, fit)
+    assert doc["rig"]["tcr2_per_K2"] == pytest.approx(-1.22e-6)
+    assert doc["rig"]["uncertainty"]["tcr2_per_K2"] == pytest.approx(4e-7)
+    assert "lead_resistance_ohm" not in doc["rig"]["uncertainty"]

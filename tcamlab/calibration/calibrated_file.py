@@ -140,7 +140,8 @@ def estimator_values(doc: dict, fit) -> list[str]:
         if name in fit.fitted:
             rig[key] = _round(after)
             rig.setdefault("uncertainty", {})
-            if name in ("initial_resistance", "tcr"):
+            # a moved tcr2 with the open-loop stage's sd would not cover its own value
+            if name in ("initial_resistance", "tcr", "tcr2") and name in fit.sd:
                 rig["uncertainty"][key] = _round(fit.sd[name])
             lines.append(f"rig.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written)")
         else:
