@@ -218,3 +218,22 @@ def test_the_report_says_what_each_rule_did(tmp_path):
     assert "exclude the mean error" in html
     for k in ("RMSE", "bias", "R²"):
         assert f'<th scope="col">{k}</th><th scope="col">{k} unadjusted</th>' in html
+
+
+def test_an_input_that_never_moves_leaves_every_row_at_rest():
+    # SYNTHETIC: a self-sensing log that only probes (1.5 V with 1 mV of noise, 20 s at 100 Hz):
+    # its range is its noise, so the 2 % rule found the first row only
+    import pandas as pd
+
+    from tcamlab.kinds import rest_rows
+
+    kind = get_kind("selfsensing")
+    rng = np.random.default_rng(4)
+    n = 2000
+    v = 1.5 + 1e-3 * rng.standard_normal(n)
+    probe = pd.DataFrame({"time": np.arange(n) / 100.0, "voltage": v, "current": v / 24.0})
+    assert rest_rows(kind, probe).size == n
+    # with a pulse from 2 s the rest ends where it starts
+    pulsed = probe.assign(voltage=np.where(np.arange(n) >= 200, 6.0, v))
+    pulsed["current"] = pulsed["voltage"] / 24.0
+    assert rest_rows(kind, pulsed).size == 200
