@@ -637,3 +637,27 @@ def test_row_noise_leaves_out_the_second_differences_across_a_commanded_step():
     skipped = CalibrationProblem.row_noise([r], [{}], [step_rows([v])])[0]
     assert float(np.median(plain)) > 1.2
     assert float(np.median(skipped)) == pytest.approx(1.0, rel=0.08)
+
+
+def test_a_constant_optional_column_names_itself_and_its_runs(tmp_path):
+    # a current_A column stuck at one value: its noise cannot be read, and the one-line error
+    # names the column and the runs, with a hint the other commands can act on
+    from pathlib import Path
+
+    import pandas as pd
+
+    src = Path(__file__).parents[1] / "experiments" / "dynamic.toml"
+    exp = load_experiment(src)
+    names = []
+    for k, run in enumerate(exp.runs):
+        d = pd.read_csv(run)
+        d["current_A"] = 0.25
+        d.to_csv(tmp_path / f"stuck{k}.csv", index=False)
+        names.append(f"stuck{k}.csv")
+    text = src.read_text()
+    start, end = text.index("runs = ["), text.index("]", text.index("runs = [")) + 1
+    (tmp_path / "stuck.toml").write_text(text[:start] + f"runs = {names!r}".replace("'", '"') + text[end:])
+    res = CliRunner().invoke(app, ["calibrate", str(tmp_path / "stuck.toml"), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    line = res.output.strip().splitlines()[-1]
+    assert "noise of current_A" in line and "stuck0.csv" in line and "--ignore current_A" in line

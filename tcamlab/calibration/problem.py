@@ -355,8 +355,14 @@ class CalibrationProblem:
                     [step_rows(self.kinds[i], self.runs[i][j].data) for j in js],
                 )
                 if rows is None:
+                    from tcamlab.io import INTERNAL_TO_CANONICAL
+
+                    col = INTERNAL_TO_CANONICAL.get(q, q)
                     raise InputError(
-                        f"{self.experiments[i].path}: the noise of {q} cannot be estimated (a constant log?)"
+                        f"{self.experiments[i].path}: the noise of {col} cannot be estimated from its "
+                        f"runs ({', '.join(self.runs[i][j].path.name for j in js)}): is the column constant?",
+                        hint=f"check the {col} column of those runs and its unit (diagnose and validate "
+                        f"also take --ignore {col})",
                     )
                 for j, sd in zip(js, rows):
                     self.row_sigma[(i, j, q)] = sd
