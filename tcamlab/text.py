@@ -13,6 +13,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 __all__ = [
+    "clipped",
     "did_you_mean",
     "close_matches",
     "shown_path",
@@ -40,6 +41,13 @@ def did_you_mean(word: str, choices: Iterable[str], n: int = 1) -> str:
     """``"; did you mean 'x'?"`` for an error message, or ``""`` when nothing is close."""
     matches = close_matches(word, choices, n)
     return "; did you mean " + " or ".join(repr(m) for m in matches) + "?" if matches else ""
+
+
+def clipped(text: str, width: int = 80) -> str:
+    """``text`` cut to at most ``width`` characters at a word boundary, "..." marking the cut."""
+    import textwrap
+
+    return textwrap.shorten(str(text), width=width, placeholder=" ...")
 
 
 def shown_path(p) -> str:

@@ -405,3 +405,13 @@ def test_the_loop_names_a_drift_that_one_heating_program_could_not(tmp_path):
     true = first.truth["effects"]["displacement-drift"]["parameters"]["drift"]
     lo, hi = d2["ranking"][0]["parameters"]["drift"]["ci95"]
     assert lo < true < hi
+
+
+def test_a_protocols_limit_is_cut_at_a_word():
+    from tcamlab.text import clipped
+
+    reason = "the model has no solution where G_t' of (2.13) reaches zero at 153 K above ambient"
+    out = clipped(reason, 60)
+    assert len(out) <= 60 and out.endswith(" ...") and reason.startswith(out[:-4])
+    assert out[:-4].split()[-1] in reason.split()  # a whole word, not "G_t' o"
+    assert clipped("short", 60) == "short"

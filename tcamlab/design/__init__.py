@@ -52,6 +52,7 @@ from tcamlab.design.score import information_gain, pair_separation, refit_separa
 from tcamlab.design.toml import protocol_toml
 from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
+from tcamlab.text import clipped
 from tcamlab.units import display
 
 __all__ = [
@@ -364,7 +365,7 @@ def _inputs(kind, sample, rig, frames, h):
     try:
         return model_inputs(kind, s, r, frames), None
     except MODEL_ERRORS as exc:
-        return frames, f"{h.name}: no reading under this program ({str(exc).split(';')[0][:80]})"
+        return frames, f"{h.name}: no reading under this program ({clipped(str(exc).split(';')[0])})"
 
 
 def _clear_message(diagnosis: dict, st: str) -> str:
@@ -623,7 +624,7 @@ def _score_precision(
     try:
         sens = sensitivity(kind, sample, rig, frames, h, quantities)
     except (*MODEL_ERRORS, ValueError) as exc:
-        out.feasible, out.limit = False, f"{h.name}: no solution near the fit ({str(exc)[:80]})"
+        out.feasible, out.limit = False, f"{h.name}: no solution near the fit ({clipped(str(exc))})"
         return out
     gain, post = information_gain(np.vstack([sens[q] / noise[q] for q in quantities]))
     root = covariance_root(h)

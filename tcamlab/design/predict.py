@@ -24,6 +24,7 @@ from tcamlab.design.hypotheses import Hypothesis
 from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
 from tcamlab.models import static as _static
+from tcamlab.text import clipped
 
 __all__ = [
     "Prediction",
@@ -138,7 +139,7 @@ def predictive(
             preds = run_outputs(kind, s, r, mods, frames, quantities)
         except (*MODEL_ERRORS, ValueError) as exc:
             if j == 0:
-                return None, f"{h.name}: no solution ({str(exc).split(';')[0][:80]})"
+                return None, f"{h.name}: no solution ({clipped(str(exc).split(';')[0])})"
             continue
         if j == 0:
             point = preds
