@@ -22,6 +22,7 @@ __all__ = [
     "moving_average",
     "rolling_median",
     "second_difference_sigma",
+    "robust_second_difference_sigma",
     "step_rows",
     "split_branches",
     "time_in_dwell",
@@ -265,6 +266,21 @@ def second_difference_sigma(r, skip=None) -> float:
         if d2.size == 0:
             return float("nan")
     return float(math.sqrt(np.sum(d2 * d2) / (6.0 * d2.size)))
+
+
+def robust_second_difference_sigma(r) -> float:
+    """Noise sd of a series from the median absolute second difference (robust to steps and
+    outliers as well as smooth trends; NaN rows dropped, NaN when fewer than 3 remain).
+
+    sigma = 1.4826 median(|r[i+1] - 2 r[i] + r[i-1]|) / sqrt(6): a second difference of white
+    noise has variance 6 sigma^2, and 1.4826 MAD is a normal sd.
+    """
+    r = np.asarray(r, float)
+    r = r[np.isfinite(r)]
+    if r.size < 3:
+        return float("nan")
+    d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
+    return 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
 
 
 def step_rows(columns) -> np.ndarray:

@@ -184,3 +184,14 @@ def test_second_differences_across_a_step_are_left_out_of_the_noise():
     # a mask that leaves nothing out, or does not fit, changes nothing
     assert signals.second_difference_sigma(r, np.zeros(v.size, bool)) == signals.second_difference_sigma(r)
     assert signals.second_difference_sigma(r, np.ones(3, bool)) == signals.second_difference_sigma(r)
+
+
+def test_robust_second_difference_sigma_reads_noise_through_steps_and_gaps():
+    """Noise of sd 0.5 on a ramp with two jumps of 40 and a NaN row: the median of the second
+    differences ignores the jumps (the plain estimate does not) and the NaN is dropped."""
+    rng = np.random.default_rng(11)
+    x = np.linspace(0.0, 5.0, 4000) + rng.normal(0.0, 0.5, 4000) + np.where(np.arange(4000) > 2000, 40.0, 0.0)
+    x[1500] = np.nan
+    assert signals.robust_second_difference_sigma(x) == pytest.approx(0.5, rel=0.06)
+    assert signals.second_difference_sigma(x[np.isfinite(x)]) > 0.6
+    assert np.isnan(signals.robust_second_difference_sigma([1.0, np.nan, 2.0]))

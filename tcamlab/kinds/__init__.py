@@ -359,11 +359,12 @@ found one row at rest in a self-sensing log that only probes."""
 def _still(x, span: float) -> bool:
     import numpy as np
 
+    from tcamlab.signals import robust_second_difference_sigma
+
     ok = x[np.isfinite(x)]
     if ok.size < 3 or not span > 0:
         return True
-    d2 = ok[2:] - 2.0 * ok[1:-1] + ok[:-2]
-    sd = 1.4826 * float(np.median(np.abs(d2))) / np.sqrt(6.0)
+    sd = robust_second_difference_sigma(ok)
     return bool(span <= STILL_NOISE_SDS * sd and span <= 0.05 * float(np.max(np.abs(ok))))
 
 

@@ -652,7 +652,10 @@ prediction each logs: the actuator's current (a sense resistor beside the supply
 temperature (a thermocouple on the coil)."""
 
 
-LOGGED = ("time_s", "voltage_V", "displacement_mm", "load_N", *EXTRA_CHANNELS)
+REQUIRED_COLUMNS = ("time_s", "voltage_V", "displacement_mm")
+"""The columns every voltage-step run logs."""
+
+LOGGED = (*REQUIRED_COLUMNS, "load_N", *EXTRA_CHANNELS)
 """Every column a voltage-step run may log (a ``[protocol]``'s ``channels``)."""
 
 
@@ -811,7 +814,7 @@ KIND = Kind(
     name="dynamic",
     description="voltage-step test (thesis section 2.5.2): displacement against time, "
     "model (2.14)-(2.19) with a band for the measured points (prediction band once calibrated)",
-    required_columns=("time_s", "voltage_V", "displacement_mm"),
+    required_columns=REQUIRED_COLUMNS,
     optional_columns=("temperature_C", "current_A", "resistance_ohm", "load_N"),
     min_rows=10,
     inputs=("time", "voltage"),
