@@ -86,6 +86,8 @@ def test_every_canonical_column_is_mapped_with_a_known_unit():
         (2.0, "Mohm", "ohm", 2e6),
         (50.0, "gf", "N", 50 * 9.80665e-3),
         (1.0, "kgf", "N", 9.80665),
+        (50.0, "g", "N", 50 * 9.80665e-3),  # a load cell read out in grams
+        (0.05, "kg", "N", 0.05 * 9.80665),
         (1.0, "lbf", "N", 4.4482216152605),
         (3.0, "mN", "N", 3e-3),
         (2.0, "per_mm", "per_m", 2000.0),

@@ -20,6 +20,7 @@ from typer.testing import CliRunner
 from tcamlab.cli import app
 from tcamlab.config import load_experiment
 from tcamlab.errors import ConfigError
+from tcamlab.io import convert
 from tcamlab.starter import PLACEHOLDER, inspect_csv, placeholders, split_header, starter_text, write_starter
 
 runner = CliRunner()
@@ -360,6 +361,19 @@ def test_unknown_channels_are_listed_not_guessed(tmp_path):
     assert "not used: 'Torque [µNm]' (column 2), 'Normal stress [Pa]' (column 5)" in r.output
     cols = tomllib.loads((tmp_path / "o.toml").read_text(encoding="utf-8"))["columns"]
     assert cols["temperature_C"] == {"from": "T", "unit": "degC"} and cols["time_s"]["from"] == "Time [s]"
+
+
+def test_a_self_sensing_log_with_the_load_in_grams_maps_it_as_a_force(tmp_path):
+    """A powered-muscle log whose load cell reads in grams ("Load (g)") and current in mA: the
+    load is mapped to load_N as gram-force (50 g reads 0.49 N), not left unused."""
+    rows = ["Time (s),Voltage (V),Current (mA),Load (g),Displacement (mm)"]
+    rows += [f"{0.01 * i:.2f},1.5,{35.0 + 0.01 * i:.2f},50.0,{0.001 * i:.3f}" for i in range(12)]
+    csv = write(tmp_path / "raw" / "ss.csv", "\n".join(rows) + "\n")
+    res = write_starter("selfsensing", csv, tmp_path / "experiments" / "ss.toml")
+    cols = tomllib.loads(res.path.read_text(encoding="utf-8"))["columns"]
+    assert cols["load_N"] == {"from": "Load (g)", "unit": "gf"}
+    assert cols["current_A"] == {"from": "Current (mA)", "unit": "mA"}
+    assert convert(50.0, cols["load_N"]["unit"], "N") == pytest.approx(0.49033, rel=1e-4)
 
 
 def test_pull_tester_headers_with_units_in_them(tmp_path):

@@ -152,8 +152,9 @@ def _aliases() -> dict[str, str]:
         "N": "N newton newtons Newton",
         "mN": "mN",
         "kN": "kN",
-        "gf": "gf",
-        "kgf": "kgf",
+        # a load cell read out in grams or kilograms reads the weight of that mass
+        "gf": "gf g gram grams",
+        "kgf": "kgf kg kilogram kilograms",
         "lbf": "lbf",
         "ohm": "ohm ohms Ohm Ohms OHM Ω Ω",
         "mohm": "mohm mOhm mΩ mΩ",
