@@ -751,15 +751,20 @@ def unused_threshold_warnings(thresholds: Mapping[str, float], checks, quantitie
     ]
 
 
-def domain_warning(run: str, quantity: str, outside: int, rows: int) -> SanityWarning | None:
-    """Rows of a run where the model gives no finite prediction (outside its domain)."""
+def domain_warning(
+    run: str, quantity: str, outside: int, rows: int, model: str | None = None
+) -> SanityWarning | None:
+    """Rows of a run where the model (the primary one, or ``model``) gives no finite prediction
+    (outside its domain, or an estimator that diverged)."""
     if outside <= 0:
         return None
+    who = f"{model}: " if model else ""
     msg = (
-        f"{run} {quantity}: {outside} of {rows} rows outside the model's domain (no finite "
+        f"{who}{run} {quantity}: {outside} of {rows} rows outside the model's domain (no finite "
         "prediction); left out of the metrics"
     )
-    return SanityWarning("outside-domain", msg, quantity, run, {"rows_outside": outside, "rows": rows})
+    values = {"rows_outside": outside, "rows": rows, **({"model": model} if model else {})}
+    return SanityWarning("outside-domain", msg, quantity, run, values)
 
 
 def stated_shift_warning(

@@ -497,8 +497,15 @@ def sanity_warnings(kind: Kind, preds: list[RunPrediction], metrics: dict) -> li
         predicted = np.concatenate([np.asarray(p.predicted[kind.primary][q], float) for p in preds]) * factor
         out.append(flat_prediction_warning(col, unit, measured, predicted))
         for p in preds:
-            m, pr = p.data[q].to_numpy(float), np.asarray(p.predicted[kind.primary][q], float)
-            out.append(domain_warning(p.name, col, int(np.sum(np.isfinite(m) & ~np.isfinite(pr))), m.size))
+            m = p.data[q].to_numpy(float)
+            # every model's rows with no finite prediction: an estimator that diverged is scored
+            # on the few rows before it did, and must not look like a fit
+            for model, pred in p.predicted.items():
+                if q in pred:
+                    outside = int(np.sum(np.isfinite(m) & ~np.isfinite(np.asarray(pred[q], float))))
+                    out.append(
+                        domain_warning(p.name, col, outside, m.size, None if model == kind.primary else model)
+                    )
             if q in p.zeros:
                 out.append(zero_offset_warning(p.name, col, unit, p.zeros[q].scaled(factor)))
     return [w for w in out if w is not None]

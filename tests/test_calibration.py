@@ -661,3 +661,23 @@ def test_a_constant_optional_column_names_itself_and_its_runs(tmp_path):
     assert res.exit_code == 2, res.output
     line = res.output.strip().splitlines()[-1]
     assert "noise of current_A" in line and "stuck0.csv" in line and "--ignore current_A" in line
+
+
+def test_a_stated_sd_of_zero_holds_the_parameter_at_its_stated_value(tmp_path):
+    """[rig.uncertainty] heat_loss_W_per_K = 0 says lambda is known exactly: it is not fitted
+    (not given the 50 % default prior and moved), and the result says why."""
+    from tcamlab.calibration.problem import CalibrationProblem
+
+    root = __import__("pathlib").Path(__file__).resolve().parent.parent
+    text = (root / "experiments" / "dynamic.toml").read_text()
+    assert "heat_loss_W_per_K = 0.01615" in text
+    exp = load_experiment(root / "experiments" / "dynamic.toml")
+    assert "heat_loss" in [s.name for s in CalibrationProblem([exp], [exp.read_runs()]).specs]
+    path = tmp_path / "dynamic.toml"
+    text = text.replace("../raw/", (root / "raw").as_posix() + "/")
+    path.write_text(text.replace("heat_loss_W_per_K = 0.01615", "heat_loss_W_per_K = 0.0"))
+    held = load_experiment(path)
+    prob = CalibrationProblem([held], [held.read_runs()])
+    assert "heat_loss" not in [s.name for s in prob.specs]
+    assert "thermal_mass" in [s.name for s in prob.specs]
+    assert "rig.heat_loss_W_per_K: held at its stated value" in prob.held["heat_loss"]

@@ -115,6 +115,27 @@ def test_on_the_selfsensing_sample_data():
     assert width > 2 * (np.percentile(logged, 97.5) - np.percentile(logged, 2.5))
 
 
+def test_a_stated_load_too_light_for_the_filter_step_stays_finite():
+    """load_g = 1e-6 g (a mechanical time constant m/b of 1e-12 s) made the RK4 sub-step unstable
+    and the estimate 1e215 mm; the inertia is raised to one sub-step's and, with the load logged,
+    the estimate stays within the run's stroke of the laser."""
+    from dataclasses import replace
+
+    from tcamlab.io import read_run
+
+    exp = load_experiment(ROOT / "experiments" / "selfsensing.toml")
+    data = read_run(exp.runs[0], "selfsensing", exp.columns).data
+    measured = data["displacement"].to_numpy() - data["displacement"].to_numpy()[0]
+    light = replace(exp.rig, load=1e-9)
+    p = so.parameter_vector(exp.sample, light)
+    from tcamlab.estimation import observer_kernel as K
+
+    assert p[K.P_MASS] == pytest.approx(exp.rig.damping * so.MAX_STEP_S)
+    x = so.predict_displacement(exp.sample, light, data)["displacement"]
+    assert np.isfinite(x).all()
+    assert np.max(np.abs(x - measured)[100:]) < np.ptp(measured)
+
+
 def test_a_logged_load_is_a_measurement_not_a_reset():
     """load_g = 60 g in the file, 50 g logged: the stated load is only the first row's prior.
 

@@ -369,6 +369,21 @@ def test_pdf_long_table_splits_with_header_repeated():
         assert "HEADERX" in page.extract_text()
 
 
+def test_a_table_with_one_huge_figure_still_renders_every_column():
+    """An estimator that diverged put a percentage of hundreds of digits in one cell of an 8-column table;
+    scaled to the page, the other columns were 4 pt wide, less than their padding, and reportlab
+    raised. Every column keeps a few characters now; the figure is cut, the PDF is written."""
+    huge = "3" * 900 + ".0%"
+    rows = [
+        ["run1", huge, "1.2", "3.4", "5.6", "7.8", "9.0", "1.1"],
+        ["pooled", "1", "2", "3", "4", "5", "6", "7"],
+    ]
+    header = ["run", "mean", "interval", "heating", "own", "laser", "withheld", "note"]
+    doc = Document("Wide", sections=[Section("Data", tables=[Table(header, rows)])])
+    text = _reader(render_pdf(doc)).pages[0].extract_text()
+    assert "pooled" in text and "withheld" in text
+
+
 def test_a_table_that_fits_a_page_starts_in_place_when_most_of_the_page_is_left():
     # a 40-row table (it fits a page) after a short summary: moved whole to page 2, it left page 1 blank
     rows = [[i, f"figure {i}", 0.5] for i in range(40)]

@@ -290,6 +290,7 @@ def calibrate(
         inputs=_inputs(exps, runs),
         curves=curves,
         estimator=_estimator_stage(exps, runs, estimates),
+        notes=list(problem.held.values()),
     )
 
 

@@ -227,6 +227,7 @@ class CalibrationProblem:
         self.kinds = [get_kind(e.kind) for e in self.experiments]
         self.samples = [e.sample for e in self.experiments]
         self.rigs = [self._filled_rig(i) for i in range(len(self.experiments))]
+        self.held: dict[str, str] = {}  # parameter -> why it is not fitted
         specs = self._all_specs()
         self.specs = self._select(specs, names)
         self.u0 = np.array([s.u0 for s in self.specs])
@@ -302,6 +303,8 @@ class CalibrationProblem:
                     continue  # e.g. dynamic R without a logged current or resistance
                 if p.effect is not None and not self.effect_params:
                     continue  # the diagnosis's recalibration: the effect is a candidate
+                if self._stated_exactly(i, p):
+                    continue  # a stated sd of 0: the value is known, not fitted
                 if p.where == "sample":
                     if p.field not in specs:
                         specs[p.field] = self._spec(p, tuple(range(len(self.experiments))), p.field)
@@ -309,6 +312,18 @@ class CalibrationProblem:
                     name = f"{self.experiments[i].name}.{p.field}" if several else p.field
                     specs[name] = self._spec(p, (i,), name)
         return list(specs.values())
+
+    def _stated_exactly(self, i: int, p: CalibrationParam) -> bool:
+        """Whether experiment ``i`` states parameter ``p``'s sd as 0 (held, listed in :attr:`held`)."""
+        exp = self.experiments[i]
+        unc = exp.sample_uncertainty if p.where == "sample" else exp.rig.uncertainty
+        if unc.get(p.field) != 0:
+            return False
+        key = _LAB_KEYS[p.where][p.field][0]
+        self.held[p.field] = (
+            f"{p.where}.{key}: held at its stated value (its sd in [{p.where}.uncertainty] is 0: known exactly)"
+        )
+        return True
 
     @staticmethod
     def _select(specs: list[Spec], names: Sequence[str] | None) -> list[Spec]:

@@ -543,12 +543,18 @@ def estimator_without_help(predictions) -> dict:
         pooled[case] = {
             part: _cell(
                 *(np.concatenate([x[i] for x in block[part]]) for i in (0, 1)),
-                float(np.nanmean([x[2] for x in block[part]])),
+                _mean_stroke([x[2] for x in block[part]]),
             )
             for part in PARTS
         }
     rest = np.concatenate(at_rest) if at_rest else np.array([])
     return {"runs": runs, "pooled": pooled, "laser_at_rest": _laser_floor(rest, pool)}
+
+
+def _mean_stroke(strokes) -> float:
+    """Mean of the runs' strokes [m], NaN where none is finite (an estimator with no finite row)."""
+    s = np.asarray(strokes, float)
+    return float(np.mean(s[np.isfinite(s)])) if np.isfinite(s).any() else float("nan")
 
 
 FLOOR_MIN_ROWS = 40
@@ -564,9 +570,7 @@ def _laser_floor(rest: np.ndarray, pool: dict) -> dict:
     width = float(hi - lo)
     out = {"interval95_width_mm": width * 1e3, "n": int(rest.size)}
     for case, block in pool.items():
-        strokes = {
-            part: float(np.nanmean([x[2] for x in block[part]])) if block[part] else 0.0 for part in PARTS
-        }
+        strokes = {part: _mean_stroke([x[2] for x in block[part]]) if block[part] else 0.0 for part in PARTS}
         out[case] = (
             {part: width / st if st > 0 else None for part, st in strokes.items()}
             if block[PARTS[0]]
@@ -585,7 +589,7 @@ def validation_extras(experiment, predictions, **_) -> tuple[list, dict]:
         notes.append(
             f"{v}, pooled: mean error {pooled['mean_error_mm']:.3g} mm, 95% interval "
             f"{pooled['interval95_width_mm']:.3g} mm over a {pooled['stroke_mm']:.3g} mm stroke "
-            f"({pooled['interval95_of_stroke']:.1%}); published inductive self-sensing: -0.27 mm, "
+            f"({100 * pooled['interval95_of_stroke']:.3g}%); published inductive self-sensing: -0.27 mm, "
             "2.14 mm over 10-30 mm (van der Weijde et al. 2017)"
         )
     extras = {

@@ -338,8 +338,19 @@ def _fit_table(header, rows, ctx: _Ctx, mono: set[int], size: float) -> tuple[fl
         + 9.5
         for j in range(len(header))
     ]
-    scale = ctx.width / sum(minimal)
-    return size, [m * scale for m in minimal]
+    return size, _squeezed(minimal, ctx.width, stringWidth("0.000", f.regular, size) + 9.5)
+
+
+def _squeezed(minimal: list[float], width: float, floor: float) -> list[float]:
+    """Column widths [pt] summing to ``width`` when the ``minimal`` ones do not fit: every column
+    keeps at least ``floor`` (a column narrower than its cell padding cannot be drawn at all:
+    one cell holding a 20-digit figure squeezed a table's other seven to 4 pt), the rest of the
+    width shared in proportion to what each column asks beyond it (its long pieces are cut)."""
+    floor = min(floor, width / len(minimal))
+    extra = [max(m - floor, 0.0) for m in minimal]
+    spare = width - floor * len(minimal)
+    total = sum(extra) or 1.0
+    return [floor + spare * e / total for e in extra]
 
 
 def _cell_markup(cell: Cell) -> str:
