@@ -717,6 +717,11 @@ def _resolve_runs(run_list, p: Path, shown: str, require_runs: bool) -> list[Pat
                 f"{shown}: runs[{i}]: run file {shown_run} {what} (looked for {_display_path(rp)})",
                 "run paths are relative to the experiment file",
             )
+        if rp in runs:  # the same log twice would count as two runs in every fold and interval
+            raise ConfigError(
+                f"{shown}: runs[{i}]: {shown_run} is runs[{runs.index(rp)}] again",
+                "list each run file once",
+            )
         runs.append(rp)
     return runs
 
@@ -798,7 +803,17 @@ def _thresholds(doc: _ExperimentFile, shown: str) -> dict[str, float]:
     for name, value in doc.thresholds.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{shown}: thresholds.{name}: expected a number, got {_short(value)}")
-        thresholds[name] = _finite(shown, f"thresholds.{name}", value)
+        v = thresholds[name] = _finite(shown, f"thresholds.{name}", value)
+        # a limit no run can meet would fail every validation whatever the model does
+        if name.startswith("r2_min") and v > 1:
+            raise ConfigError(
+                f"{shown}: thresholds.{name} = {value!r}: R² is at most 1", f"e.g. {name} = 0.9"
+            )
+        if not name.startswith("r2") and v < 0:
+            raise ConfigError(
+                f"{shown}: thresholds.{name} = {value!r}: a limit on an error's size is not negative",
+                f"e.g. {name} = {abs(v):g}",
+            )
     return thresholds
 
 
@@ -1040,6 +1055,23 @@ _RIG_NONNEGATIVE_WHY = {
     "e.g. lead_resistance_ohm = 0.3",
 }
 _SI_TO_RIG_KEY = {si: key for key, (si, _) in RIG_KEYS.items()}
+_RIG_RANGES = {
+    "ambient": (-60.0, 100.0, "the room or chamber the rig stands in; e.g. ambient_C = 20"),
+    "stretch_factor": (0.0, 10.0, "k_s scales chapter 3's stretch sensitivity of R (1: tcamlab's law); "
+                       "e.g. stretch_factor = 1"),
+}  # fmt: skip
+"""Rig fields whose value must lie in a physical range [SI]: (low, high, why and an example)."""
+
+
+def _check_range(name: str, value: float, table: Mapping[str, Any], shown: str) -> None:
+    """Refuse a rig value outside :data:`_RIG_RANGES` (an ambient of -273 or 150 degC was
+    accepted, and a stretch factor of 1e6), naming the key."""
+    if name not in _RIG_RANGES:
+        return
+    lo, hi, why = _RIG_RANGES[name]
+    if not lo <= value <= hi:
+        key = _SI_TO_RIG_KEY[name]
+        raise ConfigError(f"{shown}: rig.{key} = {table[key]!r} is outside {lo:g} to {hi:g}", why)
 
 
 def _build_rig(doc: _ExperimentFile, shown: str) -> tuple[Rig, dict[str, str]]:
@@ -1058,8 +1090,7 @@ def _build_rig(doc: _ExperimentFile, shown: str) -> tuple[Rig, dict[str, str]]:
             raise ConfigError(
                 f"{shown}: rig.{key} = {table[key]!r} must not be negative", _RIG_NONNEGATIVE_WHY.get(name)
             )
-        if name == "ambient" and value < tio.ABSOLUTE_ZERO_C:
-            raise ConfigError(f"{shown}: rig.ambient_C = {value!r} is below absolute zero")
+        _check_range(name, value, table, shown)
     for name, value in unc.items():
         if not isinstance(value, tuple) and value < 0:
             key = _SI_TO_RIG_KEY[name]

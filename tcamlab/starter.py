@@ -951,7 +951,49 @@ def _warnings(exp, runs) -> list[str]:
         for name in get_kind(exp.kind).inputs:
             if name in d and float(np.ptp(d[name].to_numpy())) == 0.0:
                 out.append(f"{r.path.name}: {name} never changes, so the model has nothing to follow")
+        out += _beyond_plausible(r)
     return out
+
+
+PLAUSIBLE_MAX = {
+    "voltage": (100.0, "V", "mV"),
+    "current": (5.0, "A", "mA"),
+    "load": (20.0, "N", "gf"),
+    "force": (100.0, "N", "mN"),
+}
+"""Largest |value| [SI] a channel of a thread muscle or sensor plausibly logs, its unit, and the
+unit a log that far above it is most likely in: a muscle driven at 1496 V or loaded with 50 N
+is a log in mV or grams read as V or N, and the model then fails far downstream with a hint
+about temperatures."""
+
+
+def _beyond_plausible(run) -> list[str]:
+    """A warning per channel of ``run`` beyond :data:`PLAUSIBLE_MAX` (the unit is likely wrong)."""
+    out = []
+    for name, (limit, unit, likely) in PLAUSIBLE_MAX.items():
+        if name not in run.data:
+            continue
+        peak = float(np.nanmax(np.abs(run.data[name].to_numpy(float)), initial=0.0))
+        if peak > limit:
+            out.append(
+                f"{run.path.name}: {name} reaches {peak:.4g} {unit}, beyond the {limit:g} {unit} a thread "
+                f'muscle or sensor plausibly sees: is the column in {likely}? (unit = "{likely}" in its '
+                "[columns] entry)"
+            )
+    if "temperature" in run.data:
+        low = float(np.nanmin(run.data["temperature"].to_numpy(float), initial=np.inf))
+        if low < PLAUSIBLE_MIN_C:
+            out.append(
+                f"{run.path.name}: temperature falls to {low:.4g} degC, below the {PLAUSIBLE_MIN_C:g} degC "
+                'a muscle test plausibly sees: is the column in another unit? (unit = "degF" or "K" '
+                "in its [columns] entry, as the log is)"
+            )
+    return out
+
+
+PLAUSIBLE_MIN_C = -60.0
+"""Lowest temperature [degC] a muscle or sensor test plausibly logs: a column in degF read as K
+starts near -200 degC."""
 
 
 def _check_protocol(exp, report: CheckReport) -> None:
@@ -1014,4 +1056,26 @@ def check_experiment(path: str | os.PathLike, rows: int = 3, *, drop_na: bool = 
         read.append(run)
         report.runs.append(_run_check(run, rows))
     report.warnings = _warnings(exp, read)
+    _check_run_rules(exp, read, report)
     return report
+
+
+def _check_run_rules(exp, runs, report: CheckReport) -> None:
+    """Each run through the kind's per-run rule (:attr:`tcamlab.kinds.Kind.run_options`: the
+    hanging load, the sampling, R0), as every command applies it: what they would refuse is a
+    problem here too. A constant identified on training runs (sensing S) is identified on all
+    of them here: validate leaves each run out of its own, but calibrate fits on one run."""
+    from tcamlab.errors import TcamlabError
+
+    kind = get_kind(exp.kind)
+    training = [(r.data, np.ones(len(r.data), dtype=bool)) for r in runs]
+    for run in runs:
+        try:
+            kind.run_options(
+                exp.sample, exp.rig, run.data, where=exp.path.name, provenance=exp.provenance,
+                training=training, training_runs=[r.path.stem for r in runs],
+            )  # fmt: skip
+        except TcamlabError as exc:
+            line = exc.one_line()
+            if line not in report.problems:  # a rule of the file, not of the run, fails once
+                report.problems.append(line)

@@ -388,7 +388,9 @@ def test_impossible_sample(lab, override, parts):
     [
         ("[rig]\nresistance_ohm = 0", ["rig.resistance_ohm", "positive"]),
         ("[rig]\nload_g = -5", ["rig.load_g", "negative"]),
-        ("[rig]\nambient_C = -300", ["rig.ambient_C", "absolute zero"]),
+        ("[rig]\nambient_C = -300", ["rig.ambient_C", "outside -60 to 100"]),
+        ("[rig]\nambient_C = 150", ["rig.ambient_C", "outside -60 to 100", "ambient_C = 20"]),
+        ("[rig]\nstretch_factor = 1e6", ["rig.stretch_factor", "outside 0 to 10", "stretch_factor = 1"]),
         ("[rig]\nsegment_lengths_mm = [30, -1]", ["rig.segment_lengths_mm", "positive"]),
         ("[rig]\nsegment_lengths_mm = []", ["rig.segment_lengths_mm", "at least one"]),
         ("[rig.uncertainty]\ndamping_N_s_per_m = -0.1", ["rig.uncertainty.damping_N_s_per_m", "negative"]),
@@ -397,6 +399,27 @@ def test_impossible_sample(lab, override, parts):
 def test_impossible_rig(lab, table, parts):
     p = write_toml(lab, HEAD + f'[sample]\npreset = "thesis-tca"\n{table}\n')
     raises_config([str(p)] + parts, load_experiment, p)
+
+
+@pytest.mark.parametrize(
+    "table, parts",
+    [
+        ("[thresholds]\nrmse_mm = -1", ["thresholds.rmse_mm = -1", "not negative", "rmse_mm = 1"]),
+        ("[thresholds]\nr2_min = 5", ["thresholds.r2_min = 5", "at most 1", "r2_min = 0.9"]),
+    ],
+)
+def test_a_limit_no_run_can_meet_is_refused(lab, table, parts):
+    p = write_toml(lab, HEAD + f'[sample]\npreset = "thesis-tca"\n{table}\n')
+    err = raises_config([str(p)] + parts, load_experiment, p)
+    key, _, value = err.hint.removeprefix("e.g. ").partition(" = ")
+    write_toml(lab, HEAD + f'[sample]\npreset = "thesis-tca"\n[thresholds]\n{key} = {value}\n')
+    assert load_experiment(p).thresholds[key] == float(value)  # the hint is a valid limit
+
+
+def test_the_same_run_listed_twice_is_refused(lab):
+    body = HEAD.replace('runs = ["../raw/step1.csv"]', 'runs = ["../raw/step1.csv", "../raw/./step1.csv"]')
+    p = write_toml(lab, body + '[sample]\npreset = "thesis-tca"\n')
+    raises_config([str(p), "runs[1]", "is runs[0] again"], load_experiment, p)
 
 
 def test_expected_kind_mismatch(lab):

@@ -334,8 +334,9 @@ def test_check_is_a_dry_run_listing_every_problem(tmp_path):
     # two broken runs: both problems listed, not only the first
     bad = csv.with_name("bad.csv")
     bad.write_text(csv.read_text().replace("0.5,1020.0", "0.5,abc"))
+    bad.with_name("bad2.csv").write_text(bad.read_text())
     text = res.path.read_text(encoding="utf-8").replace(
-        'runs = ["../raw/pull1.csv"]', 'runs = ["../raw/bad.csv", "../raw/pull1.csv", "../raw/bad.csv"]'
+        'runs = ["../raw/pull1.csv"]', 'runs = ["../raw/bad.csv", "../raw/pull1.csv", "../raw/bad2.csv"]'
     )
     res.path.write_text(text, encoding="utf-8")
     r = runner.invoke(app, ["check", str(res.path)])
@@ -396,3 +397,42 @@ def test_pull_tester_headers_with_units_in_them(tmp_path):
     np.testing.assert_allclose(run.data["displacement"].to_numpy()[:2], [0.0, 50e-6], atol=1e-15)
     np.testing.assert_allclose(run.data["force"].to_numpy()[:2], [0.0, 0.235e-3], atol=1e-15)
     assert run.data["resistance"].iloc[1] == pytest.approx(30.01)
+
+
+def test_check_applies_the_runs_rules_and_flags_channels_beyond_a_muscle(tmp_path):
+    """What validate refuses per run (a dynamic load of 0) is a problem in check too, and a voltage
+    logged in mV but read as V (up to 10,000 V) is a warning naming the likely unit."""
+    from tcamlab.starter import check_experiment
+
+    rows = ["time_s,voltage_V,displacement_mm"] + [
+        f"{0.1 * i:.1f},{10000 if i > 2 else 0},0" for i in range(30)
+    ]
+    write(tmp_path / "raw" / "step.csv", "\n".join(rows) + "\n")
+    body = 'kind = "dynamic"\ntitle = "t"\nruns = ["../raw/step.csv"]\n[sample]\npreset = "thesis-tca"\n'
+    exp = write(tmp_path / "experiments" / "e.toml", body + "[rig]\nload_g = 0\n")
+    report = check_experiment(exp)
+    assert any("rig load_g = 0 g" in p and "load_g = 50" in p for p in report.problems), report.problems
+    assert any("voltage reaches 1e+04 V" in w and 'unit = "mV"' in w for w in report.warnings), (
+        report.warnings
+    )
+    exp.write_text(body + "[rig]\nload_g = 50\n", encoding="utf-8")
+    assert check_experiment(exp).problems == []
+
+
+def test_check_refuses_a_self_sensing_log_sampled_slower_than_the_muscle_heats(tmp_path):
+    """A time column in ms read as s puts the rows 10 s apart, beyond the thermal time constant
+    C_th/lambda (3 s): the estimator cannot follow it, so check names the time unit."""
+    import pandas as pd
+
+    from tcamlab.starter import check_experiment
+
+    root = Path(__file__).resolve().parent.parent
+    frame = pd.read_csv(root / "raw" / "selfsensing_run1.csv")
+    frame["time_s"] = frame["time_s"] * 1000.0
+    (tmp_path / "raw").mkdir()
+    frame.to_csv(tmp_path / "raw" / "run.csv", index=False)
+    text = (root / "experiments" / "selfsensing.toml").read_text()
+    text = text.replace(text.split("\n")[2], 'runs = ["../raw/run.csv"]')
+    exp = write(tmp_path / "experiments" / "ss.toml", text)
+    problems = check_experiment(exp).problems
+    assert any("rows are 10 s apart" in p and 'unit = "ms"' in p for p in problems), problems

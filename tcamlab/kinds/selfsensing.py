@@ -344,6 +344,7 @@ def run_options(
             hint="set load_g in [rig] to the hanging load, e.g. load_g = 50 (with load_N logged "
             "it is only the prior of the first row)",
         )
+    _check_sampling(rig, data, at)
     if rig.spring_constant is None:
         raise InputError(
             f"{at}selfsensing run needs the muscle's spring constant S (chapter 3's R-to-delta map)",
@@ -356,6 +357,24 @@ def run_options(
         {"initial_resistance": r0},
         {"unloaded_resistance_ohm": r0, "unloaded_resistance_source": source},
     )
+
+
+def _check_sampling(rig: Rig, data: pd.DataFrame, at: str) -> None:
+    """Refuse a run whose rows are further apart than the muscle's thermal time constant
+    C_th/lambda: the estimator cannot follow the temperature between them, and a time column
+    in ms read as s (rows 10 s apart) kept the filter's sub-steps busy for minutes."""
+    t = data["time"].to_numpy(float)
+    if t.size < 2 or not (rig.thermal_mass > 0 and rig.heat_loss > 0):
+        return
+    step, tau = float(np.median(np.diff(t))), rig.thermal_mass / rig.heat_loss
+    if step > tau:
+        raise InputError(
+            f"{at}selfsensing run: its rows are {step:.4g} s apart, longer than the muscle's thermal "
+            f"time constant C_th/lambda = {tau:.3g} s: the estimator cannot follow the temperature "
+            "between rows",
+            hint='check the time column\'s unit in [columns], e.g. time_s = { from = "Time (ms)", unit = "ms" }, '
+            "and thermal_mass_J_per_K and heat_loss_W_per_K in [rig] (the thesis muscle: 0.0266 and 0.00893)",
+        )
 
 
 def regimes(data: pd.DataFrame, quantity: str, frames=()) -> dict[str, np.ndarray]:

@@ -174,6 +174,15 @@ def _check_grid(time, voltage):
     return t, v
 
 
+OVERHEAT_HINT = (
+    "check the voltage column's unit (mV read as V heats a million times too much) and [rig] "
+    "resistance_ohm, heat_loss_W_per_K and heater_tcr_per_K (a heater whose R falls as it heats "
+    "runs away); or use the constant-G model: shear_modulus_slope_MPa_per_K = 0"
+)
+"""What to look at when the modelled temperature leaves G_t''s range: the voltage is logged,
+so lowering a stated voltage would change nothing."""
+
+
 def _raise_status(status, where, t, p):
     from tcamlab.models import _dynamic_kernel as K
 
@@ -183,7 +192,7 @@ def _raise_status(status, where, t, p):
         raise ModelDomainError(
             f"dynamic model: at {at} the temperature exceeds T_a + {dt_max:.1f} K, where "
             f"G_t' of eq. (2.13) reaches zero",
-            hint="lower the voltage or pulse length, or use the constant-G model",
+            hint=OVERHEAT_HINT,
         )
     if status == K.ERR_PITCH:
         raise ModelDomainError(f"dynamic model: at {at} the coil closed or straightened fully")
@@ -384,7 +393,7 @@ def _python_rhs(p):
             raise ModelDomainError(
                 f"dynamic model: temperature exceeds T_a + {gt / slope:.1f} K, where G_t' "
                 "of eq. (2.13) reaches zero",
-                hint="lower the voltage or pulse length, or use the constant-G model",
+                hint=OVERHEAT_HINT,
             )
         r = rho * dT
         tau = _static.torque_from_strain(g_tau, phi0, d0, l, r)
