@@ -729,7 +729,7 @@ def calibrate(
         lo, hi = p["profile_95"]
         shift = "" if p["shift_in_stated_sds"] is None else f" ({p['shift_in_stated_sds']:+.2f} stated sds)"
         typer.echo(f"{p['name']:<24s} {p['value']:.5g} {p['unit']} [{lo:.4g}, {hi:.4g}]{shift}")
-    for line in doc["identifiability"]:
+    for line in [*doc["identifiability"], *doc["notes"]]:
         typer.echo("  " + line)
     for f in outcome.files:
         typer.echo(f"wrote {_relative_if_below(f)}")
@@ -870,6 +870,8 @@ def design(
     from tcamlab.design.text import design_lines
     from tcamlab.pipeline import design_experiment
 
+    if diagnosis is not None:
+        _run(_check_diagnosis, experiment, diagnosis)
     outcome = _run_shown(
         as_json,
         design_experiment,
@@ -890,6 +892,14 @@ def design(
         typer.echo(line)
     for f in outcome.files:
         typer.echo(f"wrote {shown_path(f)}")
+
+
+def _check_diagnosis(experiment, diagnosis) -> None:
+    """Refuse a diagnosis.json of another experiment, or of runs changed since."""
+    from tcamlab.config import load_experiment
+    from tcamlab.design.provenance import check_diagnosis_file
+
+    check_diagnosis_file(load_experiment(experiment), diagnosis)
 
 
 # -- benchmark --------------------------------------------------------------------------

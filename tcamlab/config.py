@@ -69,6 +69,7 @@ __all__ = [
     "CalibratedJoint",
     "load_experiment",
     "write_experiment",
+    "merge_run_columns",
     "dumps_toml",
 ]
 
@@ -762,16 +763,23 @@ def _run_columns(entries: list, columns: dict[str, Any], kind: str, shown: str) 
         return ()
     out = []
     for i, run in enumerate(entries):
-        merged = dict(columns)
-        for canon, spec in ({} if isinstance(run, str) else run.columns).items():
-            base = merged.get(canon)
-            if isinstance(spec, Mapping) and canon not in tio.FORMAT_KEYS:
-                base = {"from": base} if isinstance(base, str) else dict(base or {})
-                merged[canon] = base | dict(spec)
-            else:
-                merged[canon] = spec
+        merged = merge_run_columns(columns, {} if isinstance(run, str) else run.columns)
         out.append(_columns(merged, kind, shown, where=f"runs[{i}].columns"))
     return tuple(out)
+
+
+def merge_run_columns(table: Mapping[str, Any], own: Mapping[str, Any]) -> dict[str, Any]:
+    """A run's ``[columns]``: the experiment's ``table`` with the run's ``own`` entries merged in
+    key by key (an entry's ``from`` kept where the run only changes its unit or scale)."""
+    merged = dict(table)
+    for canon, spec in own.items():
+        base = merged.get(canon)
+        if isinstance(spec, Mapping) and canon not in tio.FORMAT_KEYS:
+            base = {"from": base} if isinstance(base, str) else dict(base or {})
+            merged[canon] = base | dict(spec)
+        else:
+            merged[canon] = spec
+    return merged
 
 
 def _run_joins(entries: list, p: Path, kind: str, shown: str, require_runs: bool) -> tuple:

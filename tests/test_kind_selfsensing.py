@@ -370,3 +370,25 @@ def test_an_estimator_that_diverges_is_a_warning_not_a_zero_error(tmp_path, monk
         assert any(
             m.startswith(f"{variant}: selfsensing_run1 displacement_mm: 4999 of 5000 rows") for m in lines
         ), lines
+
+
+def test_a_stated_load_other_than_the_logged_one_is_noted(tmp_path):
+    """load_g = 60 beside a logged 50 g: the EKF with the load withheld starts 10 g off, which its
+    figures then carry; validate says so per run (and not when they agree)."""
+    from tcamlab.config import load_experiment
+    from tcamlab.validation import validate
+
+    root = Path(__file__).resolve().parent.parent
+    text = (
+        (root / "experiments" / "selfsensing.toml")
+        .read_text()
+        .replace("../raw/", (root / "raw").as_posix() + "/")
+    )
+    assert "load_g = 50.0" in text
+    path = tmp_path / "selfsensing.toml"
+    path.write_text(text.replace("load_g = 50.0", "load_g = 60.0"))
+    runs = load_experiment(path).read_runs()[:1]
+    notes = [n for n in validate(load_experiment(path), runs).notes if "logged load at rest" in n]
+    assert len(notes) == 1 and "0.4903 N (50 g) but [rig] load_g = 60 g" in notes[0], notes
+    same = validate(load_experiment(root / "experiments" / "selfsensing.toml"), runs)
+    assert not [n for n in same.notes if "logged load at rest" in n]

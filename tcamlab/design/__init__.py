@@ -31,6 +31,7 @@ from tcamlab import progress
 from tcamlab.design.hypotheses import Hypothesis, hypotheses, partial_effects, status
 from tcamlab.design.predict import (
     N_DRAWS,
+    anchored,
     covariance_root,
     hottest,
     limits,
@@ -49,6 +50,7 @@ from tcamlab.design.protocols import (
 )
 from tcamlab.design.result import CandidateProtocol, DesignResult
 from tcamlab.design.score import information_gain, pair_separation, refit_separation, wald_after
+from tcamlab.design.survived import no_harsher, runs_made
 from tcamlab.design.toml import protocol_toml
 from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
@@ -99,7 +101,11 @@ MAX_FAILED_DRAWS = 0.05
 under a protocol (G_t' <= 0 in the oven, the coil closed) beyond the share under the protocol
 already run (the menu's first entry, its repeat): above it the protocol is out of bounds,
 since a sample as uncertain as the fit says may not survive it. The share under the repeat is
-the Gaussian's tail the runs already exclude (the sample survived them)."""
+the Gaussian's tail the runs already exclude (the sample survived them). A protocol no harsher
+than the runs already made (:mod:`~tcamlab.design.survived`) is never out of bounds for its
+draws or its fit's domain: an oven-lag fit at the edge of G_t' > 0 (oven runs to 150 degC,
+heat-cool and two loads) had no solution for 43 % of its draws and none beside the fit on the
+very runs it was fitted to, and every protocol, the repeat included, came out of bounds."""
 
 CRITERION = (
     "J_ij = KL(i||j) + KL(j||i), the symmetric Kullback-Leibler divergence between two hypotheses' "
@@ -172,9 +178,10 @@ def design(experiment, diagnosis: dict, *, n_draws: int = N_DRAWS, seed: int = 0
     protocols = menu(kind, experiment.sample, experiment.rig)
     noise = base.noise = menu_noise(kind, protocols, noise)
     cands, ceilings = [], _ceilings(experiment, protocols[0], hyps, seed)
+    made = runs_made(experiment)
     with progress.task("designing: scoring protocols", total=len(protocols)) as step:
-        for p in protocols:
-            cands.extend(_score(experiment, p, hyps, noise, n_draws, seed, ceilings))
+        for k, p in enumerate(protocols):
+            cands.extend(_score(experiment, p, hyps, noise, n_draws, seed, ceilings, (made, k == 0)))
             step()
     _mark_risky(cands)
     base.out_of_reach = _decide(cands, hyps)
@@ -312,13 +319,16 @@ def _separation_within_reach(cands: list[CandidateProtocol], out_of_reach: set) 
             c.log_bayes_factor = c.separation_refit / 2.0
 
 
-def _predicted(kind, sample, rig, frames, h, n_draws: int, seed: int, quantities=None, ceiling=None):
+def _predicted(
+    kind, sample, rig, frames, h, n_draws: int, seed: int, quantities=None, ceiling=None, survived=False
+):
     """``(prediction, None)`` of hypothesis ``h`` under a protocol's ``frames`` (of
     ``quantities``, default the kind's outputs), or ``(None or prediction, why)`` where it has
-    no solution there or breaks a limit (``ceiling``: :func:`_ceilings`)."""
+    no solution there or breaks a limit (``ceiling``: :func:`_ceilings`; none where the
+    protocol is one the sample has ``survived``)."""
     pred, point = predictive(kind, sample, rig, frames, h, n_draws, seed, quantities)
-    if pred is None:
-        return None, point
+    if pred is None or survived:
+        return pred, (point if pred is None else None)
     why = limits(kind, h.at(h.u(), h.effect_values, sample, rig, kind)[0], frames, point, ceiling)
     return pred, (f"{h.name}: {why}" if why else None)
 
@@ -345,16 +355,35 @@ def _ceilings(experiment, proto: Protocol, hyps, seed: int) -> dict[str, float]:
 
 def _mark_risky(cands: list[CandidateProtocol]) -> None:
     """Out of bounds: a protocol under which more of a hypothesis's draws have no solution than
-    under the repeat (the first candidate) by :data:`MAX_FAILED_DRAWS`."""
+    under the repeat (the first candidate) by :data:`MAX_FAILED_DRAWS`; never one the sample has
+    been through (``survived``)."""
     base = cands[0].failed_draws if cands else {}
     for c in cands[1:]:
         for name, f in c.failed_draws.items():
-            if c.feasible and f > base.get(name, 0.0) + MAX_FAILED_DRAWS:
+            # draws the runs already made exclude: the sample has been through this protocol
+            if c.feasible and not c.survived and f > base.get(name, 0.0) + MAX_FAILED_DRAWS:
                 c.feasible = False
                 c.limit = (
                     f"{name}: the model has no solution for {f:.0%} of its parameter draws "
                     f"({base.get(name, 0.0):.0%} under the repeat): the sample may not survive it"
                 )
+
+
+def _been_through(kind, sample, rig, frames, hyps, n_draws: int, seed: int, quantities):
+    """``(hyps, None)`` for a protocol no harsher than the runs already made, each centred where
+    the model has a solution under it and beside it (its fit, else its nearest draw that has:
+    :func:`~tcamlab.design.predict.anchored`), or ``(hyps, why)`` where one has none at any
+    draw (then not scored: the model's domain ends short of what the sample went through)."""
+    out = []
+    for h in hyps:
+        a = anchored(kind, sample, rig, frames, h, n_draws, seed, quantities)
+        if a is None:
+            return hyps, (
+                f"{h.name}: no solution at its fit or any of its draws, though the runs already "
+                "made were as harsh (the model's domain, not the sample's)"
+            )
+        out.append(a)
+    return out, None
 
 
 def _inputs(kind, sample, rig, frames, h):
@@ -373,8 +402,18 @@ def _clear_message(diagnosis: dict, st: str) -> str:
         return "the thesis model fits within the noise: no further experiment is needed"
     if st == "unexplained":
         return "no candidate explains the gap, so there are no hypotheses to separate: an effect outside the library is needed, not another protocol"
-    what = diagnosis.get("effect") or diagnosis.get("verdict")
-    return f"the diagnosis is clear ({diagnosis.get('verdict')}: {what}); no further experiment is needed to tell hypotheses apart"
+    return f"the diagnosis is clear ({diagnosis.get('verdict')}: {_explanation(diagnosis)}); no further experiment is needed to tell hypotheses apart"
+
+
+def _explanation(diagnosis: dict) -> str:
+    """What a clear diagnosis names: its effect, else the recalibrated parameters that moved
+    (a ``miscalibrated`` verdict has no effect), else its verdict."""
+    if diagnosis.get("effect"):
+        return str(diagnosis["effect"])
+    moved = (diagnosis.get("recalibration") or {}).get("named") or []
+    if moved:
+        return ", ".join(moved) + " moved"
+    return str(diagnosis.get("verdict"))
 
 
 def _beyond_repeat(cands: list[CandidateProtocol]) -> None:
@@ -439,27 +478,31 @@ def _out_of_reach(res: DesignResult) -> str:
 
 
 def _score(
-    experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int, ceilings=None
+    experiment, proto: Protocol, hyps, noise, n_draws: int, seed: int, ceilings=None, made=((), False)
 ) -> list[CandidateProtocol]:
     """One protocol scored (predictions of every hypothesis, limits, J and D of every pair, each
     effect's statistic at its fit), then the same with :data:`RUN_FACTORS` times its runs where
     it falls short of :data:`POWERED` at the fit. The quantities scored are the kind's outputs
     and those the protocol's ``channels`` add (:func:`~tcamlab.design.protocols.protocol_quantities`),
-    each over its sd in ``noise``; a channel adds no runs and no rig time."""
+    each over its sd in ``noise``; a channel adds no runs and no rig time. ``made``: (the runs
+    already made [SI], whether ``proto`` is the repeat), for :func:`_been_through`."""
     kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
     frames = protocol_frames(kind, rig, proto.table, seed)
     minutes = cost_minutes(frames, kind)
     quantities = protocol_quantities(kind, proto.table)
     nan = float("nan")
     out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
+    out.survived = made[1] or no_harsher(frames, made[0], rig)
     frames, why = _inputs(kind, sample, rig, frames, hyps[0])
+    if not why and out.survived:
+        hyps, why = _been_through(kind, sample, rig, frames, hyps, n_draws, seed, quantities)
     if why:
         out.feasible, out.limit = False, why
         return [out]
     preds = []
     for h in hyps:
         ceiling = (ceilings or {}).get(h.name)
-        pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities, ceiling)
+        pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities, ceiling, out.survived)
         if why:
             out.feasible, out.limit = False, why
             return [out]
@@ -487,7 +530,8 @@ def _score(
         for i, j in pairs
     }
     stacked = [_normalised_draws(p, noise, quantities) for p in preds]
-    parts = (hyps, stacked, _sensitivities(kind, sample, rig, frames, hyps, noise, quantities), D, scale)
+    sens = _sensitivities(kind, sample, rig, frames, hyps, noise, quantities, out.survived)
+    parts = (hyps, stacked, sens, D, scale)
     _fill(out, parts, 1)
     return [out] + _more_runs(out, parts)
 
@@ -506,7 +550,7 @@ def _more_runs(out: CandidateProtocol, parts) -> list[CandidateProtocol]:
         v = CandidateProtocol(
             f"{out.name}, {m}x the runs", {**out.table, "runs": m * out.runs}, m * out.runs,
             m * out.minutes, nan, nan, nan, {}, dict(out.max_difference), failed_draws=dict(out.failed_draws),
-            run_factor=m,
+            run_factor=m, survived=out.survived,
         )  # fmt: skip
         _fill(v, parts, m)
         variants.append(v)
@@ -549,18 +593,18 @@ def _told_from_zero(B, root, h, names, m: int) -> tuple[float, dict]:
     return w, {n: float(np.sqrt(DECISIVE) * v) for n, v in zip(names, sd)}
 
 
-def _sensitivities(kind, sample, rig, frames, hyps, noise: dict, quantities=None) -> dict:
+def _sensitivities(kind, sample, rig, frames, hyps, noise: dict, quantities=None, one_sided=False) -> dict:
     """Effect hypothesis -> its predictions' sensitivity to one posterior sd of each
     standardised parameter, rows of each of ``quantities`` (default the kind's outputs) over
     its noise (None where the model has no solution near the fit;
-    :func:`~tcamlab.design.predict.sensitivity`)."""
+    :func:`~tcamlab.design.predict.sensitivity`, ``one_sided`` as there)."""
     quantities = get_kind(kind).outputs if quantities is None else quantities
     out = {}
     for h in hyps:
         if not h.effect_values.size:
             continue
         try:
-            sens = sensitivity(kind, sample, rig, frames, h, quantities)
+            sens = sensitivity(kind, sample, rig, frames, h, quantities, one_sided)
         except (*MODEL_ERRORS, ValueError):
             out[h.name] = None
             continue
@@ -584,7 +628,11 @@ def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, se
     protos = menu(kind, experiment.sample, experiment.rig)
     base.noise = menu_noise(kind, protos, base.noise)
     ceiling = _ceilings(experiment, protos[0], [h], seed).get(h.name)
-    cands = [_score_precision(experiment, p, h, base.noise, n_draws, seed, ceiling) for p in protos]
+    made = runs_made(experiment)
+    cands = [
+        _score_precision(experiment, p, h, base.noise, n_draws, seed, ceiling, (made, k == 0))
+        for k, p in enumerate(protos)
+    ]
     _mark_risky(cands)
     cands.sort(key=lambda c: (not c.feasible, -np.nan_to_num(c.per_hour, nan=-1.0)))
     base.candidates = cands
@@ -601,28 +649,31 @@ def _precision(experiment, diagnosis: dict, base: DesignResult, n_draws: int, se
 
 
 def _score_precision(
-    experiment, proto: Protocol, h, noise, n_draws: int, seed: int, ceiling=None
+    experiment, proto: Protocol, h, noise, n_draws: int, seed: int, ceiling=None, made=((), False)
 ) -> CandidateProtocol:
     """One protocol scored by the expected information gain about ``h``'s parameters and each
     parameter's expected sd after / before (on the kind's outputs and the protocol's channels,
-    as :func:`_score`)."""
+    as :func:`_score`; ``made`` as there)."""
     kind, sample, rig = experiment.kind, experiment.sample, experiment.rig
     frames = protocol_frames(kind, rig, proto.table, seed)
     minutes = cost_minutes(frames, kind)
     quantities = protocol_quantities(kind, proto.table)
     nan = float("nan")
     out = CandidateProtocol(proto.name, proto.table, len(frames), minutes, nan, nan, nan, {}, {})
+    out.survived = made[1] or no_harsher(frames, made[0], rig)
     frames, why = _inputs(kind, sample, rig, frames, h)
+    if not why and out.survived:
+        (h,), why = _been_through(kind, sample, rig, frames, [h], n_draws, seed, quantities)
     if why:
         out.feasible, out.limit = False, why
         return out
-    pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities, ceiling)
+    pred, why = _predicted(kind, sample, rig, frames, h, n_draws, seed, quantities, ceiling, out.survived)
     if why:
         out.feasible, out.limit = False, why
         return out
     out.failed_draws[h.name] = pred.failed
     try:
-        sens = sensitivity(kind, sample, rig, frames, h, quantities)
+        sens = sensitivity(kind, sample, rig, frames, h, quantities, out.survived)
     except (*MODEL_ERRORS, ValueError) as exc:
         out.feasible, out.limit = False, f"{h.name}: no solution near the fit ({clipped(str(exc))})"
         return out

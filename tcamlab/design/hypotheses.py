@@ -11,7 +11,7 @@ well as a fresh diagnosis.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -94,6 +94,14 @@ class Hypothesis:
         return np.array(
             [_to_u(v, s, pos) for v, s, (_, _, pos) in zip(self.values, self.prior_sd, self.fields)]
         )
+
+    def moved(self, u: np.ndarray, theta: np.ndarray) -> Hypothesis:
+        """The same hypothesis centred on fitted coordinates ``u`` and effect parameters
+        ``theta`` [SI] (its covariance and reported intervals kept)."""
+        values = [
+            math.exp(x) if pos else float(x) * s for x, s, (_, _, pos) in zip(u, self.prior_sd, self.fields)
+        ]
+        return replace(self, values=np.array(values, float), effect_values=np.asarray(theta, float))
 
     def at(self, u: np.ndarray, theta: np.ndarray, sample, rig, kind: str):
         """(sample, rig, mods) at fitted coordinates ``u`` and effect parameters ``theta`` [SI]."""

@@ -33,6 +33,7 @@ __all__ = [
     "limits",
     "hottest",
     "run_outputs",
+    "anchored",
     "TEMPERATURE_LIMIT_C",
     "N_DRAWS",
 ]
@@ -160,26 +161,60 @@ SENSITIVITY_STEP = 0.1
 """Step of the central differences of :func:`sensitivity`, in posterior sds of each parameter."""
 
 
-def sensitivity(kind: str, sample, rig, frames, h: Hypothesis, quantities=None) -> dict:
+def sensitivity(
+    kind: str, sample, rig, frames, h: Hypothesis, quantities=None, one_sided: bool = False
+) -> dict:
     """Quantity -> d(predicted rows) / d(z) [SI per posterior sd], shape (rows, parameters), at
     the fit, by central differences of :data:`SENSITIVITY_STEP` posterior sds along each
     standardised parameter ((u, theta) = (u0, theta0) + root z), for each of ``quantities``
     (default the kind's outputs). Each run's zero removed as in :func:`predictive`. Raises
-    where the model has no solution."""
+    where the model has no solution; with ``one_sided``, only where it has none on either side
+    of the fit (a fit at the edge of the model's domain: the difference is then taken on the
+    side that has one)."""
     u0, root = h.u(), covariance_root(h)
     p, k = u0.size, h.effect_values.size
+
+    def rows(z):
+        x = root @ z
+        s, r, mods = h.at(u0 + x[:p], h.effect_values + x[p:], sample, rig, kind)
+        return _stack(kind, run_outputs(kind, s, r, mods, frames, quantities), True, quantities)
+
+    centre = rows(np.zeros(p + k)) if one_sided else None
     cols: dict = {}
     for m in range(p + k):
-        ys = []
+        ys, failed = [], 0
         for sgn in (1.0, -1.0):
             z = np.zeros(p + k)
             z[m] = sgn * SENSITIVITY_STEP
-            x = root @ z
-            s, r, mods = h.at(u0 + x[:p], h.effect_values + x[p:], sample, rig, kind)
-            ys.append(_stack(kind, run_outputs(kind, s, r, mods, frames, quantities), True, quantities))
+            try:
+                ys.append(rows(z))
+            except (*MODEL_ERRORS, ValueError):
+                if not one_sided or failed:
+                    raise
+                ys.append(centre)  # the fit itself stands for the side without a solution
+                failed += 1
+        width = (2 - failed) * SENSITIVITY_STEP
         for q in ys[0]:
-            cols.setdefault(q, []).append((ys[0][q] - ys[1][q]) / (2.0 * SENSITIVITY_STEP))
+            cols.setdefault(q, []).append((ys[0][q] - ys[1][q]) / width)
     return {q: np.array(c).T for q, c in cols.items()}
+
+
+def anchored(kind: str, sample, rig, frames, h: Hypothesis, n_draws: int, seed: int, quantities=None):
+    """``h`` where the model has a solution at its fit and beside it under ``frames``; else
+    ``h`` moved to the nearest of its parameter draws (smallest |z|) where it has; None when
+    none has. For a protocol the sample has already been through: a fit at the edge of the
+    model's domain is the fit's shortcoming there, and the draws that keep to the domain stand
+    for it."""
+    for u, theta, z in sorted(_draws(h, n_draws, seed), key=lambda d: float(d[2] @ d[2])):
+        cand = h if not z.any() else h.moved(u, theta)
+        try:
+            s, r, mods = cand.at(cand.u(), cand.effect_values, sample, rig, kind)
+            run_outputs(kind, s, r, mods, frames, quantities)
+            sensitivity(kind, sample, rig, frames, cand, quantities, one_sided=True)
+        except (*MODEL_ERRORS, ValueError):
+            continue
+        return cand
+    return None
 
 
 def hottest(frames, point: list[dict]) -> float:

@@ -69,6 +69,10 @@ class CandidateProtocol:
     (:func:`tcamlab.design.score.information_gain`); ``per_hour`` is then this per hour."""
     failed_draws: dict = field(default_factory=dict)
     """Hypothesis -> share of its parameter draws with no solution under this protocol [-]."""
+    survived: bool = False
+    """No harsher than the runs already made (:mod:`tcamlab.design.survived`; the repeat
+    always): the sample has been through it, so neither the model's domain at a fit nor its
+    draws without a solution put it out of bounds."""
     sd_ratio: dict = field(default_factory=dict)
     """A clear diagnosis: each parameter's expected sd after the new runs over its sd now [-]."""
     at_fit: dict = field(default_factory=dict)

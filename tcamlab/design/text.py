@@ -57,7 +57,7 @@ def design_lines(result) -> list[str]:
     for c in result.candidates:
         mark = "*" if result.best is not None and c.name == result.best.name else " "
         if not c.feasible:
-            lines.append(f"{mark}{c.name:41s} {'out of bounds':>8s}  {c.limit}")
+            lines.append(f"{mark}{c.name:41s} {_bounds(c):>8s}  {c.limit}")
             continue
         lines.append(
             f"{mark}{c.name:41s} {_num(c.separation_refit):>8s} {_num(c.beyond_repeat):>8s} {_at_fit(c, result.out_of_reach):>8s} "
@@ -65,6 +65,12 @@ def design_lines(result) -> list[str]:
             f"{c.runs:4d} {c.minutes:6.0f} {_per_hour(c.per_hour)}  {_diff(c, result.kind)}"
         )
     return lines
+
+
+def _bounds(c) -> str:
+    """Why a protocol is not ranked: out of bounds, or not scored where the sample has been
+    through it (the model could not predict it, which says nothing of the sample)."""
+    return "not scored" if getattr(c, "survived", False) else "out of bounds"
 
 
 def _hypothesis(h: dict) -> str:
@@ -85,7 +91,7 @@ def _precision_lines(result) -> list[str]:
     for c in result.candidates:
         mark = "*" if result.best is not None and c.name == result.best.name else " "
         if not c.feasible:
-            out.append(f"{mark}{c.name:29s} {'out of bounds':>13s}  {c.limit}")
+            out.append(f"{mark}{c.name:29s} {_bounds(c):>13s}  {c.limit}")
             continue
         ratios = ", ".join(f"{n} {r:.2f}" for n, r in c.sd_ratio.items())
         out.append(

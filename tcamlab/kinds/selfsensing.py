@@ -611,12 +611,37 @@ def validation_extras(experiment, predictions, **_) -> tuple[list, dict]:
             f"({100 * pooled['interval95_of_stroke']:.3g}%); published inductive self-sensing: -0.27 mm, "
             "2.14 mm over 10-30 mm (van der Weijde et al. 2017)"
         )
+    notes += _stated_load_notes(experiment, predictions)
     extras = {
         "published_format": by_variant[KIND.primary],
         "published_format_by_estimator": by_variant,
         "ekf_with_and_without_load": estimator_without_help(predictions),
     }
     return notes, extras
+
+
+STATED_LOAD_TOLERANCE = 0.05
+"""A run whose logged load at rest differs from ``load_g`` by more than this fraction (and 3 mN)
+is noted: the EKF with the load withheld starts from ``load_g``, so its figures carry that
+prior's error (a file stating 60 g beside a logged 50 g put the withheld estimate 0.9 mm off)."""
+
+
+def _stated_load_notes(experiment, predictions) -> list[str]:
+    """A note per run whose logged load at rest is not the stated ``load_g``."""
+    stated = experiment.rig.load * G_ACCEL
+    out = []
+    for p in predictions:
+        if "load" not in p.data:
+            continue
+        logged = float(np.median(p.data["load"].to_numpy(float)[rest_rows(KIND, p.data)]))
+        if abs(logged - stated) > max(STATED_LOAD_TOLERANCE * stated, 3e-3):
+            out.append(
+                f"{p.name}: the logged load at rest is {logged:.4g} N ({logged / G_ACCEL * 1e3:.4g} g) but "
+                f"[rig] load_g = {experiment.rig.load * 1e3:g} g; the EKF with the load withheld starts "
+                "from load_g, so its figures on this run include that difference (set load_g to the load at rest "
+                "where it is known, or read them as a test of a wrong prior)"
+            )
+    return out
 
 
 def figures(result) -> list[Figure]:

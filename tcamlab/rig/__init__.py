@@ -183,7 +183,7 @@ from tcamlab.rig.runs import (
 from tcamlab.rig.scatter import rig_truth, scattered
 from tcamlab.rig.strength import DOMAIN_BACKOFF, noise_sd, resolve_effect, scale_effect
 from tcamlab.rig.writers import GENERATOR, SYNTHETIC_NOTE, experiment_doc, format_csv, mods_truth
-from tcamlab.text import public_command, simulate_command
+from tcamlab.text import public_command, shown_path, simulate_command
 
 __all__ = [
     "CONDITIONS",
@@ -401,6 +401,34 @@ CONDITIONS = {"static": "a second load (1.5 x, logged as load_N)", "dynamic": "a
 """The second condition of each kind that has one (``simulate(conditions=2)``)."""
 
 
+SENSOR_KEYS = {"spring_constant": "spring_constant_N_per_m", "initial_resistance": "initial_resistance_ohm"}
+"""The [rig] keys of a sensor's true S [N/m] and R0 [ohm], which a sensing or curvature
+simulation needs (a lab's experiment file may leave them out: the diagnosis reads them)."""
+
+
+def _check_template(kind: str, exp) -> None:
+    """Refuse a template of another kind, or a sensing or curvature one without the sensor's S
+    and R0 (naming the file and the keys, with the shipped template's values as an example)."""
+    if exp.kind != kind:
+        raise ConfigError(f"{exp.path}: template is a {exp.kind!r} experiment, not {kind!r}")
+    if kind not in ("sensing", "curvature"):
+        return
+    missing = [key for f, key in SENSOR_KEYS.items() if getattr(exp.rig, f, None) is None]
+    if not missing:
+        return
+    from tcamlab.templates import TEMPLATES
+
+    shipped = tconfig.load_experiment(TEMPLATES / f"{kind}.toml", require_runs=False).rig
+    example = " and ".join(
+        f"{key} = {getattr(shipped, f):g}" for f, key in SENSOR_KEYS.items() if key in missing
+    )
+    raise ConfigError(
+        f"{shown_path(exp.path)}: the {kind} virtual rig needs the sensor's {' and '.join(missing)} "
+        "in [rig] (the true S and R0 it simulates)",
+        f"add to its [rig] your sensor's values, e.g. {example}",
+    )
+
+
 def _plan(
     kind,
     template,
@@ -430,8 +458,7 @@ def _plan(
         exp, template_arg = template, template.path
     else:
         exp, template_arg = tconfig.load_experiment(template, require_runs=False), template
-    if exp.kind != kind:
-        raise ConfigError(f"{exp.path}: template is a {exp.kind!r} experiment, not {kind!r}")
+    _check_template(kind, exp)
     if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)) or seed < 0:
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     designed = designed_programs(kind, exp) or []
@@ -662,12 +689,35 @@ def _write_experiment(plan: _Plan, run_paths: list[Path]) -> Path:
     path = plan.out / "experiments" / f"{plan.name}.toml"
     names = [p.name for p in run_paths]
     doc = experiment_doc(plan.kind, plan.exp, names, plan.seed, public_command(plan.command))
-    if plan.designed and plan.exp.runs and not plan.exp.raw.get("columns"):
+    if plan.designed and plan.exp.runs:
         # A protocol file lists the runs so far: the experiment to diagnose again is them and these.
-        here = path.parent.resolve()
-        doc["runs"] = [Path(os.path.relpath(r, here)).as_posix() for r in plan.exp.runs] + doc["runs"]
+        doc["runs"] = _runs_so_far(plan.exp, path.parent.resolve()) + doc["runs"]
     tconfig.write_experiment(path, doc)
     return path
+
+
+def _runs_so_far(exp, here: Path) -> list:
+    """The experiment's runs as the written experiment file lists them (paths relative to
+    ``here``, its folder): each keeps its own column layout and join, since the simulated runs
+    beside them are written with the canonical headers and the file has no ``[columns]``."""
+    table = exp.raw.get("columns") or {}
+    entries = exp.raw.get("runs") or []
+    joins = exp.run_joins or (None,) * len(exp.runs)
+    out: list = []
+    for path, entry, join in zip(exp.runs, entries, joins):
+        rel = Path(os.path.relpath(path, here)).as_posix()
+        own = entry if isinstance(entry, Mapping) else {}
+        columns = tconfig.merge_run_columns(table, own.get("columns") or {})
+        if not columns and join is None:
+            out.append(rel)
+            continue
+        run: dict[str, Any] = {"file": rel}
+        if columns:
+            run["columns"] = columns
+        if join is not None:
+            run["join"] = {**dict(own["join"]), "file": Path(os.path.relpath(join["file"], here)).as_posix()}
+        out.append(run)
+    return out
 
 
 def _template_label(template) -> str:
