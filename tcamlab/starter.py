@@ -501,9 +501,12 @@ _STAMP = re.compile(r"^[\d\-/:.T ]*\d[\d\-/:.T ]*$")
 
 
 def _datalike(cells: list[str]) -> bool:
-    """Every cell a number or a time stamp (a data row, not a header, title or units row)."""
+    """Most cells numbers or time stamps (a data row, not a header, title or units row): more
+    than half of the filled cells, so that a text column beside the data (an operator's
+    initials on every row) does not hide every row."""
     filled = [c for c in cells if c]
-    return bool(filled) and all(_number(c) or _STAMP.match(c) for c in filled)
+    numeric = sum(bool(_number(c) or _STAMP.match(c)) for c in filled)
+    return numeric * 2 > len(filled) > 0
 
 
 def _units_like(cells: list[str]) -> bool:

@@ -307,6 +307,11 @@ def test_every_protocol_hint_is_itself_a_valid_value():
         (static, {"loads_g": [50.0, 75.0, 100.0], "runs": 2}, "fewer than the 3 conditions"),
         (static, {"channels": ["time_s", "temperature_C"]}, "lacks 'displacement_mm'"),
         (static, {"channels": ["temperature_C", "displacement_mm", "displacement_mm"]}, "twice"),
+        (
+            static,
+            {"loads_g": [50.0, 75.0], "channels": ["time_s", "temperature_C", "displacement_mm"]},
+            "leaves out load_N while loads_g lists 2 loads",
+        ),
         (sensing, {"step_mm": 0.001, "pull_mm": 50.0}, "at most 1000"),
         (sensing, {"dwell_s": 3600.0, "step_mm": 0.1, "cycles": 10}, "longer than a day"),
         (curvature, {"cable_step_mm": 1e-7}, "at most 1000"),

@@ -984,3 +984,35 @@ def test_the_joined_file_is_in_every_output_s_provenance(tmp_path, monkeypatch):
     doc = json.loads(next(f for f in cal.files if f.name == "calibration.json").read_text())
     joined = [i for i in doc["inputs"] if i["role"] == "joined"]
     assert [(Path(i["path"]).name, i["sha256"]) for i in joined] == [("tc.csv", sha)]
+
+
+def test_a_run_with_tcamlabs_own_headers_beside_mapped_runs_gets_a_per_run_hint(tmp_path):
+    """Earlier runs map 'Temp (F)' in [columns]; a designed run logged as temperature_C fails that
+    mapping, and the hint proposes this run's own columns (followed, the experiment reads)."""
+    from tcamlab.config import load_experiment
+    from tcamlab.errors import InputError
+
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    (raw / "lab.csv").write_text("Temp (F),disp\n" + "".join(f"{77 + 9 * i},{-0.01 * i}\n" for i in range(6)))
+    (raw / "new.csv").write_text(
+        "temperature_C,displacement_mm\n" + "".join(f"{25 + 5 * i},{-0.01 * i}\n" for i in range(6))
+    )
+    body = (
+        'kind = "static"\ntitle = "t"\nruns = ["../raw/lab.csv", RUN]\n[sample]\npreset = "thesis-tca"\n'
+        '[columns]\ntemperature_C = { from = "Temp (F)", unit = "degF" }\ndisplacement_mm = "disp"\n'
+    )
+    (tmp_path / "experiments").mkdir()
+    path = tmp_path / "experiments" / "e.toml"
+    path.write_text(body.replace("RUN", '"../raw/new.csv"'))
+    with pytest.raises(InputError) as info:
+        load_experiment(path).read_runs()
+    assert "give this run its own columns" in info.value.hint
+    assert '{ file = "new.csv", columns = { temperature_C = "temperature_C" } }' in info.value.hint
+    own = '{ file = "../raw/new.csv", columns = { temperature_C = "temperature_C", displacement_mm = "displacement_mm" } }'
+    path.write_text(body.replace("RUN", own))
+    runs = load_experiment(path).read_runs()
+    assert (
+        runs[0].data["temperature"].iloc[0] == pytest.approx(25.0)
+        and runs[1].data["temperature"].iloc[1] == 30.0
+    )

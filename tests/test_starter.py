@@ -436,3 +436,16 @@ def test_check_refuses_a_self_sensing_log_sampled_slower_than_the_muscle_heats(t
     exp = write(tmp_path / "experiments" / "ss.toml", text)
     problems = check_experiment(exp).problems
     assert any("rows are 10 s apart" in p and 'unit = "ms"' in p for p in problems), problems
+
+
+def test_a_text_column_beside_the_data_does_not_hide_the_rows(tmp_path):
+    """An oven log with an operator's initials on every row was "no data rows found"; its rows
+    are data (most cells numbers), the text column is listed as not used."""
+    rows = ["# Oven rig 3", "Extension (um),operator,Temp (F),t (ms)"]
+    rows += [f"{-26.0 * i:.1f},JS,{77.0 + 9.4 * i:.2f},{300000 * i}" for i in range(12)]
+    csv = write(tmp_path / "raw" / "oven.csv", "\n".join(rows) + "\n")
+    res = write_starter("static", csv, tmp_path / "experiments" / "oven.toml")
+    cols = tomllib.loads(res.path.read_text(encoding="utf-8"))["columns"]
+    assert cols["temperature_C"] == {"from": "Temp (F)", "unit": "degF"}
+    assert cols["displacement_mm"] == {"from": "Extension (um)", "unit": "um"}
+    assert "'operator' (column 2)" in res.path.read_text(encoding="utf-8")

@@ -41,7 +41,8 @@ KEY_DOCS = {
     "ripple_V": "amplitude of a square ripple on the probe after the rest [V]; 0: none (selfsensing)",
     "ripple_Hz": "frequency of the probe ripple [Hz] (selfsensing)",
     "runs": "runs to make",
-    "channels": "columns to log, as the experiment's CSV headers",
+    "channels": "quantities to log, by tcamlab's column names; a log with headers of its own maps them in "
+    "[columns], per run where they differ from the earlier runs' (docs: data contract)",
 }
 """What each ``[protocol]`` key means, with its unit (written as a comment beside it)."""
 

@@ -1137,6 +1137,13 @@ def _missing_column(
         if spec.offset != 0.0:
             entry["offset"] = spec.offset
         hint = f"the file has {near[0]!r}; map it in the experiment file's [columns] as {_toml_entry(canon, entry)}"
+    elif canon in headers:
+        # a run logged with tcamlab's own names (a designed run) beside runs mapped from a lab's
+        # headers: mapping this one globally would break the others
+        hint = (
+            f"the file has {canon!r} itself; give this run its own columns in runs, e.g. "
+            f'{{ file = "{Path(shown).name}", columns = {{ {canon} = "{canon}" }} }} (the path as in runs)'
+        )
     else:
         hint = _COLUMNS_HINT
     return InputError(

@@ -267,7 +267,14 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
     n = pv.runs(table, len(loads))
     oven = pv.choice(table, "oven", "heating", OVEN_PROGRAMS)
     dwell = pv.bounded(table, "dwell_s", OVEN_DWELL_S, 1.0, pv.MAX_RUN_S, "e.g. dwell_s = 300.0")
-    pv.channels(table, STATIC_CHANNELS, KIND_REQUIRED, list(STATIC_CHANNELS), "the oven rig")
+    logged = pv.channels(table, STATIC_CHANNELS, KIND_REQUIRED, list(STATIC_CHANNELS), "the oven rig")
+    if len(set(loads)) > 1 and "load_N" not in logged:
+        # without the column every run is read at load_g: the second load would be lost
+        raise ConfigError(
+            f"[protocol]: channels leaves out load_N while loads_g lists {len(set(loads))} loads: each "
+            "run's load must be logged, or every run is read at [rig] load_g",
+            "e.g. channels = [" + ", ".join(f'"{c}"' for c in STATIC_CHANNELS) + "]",
+        )
     return [
         {
             "oven": oven,
