@@ -578,3 +578,28 @@ def test_a_refitted_quadratic_tcr_is_written_with_the_refits_sd():
     assert doc["rig"]["tcr2_per_K2"] == pytest.approx(-1.22e-6)
     assert doc["rig"]["uncertainty"]["tcr2_per_K2"] == pytest.approx(4e-7)
     assert "lead_resistance_ohm" not in doc["rig"]["uncertainty"]
+
+
+def test_a_refit_far_from_the_open_loop_fit_is_said_to_disagree():
+    """A tcr2 the open-loop stage pinned at -1.2e-7 (sd 9.2e-8) and the EKF refit put at 2.35e-6 is
+    26 open-loop sds apart: the calibrated file's header and the report say so; a refit within 3
+    sds, or a field the open-loop stage did not fit, says nothing."""
+    from tcamlab.calibration.calibrated_file import estimator_values
+    from tcamlab.calibration.estimator import PARAMETERS, EstimatorFit, disagreement
+
+    before = dict.fromkeys(PARAMETERS, 0.0) | {
+        "initial_resistance": 24.0,
+        "tcr": 3.8e-3,
+        "stretch_factor": 1.0,
+    }
+    after = before | {"tcr2": 2.354e-6, "initial_resistance": 24.05}
+    fit = EstimatorFit(
+        "ss", before | {"tcr2": -1.2e-7}, after, ("initial_resistance", "tcr", "tcr2"), {},
+        {"initial_resistance": 0.01, "tcr": 1e-5, "tcr2": 6.3e-7}, {"names": [], "matrix": []}, ("load withheld",),
+        50.0, 20.0, open_loop_sd={"tcr2": 9.24e-8, "initial_resistance": 0.02},
+    )  # fmt: skip
+    assert "26.8 open-loop sds apart: the two fits disagree" in disagreement(fit, "tcr2")
+    assert disagreement(fit, "initial_resistance") == ""  # 2.5 sds
+    assert disagreement(fit, "tcr") == ""  # no open-loop sd
+    lines = estimator_values({"rig": {}}, fit)
+    assert any(line.startswith("rig.tcr2_per_K2:") and "sds apart" in line for line in lines)

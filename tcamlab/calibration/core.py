@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -308,7 +309,13 @@ def _estimator_stage(exps, runs, estimates) -> list:
             for p in estimates
             if p.where == "rig" and p.name in (p.field, f"{e.name}.{p.field}")
         }
+        sds = {
+            p.field: p.posterior_sd
+            for p in estimates
+            if p.where == "rig" and p.name in (p.field, f"{e.name}.{p.field}")
+        }
         with progress.task(f"calibrating: {e.name}'s EKF refit", total=1) as step:
-            out.append(refit_for_estimator(e, e.rig.replace(**changes), [r.data for r in rs]))
+            fit = refit_for_estimator(e, e.rig.replace(**changes), [r.data for r in rs])
+            out.append(replace(fit, open_loop_sd=sds))
             step()
     return out

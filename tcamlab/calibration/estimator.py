@@ -39,6 +39,8 @@ __all__ = [
     "PRIOR_SD_REL",
     "ERROR_SD",
     "THIN",
+    "APART_SDS",
+    "disagreement",
 ]
 
 PARAMETERS = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor", "tcr2")
@@ -103,6 +105,9 @@ class EstimatorFit:
     rms_before_um, rms_after_um : float
         RMS of the thinned, zeroed EKF error over the training runs at ``open_loop`` and at
         ``values``, each row weighted as the fit weighs it (:func:`fit_for_estimator`) [um].
+    open_loop_sd : dict of str to float
+        The open-loop stage's posterior sd of each field it fitted [its unit] (set by
+        :func:`tcamlab.calibration.calibrate`): how far the refit moved it, in those sds.
     """
 
     experiment: str
@@ -116,6 +121,7 @@ class EstimatorFit:
     rms_before_um: float
     rms_after_um: float
     used_by: dict = field(default_factory=dict)
+    open_loop_sd: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """JSON-ready form."""
@@ -339,3 +345,22 @@ USED_BY = {
     "withheld) and the open-loop inversion), through the file's R0, TCR, R_lead and k_s",
 }
 """Which figure uses which fit (written to the calibrated file and the report)."""
+
+
+APART_SDS = 3.0
+"""An EKF refit this many open-loop sds from the open-loop fit is said to disagree with it."""
+
+
+def disagreement(fit, name: str) -> str:
+    """``"; N open-loop sds apart: ..."`` where the refit moved ``name`` beyond :data:`APART_SDS`
+    of the open-loop stage's sd (a "pinned" tcr2 moved 26 sds without a word), else ``""``."""
+    sd = (getattr(fit, "open_loop_sd", None) or {}).get(name)
+    if not sd or not sd > 0:
+        return ""
+    shift = abs(fit.values[name] - fit.open_loop[name]) / sd
+    if shift <= APART_SDS:
+        return ""
+    return (
+        f"; {shift:.3g} open-loop sds apart: the two fits disagree, as where the muscle's resistance "
+        "law is not tcamlab's (the refit is the one the estimator uses)"
+    )
