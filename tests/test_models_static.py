@@ -231,3 +231,19 @@ def test_no_equilibrium_names_the_point_its_inputs_and_the_stated_values():
         ModelDomainError, match=r"\(2.10\)-\(2.11\).* at dT = 10 K, F = 200 N \(point 1; 1 of 2"
     ):
         static.displacement(np.array([0.0, 10.0]), np.array([0.5, 200.0]), **kw)
+
+
+def test_a_fiber_with_no_bias_angle_is_a_domain_error_not_nan():
+    """150 twists over 1e9 m leave alpha_f about 1e-13 rad and (2.12) 0 / 0: refused naming the
+    fabrication keys (it leaked a numpy warning and gave NaN predictions); the thesis TCA's G_t
+    stays finite."""
+    import warnings
+
+    from tcamlab.errors import ModelDomainError
+    from tcamlab.models import static as st
+
+    assert np.isfinite(st.sample_shear_modulus(0.17e-3, 95e-3, 150.0, 3.45e9))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ModelDomainError, match="fiber_diameter_mm, fiber_length_mm and twists"):
+            st.sample_shear_modulus(0.17e-3, 1e9, 150.0, 3.45e9)

@@ -159,12 +159,25 @@ def sample_shear_modulus(
     -------
     ndarray
         G_t [Pa].
+
+    Raises
+    ------
+    ModelDomainError
+        Where G_t is not a positive finite number: a bias angle of about 0 (a fiber of 1e12 mm
+        with 150 twists) makes (2.12) 0 / 0.
     """
-    return transverse_shear_modulus(
-        youngs_modulus,
-        volume_fraction(thread_plies, max_volume_fraction),
-        bias_angle(fiber_diameter, twists, fiber_length),
-    )
+    alpha = bias_angle(fiber_diameter, twists, fiber_length)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        g = transverse_shear_modulus(
+            youngs_modulus, volume_fraction(thread_plies, max_volume_fraction), alpha
+        )
+    if not np.all(np.isfinite(g) & (g > 0)):
+        raise ModelDomainError(
+            f"the shear modulus G_t of (2.12) is not a positive number for this fiber (bias angle alpha_f "
+            f"as low as {float(np.min(alpha)):.3g} rad): check fiber_diameter_mm, fiber_length_mm and twists",
+            hint="the thesis TCA: fiber_diameter_mm = 0.17, fiber_length_mm = 95, twists = 150",
+        )
+    return g
 
 
 def shear_modulus_of(sample) -> float:
