@@ -239,11 +239,8 @@ def test_a_fiber_with_no_bias_angle_is_a_domain_error_not_nan():
     stays finite."""
     import warnings
 
-    from tcamlab.errors import ModelDomainError
-    from tcamlab.models import static as st
-
-    assert np.isfinite(st.sample_shear_modulus(0.17e-3, 95e-3, 150.0, 3.45e9))
+    assert np.isfinite(static.sample_shear_modulus(0.17e-3, 95e-3, 150.0, 3.45e9))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         with pytest.raises(ModelDomainError, match="fiber_diameter_mm, fiber_length_mm and twists"):
-            st.sample_shear_modulus(0.17e-3, 1e9, 150.0, 3.45e9)
+            static.sample_shear_modulus(0.17e-3, 1e9, 150.0, 3.45e9)
