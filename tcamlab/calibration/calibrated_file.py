@@ -118,7 +118,6 @@ def estimator_values(doc: dict, fit) -> list[str]:
     InputError
         R_lead below 0 or k_s not above 0: loading would refuse the file, so none is written.
     """
-    from tcamlab.calibration.estimator import disagreement
     from tcamlab.errors import InputError
 
     if fit.values["lead_resistance"] < 0 or fit.values["stretch_factor"] <= 0:
@@ -145,7 +144,7 @@ def estimator_values(doc: dict, fit) -> list[str]:
             if name in ("initial_resistance", "tcr", "tcr2") and name in fit.sd:
                 rig["uncertainty"][key] = _round(fit.sd[name])
             lines.append(
-                f"rig.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){disagreement(fit, name)}"
+                f"rig.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(fit.disagreements or {}).get(name, '')}"
             )
         else:
             lines.append(f"rig.{key}: {before:.6g}, {fit.held.get(name, 'held at its stated value')}")

@@ -298,7 +298,7 @@ def calibrate(
 def _estimator_stage(exps, runs, estimates) -> list:
     """The EKF refit of every selfsensing experiment at its open-loop values
     (:mod:`tcamlab.calibration.estimator`); empty when there is none."""
-    from tcamlab.calibration.estimator import refit_for_estimator
+    from tcamlab.calibration.estimator import disagreement, refit_for_estimator
 
     out = []
     for e, rs in zip(exps, runs):
@@ -316,6 +316,8 @@ def _estimator_stage(exps, runs, estimates) -> list:
         }
         with progress.task(f"calibrating: {e.name}'s EKF refit", total=1) as step:
             fit = refit_for_estimator(e, e.rig.replace(**changes), [r.data for r in rs])
-            out.append(replace(fit, open_loop_sd=sds))
+            fit = replace(fit, open_loop_sd=sds)
+            words = {n: disagreement(fit, n) for n in fit.fitted}
+            out.append(replace(fit, disagreements={n: w for n, w in words.items() if w}))
             step()
     return out

@@ -108,6 +108,9 @@ class EstimatorFit:
     open_loop_sd : dict of str to float
         The open-loop stage's posterior sd of each field it fitted [its unit] (set by
         :func:`tcamlab.calibration.calibrate`): how far the refit moved it, in those sds.
+    disagreements : dict of str to str
+        Field -> the words :func:`disagreement` gives where the refit is beyond
+        :data:`APART_SDS` open-loop sds from the open-loop fit (for the file and the report).
     """
 
     experiment: str
@@ -122,6 +125,7 @@ class EstimatorFit:
     rms_after_um: float
     used_by: dict = field(default_factory=dict)
     open_loop_sd: dict = field(default_factory=dict)
+    disagreements: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """JSON-ready form."""

@@ -370,14 +370,14 @@ def estimator_section(result) -> Section | None:
     fits = getattr(result, "estimator", None) or []
     if not fits:
         return None
-    from tcamlab.calibration.estimator import SYMBOLS, disagreement
+    from tcamlab.calibration.estimator import SYMBOLS
 
     rows = []
     for fit in fits:
         for name, symbol in SYMBOLS.items():
             before, after = fit.open_loop[name], fit.values[name]
             if name in fit.fitted:
-                status = f"refitted, sd {fit.sd[name]:.3g}{disagreement(fit, name)}"
+                status = f"refitted, sd {fit.sd[name]:.3g}{(fit.disagreements or {}).get(name, '')}"
             else:
                 status = fit.held.get(name, "held at its stated value")
             rows.append([fit.experiment, symbol, f"{before:.6g}", f"{after:.6g}", status])
