@@ -144,7 +144,7 @@ def estimator_values(doc: dict, fit) -> list[str]:
             if name in ("initial_resistance", "tcr", "tcr2") and name in fit.sd:
                 rig["uncertainty"][key] = _round(fit.sd[name])
             lines.append(
-                f"rig.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(fit.disagreements or {}).get(name, '')}"
+                f"rig.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
             )
         else:
             lines.append(f"rig.{key}: {before:.6g}, {fit.held.get(name, 'held at its stated value')}")

@@ -377,7 +377,7 @@ def estimator_section(result) -> Section | None:
         for name, symbol in SYMBOLS.items():
             before, after = fit.open_loop[name], fit.values[name]
             if name in fit.fitted:
-                status = f"refitted, sd {fit.sd[name]:.3g}{(fit.disagreements or {}).get(name, '')}"
+                status = f"refitted, sd {fit.sd[name]:.3g}{(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
             else:
                 status = fit.held.get(name, "held at its stated value")
             rows.append([fit.experiment, symbol, f"{before:.6g}", f"{after:.6g}", status])
