@@ -56,6 +56,9 @@ __all__ = [
     "unused_threshold_warnings",
     "stated_shift_warning",
     "STATED_SD_LIMIT",
+    "PLAUSIBLE_MAX",
+    "PLAUSIBLE_MIN_C",
+    "implausible_value_warnings",
 ]
 
 METRIC_NAMES = ("rmse", "mae", "max_abs", "bias", "nrmse", "r2")
@@ -612,6 +615,9 @@ SANITY_CHECKS = {
     "threshold-unused": "every [thresholds] key applies to a quantity of the kind",
     "parameter-far-from-stated": "every calibrated or identified parameter within 3 stated sds "
     "of its stated value",
+    "implausible-value": "every logged channel within what a thread muscle or sensor plausibly "
+    "sees (|voltage| <= 100 V, |current| <= 5 A, |load| <= 20 N, |force| <= 100 N, "
+    "temperature >= -60 degC; beyond, the column's unit is likely wrong)",
 }
 """The sanity checks every validation runs, and what each requires (in the order warnings are
 listed: a wrong reference first, as it explains the others)."""
@@ -765,6 +771,50 @@ def domain_warning(
     )
     values = {"rows_outside": outside, "rows": rows, **({"model": model} if model else {})}
     return SanityWarning("outside-domain", msg, quantity, run, values)
+
+
+PLAUSIBLE_MAX = {
+    "voltage": (100.0, "V", "mV"),
+    "current": (5.0, "A", "mA"),
+    "load": (20.0, "N", "gf"),
+    "force": (100.0, "N", "mN"),
+}
+"""Largest |value| [SI] a channel of a thread muscle or sensor plausibly logs, its unit, and the
+unit a log that far above it is most likely in: a muscle driven at 1496 V or loaded with 50 N
+is a log in mV or grams read as V or N, and the model then fails far downstream, or fits
+a wrong parameter, with no word about the unit."""
+
+PLAUSIBLE_MIN_C = -60.0
+"""Lowest temperature [degC] a muscle or sensor test plausibly logs: a column in degF read as K
+starts near -200 degC."""
+
+
+def implausible_value_warnings(run: str, data: Mapping) -> list[SanityWarning]:
+    """A warning per channel of a run's ``data`` [SI] beyond :data:`PLAUSIBLE_MAX` or below
+    :data:`PLAUSIBLE_MIN_C` (the column's unit is likely wrong)."""
+    out = []
+    for name, (limit, unit, likely) in PLAUSIBLE_MAX.items():
+        if name not in data:
+            continue
+        peak = float(np.nanmax(np.abs(np.asarray(data[name], float)), initial=0.0))
+        if peak > limit:
+            msg = (
+                f"{run}: {name} reaches {peak:.4g} {unit}, beyond the {limit:g} {unit} a thread "
+                f'muscle or sensor plausibly sees: is the column in {likely}? (unit = "{likely}" in its '
+                "[columns] entry)"
+            )
+            out.append(SanityWarning("implausible-value", msg, name, run, {"peak": peak, "limit": limit}))
+    if "temperature" in data:
+        low = float(np.nanmin(np.asarray(data["temperature"], float), initial=np.inf))
+        if low < PLAUSIBLE_MIN_C:
+            msg = (
+                f"{run}: temperature falls to {low:.4g} degC, below the {PLAUSIBLE_MIN_C:g} degC "
+                'a muscle test plausibly sees: is the column in another unit? (unit = "degF" or "K" '
+                "in its [columns] entry, as the log is)"
+            )
+            values = {"lowest": low, "limit": PLAUSIBLE_MIN_C}
+            out.append(SanityWarning("implausible-value", msg, "temperature", run, values))
+    return out
 
 
 def stated_shift_warning(

@@ -29,6 +29,7 @@ import pandas as pd
 from tcamlab import io as tio
 from tcamlab.errors import ConfigError, InputError
 from tcamlab.kinds import KINDS, get_kind
+from tcamlab.metrics import implausible_value_warnings
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 from tcamlab.text import did_you_mean
 
@@ -954,49 +955,8 @@ def _warnings(exp, runs) -> list[str]:
         for name in get_kind(exp.kind).inputs:
             if name in d and float(np.ptp(d[name].to_numpy())) == 0.0:
                 out.append(f"{r.path.name}: {name} never changes, so the model has nothing to follow")
-        out += _beyond_plausible(r)
+        out += [w.message for w in implausible_value_warnings(r.path.name, r.data)]
     return out
-
-
-PLAUSIBLE_MAX = {
-    "voltage": (100.0, "V", "mV"),
-    "current": (5.0, "A", "mA"),
-    "load": (20.0, "N", "gf"),
-    "force": (100.0, "N", "mN"),
-}
-"""Largest |value| [SI] a channel of a thread muscle or sensor plausibly logs, its unit, and the
-unit a log that far above it is most likely in: a muscle driven at 1496 V or loaded with 50 N
-is a log in mV or grams read as V or N, and the model then fails far downstream with a hint
-about temperatures."""
-
-
-def _beyond_plausible(run) -> list[str]:
-    """A warning per channel of ``run`` beyond :data:`PLAUSIBLE_MAX` (the unit is likely wrong)."""
-    out = []
-    for name, (limit, unit, likely) in PLAUSIBLE_MAX.items():
-        if name not in run.data:
-            continue
-        peak = float(np.nanmax(np.abs(run.data[name].to_numpy(float)), initial=0.0))
-        if peak > limit:
-            out.append(
-                f"{run.path.name}: {name} reaches {peak:.4g} {unit}, beyond the {limit:g} {unit} a thread "
-                f'muscle or sensor plausibly sees: is the column in {likely}? (unit = "{likely}" in its '
-                "[columns] entry)"
-            )
-    if "temperature" in run.data:
-        low = float(np.nanmin(run.data["temperature"].to_numpy(float), initial=np.inf))
-        if low < PLAUSIBLE_MIN_C:
-            out.append(
-                f"{run.path.name}: temperature falls to {low:.4g} degC, below the {PLAUSIBLE_MIN_C:g} degC "
-                'a muscle test plausibly sees: is the column in another unit? (unit = "degF" or "K" '
-                "in its [columns] entry, as the log is)"
-            )
-    return out
-
-
-PLAUSIBLE_MIN_C = -60.0
-"""Lowest temperature [degC] a muscle or sensor test plausibly logs: a column in degF read as K
-starts near -200 degC."""
 
 
 def _check_protocol(exp, report: CheckReport) -> None:

@@ -36,6 +36,7 @@ from tcamlab.metrics import (
     error_metrics,
     estimate_zero,
     flat_prediction_warning,
+    implausible_value_warnings,
     pooled_metrics,
     r2_warnings,
     reference_warning,
@@ -487,8 +488,10 @@ def _reference_warnings(kind: Kind, preds: list[RunPrediction]) -> list:
 
 def sanity_warnings(kind: Kind, preds: list[RunPrediction], metrics: dict) -> list:
     """Every sanity check of :data:`tcamlab.metrics.SANITY_CHECKS` on the primary model;
-    a wrong reference (R0) first, as it explains the others."""
-    out = _reference_warnings(kind, preds)
+    a channel in an implausible unit first, then a wrong reference (R0), as they explain the
+    others."""
+    out = [w for p in preds for w in implausible_value_warnings(p.name, p.data)]
+    out += _reference_warnings(kind, preds)
     for q in kind.outputs:
         col, factor = quantity(q).column, quantity(q).factor
         unit = unit_label(col)

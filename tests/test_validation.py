@@ -144,3 +144,52 @@ def test_every_model_is_scored_after_its_own_nuisance_zero():
     # each model's own zero is recorded (metrics.json zeros.by_model)
     assert p.variant_zeros[primary]["displacement"] is p.zeros["displacement"]
     assert p.variant_zeros[other]["displacement"].value == pytest.approx(-2e-4)
+
+
+def _static_in_fahrenheit_read_as_kelvin(tmp_path):
+    """The bundled static experiment with its temperatures written in degF and declared K:
+    they load (above absolute zero) but start near -196 degC."""
+    root = Path(__file__).resolve().parent.parent
+    exp = load_experiment(root / "experiments" / "static.toml")
+    runs = []
+    for i, r in enumerate(exp.read_runs()):
+        d = r.data
+        f = d["temperature"].to_numpy() * 9 / 5 + 32
+        lines = ["t,T_F,x"] + [
+            f"{t:.6g},{tf:.6g},{1e3 * x:.6g}" for t, tf, x in zip(d["time"], f, d["displacement"])
+        ]
+        (tmp_path / f"run{i}.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+        runs.append(f'"run{i}.csv"')
+    body = (root / "experiments" / "static.toml").read_text(encoding="utf-8")
+    body = body.replace(
+        body[body.index("runs = [") : body.index("]", body.index("runs = [")) + 1],
+        f"runs = [{', '.join(runs)}]",
+    )
+    body += (
+        '\n[columns]\ntime_s = {from = "t", unit = "s"}\ntemperature_C = {from = "T_F", unit = "K"}\n'
+        'displacement_mm = {from = "x", unit = "mm"}\n'
+    )
+    path = tmp_path / "static.toml"
+    path.write_text(body, encoding="utf-8")
+    return load_experiment(path)
+
+
+def test_a_temperature_in_another_unit_is_a_warning_of_validate_calibrate_and_diagnose(tmp_path):
+    """A degF column read as K gave `miscalibrated (radial_cte)` and a validation with no word
+    on the unit; every command that gives a figure now says the temperature is implausible."""
+    from tcamlab.calibration import calibrate
+    from tcamlab.diagnosis import diagnose
+
+    exp = _static_in_fahrenheit_read_as_kelvin(tmp_path)
+    res = validate(exp, mc_draws=0)
+    first = res.warnings[0]
+    assert first.check == "implausible-value" and first.quantity == "temperature"
+    assert first.values["lowest"] == pytest.approx(-196, abs=2) and 'unit = "degF"' in first.message
+    assert "implausible-value" in res.to_dict()["warnings"][0]["check"]
+    cal = calibrate(exp, params="radial_cte")
+    assert sum("temperature falls to" in n for n in cal.notes) == 3
+    diag = diagnose(exp, effects=["displacement-drift"], n_boot=50)
+    assert len(diag.warnings) == 3 and diag.to_dict()["warnings"] == diag.warnings
+    # the bundled log, in degC, carries none
+    bundled = load_experiment(Path(__file__).resolve().parent.parent / "experiments" / "static.toml")
+    assert not [w for w in validate(bundled, mc_draws=0).warnings if w.check == "implausible-value"]

@@ -24,6 +24,7 @@ from tcamlab.calibration.result import (
 from tcamlab.config import Experiment, load_experiment
 from tcamlab.errors import InputError
 from tcamlab.io import input_files, sha256_file
+from tcamlab.metrics import implausible_value_warnings
 
 __all__ = ["calibrate", "load_experiments", "one_numba_thread"]
 
@@ -291,7 +292,8 @@ def calibrate(
         inputs=_inputs(exps, runs),
         curves=curves,
         estimator=_estimator_stage(exps, runs, estimates),
-        notes=list(problem.held.values()),
+        notes=list(problem.held.values())
+        + [w.message for rs in runs for r in rs for w in implausible_value_warnings(r.path.name, r.data)],
     )
 
 

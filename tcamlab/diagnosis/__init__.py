@@ -112,6 +112,7 @@ from tcamlab.diagnosis.result import SCHEMA_VERSION, CandidateResult, DiagnosisR
 from tcamlab.diagnosis.verdict import MIN_FRACTION_CLOSED, decide
 from tcamlab.effects import effects_for, get_effect
 from tcamlab.errors import ConfigError
+from tcamlab.metrics import implausible_value_warnings
 from tcamlab.text import shown_path
 
 __all__ = [
@@ -206,6 +207,7 @@ def _diagnose(experiment, runs, effects, n_boot: int, seed: int, workers) -> Dia
         settings=_settings(scores, cands, n_boot, seed, len(runs)),
         combination=decision.combination,
         recalibration=decision.recalibration,
+        warnings=[w.message for n, r in zip(names, runs) for w in implausible_value_warnings(n, r.data)],
         _series=plot_series(problem, base, labels, _best_curve(rec, decision.best_fit)),
     )
 

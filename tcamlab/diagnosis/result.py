@@ -344,6 +344,9 @@ class DiagnosisResult:
     """For ``miscalibrated`` with effects in ``aliased_with``: those effects with the
     parameters each takes over, in words (:func:`stand_ins_text`, from
     ``recalibration["stand_ins"]``; filled when the result is made); else ""."""
+    warnings: list = field(default_factory=list)
+    """Lines on the logs themselves that bear on every figure (a channel beyond what a thread
+    muscle plausibly logs: :func:`tcamlab.metrics.implausible_value_warnings`)."""
     next_experiment: dict | None = None
     """The protocol to run next, when the design was run on this diagnosis
     (:meth:`tcamlab.design.DesignResult.to_dict`); None otherwise (then not in :meth:`to_dict`)."""
@@ -379,6 +382,7 @@ class DiagnosisResult:
                 "settings": self.settings,
                 "paired_tests": self.paired_tests,
                 "stand_ins_words": self.stand_ins_words,
+                "warnings": list(self.warnings),
             }
             | ({"next_experiment": self.next_experiment} if self.next_experiment is not None else {})
         )

@@ -306,6 +306,7 @@ def diagnosis_section(result) -> Section:
         tables=tables,
         figures=_figures(result),
         notes=notes,
+        warnings=list(getattr(result, "warnings", None) or []),
     )
 
 
@@ -467,6 +468,7 @@ def diagnosis_lines(result) -> list[str]:
     rec = doc.get("recalibration") or {}
     named = doc.get("effect") or ", ".join(rec.get("named", []))
     lines = [f"verdict: {doc['verdict']}" + (f" ({named})" if named else ""), f"  {_reason(result)}"]
+    lines += [f"  warning: {w}" for w in doc.get("warnings") or []]
     if "clearly worse" in result.reason:
         lines += [f"    {t}" for t in paired_lines(result)]
     lines += [f"  to tell apart, {k}: {v}" for k, v in (doc.get("separate_by") or {}).items()]
