@@ -50,11 +50,14 @@ __all__ = [
     "REFERENCE_TOLERANCE",
     "r2_warnings",
     "flat_prediction_warning",
+    "opposite_direction_warning",
+    "OPPOSITE_CORRELATION",
     "zero_offset_warning",
     "reference_warning",
     "domain_warning",
     "unused_threshold_warnings",
     "stated_shift_warning",
+    "opposite_sign_warning",
     "STATED_SD_LIMIT",
     "PLAUSIBLE_MAX",
     "PLAUSIBLE_MIN_C",
@@ -610,11 +613,13 @@ SANITY_CHECKS = {
     "r2-below-zero": "R² ≥ 0 (the model beats the measured mean)",
     "flat-prediction": f"prediction and measurement both vary (predicted range ≥ {FLAT_FRACTION:.0%} "
     "of the measured range; a constant measurement is a dead channel)",
+    "opposite-direction": "the measurement moves with the prediction (correlation >= -0.5; "
+    "below, the column is likely logged with the opposite sign)",
     "zero-offset": f"each zero within {ZERO_SE_LIMIT:g} standard errors or {ZERO_NOISE_LIMIT:g} noise sds",
     "outside-domain": "every row inside the model's domain (a finite prediction)",
     "threshold-unused": "every [thresholds] key applies to a quantity of the kind",
     "parameter-far-from-stated": "every calibrated or identified parameter within 3 stated sds "
-    "of its stated value",
+    "of its stated value, and of the stated value's sign",
     "implausible-value": "every logged channel within what a thread muscle or sensor plausibly "
     "sees (|voltage| <= 100 V, |current| <= 5 A, |load| <= 20 N, |force| <= 100 N, "
     "temperature >= -60 degC; beyond, the column's unit is likely wrong)",
@@ -699,6 +704,29 @@ def flat_prediction_warning(quantity: str, unit: str, measured, predicted) -> Sa
         f"{span_p / span_m:.2g} of the measured range {with_unit(span_m, unit)} (below {FLAT_FRACTION:.0%})"
     )
     return SanityWarning("flat-prediction", msg, quantity, None, values)
+
+
+OPPOSITE_CORRELATION = -0.5
+"""A measurement whose correlation with the prediction is below this moves against the model:
+a model in the right direction, however poor, correlates positively."""
+
+
+def opposite_direction_warning(quantity: str, measured, predicted) -> SanityWarning | None:
+    """A measurement that moves against the prediction (pooled correlation below
+    :data:`OPPOSITE_CORRELATION`): a column logged with the opposite sign (a contraction
+    counted positive), which calibration would otherwise absorb by flipping a parameter."""
+    m, p = _as_pair(measured, predicted)
+    ok = np.isfinite(m) & np.isfinite(p)
+    if ok.sum() < 3 or np.ptp(m[ok]) <= 0 or np.ptp(p[ok]) <= 0:
+        return None
+    r = float(np.corrcoef(m[ok], p[ok])[0, 1])
+    if not r < OPPOSITE_CORRELATION:
+        return None
+    msg = (
+        f"{quantity}: the measurement moves against the model (correlation {r:+.2f}): is the column "
+        "logged with the opposite sign? (a negative scale in its [columns] entry flips it)"
+    )
+    return SanityWarning("opposite-direction", msg, quantity, None, {"correlation": r})
 
 
 def zero_offset_warning(run: str, quantity: str, unit: str, zero: ZeroEstimate) -> SanityWarning | None:
@@ -817,6 +845,36 @@ def implausible_value_warnings(run: str, data: Mapping) -> list[SanityWarning]:
     return out
 
 
+def opposite_sign_warning(
+    name: str, value: float, stated: float, unit: str, source: str
+) -> SanityWarning | None:
+    """A calibrated or identified parameter of the opposite sign to its (non-zero) stated value,
+    whatever its stated sd: the model's response to it is then reversed (a swelling fiber made
+    to shrink, a modulus made to grow with temperature), which fits a log whose sign is
+    flipped as well as the right one fits the right log; None otherwise.
+
+    Parameters
+    ----------
+    name : str
+        The parameter, e.g. ``"sample.radial_cte_per_K (rho)"``.
+    value, stated : float
+        Calibrated or identified value and stated value [``unit``].
+    unit, source : str
+        The lab unit; where ``value`` came from.
+    """
+    from tcamlab.numbers import fmt
+
+    if not (np.isfinite(value) and np.isfinite(stated)) or stated == 0 or value * stated >= 0:
+        return None
+    u = f" {unit}" if unit and unit != "-" else ""
+    msg = (
+        f"{name} = {fmt(value)}{u} ({source}) has the opposite sign to the stated {fmt(stated)}{u}: "
+        "the model's response to it is reversed; is a logged column's sign flipped? (a negative "
+        "scale in its [columns] entry flips it back)"
+    )
+    return SanityWarning("parameter-far-from-stated", msg, name, None, {"value": value, "stated": stated})
+
+
 def stated_shift_warning(
     name: str, value: float, stated: float, stated_sd: float | None, unit: str, source: str
 ) -> SanityWarning | None:
@@ -834,6 +892,9 @@ def stated_shift_warning(
     """
     from tcamlab.numbers import fmt
 
+    flipped = opposite_sign_warning(name, value, stated, unit, source)
+    if flipped is not None:
+        return flipped
     if stated_sd is None or not (np.isfinite(stated_sd) and stated_sd > 0) or not np.isfinite(value):
         return None
     shift = (value - stated) / stated_sd

@@ -37,6 +37,7 @@ from tcamlab.metrics import (
     estimate_zero,
     flat_prediction_warning,
     implausible_value_warnings,
+    opposite_direction_warning,
     pooled_metrics,
     r2_warnings,
     reference_warning,
@@ -499,6 +500,7 @@ def sanity_warnings(kind: Kind, preds: list[RunPrediction], metrics: dict) -> li
         measured = np.concatenate([p.data[q].to_numpy(float) for p in preds]) * factor
         predicted = np.concatenate([np.asarray(p.predicted[kind.primary][q], float) for p in preds]) * factor
         out.append(flat_prediction_warning(col, unit, measured, predicted))
+        out.append(opposite_direction_warning(col, measured, predicted))
         for p in preds:
             m = p.data[q].to_numpy(float)
             # every model's rows with no finite prediction: an estimator that diverged is scored

@@ -300,3 +300,22 @@ def test_scored_quantities_are_the_outputs_and_what_every_run_logs_of_the_predic
     assert scored_quantities(kind, pred, one) == ("displacement",)  # not every run logs it
     # an input the model passes through is never scored (its residual would be 0)
     assert scored_quantities(kind, {**pred, "voltage": 0}, both) == ("displacement", "current")
+
+
+def test_a_pull_that_starts_at_the_first_row_has_no_rows_at_rest_beyond_it():
+    """A pull at 38 um a row from the first row over 60 mm, with the resistance still within its
+    noise for 30 rows: only the first row is at rest (the 2 % rule alone counted 33 moving rows
+    and biased the R0 read from them). A log that waits 200 noisy rows before the pull keeps them."""
+    from tcamlab.kinds import rest_rows
+
+    rng = np.random.default_rng(5)
+    n = 1600
+    x = 0.0385e-3 * np.arange(n)
+    r = 30.0 * (1 + 0.002 * x / 1e-3) + rng.normal(0, 0.005, n)
+    kind = kinds.get_kind("sensing")
+    moving = pd.DataFrame({"displacement": x, "force": 4.7 * x, "resistance": r})
+    assert rest_rows(kind, moving).tolist() == [0]
+    wait = np.r_[np.zeros(200), x[: n - 200]] + rng.normal(0, 1e-6, n)
+    r_wait = 30.0 * (1 + 0.002 * wait / 1e-3) + rng.normal(0, 0.005, n)
+    resting = pd.DataFrame({"displacement": wait, "force": 4.7 * wait, "resistance": r_wait})
+    assert 195 <= rest_rows(kind, resting).size <= 201

@@ -256,3 +256,20 @@ def test_zero_interval_covers_the_true_zero_95_percent_of_the_time():
         lo, hi = estimate_zero(measured, np.zeros(40), np.arange(15)).ci95
         hits += lo <= truth <= hi
     assert 0.92 <= hits / 400 <= 0.98
+
+
+def test_opposite_direction_and_opposite_sign_by_hand():
+    """A measurement that falls where the model rises is flagged whatever its fit; a poor fit in
+    the right direction is not. A parameter of the opposite sign to a stated value is flagged
+    without a stated sd; a stated 0 has no sign to keep."""
+    from tcamlab.metrics import opposite_direction_warning, opposite_sign_warning
+
+    p = np.linspace(0, 1, 50)
+    w = opposite_direction_warning("displacement_mm", -0.3 * p + 0.01 * np.sin(40 * p), p)
+    assert w.check == "opposite-direction" and w.values["correlation"] < -0.99
+    assert opposite_direction_warning("displacement_mm", 0.2 * p + 0.3 * np.sin(9 * p), p) is None
+    assert opposite_direction_warning("displacement_mm", np.zeros(50), p) is None
+    w = opposite_sign_warning("rho", -6.5e-5, 8.1e-5, "1/K", "calibrated")
+    assert w.check == "parameter-far-from-stated" and "opposite sign to the stated 8.1e-05 1/K" in w.message
+    assert opposite_sign_warning("rho", 6.5e-5, 8.1e-5, "1/K", "calibrated") is None
+    assert opposite_sign_warning("beta", -1.0, 0.0, "-", "calibrated") is None

@@ -146,9 +146,10 @@ def test_every_model_is_scored_after_its_own_nuisance_zero():
     assert p.variant_zeros[other]["displacement"].value == pytest.approx(-2e-4)
 
 
-def _static_in_fahrenheit_read_as_kelvin(tmp_path):
-    """The bundled static experiment with its temperatures written in degF and declared K:
-    they load (above absolute zero) but start near -196 degC."""
+def _static_rewritten(tmp_path, temperature_unit="K", displacement_scale=1):
+    """The bundled static experiment with its temperatures written in degF, declared in
+    ``temperature_unit`` (K: they load, above absolute zero, but start near -196 degC), and its
+    displacement read with ``displacement_scale``."""
     root = Path(__file__).resolve().parent.parent
     exp = load_experiment(root / "experiments" / "static.toml")
     runs = []
@@ -166,8 +167,8 @@ def _static_in_fahrenheit_read_as_kelvin(tmp_path):
         f"runs = [{', '.join(runs)}]",
     )
     body += (
-        '\n[columns]\ntime_s = {from = "t", unit = "s"}\ntemperature_C = {from = "T_F", unit = "K"}\n'
-        'displacement_mm = {from = "x", unit = "mm"}\n'
+        f'\n[columns]\ntime_s = {{from = "t", unit = "s"}}\ntemperature_C = {{from = "T_F", unit = "{temperature_unit}"}}\n'
+        f'displacement_mm = {{from = "x", unit = "mm", scale = {displacement_scale}}}\n'
     )
     path = tmp_path / "static.toml"
     path.write_text(body, encoding="utf-8")
@@ -180,7 +181,7 @@ def test_a_temperature_in_another_unit_is_a_warning_of_validate_calibrate_and_di
     from tcamlab.calibration import calibrate
     from tcamlab.diagnosis import diagnose
 
-    exp = _static_in_fahrenheit_read_as_kelvin(tmp_path)
+    exp = _static_rewritten(tmp_path)
     res = validate(exp, mc_draws=0)
     first = res.warnings[0]
     assert first.check == "implausible-value" and first.quantity == "temperature"
@@ -193,3 +194,31 @@ def test_a_temperature_in_another_unit_is_a_warning_of_validate_calibrate_and_di
     # the bundled log, in degC, carries none
     bundled = load_experiment(Path(__file__).resolve().parent.parent / "experiments" / "static.toml")
     assert not [w for w in validate(bundled, mc_draws=0).warnings if w.check == "implausible-value"]
+
+
+def test_a_displacement_logged_with_the_opposite_sign_is_a_warning_and_not_a_calibration(tmp_path):
+    """An oven log whose contraction counts positive (scale +0.2 for a % column where -0.2 is
+    right): validate and diagnose say the measurement moves against the model; calibrate, which
+    fits it by flipping rho's sign against the box edge, says both, and validating the
+    calibrated file (R² 0.999) warns that rho has the opposite sign to the stated value."""
+    from tcamlab.calibration import calibrate, calibrated_path, calibrated_text
+    from tcamlab.diagnosis import diagnose
+
+    exp = _static_rewritten(tmp_path, temperature_unit="degF", displacement_scale=-1)
+    res = validate(exp, mc_draws=0)
+    flipped = [w for w in res.warnings if w.check == "opposite-direction"]
+    assert len(flipped) == 1 and flipped[0].values["correlation"] < -0.99
+    (tmp_path / "ok").mkdir()
+    assert not [w for w in validate(_static_rewritten(tmp_path / "ok", "degF"), mc_draws=0).warnings]
+    cal = calibrate(exp)
+    rho = next(p for p in cal.parameters if p.field == "radial_cte")
+    assert rho.value < 0
+    assert any("rho) = " in n and "opposite sign to the stated 8.1e-05" in n for n in cal.notes)
+    assert any("rho) stopped at the edge of its search range" in n for n in cal.notes)
+    out = calibrated_path(exp)
+    out.write_text(calibrated_text(exp, cal), encoding="utf-8")
+    calibrated = load_experiment(out)
+    signs = [w for w in validate(calibrated, mc_draws=0).warnings if "opposite sign" in w.message]
+    assert [w.check for w in signs] == ["parameter-far-from-stated"]
+    diag = diagnose(exp, effects=["displacement-drift"], n_boot=50)
+    assert any("moves against the model" in w for w in diag.warnings)

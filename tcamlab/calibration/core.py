@@ -24,7 +24,8 @@ from tcamlab.calibration.result import (
 from tcamlab.config import Experiment, load_experiment
 from tcamlab.errors import InputError
 from tcamlab.io import input_files, sha256_file
-from tcamlab.metrics import implausible_value_warnings
+from tcamlab.metrics import implausible_value_warnings, opposite_sign_warning
+from tcamlab.units import PARAMETER_UNITS
 
 __all__ = ["calibrate", "load_experiments", "one_numba_thread"]
 
@@ -293,8 +294,44 @@ def calibrate(
         curves=curves,
         estimator=_estimator_stage(exps, runs, estimates),
         notes=list(problem.held.values())
-        + [w.message for rs in runs for r in rs for w in implausible_value_warnings(r.path.name, r.data)],
+        + _input_notes(runs)
+        + _sign_notes(estimates)
+        + _bound_notes(problem, fit.u, estimates),
     )
+
+
+def _bound_notes(problem: CalibrationProblem, u, estimates) -> list[str]:
+    """A parameter whose best value is the edge of its search box (six prior sds, or a factor
+    1000): the logs pull it further, and neither its value nor its interval is a fit."""
+    lo, hi = problem.bounds()
+    out = []
+    for k, p in enumerate(estimates):
+        tol = 1e-6 * float(hi[k] - lo[k])
+        if min(abs(float(u[k]) - lo[k]), abs(hi[k] - float(u[k]))) <= tol:
+            out.append(
+                f"{p.where}.{p.key} ({p.symbol}) stopped at the edge of its search range, six prior "
+                "sds (or a factor 1000) from its stated value: the logs pull it further, so its value "
+                "and interval are that edge, not a fit; check the stated value and the log's units "
+                "and sign"
+            )
+    return out
+
+
+def _input_notes(runs) -> list[str]:
+    """A channel of a run beyond what a muscle plausibly logs (its unit is likely wrong)."""
+    return [w.message for rs in runs for r in rs for w in implausible_value_warnings(r.path.name, r.data)]
+
+
+def _sign_notes(estimates) -> list[str]:
+    """A parameter calibrated to the opposite sign of its stated value (a flipped log fits it)."""
+    out = []
+    for p in estimates:
+        unit, fac = PARAMETER_UNITS.get(p.field, (p.unit, 1.0))
+        name = f"{p.where}.{p.key} ({p.symbol})"
+        w = opposite_sign_warning(name, p.value * fac, p.stated * fac, unit, "calibrated")
+        if w is not None:
+            out.append(w.message)
+    return out
 
 
 def _estimator_stage(exps, runs, estimates) -> list:

@@ -91,6 +91,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from tcamlab import progress
 from tcamlab.diagnosis.candidates import CI_LEVEL, fit_candidates, score_folds
 from tcamlab.diagnosis.noise import (
@@ -112,7 +114,7 @@ from tcamlab.diagnosis.result import SCHEMA_VERSION, CandidateResult, DiagnosisR
 from tcamlab.diagnosis.verdict import MIN_FRACTION_CLOSED, decide
 from tcamlab.effects import effects_for, get_effect
 from tcamlab.errors import ConfigError
-from tcamlab.metrics import implausible_value_warnings
+from tcamlab.metrics import implausible_value_warnings, opposite_direction_warning
 from tcamlab.text import shown_path
 
 __all__ = [
@@ -207,9 +209,25 @@ def _diagnose(experiment, runs, effects, n_boot: int, seed: int, workers) -> Dia
         settings=_settings(scores, cands, n_boot, seed, len(runs)),
         combination=decision.combination,
         recalibration=decision.recalibration,
-        warnings=[w.message for n, r in zip(names, runs) for w in implausible_value_warnings(n, r.data)],
+        warnings=_log_warnings(problem, base, names, runs),
         _series=plot_series(problem, base, labels, _best_curve(rec, decision.best_fit)),
     )
+
+
+def _log_warnings(problem: Problem, base, names, runs) -> list[str]:
+    """What bears on every figure of the diagnosis: a channel beyond what a muscle plausibly
+    logs, and a measurement that moves against the thesis model (a sign flipped), which a
+    recalibration would absorb by flipping a parameter."""
+    out = [w.message for n, r in zip(names, runs) for w in implausible_value_warnings(n, r.data)]
+    for q in problem.quantities:
+        pairs = [
+            (problem.measured(i, q), base.predictions[i][q]) for i in range(len(runs)) if problem.logs(i, q)
+        ]
+        if pairs:
+            m, p = (np.concatenate([np.asarray(x, float) for x in col]) for col in zip(*pairs))
+            w = opposite_direction_warning(q, m, p)
+            out += [w.message] if w is not None else []
+    return out
 
 
 def _noise_at_recalibration(problem: Problem, rec: Recalibration, base, noise):

@@ -501,6 +501,8 @@ KIND = Kind(
     optional_columns=("time_s", "temperature_C"),
     min_rows=3,
     inputs=("resistance",),
+    # the machine drives the displacement: it moves first, while R is still within its noise
+    rest_also=("displacement",),
     outputs=("displacement", "force"),
     tension_outputs=("force",),
     variants={"thesis": {}},
