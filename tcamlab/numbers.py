@@ -42,6 +42,7 @@ __all__ = [
     "rmse_unit",
     "lab_unit",
     "shift_text",
+    "stated_label",
     "reading_text",
     "fmt_interval",
 ]
@@ -217,6 +218,12 @@ def shift_text(p: dict) -> str:
     stated = p.get("shift_in_stated_sds")
     x, what = (stated, "stated sds") if stated is not None else (p["shift_in_prior_sds"], "prior sds")
     return f"{x:+.1f} {what}" if abs(x) >= 0.1 or x == 0 else f"{x:+.1g} {what}"
+
+
+def stated_label(p: dict) -> str:
+    """ "stated", or what stands for it when the file states no value (``p["stated_in_file"]``
+    False: the kind's rule on the logs, e.g. R0 from the rows at rest)."""
+    return "stated" if p.get("stated_in_file", True) else "not stated; the logs' rule gives"
 
 
 def reading_text(p: dict, factor: float = 1.0, unit: str = "") -> str:

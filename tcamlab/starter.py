@@ -29,6 +29,7 @@ import pandas as pd
 from tcamlab import io as tio
 from tcamlab.errors import ConfigError, InputError
 from tcamlab.kinds import KINDS, get_kind
+from tcamlab.kinds.dynamic import stated_voltage_warning
 from tcamlab.metrics import implausible_value_warnings
 from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
 from tcamlab.text import did_you_mean
@@ -956,6 +957,8 @@ def _warnings(exp, runs) -> list[str]:
             if name in d and float(np.ptp(d[name].to_numpy())) == 0.0:
                 out.append(f"{r.path.name}: {name} never changes, so the model has nothing to follow")
         out += [w.message for w in implausible_value_warnings(r.path.name, r.data)]
+    if exp.kind == "dynamic":
+        out += [w for w in [stated_voltage_warning(exp.rig, runs)] if w]
     return out
 
 

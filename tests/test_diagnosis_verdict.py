@@ -141,3 +141,22 @@ def test_a_stated_value_five_sds_off_is_not_plain_miscalibration(tmp_path):
     assert "would have to be wrong by" in d["reason"]
     if d["verdict"] == "aliased":
         assert "recalibration" in d["aliased_with"]
+
+
+def test_an_unstated_parameter_is_not_called_stated():
+    """R0 left out of the file is the kind's rule on the logs: its recalibration says so, not
+    "stated 30"."""
+    from tcamlab.diagnosis.verdict import describe_parameter
+
+    p = {
+        "symbol": "R0",
+        "value": 30.0,
+        "ci95": [29.99, 30.01],
+        "unit": "ohm",
+        "stated": 30.02,
+        "shift_in_stated_sds": None,
+        "shift_in_prior_sds": -0.01,
+    }
+    assert "stated 30.02: -0.01 prior sds" in describe_parameter("initial_resistance", p)
+    text = describe_parameter("initial_resistance", {**p, "stated_in_file": False})
+    assert "not stated; the logs' rule gives 30.02: -0.01 prior sds" in text

@@ -449,3 +449,20 @@ def test_a_text_column_beside_the_data_does_not_hide_the_rows(tmp_path):
     assert cols["temperature_C"] == {"from": "Temp (F)", "unit": "degF"}
     assert cols["displacement_mm"] == {"from": "Extension (um)", "unit": "um"}
     assert "'operator' (column 2)" in res.path.read_text(encoding="utf-8")
+
+
+def test_check_warns_when_the_stated_step_voltage_is_no_runs_voltage(tmp_path):
+    """validate drives the dynamic model with the logged voltage: a stated voltage_V of 0 or 20 V
+    beside runs at 10 V changed no figure and passed check without a word."""
+    from tcamlab.starter import check_experiment
+
+    rows = ["time_s,voltage_V,displacement_mm"] + [
+        f"{0.1 * i:.1f},{10 if 2 < i < 12 else 0},0" for i in range(30)
+    ]
+    write(tmp_path / "raw" / "step.csv", "\n".join(rows) + "\n")
+    body = 'kind = "dynamic"\ntitle = "t"\nruns = ["../raw/step.csv"]\n[sample]\npreset = "thesis-tca"\n'
+    for volts, warned in ((0.0, True), (20.0, True), (10.2, False)):
+        exp = write(tmp_path / "experiments" / "e.toml", body + f"[rig]\nload_g = 50\nvoltage_V = {volts}\n")
+        hits = [w for w in check_experiment(exp).warnings if "is the peak voltage of no run" in w]
+        assert bool(hits) is warned, (volts, hits)
+        assert not hits or "logged peaks: 10 V" in hits[0]

@@ -563,6 +563,8 @@ class Recalibration:
                 "ci95": [s.from_u(fit.u[m] - z * sd_u), s.from_u(fit.u[m] + z * sd_u)],
                 "unit": s.param.unit,
                 "stated": s.stated,
+                # an unstated value (sensing S, R0) is the kind's rule on the logs
+                "stated_in_file": bool(s.stated_in_file),
                 "stated_sd": sd,
                 "prior_sd": s.prior_sd,
                 "shift_in_stated_sds": (value - s.stated) / sd if sd else None,

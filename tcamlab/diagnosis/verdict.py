@@ -17,7 +17,7 @@ from tcamlab.diagnosis.problem import Problem
 from tcamlab.diagnosis.recalibration import RECALIBRATION
 from tcamlab.diagnosis.result import CandidateResult, Gap, stand_ins_text
 from tcamlab.effects import combine
-from tcamlab.numbers import fmt, fmt_interval, reading_text, shift_text
+from tcamlab.numbers import fmt, fmt_interval, reading_text, shift_text, stated_label
 
 __all__ = [
     "MIN_FRACTION_CLOSED",
@@ -264,7 +264,7 @@ def describe_parameter(name: str, p: dict) -> str:
     )
     return (
         f"{p['symbol']} ({name}) {value} {p['unit']} (95 % {lo} to {hi}), "
-        f"stated {fmt(p['stated'])}: {sds}{reading_text(p, unit=p['unit'])}{alias}"
+        f"{stated_label(p)} {fmt(p['stated'])}: {sds}{reading_text(p, unit=p['unit'])}{alias}"
     )
 
 

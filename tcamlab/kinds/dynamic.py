@@ -660,6 +660,26 @@ prediction each logs: the actuator's current (a sense resistor beside the supply
 temperature (a thermocouple on the coil)."""
 
 
+def stated_voltage_warning(rig, runs) -> str | None:
+    """A warning when the stated step voltage (``[rig] voltage_V``) is the peak |voltage| of no
+    run that logs one (within 5 %): validate, calibrate and diagnose drive the model with the
+    logged voltage, so the stated value then only sets the virtual rig's and the design's
+    protocol, and a wrong value there would go unseen."""
+    peaks = [
+        float(np.nanmax(np.abs(r.data["voltage"].to_numpy(float)), initial=0.0))
+        for r in runs
+        if "voltage" in r.data
+    ]
+    if not peaks or any(abs(p - rig.voltage) <= 0.05 * max(p, 1e-12) for p in peaks):
+        return None
+    shown = ", ".join(f"{p:.4g}" for p in sorted(set(round(p, 6) for p in peaks)))
+    return (
+        f"rig voltage_V = {rig.voltage:g} V is the peak voltage of no run (logged peaks: {shown} V): "
+        "validate, calibrate and diagnose use the logged voltage; the stated one sets only the "
+        "virtual rig's and the design's protocol (state the step voltage the runs used)"
+    )
+
+
 REQUIRED_COLUMNS = ("time_s", "voltage_V", "displacement_mm")
 """The columns every voltage-step run logs."""
 

@@ -16,6 +16,7 @@ from tcamlab.numbers import (
     reading_text,
     rmse_unit,
     shift_text,
+    stated_label,
 )
 
 from .diagnosis_figures import MIN_REGIME_POINTS, forest_figure, regime_figure, residual_figure
@@ -479,7 +480,7 @@ def diagnosis_lines(result) -> list[str]:
         value, lo, hi = fmt_interval(p["value"] * fac, p["ci95"][0] * fac, p["ci95"][1] * fac)
         lines.append(
             f"  recalibrated {p['symbol']} = {value} {unit} (95 % {lo} to "
-            f"{hi}; stated {fmt(p['stated'] * fac)}, {sds}{reading_text(p, fac, unit)})"
+            f"{hi}; {stated_label(p)} {fmt(p['stated'] * fac)}, {sds}{reading_text(p, fac, unit)})"
         )
     rows = ([doc["combination"]] if doc.get("combination") else []) + doc["ranking"][:5]
     for r in rows:
