@@ -677,10 +677,17 @@ def _toml(v) -> str:
     return "{ " + items + " }"
 
 
-def _parameter_lines(key: str, unit: str) -> list[str]:
+REQUIRED_RIG_KEYS = {"selfsensing": ("spring_constant_N_per_m",)}
+"""[rig] keys a kind cannot run without that other kinds may leave out (their "optional"
+guide): a self-sensing muscle's S maps R to delta, and no log gives it."""
+
+
+def _parameter_lines(key: str, unit: str, required_by: str = "") -> list[str]:
     g = GUIDE[key]
     lines = [f"# {key}: {g.definition}", f"#   measure: {g.measure}", f"#   typical: {g.typical}"]
-    if g.fill == "typical":
+    if required_by:
+        lines.append(f"{key} = {_toml(f'{PLACEHOLDER}: {unit}')}   # required by a {required_by} run")
+    elif g.fill == "typical":
         lines.append(f"{key} = {_toml(g.value)}   # typical value: replace it if you measured it")
     elif g.fill == "optional":
         lines.append(f"# {key} = {_toml(g.value)}   # optional: uncomment and set it if you know it")
@@ -766,7 +773,9 @@ def starter_text(kind: str, csv_path: str | os.PathLike, out_path: str | os.Path
     lines.append("[rig]")
     rig_keys = _rig_keys(kind)
     for key in rig_keys:
-        lines += _parameter_lines(key, _unit_of(key))
+        lines += _parameter_lines(
+            key, _unit_of(key), kind if key in REQUIRED_RIG_KEYS.get(kind, ()) else False
+        )
     unc = {k: v for k, v in _UNCERTAINTY.items() if k in rig_keys}
     if unc:
         lines.append("[rig.uncertainty]   # standard deviations of the typical values above (thesis)")

@@ -64,3 +64,22 @@ def test_a_sensor_without_s_and_r0_is_refused_naming_the_file(tmp_path):
     # the hint's lines make the file simulate
     path.write_text(text, encoding="utf-8")
     assert simulate("sensing", path, seed=2, out_dir=tmp_path / "ok").run_paths
+
+
+def test_a_self_sensing_muscle_without_s_is_refused_naming_the_file(tmp_path):
+    """The self-sensing rig raised "needs initial_resistance and spring_constant in [rig]" with
+    no file and no hint; its protocol without the current passed."""
+    text = (TEMPLATES / "selfsensing.toml").read_text()
+    kept = [line for line in text.splitlines() if not line.startswith("spring_constant_N_per_m")]
+    path = tmp_path / "muscle.toml"
+    path.write_text("\n".join(kept) + "\n", encoding="utf-8")
+    with pytest.raises(ConfigError) as info:
+        simulate("selfsensing", path, seed=2, out_dir=tmp_path)
+    assert "muscle.toml" in info.value.message and "the muscle's spring_constant_N_per_m" in info.value.message
+    assert "spring_constant_N_per_m = 2.5" in info.value.hint
+    from tcamlab.kinds.selfsensing_protocol import protocol_runs
+
+    rig = load_experiment(TEMPLATES / "selfsensing.toml", require_runs=False).rig
+    with pytest.raises(ConfigError, match="channels lacks 'current_A'"):
+        protocol_runs({"channels": ["time_s", "voltage_V", "load_N", "displacement_mm"]}, rig)
+    assert len(protocol_runs({"channels": ["time_s", "voltage_V", "current_A", "displacement_mm"]}, rig)) == 1

@@ -375,6 +375,9 @@ def test_a_self_sensing_log_with_the_load_in_grams_maps_it_as_a_force(tmp_path):
     assert cols["load_N"] == {"from": "Load (g)", "unit": "gf"}
     assert cols["current_A"] == {"from": "Current (mA)", "unit": "mA"}
     assert convert(50.0, cols["load_N"]["unit"], "N") == pytest.approx(0.49033, rel=1e-4)
+    # a muscle's S is required (no log gives it): a value to fill in, not a commented-out line
+    rig = tomllib.loads(res.path.read_text(encoding="utf-8"))["rig"]
+    assert rig["spring_constant_N_per_m"] == "FILL IN: N/m"
 
 
 def test_pull_tester_headers_with_units_in_them(tmp_path):

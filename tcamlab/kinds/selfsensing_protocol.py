@@ -89,6 +89,8 @@ PROTOCOL_KEYS = (
 """Keys of a selfsensing ``[protocol]`` table (docs/design.md)."""
 CHANNELS = ["time_s", "voltage_V", "current_A", "load_N", "displacement_mm"]
 """The logged columns of a run (the laser only validates)."""
+REQUIRED_CHANNELS = ("time_s", "voltage_V", "current_A", "displacement_mm")
+"""Columns every self-sensing run logs (the kind's required columns; the load is optional)."""
 
 
 def _segment_voltage(name: str, tau: np.ndarray, duration: float, probe_v: float = PROBE_V) -> np.ndarray:
@@ -221,6 +223,8 @@ def protocol_runs(table: dict, rig: Rig) -> list[dict]:
         raise ConfigError(
             f"[protocol]: unknown key {unknown[0]!r}", "allowed keys: " + ", ".join(PROTOCOL_KEYS)
         )
+    # the estimator reads V and I, the laser scores it: none may be left out
+    pv.channels(table, CHANNELS, REQUIRED_CHANNELS, list(CHANNELS), "the self-sensing rig")
     hint = f"probe voltages from {PROBE_MIN_V:g} to {PROBE_MAX_V:g} V, e.g. [1.5, 2.5]"
     probes = table.get("probe_V", [PROBE_V])
     if not isinstance(probes, list) or not probes:

@@ -402,16 +402,16 @@ CONDITIONS = {"static": "a second load (1.5 x, logged as load_N)", "dynamic": "a
 
 
 SENSOR_KEYS = {"spring_constant": "spring_constant_N_per_m", "initial_resistance": "initial_resistance_ohm"}
-"""The [rig] keys of a sensor's true S [N/m] and R0 [ohm], which a sensing or curvature
-simulation needs (a lab's experiment file may leave them out: the diagnosis reads them)."""
+"""The [rig] keys of a sensor's (or self-sensing muscle's) true S [N/m] and R0 [ohm], which
+a sensing, curvature or self-sensing simulation needs (a lab's experiment file may leave them out: the diagnosis reads them)."""
 
 
 def _check_template(kind: str, exp) -> None:
-    """Refuse a template of another kind, or a sensing or curvature one without the sensor's S
-    and R0 (naming the file and the keys, with the shipped template's values as an example)."""
+    """Refuse a template of another kind, or a sensing, curvature or self-sensing one without
+    the sensor's (muscle's) S and R0 (naming the file and the keys, with the shipped template's values as an example)."""
     if exp.kind != kind:
         raise ConfigError(f"{exp.path}: template is a {exp.kind!r} experiment, not {kind!r}")
-    if kind not in ("sensing", "curvature"):
+    if kind not in ("sensing", "curvature", "selfsensing"):
         return
     missing = [key for f, key in SENSOR_KEYS.items() if getattr(exp.rig, f, None) is None]
     if not missing:
@@ -422,10 +422,11 @@ def _check_template(kind: str, exp) -> None:
     example = " and ".join(
         f"{key} = {getattr(shipped, f):g}" for f, key in SENSOR_KEYS.items() if key in missing
     )
+    part = "muscle" if kind == "selfsensing" else "sensor"
     raise ConfigError(
-        f"{shown_path(exp.path)}: the {kind} virtual rig needs the sensor's {' and '.join(missing)} "
+        f"{shown_path(exp.path)}: the {kind} virtual rig needs the {part}'s {' and '.join(missing)} "
         "in [rig] (the true S and R0 it simulates)",
-        f"add to its [rig] your sensor's values, e.g. {example}",
+        f"add to its [rig] your {part}'s values, e.g. {example}",
     )
 
 
