@@ -968,6 +968,28 @@ def _warnings(exp, runs) -> list[str]:
         out += [w.message for w in implausible_value_warnings(r.path.name, r.data)]
     if exp.kind == "dynamic":
         out += [w for w in [stated_voltage_warning(exp.rig, runs)] if w]
+    return out + _below_ambient(exp, runs)
+
+
+BELOW_AMBIENT_K = 10.0
+"""A logged temperature this far [K] below the stated ambient is a warning: the models count
+every rise from ambient_C, and a test does not start colder than its room."""
+
+
+def _below_ambient(exp, runs) -> list[str]:
+    """A run whose logged temperature falls :data:`BELOW_AMBIENT_K` below ``[rig] ambient_C``."""
+    out = []
+    ambient = exp.rig.ambient
+    for r in runs:
+        if "temperature" not in r.data:
+            continue
+        low = float(np.nanmin(r.data["temperature"].to_numpy(float), initial=np.inf))
+        if low < ambient - BELOW_AMBIENT_K:
+            out.append(
+                f"{r.path.name}: temperature falls to {low:.4g} degC, {ambient - low:.3g} K below the "
+                f"stated ambient_C = {ambient:g} degC, the reference every modelled rise counts from: "
+                "is ambient_C the room's temperature at the start of the run?"
+            )
     return out
 
 

@@ -251,7 +251,8 @@ def shear_modulus_at(delta_T, shear_modulus, shear_modulus_slope):
             f"temperature rise {worst:.1f} K makes the shear modulus G_t' of eq. (2.13) "
             f"non-positive (valid below {dt_max:.1f} K above the reference)",
             hint="check the temperature or voltage column's unit in [columns] (a log in degF read as "
-            "degC, mV read as V), or use the constant-G model: shear_modulus_slope_MPa_per_K = 0",
+            "degC, mV read as V) and [rig] ambient_C, the reference the rise counts from; or use the "
+            "constant-G model: shear_modulus_slope_MPa_per_K = 0",
         )
     return g
 
