@@ -50,6 +50,7 @@ __all__ = [
     "REFERENCE_TOLERANCE",
     "r2_warnings",
     "flat_prediction_warning",
+    "dead_channel_warning",
     "opposite_direction_warning",
     "OPPOSITE_CORRELATION",
     "zero_offset_warning",
@@ -678,6 +679,15 @@ def r2_warnings(quantity: str, block: Mapping) -> list[SanityWarning]:
         + "): the model predicts worse than the measured mean"
     )
     return [SanityWarning("r2-below-zero", msg, quantity, None, {"r2_pooled": pooled, **runs})]
+
+
+def dead_channel_warning(run: str, quantity: str, unit: str, measured, predicted) -> SanityWarning | None:
+    """One run's constant measurement against a varying prediction (a dead or unplugged
+    channel), which the pooled :func:`flat_prediction_warning` misses beside runs that vary."""
+    w = flat_prediction_warning(quantity, unit, measured, predicted)
+    if w is None or w.values["measured_range"] > 0:
+        return None
+    return SanityWarning("flat-prediction", f"{run} {w.message}", quantity, run, w.values)
 
 
 def flat_prediction_warning(quantity: str, unit: str, measured, predicted) -> SanityWarning | None:

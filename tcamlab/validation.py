@@ -32,6 +32,7 @@ from tcamlab.metrics import (
     ZERO_REST,
     ZERO_WHOLE_RUN,
     check_thresholds,
+    dead_channel_warning,
     domain_warning,
     error_metrics,
     estimate_zero,
@@ -487,6 +488,11 @@ def _reference_warnings(kind: Kind, preds: list[RunPrediction]) -> list:
     return out
 
 
+def _pair(kind: Kind, p: RunPrediction, q: str, factor: float) -> tuple[np.ndarray, np.ndarray]:
+    """A run's measured and primary-model values of ``q``, times ``factor`` (lab units)."""
+    return p.data[q].to_numpy(float) * factor, np.asarray(p.predicted[kind.primary][q], float) * factor
+
+
 def sanity_warnings(kind: Kind, preds: list[RunPrediction], metrics: dict) -> list:
     """Every sanity check of :data:`tcamlab.metrics.SANITY_CHECKS` on the primary model;
     a channel in an implausible unit first, then a wrong reference (R0), as they explain the
@@ -499,8 +505,10 @@ def sanity_warnings(kind: Kind, preds: list[RunPrediction], metrics: dict) -> li
         out += r2_warnings(col, metrics[kind.primary][col])
         measured = np.concatenate([p.data[q].to_numpy(float) for p in preds]) * factor
         predicted = np.concatenate([np.asarray(p.predicted[kind.primary][q], float) for p in preds]) * factor
-        out.append(flat_prediction_warning(col, unit, measured, predicted))
-        out.append(opposite_direction_warning(col, measured, predicted))
+        flat = flat_prediction_warning(col, unit, measured, predicted)
+        out += [flat, opposite_direction_warning(col, measured, predicted)]
+        if flat is None or flat.values["measured_range"] > 0:  # else the pooled one says it
+            out += [dead_channel_warning(p.name, col, unit, *_pair(kind, p, q, factor)) for p in preds]
         for p in preds:
             m = p.data[q].to_numpy(float)
             # every model's rows with no finite prediction: an estimator that diverged is scored

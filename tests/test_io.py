@@ -1016,3 +1016,13 @@ def test_a_run_with_tcamlabs_own_headers_beside_mapped_runs_gets_a_per_run_hint(
         runs[0].data["temperature"].iloc[0] == pytest.approx(25.0)
         and runs[1].data["temperature"].iloc[1] == 30.0
     )
+
+
+def test_a_run_logged_backwards_is_told_to_sort_its_rows(tmp_path):
+    """Rows newest first: the hint says to sort them, not to split concatenated runs."""
+    lines = dynamic_text().splitlines()
+    backwards = write(tmp_path, "\n".join([lines[0], *lines[:0:-1]]) + "\n", "back.csv")
+    err = raises_input(["back.csv", "decreasing time 1 s after 1.1 s"], read_run, backwards, "dynamic")
+    assert "sort them oldest first" in err.hint
+    glued = write(tmp_path, "\n".join([*lines, *lines[1:]]) + "\n", "glued.csv")
+    assert "split concatenated runs" in raises_input(["glued.csv"], read_run, glued, "dynamic").hint

@@ -222,3 +222,17 @@ def test_a_displacement_logged_with_the_opposite_sign_is_a_warning_and_not_a_cal
     assert [w.check for w in signs] == ["parameter-far-from-stated"]
     diag = diagnose(exp, effects=["displacement-drift"], n_boot=50)
     assert any("moves against the model" in w for w in diag.warnings)
+
+
+def test_one_dead_channel_beside_live_runs_is_named():
+    """A laser stuck at 0 in one run of three: the pooled measurement varies, so only the run's
+    own check can say its channel is dead."""
+    import dataclasses
+
+    exp = load_experiment(Path(__file__).resolve().parent.parent / "experiments" / "static.toml")
+    runs = exp.read_runs()
+    dead = runs[1].data.assign(displacement=0.0)
+    runs[1] = dataclasses.replace(runs[1], data=dead)
+    warned = [w for w in validate(exp, runs, mc_draws=0).warnings if w.check == "flat-prediction"]
+    assert [w.run for w in warned] == ["static_run2"] and "is constant (0 mm on every row)" in warned[0].message
+    assert not [w for w in validate(exp, mc_draws=0).warnings if w.check == "flat-prediction"]

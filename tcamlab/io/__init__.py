@@ -1352,9 +1352,13 @@ def _check_values(data: dict, kind: str, where: _Where, n_dropped: int) -> None:
         if j is not None:
             j += 1
             what = "duplicated" if dt[j - 1] == 0 else "decreasing"
+            backwards = bool(np.all(dt < 0))
             raise InputError(
                 f"{where.cell(j, 'time')}: {what} time {t[j]:.9g} s after {t[j - 1]:.9g} s on line {where.line(j - 1)}",
-                "time must increase strictly from row to row; split concatenated runs into separate files",
+                "the rows run backwards in time: sort them oldest first (a copy; the log stays as it is)"
+                if backwards
+                else "time must increase strictly from row to row; sort the rows by time, or split "
+                "concatenated runs into separate files",
             )
     for name in _NONNEGATIVE:
         j = _first_bad(data[name] < 0) if name in data else None
