@@ -62,6 +62,7 @@ __all__ = [
     "STATED_SD_LIMIT",
     "PLAUSIBLE_MAX",
     "PLAUSIBLE_MIN_C",
+    "PLAUSIBLE_RESISTANCE_OHM",
     "implausible_value_warnings",
 ]
 
@@ -623,7 +624,7 @@ SANITY_CHECKS = {
     "of its stated value, and of the stated value's sign",
     "implausible-value": "every logged channel within what a thread muscle or sensor plausibly "
     "sees (|voltage| <= 100 V, |current| <= 5 A, |load| <= 20 N, |force| <= 100 N, "
-    "temperature >= -60 degC; beyond, the column's unit is likely wrong)",
+    "temperature >= -60 degC, resistance 0.1 to 1e5 ohm; beyond, the column's unit is likely wrong)",
 }
 """The sanity checks every validation runs, and what each requires (in the order warnings are
 listed: a wrong reference first, as it explains the others)."""
@@ -822,9 +823,39 @@ unit a log that far above it is most likely in: a muscle driven at 1496 V or loa
 is a log in mV or grams read as V or N, and the model then fails far downstream, or fits
 a wrong parameter, with no word about the unit."""
 
+PLAUSIBLE_RESISTANCE_OHM = (0.1, 1e5)
+"""Range of a logged resistance [ohm] a thread muscle or sensor plausibly shows (the thesis's
+are 24-30 ohm; silver-coated threads run from about 1 to some thousand ohm): a 30 ohm sensor
+logged in kohm and read as ohm reads 0.03, one in mohm reads 30,000."""
+
+RESISTANCE_COLUMNS = ("resistance", "r1", "r2")
+"""The channels :data:`PLAUSIBLE_RESISTANCE_OHM` applies to (curvature's two sensors too)."""
+
 PLAUSIBLE_MIN_C = -60.0
 """Lowest temperature [degC] a muscle or sensor test plausibly logs: a column in degF read as K
 starts near -200 degC."""
+
+
+def _implausible_resistances(run: str, data: Mapping) -> list[SanityWarning]:
+    """A resistance channel whose median is outside :data:`PLAUSIBLE_RESISTANCE_OHM`."""
+    lo, hi = PLAUSIBLE_RESISTANCE_OHM
+    out = []
+    for name in RESISTANCE_COLUMNS:
+        if name not in data:
+            continue
+        typical = float(np.nanmedian(np.asarray(data[name], float)))
+        if lo <= typical <= hi or not np.isfinite(typical):
+            continue
+        likely = "kohm" if typical < lo else "mohm"
+        msg = (
+            f"{run}: {name} is typically {typical:.4g} ohm, outside the {lo:g} to {hi:g} ohm a thread "
+            f'muscle or sensor plausibly shows: is the column in {likely}? (unit = "{likely}" in its '
+            "[columns] entry)"
+        )
+        out.append(
+            SanityWarning("implausible-value", msg, name, run, {"median": typical, "low": lo, "high": hi})
+        )
+    return out
 
 
 def implausible_value_warnings(run: str, data: Mapping) -> list[SanityWarning]:
@@ -842,6 +873,7 @@ def implausible_value_warnings(run: str, data: Mapping) -> list[SanityWarning]:
                 "[columns] entry)"
             )
             out.append(SanityWarning("implausible-value", msg, name, run, {"peak": peak, "limit": limit}))
+    out += _implausible_resistances(run, data)
     if "temperature" in data:
         low = float(np.nanmin(np.asarray(data["temperature"], float), initial=np.inf))
         if low < PLAUSIBLE_MIN_C:

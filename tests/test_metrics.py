@@ -273,3 +273,16 @@ def test_opposite_direction_and_opposite_sign_by_hand():
     assert w.check == "parameter-far-from-stated" and "opposite sign to the stated 8.1e-05 1/K" in w.message
     assert opposite_sign_warning("rho", 6.5e-5, 8.1e-5, "1/K", "calibrated") is None
     assert opposite_sign_warning("beta", -1.0, 0.0, "-", "calibrated") is None
+
+
+def test_a_resistance_in_kohm_or_mohm_read_as_ohm_is_implausible():
+    """A 30 ohm sensor logged in kohm reads 0.03 "ohm" (only R/R0 enters, so every figure
+    stays the same and nothing said so); in mohm it reads 30,000. Curvature's R1 and R2 too."""
+    from tcamlab.metrics import implausible_value_warnings
+
+    r = np.full(20, 30.0)
+    assert implausible_value_warnings("run1", {"resistance": r, "r1": r, "r2": r}) == []
+    low = implausible_value_warnings("run1", {"resistance": r / 1e3})
+    assert [w.check for w in low] == ["implausible-value"] and 'unit = "kohm"' in low[0].message
+    high = implausible_value_warnings("run1", {"r2": r * 1e4})
+    assert high[0].quantity == "r2" and 'unit = "mohm"' in high[0].message
