@@ -647,7 +647,7 @@ def map_columns(kind: str, layout: CsvLayout) -> ColumnMapping:
         rec = found[0]
         entry, note = _entry(kind, layout, i, rec, repeated)
         out.entries[rec.canonical] = entry
-        out.notes[rec.canonical] = note or f"read as {rec.canonical[: rec.canonical.rindex('_')]}"
+        out.notes[rec.canonical] = note or f"read as {tio.VARIABLE_MAP[rec.canonical][0]}"
     for c in k.required_columns:
         if c not in out.entries:
             out.missing.append(c)

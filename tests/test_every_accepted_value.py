@@ -169,12 +169,12 @@ def test_legitimate_statements_run_every_command(bases, kind, table, key, value)
 
 
 def test_an_offset_that_overflows_the_model_is_refused_in_one_line(bases):
-    """d1 = 1e-300 mm passes check (a positive length) but (4.1) overflows: validate scores
-    it (R² -inf, the limits fail: exit 1), calibrate and diagnose refuse it (exit 2), no
-    traceback (calibrate and diagnose raised a ValueError from the noise floor's fit)."""
+    """d1 = 1e-300 mm overflows (4.1) (calibrate and diagnose once raised a ValueError from the
+    noise floor's fit, and validate scored R² -inf): d1 must exceed the sensor coil's radius,
+    so check refuses it in one line (exit 2)."""
     folder, doc = bases["curvature"]
     codes = _every_command("curvature", folder, doc, {("rig", "sensor_offset_mm"): 1e-300})
-    assert codes == [0, 1, 2, 2]
+    assert codes == [2]
 
 
 def test_sensor_on_the_cable_line_is_refused_by_check(bases):

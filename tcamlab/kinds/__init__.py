@@ -240,6 +240,10 @@ class Kind:
         (:func:`tcamlab.signals.block_means`; 1: row by row). For a kind whose outputs are
         read from noisy inputs through a gain every parameter moves, so that a row-by-row fit
         gains by shrinking that gain (errors in variables).
+    rest_rule : callable or None
+        ``rest_rule(data) -> row indices`` at rest, for a kind whose rows need not come in
+        time order (curvature: the rows at the smallest cable pull, wherever they are);
+        None: the leading rows (:func:`rest_rows`).
     rest_also : tuple of str
         Logged columns besides the inputs that must also stay at their first value for a row
         to be at rest (:func:`rest_rows`): a pull test's displacement, which the machine
@@ -290,6 +294,7 @@ class Kind:
     run_reproducibility: Mapping[str, float] = field(default_factory=dict)
     fit_block: int = 1
     rest_also: tuple[str, ...] = ()
+    rest_rule: Callable[..., Any] | None = None
 
     @property
     def primary(self) -> str:
@@ -416,6 +421,13 @@ def rest_rows(kind: Kind, data: pd.DataFrame) -> np.ndarray:
     """
     import numpy as np
 
+    from tcamlab.errors import InputError
+
+    if kind.rest_rule is not None:
+        try:
+            return kind.rest_rule(data)
+        except InputError:
+            pass  # no row at rest by the kind's rule: the leading rows, as for every kind
     first_move = len(data)
     for c in kind.inputs + kind.rest_also:
         if c == "time" or c not in data:

@@ -8,7 +8,10 @@ camera_offset, offset_error.
 The per-run rule (:func:`run_options`), shared by validation, diagnosis and
 the virtual rig: S is the rig's (one segment; it must be stated), and each
 segment's R0 is the rig's ``initial_resistance`` if stated, else the mean of
-that channel over the run's leading rows at rest.
+that channel over the run's rows at rest, those at its smallest cable pull
+wherever they are in the log (:func:`rest_rows`: the log has no time, so its rows
+need not come in pull order). The robot's geometry is checked first
+(:func:`check_geometry`).
 
 The virtual rig's camera test (:func:`protocol`, :func:`exact_inputs`,
 :func:`measure`): with both lines at d1/2 from the neutral axis, a pull c
@@ -32,7 +35,15 @@ import pandas as pd
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConfigError, InputError, ModelDomainError
-from tcamlab.kinds import CalibrationParam, Kind, RunOptions, no_extras, no_section, rest_rows, stated_source
+from tcamlab.kinds import (
+    REST_TOLERANCE,
+    CalibrationParam,
+    Kind,
+    RunOptions,
+    no_extras,
+    no_section,
+    stated_source,
+)
 from tcamlab.kinds import protocol_values as pv
 from tcamlab.models import curvature as _curv
 from tcamlab.models import sensing as _sens
@@ -58,7 +69,8 @@ def predict(
     mods: Mods = NO_MODS,
     *,
     spring_constant: float,
-    initial_resistances: tuple[float, float],
+    initial_resistances: tuple[float, float] | None = None,
+    initial_resistance: float | None = None,
 ) -> dict[str, np.ndarray]:
     """Camera test: segment curvatures from R1, R2 and the cable, (4.1).
 
@@ -68,8 +80,11 @@ def predict(
         ``cable`` [m], ``r1``, ``r2`` [ohm].
     spring_constant : float
         S of one segment [N/m].
-    initial_resistances : (float, float)
+    initial_resistances : (float, float), optional
         R0 of each segment [ohm].
+    initial_resistance : float, optional
+        One R0 of both segments [ohm], used only without ``initial_resistances``
+        (:func:`run_options` gives both: this one is the R0 calibration fits).
     mods : Mods
         compression, camera_offset, offset_error.
 
@@ -83,6 +98,10 @@ def predict(
             "curvature model: no r1, r2 columns (a cable program, not a log)",
             hint="the resistances a program gives come from tcamlab.kinds.curvature.exact_inputs",
         )
+    if initial_resistances is None:
+        if initial_resistance is None:
+            raise TypeError("curvature predict needs initial_resistances or initial_resistance")
+        initial_resistances = (float(initial_resistance),) * 2
     kw = sample.sensor_kwargs()
     lengths = np.asarray(rig.segment_lengths, float)
     res = np.vstack([data["r1"].to_numpy(float), data["r2"].to_numpy(float)])
@@ -105,28 +124,124 @@ def predict(
     return {"kappa1": kappa[0], "kappa2": kappa[1]}
 
 
-def initial_resistances(rig: Rig, data: pd.DataFrame, provenance=None) -> tuple[tuple[float, float], str]:
-    """R0 of each segment [ohm] and where they came from (the module's rule)."""
+def rest_rows(data: pd.DataFrame, at: str = "") -> np.ndarray:
+    """Indices of the rows at rest: the run's smallest cable pull |c| [m], within
+    :data:`tcamlab.kinds.REST_TOLERANCE` of the pulls' range.
+
+    The log has no time column, so the rows need not come in pull order: the rest reference
+    is the slack cable wherever its rows are, not the leading rows.
+
+    Raises
+    ------
+    InputError
+        When the smallest pull is more than :data:`tcamlab.kinds.REST_TOLERANCE` of the
+        largest (no row is at rest; ``at`` prefixes the message).
+    """
+    cable = np.abs(data["cable"].to_numpy(float))
+    finite = cable[np.isfinite(cable)]
+    top = float(finite.max()) if finite.size else np.nan
+    low = float(finite.min()) if finite.size else np.nan
+    if not low <= REST_TOLERANCE * top:
+        row = int(np.nanargmin(cable)) + 1 if finite.size else 0
+        raise InputError(
+            f"{at}curvature run: no row at rest, so R0 cannot be read: its smallest cable pull is "
+            f"{low * 1e3:.4g} mm (data row {row}), more than {REST_TOLERANCE:.0%} of its largest, "
+            f"{top * 1e3:.4g} mm",
+            hint="state initial_resistance_ohm in [rig] (each segment's resistance with the cable "
+            "slack), or log a row at zero cable pull",
+        )
+    return np.flatnonzero(cable - low <= REST_TOLERANCE * (top - low))
+
+
+def initial_resistances(
+    rig: Rig, data: pd.DataFrame, provenance=None, at: str = ""
+) -> tuple[tuple[float, float], str]:
+    """R0 of each segment [ohm] and where they came from (the module's rule): the rig's
+    ``initial_resistance`` if stated, else the mean of r1, r2 over the rows at rest
+    (:func:`rest_rows`; ``at`` prefixes its error)."""
     r0 = rig.initial_resistance
     if r0 is not None:
         pair = tuple(float(x) for x in r0) if isinstance(r0, tuple) else (float(r0), float(r0))
         return pair, stated_source(provenance, "initial_resistance")
-    rows = rest_rows(KIND, data)
+    rows = rest_rows(data, at)
     pair = tuple(float(data[c].to_numpy(float)[rows].mean()) for c in ("r1", "r2"))
-    return pair, "first row of the run" if rows.size == 1 else f"mean of the {rows.size} rows at rest"
+    return pair, "the row at rest" if rows.size == 1 else f"mean of the {rows.size} rows at rest"
+
+
+SEGMENTS = 2
+"""Segments of the camera rig's robot [-]: one per logged resistance column (r1, r2)."""
+
+
+def check_geometry(sample: Sample, rig: Rig, at: str = "") -> None:
+    """Refuse a robot geometry the camera test's model cannot read, naming the key.
+
+    * ``segment_lengths`` [m]: one length per resistance column (:data:`SEGMENTS`), adding up
+      to the sensor's ``coil_length`` [m], which the segments split.
+    * ``sensor_offset`` d1 [m]: above the sensor coil's radius D/2 (the cable runs beside
+      the coil, not inside it) and below the shortest segment: (4.1) takes each segment as a
+      circular arc of a slender body, and a body thicker than a segment is long does not bend
+      as one (thesis robot: d1 = 9 mm in a 60 x 12 x 10 mm body of two 30 mm segments).
+
+    Raises
+    ------
+    ConfigError
+        Naming the ``[rig]`` key, with a hint of valid values.
+    """
+    lengths = np.asarray(rig.segment_lengths, float)
+    coil = sample.coil_length
+    halves = f"segment_lengths_mm = [{coil * 500:g}, {coil * 500:g}]"
+    shown = "[" + ", ".join(f"{x * 1e3:g}" for x in lengths) + "]"
+    if lengths.size != SEGMENTS:
+        raise ConfigError(
+            f"{at}rig.segment_lengths_mm = {shown}: {lengths.size} segment(s), but a curvature run "
+            f"logs {SEGMENTS} resistance series (r1_ohm, r2_ohm)",
+            hint=f"one length per segment, tip first, e.g. {halves}",
+        )
+    if abs(lengths.sum() - coil) > 1e-6 * coil:
+        raise ConfigError(
+            f"{at}rig.segment_lengths_mm = {shown}: the segment lengths sum to {lengths.sum() * 1e3:g} mm "
+            f"but the sensor (sample coil_length_mm) is {coil * 1e3:g} mm long",
+            hint=f"the segments split the embedded sensor, e.g. {halves}",
+        )
+    _check_offset(sample, rig, lengths, at)
+
+
+def _check_offset(sample: Sample, rig: Rig, lengths: np.ndarray, at: str) -> None:
+    """Refuse d1 [m] outside (D/2, shortest segment) (:func:`check_geometry`)."""
+    lo, hi = sample.coil_diameter / 2.0, float(lengths.min())
+    d1 = rig.sensor_offset
+    if not lo < d1 < hi:
+        raise ConfigError(
+            f"{at}rig.sensor_offset_mm = {d1 * 1e3:g} is outside {lo * 1e3:g} to {hi * 1e3:g} mm: d1 must "
+            "exceed the sensor coil's radius (sample coil_diameter_mm / 2) and stay below the shortest "
+            "segment (a slender body)",
+            hint=f"the distance from the sensor to the cable in mm (the thesis robot: 9), e.g. "
+            f"sensor_offset_mm = {float(np.clip(9.0, lo * 1e3 * 1.01, hi * 1e3 * 0.99)):.3g}",
+        )
 
 
 def run_options(
     sample: Sample, rig: Rig, data: pd.DataFrame, *, where: str = "", provenance=None, **_
 ) -> RunOptions:
-    """S (stated in the rig) and each segment's R0 by the module's rule."""
+    """S (stated in the rig) and each segment's R0 by the module's rule, after the robot's
+    geometry (:func:`check_geometry`); ``where`` (the experiment file) prefixes the errors.
+
+    The options also carry ``initial_resistance``, the mean of the segments' R0 [ohm]: the
+    one R0 calibration fits, which starts there when the file leaves it unstated.
+    """
+    at = f"{where}: " if where else ""
+    check_geometry(sample, rig, at)
     if rig.spring_constant is None:
         raise InputError(
-            f"{where}: curvature validation needs the sensor's spring constant",
+            f"{at}curvature validation needs the sensor's spring constant",
             hint="set spring_constant_N_per_m in [rig] (one segment)",
         )
-    r0s, source = initial_resistances(rig, data, provenance)
-    options = {"spring_constant": float(rig.spring_constant), "initial_resistances": r0s}
+    r0s, source = initial_resistances(rig, data, provenance, at)
+    options = {
+        "spring_constant": float(rig.spring_constant),
+        "initial_resistances": r0s,
+        "initial_resistance": float(np.mean(r0s)),
+    }
     return RunOptions(options, {"initial_resistances_ohm": r0s, "initial_resistances_source": source})
 
 
@@ -424,6 +539,8 @@ KIND = Kind(
     optional_columns=("time_s",),
     min_rows=2,
     inputs=("cable", "r1", "r2"),
+    # no time column: the rows at rest are those at the smallest pull, wherever they are
+    rest_rule=rest_rows,
     outputs=("kappa1", "kappa2"),
     tension_outputs=(),
     variants={"thesis": {}},
