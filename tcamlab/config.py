@@ -512,6 +512,8 @@ def _display_path(p: Path) -> str:
     Error messages end up in ``index.html``; this keeps the absolute location
     of the user's working directory out of them.
     """
+    # "edge/../raw/run.csv" is below the working directory too
+    p = Path(os.path.normpath(p))
     try:
         return str(p.relative_to(Path.cwd().resolve()))
     except (ValueError, OSError):

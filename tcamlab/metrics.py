@@ -619,6 +619,9 @@ SANITY_CHECKS = {
     "below, the column is likely logged with the opposite sign)",
     "zero-offset": f"each zero within {ZERO_SE_LIMIT:g} standard errors or {ZERO_NOISE_LIMIT:g} noise sds",
     "outside-domain": "every row inside the model's domain (a finite prediction)",
+    "estimator-off-target": "each self-sensing estimator within its targets on every run (mean "
+    "error and 95 % interval at most 2 % and 10 % of the run's stroke with the load logged, 3 % "
+    "and 15 % withheld)",
     "threshold-unused": "every [thresholds] key applies to a quantity of the kind",
     "parameter-far-from-stated": "every calibrated or identified parameter within 3 stated sds "
     "of its stated value, and of the stated value's sign",

@@ -1041,12 +1041,12 @@ def check_experiment(path: str | os.PathLike, rows: int = 3, *, drop_na: bool = 
     columns = exp.run_columns or (exp.columns,) * len(exp.runs)
     joins = exp.run_joins or (None,) * len(exp.runs)
     read = []
+    from tcamlab.text import shown_path
+
     for p, cols, join in zip(exp.runs, columns, joins):
         try:
-            run = tio.read_run(p, exp.kind, cols, join=join, drop_na=drop_na)
+            run = tio.read_run(p, exp.kind, cols, join=join, drop_na=drop_na, shown=shown_path(p))
         except TcamlabError as exc:  # every run is read: all problems at once
-            from tcamlab.text import shown_path
-
             report.runs.append(RunCheck(shown_path(p), problem=exc.one_line()))
             report.problems.append(exc.one_line())
             continue

@@ -8,6 +8,7 @@ options always give the same bytes.
 from __future__ import annotations
 
 import difflib
+import os
 import shlex
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -53,7 +54,7 @@ def clipped(text: str, width: int = 80) -> str:
 def shown_path(p) -> str:
     """A path as shown in a report: relative to the working directory when below it,
     else elided to its name, so reports carry no absolute paths."""
-    p = Path(p)
+    p = Path(os.path.normpath(p))  # "edge/../raw/run.csv" is below the working directory too
     if not p.is_absolute():
         return p.as_posix()
     try:

@@ -799,7 +799,7 @@ def validate(
     if dropped:
         notes.append(f"{dropped} rows with blank cells were dropped (--drop-na)")
     notes += [n for r in runs for n in smoothed_notes(r)]
-    warnings = sanity_warnings(kind, preds, metrics)
+    warnings = sanity_warnings(kind, preds, metrics) + list(extras.pop("warnings", []))
     warnings += unused_threshold_warnings(experiment.thresholds, checks, list(metrics[primary]))
     warnings += [
         w

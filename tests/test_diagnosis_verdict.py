@@ -160,3 +160,30 @@ def test_an_unstated_parameter_is_not_called_stated():
     assert "stated 30.02: -0.01 prior sds" in describe_parameter("initial_resistance", p)
     text = describe_parameter("initial_resistance", {**p, "stated_in_file": False})
     assert "not stated; the logs' rule gives 30.02: -0.01 prior sds" in text
+
+
+def test_an_explanation_that_leaves_a_gap_says_so():
+    """Recalibration closing 97 % of the squared gap can still leave 2.13 x the noise floor on
+    withheld runs (SYNTHETIC: a sigmoid softening of G, a form the library does not have): the
+    words and the design say what is left, instead of "the diagnosis is clear"."""
+    from types import SimpleNamespace
+
+    from tcamlab.design import _clear_message
+    from tcamlab.diagnosis.verdict import _left_over_text, gap_left
+
+    named = SimpleNamespace(heldout_rmse_after_noise=2.13)
+    assert gap_left(named, 1.34) and not gap_left(SimpleNamespace(heldout_rmse_after_noise=1.2), 1.34)
+    assert not gap_left(SimpleNamespace(heldout_rmse_after_noise=float("nan")), 1.34)
+    assert "leaves 2.13 x the noise floor on withheld data, above the no-gap limit 1.34" in _left_over_text(
+        named, 1.34
+    )
+    doc = {
+        "verdict": "miscalibrated",
+        "effect": None,
+        "recalibration": {"named": ["radial_cte"]},
+        "gap": {"limit": 1.34},
+        "ranking": [{"effect": "recalibration", "heldout_rmse_after_noise": 2.13}],
+    }
+    assert "but it leaves 2.13 x the noise floor" in _clear_message(doc, "clear")
+    doc["ranking"][0]["heldout_rmse_after_noise"] = 1.1
+    assert "the diagnosis is clear (miscalibrated: radial_cte moved)" in _clear_message(doc, "clear")

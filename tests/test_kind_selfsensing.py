@@ -393,3 +393,28 @@ def test_a_stated_load_other_than_the_logged_one_is_noted(tmp_path):
     assert len(notes) == 1 and "0.4903 N (50 g) but [rig] load_g = 60 g" in notes[0], notes
     same = validate(load_experiment(root / "experiments" / "selfsensing.toml"), runs)
     assert not [n for n in same.notes if "logged load at rest" in n]
+
+
+def test_a_logged_load_sets_the_filters_mass_and_a_run_off_target_is_a_warning(tmp_path):
+    """load_g = 1e-6 g beside a logged 50 g set the EKF's inertia and put the logged-load
+    estimate 294 % of an independent tester's stroke off; the logged load at rest is the mass
+    now, so the logged-load EKF is unchanged from load_g = 50. The withheld EKF starts from
+    the wrong prior: it misses its targets, which is a warning per run, not a pass."""
+    from tcamlab.config import load_experiment
+    from tcamlab.validation import validate
+
+    text = (ROOT / "experiments" / "selfsensing.toml").read_text(encoding="utf-8")
+    path = tmp_path / "tiny.toml"
+    path.write_text(
+        text.replace('"../raw/', f'"{ROOT}/raw/').replace("load_g = 50.0", "load_g = 1e-6"), encoding="utf-8"
+    )
+    right = validate(load_experiment(ROOT / "experiments" / "selfsensing.toml"), mc_draws=0)
+    tiny = validate(load_experiment(path), mc_draws=0)
+    assert load_experiment(path).rig.load == pytest.approx(1e-9)
+    fig = [r.extras["published_format_by_estimator"]["EKF (causal)"]["pooled"] for r in (right, tiny)]
+    assert fig[1]["mean_error_mm"] == pytest.approx(fig[0]["mean_error_mm"], abs=2e-3)
+    assert fig[1]["interval95_width_mm"] == pytest.approx(fig[0]["interval95_width_mm"], rel=0.05)
+    assert not [w for w in right.warnings if w.check == "estimator-off-target"]
+    off = [w for w in tiny.warnings if w.check == "estimator-off-target"]
+    assert off and {w.values["model"] for w in off} == {"EKF (load withheld)"}
+    assert len({w.run for w in off}) == 3 and "beyond the estimator's targets (3 % and 15 %)" in off[0].message

@@ -402,7 +402,33 @@ def _clear_message(diagnosis: dict, st: str) -> str:
         return "the thesis model fits within the noise: no further experiment is needed"
     if st == "unexplained":
         return "no candidate explains the gap, so there are no hypotheses to separate: an effect outside the library is needed, not another protocol"
+    left = _gap_left(diagnosis)
+    if left is not None:
+        return (
+            f"the diagnosis names one explanation ({diagnosis.get('verdict')}: {_explanation(diagnosis)}), "
+            f"but it leaves {left[0]:.2f} x the noise floor on withheld data, above the no-gap limit "
+            f"{left[1]:.2f}: no protocol from the menu separates a form the library does not have; "
+            "an effect outside the library may act"
+        )
     return f"the diagnosis is clear ({diagnosis.get('verdict')}: {_explanation(diagnosis)}); no further experiment is needed to tell hypotheses apart"
+
+
+def _gap_left(diagnosis: dict) -> tuple[float, float] | None:
+    """(held-out RMSE, no-gap limit) [noise floors] of the explanation a diagnosis names when
+    it leaves more than the limit (:func:`tcamlab.diagnosis.verdict.gap_left`), else None."""
+    named = diagnosis.get("combination") or next(
+        (
+            c
+            for c in diagnosis.get("ranking") or []
+            if c.get("effect") == (diagnosis.get("effect") or "recalibration")
+        ),
+        None,
+    )
+    limit = (diagnosis.get("gap") or {}).get("limit")
+    after = (named or {}).get("heldout_rmse_after_noise")
+    if after is None or limit is None or not after > limit:
+        return None
+    return float(after), float(limit)
 
 
 def _explanation(diagnosis: dict) -> str:

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from tcamlab.params import SILVER_TCR, Rig, Sample
+from tcamlab.params import G_ACCEL, SILVER_TCR, Rig, Sample
 
 __all__ = [
     "ObserverConfig",
@@ -492,6 +492,8 @@ def filter_run(
     column = next((c for c in ("load_force", "load") if c in data), None)
     load = data[column].to_numpy(float) if use_load and column else None
     law = (float(lead_resistance), float(stretch_factor), float(tcr2))
+    rest = slice(0, rest_rows_count(data))
+    rig = _logged_mass(rig, load, rest)
     config = config_from(
         sample,
         rig,
@@ -504,7 +506,6 @@ def filter_run(
     )
     if load is not None:
         config = replace(config, initial_load_sd=max(LOAD_PRIOR_SD, LOAD_PRIOR_REL * abs(rig.force)))
-    rest = slice(0, rest_rows_count(data))
     p_rest = float(np.mean(v[rest] * i[rest] - law[0] * i[rest] ** 2))
     t0 = rig.ambient + p_rest / rig.heat_loss  # steady at the probe power
     est = estimate(t, v, i, config, load=load, initial_temperature=t0)
@@ -513,6 +514,19 @@ def filter_run(
     f_rest = float(load[0]) if load is not None and np.isfinite(load[0]) else rig.force
     x_rest = rest_extension(sample, rig, t0, f_rest)
     return est, x_rest
+
+
+def _logged_mass(rig: Rig, load, rest: slice) -> Rig:
+    """The rig with its hanging mass read from the logged load at rest [N] when there is one:
+    the stated load_g is then only a nominal value, and a wrong one (1 ug beside a logged 50 g)
+    had set the filter's inertia and load prior and put the estimate 294 % of the stroke off."""
+    if load is None:
+        return rig
+    at_rest = np.asarray(load[rest], float)
+    at_rest = at_rest[np.isfinite(at_rest)]
+    if at_rest.size == 0 or not float(np.mean(at_rest)) > 0:
+        return rig
+    return replace(rig, load=float(np.mean(at_rest)) / G_ACCEL)
 
 
 def predict_displacement(
