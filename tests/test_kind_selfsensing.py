@@ -417,4 +417,6 @@ def test_a_logged_load_sets_the_filters_mass_and_a_run_off_target_is_a_warning(t
     assert not [w for w in right.warnings if w.check == "estimator-off-target"]
     off = [w for w in tiny.warnings if w.check == "estimator-off-target"]
     assert off and {w.values["model"] for w in off} == {"EKF (load withheld)"}
-    assert len({w.run for w in off}) == 3 and "beyond the estimator's targets (3 % and 15 %)" in off[0].message
+    assert (
+        len({w.run for w in off}) == 3 and "beyond the estimator's targets (3 % and 15 %)" in off[0].message
+    )

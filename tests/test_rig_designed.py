@@ -75,7 +75,9 @@ def test_a_self_sensing_muscle_without_s_is_refused_naming_the_file(tmp_path):
     path.write_text("\n".join(kept) + "\n", encoding="utf-8")
     with pytest.raises(ConfigError) as info:
         simulate("selfsensing", path, seed=2, out_dir=tmp_path)
-    assert "muscle.toml" in info.value.message and "the muscle's spring_constant_N_per_m" in info.value.message
+    assert (
+        "muscle.toml" in info.value.message and "the muscle's spring_constant_N_per_m" in info.value.message
+    )
     assert "spring_constant_N_per_m = 2.5" in info.value.hint
     from tcamlab.kinds.selfsensing_protocol import protocol_runs
 

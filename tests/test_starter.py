@@ -476,11 +476,15 @@ def test_check_warns_when_an_oven_log_starts_far_below_the_stated_ambient(tmp_pa
     and validate gave R² 0.65 without a word on it."""
     from tcamlab.starter import check_experiment
 
-    rows = ["time_s,temperature_C,displacement_mm"] + [f"{60 * i},{25 + 5 * i},{-0.01 * i}" for i in range(20)]
+    rows = ["time_s,temperature_C,displacement_mm"] + [
+        f"{60 * i},{25 + 5 * i},{-0.01 * i}" for i in range(20)
+    ]
     write(tmp_path / "raw" / "oven.csv", "\n".join(rows) + "\n")
     body = 'kind = "static"\ntitle = "t"\nruns = ["../raw/oven.csv"]\n[sample]\npreset = "thesis-tca"\n'
     for ambient, warned in ((100.0, True), (20.0, False), (30.0, False)):
-        exp = write(tmp_path / "experiments" / "e.toml", body + f"[rig]\nload_g = 50\nambient_C = {ambient}\n")
+        exp = write(
+            tmp_path / "experiments" / "e.toml", body + f"[rig]\nload_g = 50\nambient_C = {ambient}\n"
+        )
         hits = [w for w in check_experiment(exp).warnings if "below the stated ambient_C" in w]
         assert bool(hits) is warned, (ambient, hits)
         assert not hits or "falls to 25 degC, 75 K below" in hits[0]

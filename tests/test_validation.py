@@ -234,5 +234,7 @@ def test_one_dead_channel_beside_live_runs_is_named():
     dead = runs[1].data.assign(displacement=0.0)
     runs[1] = dataclasses.replace(runs[1], data=dead)
     warned = [w for w in validate(exp, runs, mc_draws=0).warnings if w.check == "flat-prediction"]
-    assert [w.run for w in warned] == ["static_run2"] and "is constant (0 mm on every row)" in warned[0].message
+    assert [w.run for w in warned] == ["static_run2"] and "is constant (0 mm on every row)" in warned[
+        0
+    ].message
     assert not [w for w in validate(exp, mc_draws=0).warnings if w.check == "flat-prediction"]
