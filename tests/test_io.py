@@ -1026,3 +1026,17 @@ def test_a_run_logged_backwards_is_told_to_sort_its_rows(tmp_path):
     assert "sort them oldest first" in err.hint
     glued = write(tmp_path, "\n".join([*lines, *lines[1:]]) + "\n", "glued.csv")
     assert "split concatenated runs" in raises_input(["glued.csv"], read_run, glued, "dynamic").hint
+
+
+def test_an_optional_channel_mapped_for_every_run_says_to_map_it_per_run(tmp_path):
+    """The designed runs log a load cell the first runs did not: mapping it in [columns] reaches
+    the old runs too, and the hint says to give it to the new runs' own columns."""
+    old = write(tmp_path, dynamic_text(), "old.csv")
+    columns = {"load_N": {"from": "Masse [g]", "unit": "gf"}}
+    err = raises_input(
+        ["old.csv", "mapped column 'Masse [g]' (for load_N) not found"], read_run, old, "dynamic", columns
+    )
+    assert (
+        'in their own columns in runs, e.g. { file = "new.csv", columns = { load_N = "Masse [g]" } }'
+        in err.hint
+    )

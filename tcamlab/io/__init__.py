@@ -1144,6 +1144,14 @@ def _missing_column(
             f"the file has {canon!r} itself; give this run its own columns in runs, e.g. "
             f'{{ file = "{Path(shown).name}", columns = {{ {canon} = "{canon}" }} }} (the path as in runs)'
         )
+    elif not required:
+        # an optional channel only the new runs log (a designed run's load cell): a global
+        # mapping reaches the old runs too
+        hint = (
+            f"if this run does not log {canon}, map it only for the runs that do, in their own "
+            f'columns in runs, e.g. {{ file = "new.csv", columns = {{ {canon} = "{spec.header}" }} }}, '
+            "and take it out of [columns]"
+        )
     else:
         hint = _COLUMNS_HINT
     return InputError(
