@@ -420,3 +420,16 @@ def test_a_logged_load_sets_the_filters_mass_and_a_run_off_target_is_a_warning(t
     assert (
         len({w.run for w in off}) == 3 and "beyond the estimator's targets (3 % and 15 %)" in off[0].message
     )
+
+
+def test_no_load_logged_and_none_stated_is_noted(tmp_path):
+    """Neither a load column nor load_g: the preset's 50 g was used without a word."""
+    from tcamlab.config import load_experiment
+    from tcamlab.validation import validate
+
+    text = (ROOT / "experiments" / "selfsensing.toml").read_text(encoding="utf-8")
+    path = tmp_path / "noload.toml"
+    path.write_text(text.replace('"../raw/', f'"{ROOT}/raw/').replace("load_g = 50.0", ""), encoding="utf-8")
+    res = validate(load_experiment(path), mc_draws=0, ignore=["load_N"])
+    assert any("no run logs the load and the file states no load_g" in n and "50 g" in n for n in res.notes)
+    assert not [n for n in validate(load_experiment(path), mc_draws=0).notes if "states no load_g" in n]

@@ -663,7 +663,8 @@ prior's error (a file stating 60 g beside a logged 50 g put the withheld estimat
 
 
 def _stated_load_notes(experiment, predictions) -> list[str]:
-    """A note per run whose logged load at rest is not the stated ``load_g``."""
+    """A note per run whose logged load at rest is not the stated ``load_g``, and one when no run
+    logs the load and the file states none (the preset's or tcamlab's load is then used)."""
     stated = experiment.rig.load * G_ACCEL
     out = []
     for p in predictions:
@@ -677,6 +678,13 @@ def _stated_load_notes(experiment, predictions) -> list[str]:
                 "from load_g, so its figures on this run include that difference (set load_g to the load at rest "
                 "where it is known, or read them as a test of a wrong prior)"
             )
+    in_file = "load_g" in ((getattr(experiment, "raw", None) or {}).get("rig") or {})
+    if not in_file and not any("load" in p.data for p in predictions):
+        out.append(
+            f"no run logs the load and the file states no load_g: the EKF's load prior and moving mass "
+            f"are {experiment.rig.load * 1e3:g} g from the preset or tcamlab's default (state load_g in "
+            "[rig] as the load hung at the start)"
+        )
     return out
 
 
