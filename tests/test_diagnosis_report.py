@@ -565,3 +565,22 @@ def test_diagnosis_report_renders_the_next_experiment_only_when_present(glass):
     # stored on the result (as diagnosis.json's next_experiment), the report finds it there
     stored = SimpleNamespace(**{**vars(result), "next_experiment": _design()})
     assert diagnosis_document(stored, exp).sections[-1].heading == "Next experiment"
+
+
+def test_the_reason_keeps_what_the_verdict_said_after_the_paired_tests():
+    """ "it leaves 1.95 x the noise floor ..." came after "every other candidate is clearly
+    worse" and was cut from the printed reason and the report."""
+    from tcamlab.report.diagnosis_report import _reason
+
+    best = _cand("a", [1.0, 1.1, 0.9, 1.0, 1.2], (0.5, 0.6))
+    tail = "; it leaves 1.95 x the noise floor on withheld data, above the no-gap limit 1.03"
+    for others, words in (
+        ([_cand("b", [2.0, 2.1, 1.9, 2.2, 2.0], (0.2, 0.3))], "; every other candidate is clearly worse by"),
+        ([_cand("c", [1.2, 0.9, 1.1, 0.8, 1.1], (0.45, 0.58))], "; paired tests against it on the withheld"),
+    ):
+        res = _result(best, others)
+        res.reason = "a closes 97% of the gap, and every other candidate is clearly worse" + tail
+        text = _reason(res)
+        assert text.startswith("a closes 97% of the gap" + tail + words), text
+        res.reason = "a closes 97% of the gap, and every other candidate is clearly worse"
+        assert tail not in _reason(res) and _reason(res).endswith(":")

@@ -446,17 +446,24 @@ def _rmse_by_quantity(c) -> str:
 def _reason(result) -> str:
     """The verdict's reason, with a bare "clearly worse" replaced by the paired tests."""
     reason = result.reason
-    cut = reason.find(", and every other candidate is clearly worse")
+    phrase = ", and every other candidate is clearly worse"
+    cut = reason.find(phrase)
     if cut < 0:
         return reason
+    # what the verdict added after the phrase (a gap left, a domain edge) is kept, before the tests
+    head, tail = reason[:cut], reason[cut + len(phrase) :]
     tests = stored_tests(result)
     if tests and all(t["clearly_worse"] for t in tests):
+        if not tail:
+            return (
+                head + ", and every other candidate is clearly worse by a paired test on the withheld folds:"
+            )
         return (
-            reason[:cut]
-            + ", and every other candidate is clearly worse by a paired test on the withheld folds:"
+            head + tail + "; every other candidate is clearly worse by a paired test on the withheld folds:"
         )
     return (
-        reason[:cut]
+        head
+        + tail
         + "; paired tests against it on the withheld folds (not every other candidate is clearly worse):"
     )
 
