@@ -105,19 +105,23 @@ ESTIMATOR_KEYS = {
     "lead_resistance": "lead_resistance_ohm",
     "stretch_factor": "stretch_factor",
     "tcr2": "tcr2_per_K2",
+    "radial_cte": "radial_cte_per_K",
 }
-"""[rig] key of each field the EKF refit writes (all in SI = lab units)."""
+"""Key of each field the EKF refit writes (all in SI = lab units): in [sample] for the fields of
+:data:`tcamlab.calibration.estimator.SAMPLE_FIELDS`, else in [rig]."""
 
 
 def estimator_values(doc: dict, fit) -> list[str]:
-    """Write the EKF refit's R0, TCR (and R_lead, k_s where fitted) into ``doc``'s [rig]; the
-    header lines that give both fits and which figure uses which.
+    """Write the EKF refit's R0, TCR (and R_lead, k_s, tcr2 where fitted) into ``doc``'s [rig] and
+    its rho (where fitted) into [sample]; the header lines that give both fits and which figure
+    uses which.
 
     Raises
     ------
     InputError
         R_lead below 0 or k_s not above 0: loading would refuse the file, so none is written.
     """
+    from tcamlab.calibration.estimator import SAMPLE_FIELDS
     from tcamlab.errors import InputError
 
     if fit.values["lead_resistance"] < 0 or fit.values["stretch_factor"] <= 0:
@@ -126,28 +130,32 @@ def estimator_values(doc: dict, fit) -> list[str]:
             f"{fit.values['stretch_factor']:.4g} cannot be written to a calibrated file",
             hint="state lead_resistance_ohm and stretch_factor in [rig]",
         )
-    rig = doc.setdefault("rig", {})
+    doc.setdefault("rig", {})
     if not fit.fitted:
         return ["Second stage (the estimator's own fit): " + next(iter(fit.held.values()), "not run") + "."]
     lines = [
-        "Second stage (the estimator's own fit): R0 and the TCR, with R_lead and k_s where the runs",
-        "identify them, refitted through the causal EKF against the laser ("
+        "Second stage (the estimator's own fit): R0 and the TCR, with R_lead, k_s, tcr2 and the",
+        "mechanics' rho where the runs identify them, refitted through the causal EKF against the laser ("
         + ", ".join(fit.cases)
         + f"); EKF error rms (rows weighted by the filter's certainty) {fit.rms_before_um:.1f} um -> {fit.rms_after_um:.1f} um.",
     ]
     for name, key in ESTIMATOR_KEYS.items():
+        if name not in fit.open_loop:  # a fit from before the field was refitted
+            continue
         before, after = fit.open_loop[name], fit.values[name]
+        where = "sample" if name in SAMPLE_FIELDS else "rig"
+        table = doc.setdefault(where, {})
         if name in fit.fitted:
-            rig[key] = _round(after)
-            rig.setdefault("uncertainty", {})
+            table[key] = _round(after)
+            table.setdefault("uncertainty", {})
             # a moved tcr2 with the open-loop stage's sd would not cover its own value
-            if name in ("initial_resistance", "tcr", "tcr2") and name in fit.sd:
-                rig["uncertainty"][key] = _round(fit.sd[name])
+            if name in ("initial_resistance", "tcr", "tcr2", "radial_cte") and name in fit.sd:
+                table["uncertainty"][key] = _round(fit.sd[name])
             lines.append(
-                f"rig.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
+                f"{where}.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
             )
         else:
-            lines.append(f"rig.{key}: {before:.6g}, {fit.held.get(name, 'held at its stated value')}")
+            lines.append(f"{where}.{key}: {before:.6g}, {fit.held.get(name, 'held at its stated value')}")
     lines += [f"{k}: used by {v}." for k, v in fit.used_by.items()]
     return lines
 

@@ -343,18 +343,18 @@ def _estimator_stage(exps, runs, estimates) -> list:
     for e, rs in zip(exps, runs):
         if e.kind != "selfsensing":
             continue
-        changes = {
-            p.field: p.value
-            for p in estimates
-            if p.where == "rig" and p.name in (p.field, f"{e.name}.{p.field}")
-        }
-        sds = {
-            p.field: p.posterior_sd
-            for p in estimates
-            if p.where == "rig" and p.name in (p.field, f"{e.name}.{p.field}")
-        }
+        mine = [p for p in estimates if p.name in (p.field, f"{e.name}.{p.field}")]
+        changes = {p.field: p.value for p in mine if p.where == "rig"}
+        sds = {p.field: p.posterior_sd for p in mine}
+        # a sample field the first stage fitted (rho from an oven test of the same sample)
+        # enters the refit at its posterior; one it did not, at the file's prior
+        moved = {p.field: p.value for p in mine if p.where == "sample"}
+        sample_sd = {**e.sample_uncertainty, **{p.field: p.posterior_sd for p in mine if p.where == "sample"}}
         with progress.task(f"calibrating: {e.name}'s EKF refit", total=1) as step:
-            fit = refit_for_estimator(e, e.rig.replace(**changes), [r.data for r in rs])
+            fit = refit_for_estimator(
+                e, e.rig.replace(**changes), [r.data for r in rs],
+                sample=replace(e.sample, **moved), sample_sd=sample_sd,
+            )  # fmt: skip
             fit = replace(fit, open_loop_sd=sds)
             words = {n: disagreement(fit, n) for n in fit.fitted}
             out.append(replace(fit, disagreements={n: w for n, w in words.items() if w}))

@@ -7,7 +7,8 @@ with the load unknown reads that common error as a load drift during heating. Th
 holds the thermal constants and the damping at the open-loop fit and refits what the EKF is
 sensitive to, R0 and the TCR, with the resistance law's nuisances R_lead (lead and contacts,
 bounded at 0 ohm), k_s (stretch sensitivity) and tcr2 (the coating's quadratic TCR, about 0
-when the file states none) where the runs identify them, through the
+when the file states none), and the sample's rho (the mechanics' thermal stroke, which the
+open-loop inversion does not use) where the runs identify them, through the
 estimator ``validate`` scores: the EKF (load logged where the runs log it, and withheld),
 against the laser of the training runs, each run after its rest-row zero, each row weighted
 down where the filter's own displacement variance grows (an unlogged load change).
@@ -43,8 +44,16 @@ __all__ = [
     "disagreement",
 ]
 
-PARAMETERS = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor", "tcr2")
-"""Fields the stage refits, in order: R0 [ohm], TCR [1/K], R_lead [ohm], k_s [-], tcr2 [1/K^2]."""
+PARAMETERS = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor", "tcr2", "radial_cte")
+"""Fields the stage refits, in order: R0 [ohm], TCR [1/K], R_lead [ohm], k_s [-], tcr2 [1/K^2],
+rho [1/K] (a field of the sample; the rest are the rig's)."""
+SAMPLE_FIELDS = ("radial_cte",)
+"""Fields of :class:`tcamlab.params.Sample` among :data:`PARAMETERS`: the mechanics' thermal
+stroke. The open-loop inversion does not use the mechanics, so the first stage cannot fit it;
+the EKF's displacement during heating is mostly the mechanics' equilibrium at the filter's
+temperature, and a stroke per kelvin off by 40 % (an independent generator's sample against
+the thesis's rho) put the EKF 31 % of the stroke off on a run heated under a constant load,
+while the refit bent the TCR and tcr2 to cancel it on the training runs (measured)."""
 CORE = ("initial_resistance", "tcr")
 """Always refitted: the EKF's drift comes from them."""
 SYMBOLS = {
@@ -53,6 +62,7 @@ SYMBOLS = {
     "lead_resistance": "R_lead",
     "stretch_factor": "k_s",
     "tcr2": "tcr2",
+    "radial_cte": "rho",
 }
 """Thesis symbols, for the report."""
 MAX_CORRELATION = 0.99
@@ -60,9 +70,10 @@ MAX_CORRELATION = 0.99
 MAX_SD_RATIO = 0.5
 """A nuisance whose posterior sd is more than this fraction of its prior sd rests on its prior
 and is held (the calibration's tier "prior": the logs do not halve the prior sd) [-]."""
-PRIOR_SD_REL = {"initial_resistance": 0.1, "tcr": 0.2, "stretch_factor": 0.2}
+PRIOR_SD_REL = {"initial_resistance": 0.1, "tcr": 0.2, "stretch_factor": 0.2, "radial_cte": 0.3}
 """Prior sds relative to the centre [-]: wide, since the open-loop fit's R0 and TCR may be
-several % off together (the reason for this stage); k_s within 20 % of chapter 3's."""
+several % off together (the reason for this stage); k_s within 20 % of chapter 3's; rho as the
+static kind's calibration states it where the file gives no sd (30 %)."""
 LEAD_PRIOR_SD = 0.3
 """Prior sd of R_lead [ohm] about the stated value (a bench rig's leads: 0.2-0.5 ohm)."""
 TCR2_PRIOR_SD = TCR2_ZERO_SD
@@ -132,10 +143,19 @@ class EstimatorFit:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def refit_prior(rig, name: str) -> tuple[float, float]:
+def refit_prior(rig, name: str, sample=None, sample_sd=None) -> tuple[float, float]:
     """(centre, sd) of one refitted field, SI: the open-loop fit's (or stated) value; R_lead's,
     k_s's and tcr2's sd as stated in [rig.uncertainty], else :data:`LEAD_PRIOR_SD`,
-    :data:`PRIOR_SD_REL` and :data:`TCR2_PRIOR_SD`."""
+    :data:`PRIOR_SD_REL` and :data:`TCR2_PRIOR_SD`; rho's (a field of ``sample``) ``sample_sd``
+    (the first stage's posterior sd, or [sample.uncertainty]), else 30 % of it, else
+    :data:`tcamlab.kinds.static.RHO_ZERO_SD` where it is 0."""
+    if name in SAMPLE_FIELDS:
+        from tcamlab.kinds.static import RHO_ZERO_SD
+
+        mu = float(getattr(sample, name))
+        if sample_sd:
+            return mu, float(sample_sd)
+        return mu, (PRIOR_SD_REL[name] * abs(mu) if mu else RHO_ZERO_SD)
     mu = float(getattr(rig, name))
     stated = (getattr(rig, "uncertainty", None) or {}).get(name)
     if name in ("lead_resistance", "stretch_factor", "tcr2") and stated:
@@ -147,24 +167,35 @@ def refit_prior(rig, name: str) -> tuple[float, float]:
     return mu, PRIOR_SD_REL[name] * abs(mu)
 
 
+def current_values(sample, rig) -> dict:
+    """Each field of :data:`PARAMETERS` as ``sample`` and ``rig`` state it [SI]."""
+    return {n: float(getattr(sample if n in SAMPLE_FIELDS else rig, n)) for n in PARAMETERS}
+
+
+def with_values(sample, rig, values: dict) -> tuple:
+    """(sample, rig) with the fields of ``values`` replaced, each in its own dataclass."""
+    from dataclasses import replace
+
+    on_sample = {n: v for n, v in values.items() if n in SAMPLE_FIELDS}
+    on_rig = {n: v for n, v in values.items() if n not in SAMPLE_FIELDS}
+    return (replace(sample, **on_sample) if on_sample else sample), replace(rig, **on_rig)
+
+
 def _residual_fn(sample, rig, frames, names, mu, sd, cases):
     """u -> stacked (prior, thinned zeroed EKF error / ERROR_SD) residuals [-], each row's error
     weighted by :func:`tcamlab.estimation.observer.law_fit_weights` (down where the filter's own
     displacement variance grows past its rest level: the load's lag after an unlogged change)."""
-    from dataclasses import replace
-
     from tcamlab.estimation.observer import filter_run, law_fit_weights, rest_rows_count
 
     def fn(u):
-        theta = dict(zip(names, mu + sd * u))
-        fitted = replace(rig, **theta)
+        moved, fitted = with_values(sample, rig, dict(zip(names, mu + sd * u)))
         out = [np.asarray(u, float)]
         for data in frames:
             for use_load in cases:
                 if use_load and "load" not in data:
                     continue
                 est, x_rest = filter_run(
-                    sample, fitted, data, initial_resistance=fitted.initial_resistance, use_load=use_load,
+                    moved, fitted, data, initial_resistance=fitted.initial_resistance, use_load=use_load,
                     lead_resistance=fitted.lead_resistance, stretch_factor=fitted.stretch_factor,
                     tcr2=fitted.tcr2,
                 )  # fmt: skip
@@ -190,7 +221,7 @@ def _correlation(jac: np.ndarray, n_prior: int) -> np.ndarray:
 
 
 def held_nuisances(jac: np.ndarray, names) -> dict:
-    """The nuisances (R_lead, k_s, tcr2) the runs cannot tell from another fitted field, with the reason.
+    """The nuisances (R_lead, k_s, tcr2, rho) the runs cannot tell from another fitted field, with the reason.
 
     Parameters
     ----------
@@ -233,12 +264,14 @@ def held_nuisances(jac: np.ndarray, names) -> dict:
     return held
 
 
-def _least_squares(sample, rig, frames, names, cases):
+def _least_squares(sample, rig, frames, names, cases, sample_sd=None):
     """The bounded MAP fit of ``names`` (R_lead >= 0, k_s > 0): (theta [SI], prior sd [SI], the
-    scipy fit, the thinned residuals at the start [-])."""
+    scipy fit, the thinned residuals at the start [-]); ``sample_sd`` maps a sample field to its
+    prior sd (:func:`refit_prior`)."""
     from tcamlab.estimation.observer import best_least_squares
 
-    mu, sd = (np.array(x) for x in zip(*(refit_prior(rig, n) for n in names)))
+    priors = [refit_prior(rig, n, sample, (sample_sd or {}).get(n)) for n in names]
+    mu, sd = (np.array(x) for x in zip(*priors))
     lo = np.array([(-mu[k] / sd[k] if n == "lead_resistance" else -np.inf) for k, n in enumerate(names)])
     lo = np.where(np.array(names) == "stretch_factor", (0.05 - mu) / sd, lo)  # k_s > 0
     fn = _residual_fn(sample, rig, frames, names, mu, sd, cases)
@@ -253,7 +286,7 @@ def _least_squares(sample, rig, frames, names, cases):
     return mu + sd * fit.x, sd, fit, before
 
 
-def refit_for_estimator(experiment, rig, frames) -> EstimatorFit:
+def refit_for_estimator(experiment, rig, frames, *, sample=None, sample_sd=None) -> EstimatorFit:
     """The EKF refit (:func:`fit_for_estimator`), or, where the filter cannot run at the
     open-loop values (a value the EKF's domain refuses, a non-finite residual), the open-loop
     fit kept with the reason: the first stage's values stay valid without the second.
@@ -261,10 +294,10 @@ def refit_for_estimator(experiment, rig, frames) -> EstimatorFit:
     from tcamlab.errors import TcamlabError
 
     try:
-        return fit_for_estimator(experiment, rig, frames)
+        return fit_for_estimator(experiment, rig, frames, sample=sample, sample_sd=sample_sd)
     except (TcamlabError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
         reason = getattr(exc, "message", None) or str(exc)
-    values = {n: float(getattr(rig, n)) for n in PARAMETERS}
+    values = current_values(experiment.sample if sample is None else sample, rig)
     first = reason.splitlines()[0] if reason else "no reason given"
     return EstimatorFit(
         experiment=experiment.name, open_loop=values, values=dict(values), fitted=(),
@@ -274,8 +307,8 @@ def refit_for_estimator(experiment, rig, frames) -> EstimatorFit:
     )  # fmt: skip
 
 
-def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
-    """Refit R0, TCR and, where identified, R_lead, k_s and tcr2 through the EKF (module docstring).
+def fit_for_estimator(experiment, rig, frames, *, sample=None, sample_sd=None) -> EstimatorFit:
+    """Refit R0, TCR and, where identified, R_lead, k_s, tcr2 and rho through the EKF (module docstring).
 
     Each row's error is weighted down where the filter's own displacement variance grows past its
     rest level (:func:`tcamlab.estimation.observer.law_fit_weights`): after a load change nobody
@@ -291,6 +324,10 @@ def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
     frames : sequence of DataFrame
         The training runs: ``time`` [s], ``voltage`` [V], ``current`` [A], ``displacement``
         [m] (laser), optional ``load`` [N].
+    sample : Sample, optional
+        The sample after the first stage; default ``experiment.sample``.
+    sample_sd : dict, optional
+        Prior sd [SI] of a sample field (rho); default ``experiment.sample_uncertainty``.
 
     Returns
     -------
@@ -302,15 +339,19 @@ def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
         When the refit leaves R_lead below 0 or k_s not above 0 (never written to a file).
     """
     cases = (True, False) if any("load" in d for d in frames) else (False,)
+    sample = experiment.sample if sample is None else sample
+    sample_sd = (
+        dict(getattr(experiment, "sample_uncertainty", None) or {}) if sample_sd is None else sample_sd
+    )
     # all first: at the open-loop values the withheld case's drift dominates the Jacobian
     # and k_s looked tied to R0 (r = -0.998) where, fitted, it was not (|r| <= 0.71; measured)
     names = list(PARAMETERS)
-    theta, sd, fit, before = _least_squares(experiment.sample, rig, frames, names, cases)
+    theta, sd, fit, before = _least_squares(sample, rig, frames, names, cases, sample_sd)
     held = held_nuisances(fit.jac, names)
     if held:
         names = [n for n in names if n not in held]
-        theta, sd, fit, _ = _least_squares(experiment.sample, rig, frames, names, cases)
-    values = {n: float(getattr(rig, n)) for n in PARAMETERS}
+        theta, sd, fit, _ = _least_squares(sample, rig, frames, names, cases, sample_sd)
+    values = current_values(sample, rig)
     values.update(dict(zip(names, map(float, theta))))
     if values["lead_resistance"] < 0 or values["stretch_factor"] <= 0:
         raise InputError(
@@ -328,7 +369,7 @@ def fit_for_estimator(experiment, rig, frames) -> EstimatorFit:
     after = fit.fun[len(names) :]
     return EstimatorFit(
         experiment=experiment.name,
-        open_loop={n: float(getattr(rig, n)) for n in PARAMETERS},
+        open_loop=current_values(sample, rig),
         values=values,
         fitted=tuple(names),
         held=held,
@@ -346,7 +387,7 @@ USED_BY = {
     "profiles and correlation (the open-loop inversion against the laser), and, through the "
     "calibrated file's C_th, lambda and b, every variant validate scores on that file",
     "EKF refit": "every variant validate scores on the calibrated file (EKF (causal), EKF (load "
-    "withheld) and the open-loop inversion), through the file's R0, TCR, R_lead and k_s",
+    "withheld) and the open-loop inversion), through the file's R0, TCR, R_lead, k_s, tcr2 and rho",
 }
 """Which figure uses which fit (written to the calibrated file and the report)."""
 

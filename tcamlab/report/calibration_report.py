@@ -375,6 +375,8 @@ def estimator_section(result) -> Section | None:
     rows = []
     for fit in fits:
         for name, symbol in SYMBOLS.items():
+            if name not in fit.open_loop:
+                continue
             before, after = fit.open_loop[name], fit.values[name]
             if name in fit.fitted:
                 status = f"refitted, sd {fit.sd[name]:.3g}{(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
@@ -384,8 +386,10 @@ def estimator_section(result) -> Section | None:
     paragraphs = [
         "Second stage: the open-loop fit above leaves R0, the TCR, C_th and lambda off together "
         "(the inversion cannot tell them apart), which the causal EKF with the load unknown reads as a "
-        "load drift. R0 and the TCR, and the lead resistance R_lead (bounded at 0) and the stretch "
-        "factor k_s where the runs identify them, are refitted through the EKF against the laser "
+        "load drift, and it does not use the mechanics, whose thermal stroke the EKF follows. R0 and "
+        "the TCR, and the lead resistance R_lead (bounded at 0), the stretch factor k_s, the quadratic "
+        "TCR tcr2 and the fiber's radial expansion rho (the mechanics' stroke per kelvin) where the runs "
+        "identify them, are refitted through the EKF against the laser "
         "("
         + "; ".join(
             f"{f.experiment}: {', '.join(f.cases)}, weighted error rms {f.rms_before_um:.1f} um -> "
@@ -401,7 +405,7 @@ def estimator_section(result) -> Section | None:
     return Section(
         "Fit for the estimator",
         paragraphs=paragraphs,
-        tables=[Table(head, rows, caption="R0, TCR, R_lead and k_s after each stage (SI)")],
+        tables=[Table(head, rows, caption="R0, TCR, R_lead, k_s, tcr2 and rho after each stage (SI)")],
     )
 
 
