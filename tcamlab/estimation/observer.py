@@ -310,7 +310,12 @@ def combined_resistance(
     s_c = spring_constant(sample, rig)
 
     def resistance(temperature, extension):
-        g = selfsensing.geometric_ratio(extension, spring_constant=s_c, **kw)
+        # g depends on the extension alone: chapter 3's implicit map is solved once per distinct
+        # extension, not once per cell of a (T, x) table (121 times fewer roots; each root is
+        # solved element by element, so the values are the same to the bit)
+        ext = np.asarray(extension, float)
+        distinct, where = np.unique(ext, return_inverse=True)
+        g = selfsensing.geometric_ratio(distinct, spring_constant=s_c, **kw)[where].reshape(ext.shape)
         coating = selfsensing.coating_factor(temperature, rig.ambient, resistance_tc)
         if tcr2:
             coating = coating + tcr2 * (np.asarray(temperature, float) - rig.ambient) ** 2

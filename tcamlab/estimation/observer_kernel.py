@@ -279,7 +279,7 @@ def update_load(s, c, load_force, sd):
             c[i, j] -= k[i] * k[j] * sv
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # filter runs of a calibration go on threads
 def ekf_batch(
     time, volt, cur, load_force, s0, c0, p, noise, table, grid, max_step, out_s, out_var, out_nis, out_sv
 ):
