@@ -638,3 +638,52 @@ def test_a_refit_far_from_the_open_loop_fit_is_said_to_disagree():
     assert disagreement(fit, "tcr") == ""  # no open-loop sd
     lines = estimator_values({"rig": {}}, replace(fit, disagreements={"tcr2": disagreement(fit, "tcr2")}))
     assert any(line.startswith("rig.tcr2_per_K2:") and "sds apart" in line for line in lines)
+
+
+def test_the_joint_table_follows_the_refit_where_it_moved_a_value(tmp_path):
+    """The open-loop stage's [calibration] table holds R0 (log) and C_th; the EKF refit moves R0
+    and fits rho: R0's entry takes the refit's relative sd and drops its open-loop correlation
+    with C_th, rho enters with the refit's sd and its correlation with R0, C_th is untouched, and
+    the file with that table loads."""
+    from types import SimpleNamespace
+
+    from tcamlab.calibration.calibrated_file import refit_joint
+    from tcamlab.config import dumps_toml
+
+    joint = {
+        "parameters": ["rig.initial_resistance_ohm", "rig.thermal_mass_J_per_K"],
+        "coordinates": ["log", "log"],
+        "sd": [0.001, 0.05],
+        "correlation": [[1.0, 0.9], [0.9, 1.0]],
+        "sd_below": [0.001, 0.04],
+        "sd_above": [0.001, 0.06],
+    }
+    fit = SimpleNamespace(
+        fitted=("initial_resistance", "tcr", "radial_cte"),
+        open_loop={"initial_resistance": 24.1, "tcr": 0.0039, "radial_cte": 7e-5},
+        values={"initial_resistance": 24.0, "tcr": 0.0039, "radial_cte": 6e-5},
+        sd={"initial_resistance": 0.12, "radial_cte": 3e-6},  # the TCR's sd not known: left alone
+        correlation={"names": ["initial_resistance", "radial_cte"], "matrix": [[1.0, -0.4], [-0.4, 1.0]]},
+    )
+    out = refit_joint(joint, fit)
+    assert out["parameters"] == [
+        "rig.thermal_mass_J_per_K",
+        "rig.initial_resistance_ohm",
+        "sample.radial_cte_per_K",
+    ]
+    assert out["coordinates"] == ["log", "log", "linear"]
+    assert out["sd"] == pytest.approx([0.05, 0.12 / 24.0, 3e-6])
+    assert out["sd_below"] == pytest.approx([0.04, 0.005, 3e-6])
+    assert out["correlation"] == [[1.0, 0.0, 0.0], [0.0, 1.0, -0.4], [0.0, -0.4, 1.0]]
+    assert refit_joint(joint, SimpleNamespace(**{**vars(fit), "sd": {}})) is joint
+    doc = __import__("tomllib").loads((ROOT / "experiments" / "selfsensing.toml").read_text())
+    doc["runs"] = [str(ROOT / "raw" / Path(r).name) for r in doc["runs"]]
+    doc["rig"]["initial_resistance_ohm"], doc["sample"]["radial_cte_per_K"] = 24.0, 6e-5
+    doc["rig"]["thermal_mass_J_per_K"] = 0.05
+    doc["calibration"] = out
+    (tmp_path / "c.toml").write_text(dumps_toml(doc))
+    loaded = load_experiment(tmp_path / "c.toml").calibration
+    assert loaded.fields[-1] == ("sample", "radial_cte")
+    assert np.allclose(
+        loaded.covariance()[1:, 1:], [[0.005**2, -0.4 * 0.005 * 3e-6], [-0.4 * 0.005 * 3e-6, 9e-12]]
+    )

@@ -96,6 +96,9 @@ def calibrated_document(experiment: Experiment, result) -> tuple[dict, str]:
     for fit in getattr(result, "estimator", None) or []:
         if fit.experiment == experiment.name:
             lines += estimator_values(doc, fit)
+            joint = refit_joint(doc.get("calibration"), fit)
+            if joint:
+                doc["calibration"] = joint
     return doc, "\n".join(lines)
 
 
@@ -109,6 +112,10 @@ ESTIMATOR_KEYS = {
 }
 """Key of each field the EKF refit writes (all in SI = lab units): in [sample] for the fields of
 :data:`tcamlab.calibration.estimator.SAMPLE_FIELDS`, else in [rig]."""
+
+
+WRITTEN_SD = ("initial_resistance", "tcr", "tcr2", "radial_cte")
+"""Fields whose EKF-refit sd :func:`estimator_values` writes beside the refitted value."""
 
 
 def estimator_values(doc: dict, fit) -> list[str]:
@@ -149,7 +156,7 @@ def estimator_values(doc: dict, fit) -> list[str]:
             table[key] = _round(after)
             table.setdefault("uncertainty", {})
             # a moved tcr2 with the open-loop stage's sd would not cover its own value
-            if name in ("initial_resistance", "tcr", "tcr2", "radial_cte") and name in fit.sd:
+            if name in WRITTEN_SD and name in fit.sd:
                 table["uncertainty"][key] = _round(fit.sd[name])
             lines.append(
                 f"{where}.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
@@ -158,6 +165,81 @@ def estimator_values(doc: dict, fit) -> list[str]:
             lines.append(f"{where}.{key}: {before:.6g}, {fit.held.get(name, 'held at its stated value')}")
     lines += [f"{k}: used by {v}." for k, v in fit.used_by.items()]
     return lines
+
+
+def _refit_entries(fit) -> list[tuple[str, str]]:
+    """(field, ``"where.key"``) of each refitted field written with its refit sd."""
+    from tcamlab.calibration.estimator import SAMPLE_FIELDS
+
+    return [
+        (n, ("sample." if n in SAMPLE_FIELDS else "rig.") + ESTIMATOR_KEYS[n])
+        for n in ESTIMATOR_KEYS
+        if n in fit.fitted and n in WRITTEN_SD and n in fit.sd and n in fit.open_loop
+    ]
+
+
+def refit_joint(joint: dict | None, fit) -> dict | None:
+    """The ``[calibration]`` table once the EKF refit has moved some of its fields.
+
+    The open-loop stage's joint posterior describes its own values; where the refit writes
+    another value and sd, that entry takes the refit's sd (symmetric: the refit has no
+    profile) and the refit's correlations with the other refitted fields. Its correlation
+    with a field only the open-loop stage fitted is set to 0: the refit held those fields at
+    their open-loop values, so it does not estimate it. The table then agrees with the
+    ``[rig.uncertainty]`` / ``[sample.uncertainty]`` sds written beside the values, and the
+    block-diagonal matrix stays a correlation matrix.
+
+    Parameters
+    ----------
+    joint : dict or None
+        The open-loop stage's table (:func:`joint_table`), or None when it fitted nothing
+        this file holds.
+    fit : EstimatorFit
+        The refit of this file's experiment.
+
+    Returns
+    -------
+    dict or None
+        The table to write; ``joint`` unchanged when the refit wrote no sd.
+    """
+    entries = _refit_entries(fit)
+    if not entries:
+        return joint
+    joint = joint or {"parameters": [], "coordinates": [], "sd": [], "correlation": [],
+                      "sd_below": [], "sd_above": []}  # fmt: skip
+    moved = {key for _, key in entries}
+    names = list(joint["parameters"])
+    keep = [i for i, key in enumerate(names) if key not in moved]
+    # log only where the open-loop stage fitted the log and the refit stayed positive
+    coords = [
+        "log" if key in names and joint["coordinates"][names.index(key)] == "log" and fit.values[n] > 0
+        else "linear"
+        for n, key in entries
+    ]  # fmt: skip
+    sds = [fit.sd[n] / abs(fit.values[n]) if c == "log" else fit.sd[n] for (n, _), c in zip(entries, coords)]
+    refit_names = list(fit.correlation.get("names", []))
+    refit_corr = fit.correlation.get("matrix", [])
+
+    def corr(a: str, b: str) -> float:
+        if a == b:
+            return 1.0
+        if a in refit_names and b in refit_names:
+            return float(refit_corr[refit_names.index(a)][refit_names.index(b)])
+        return 0.0
+
+    n_keep, fields = len(keep), [n for n, _ in entries]
+    matrix = [[float(joint["correlation"][i][j]) for j in keep] + [0.0] * len(entries) for i in keep]
+    matrix += [[0.0] * n_keep + [corr(a, b) for b in fields] for a in fields]
+    out = {
+        "parameters": [names[i] for i in keep] + [key for _, key in entries],
+        "coordinates": [joint["coordinates"][i] for i in keep] + coords,
+        "sd": [joint["sd"][i] for i in keep] + [_round(x) for x in sds],
+        "correlation": matrix,
+    }
+    for side in ("sd_below", "sd_above"):
+        if side in joint:
+            out[side] = [joint[side][i] for i in keep] + [_round(x) for x in sds]
+    return out
 
 
 def _positive(p, kinds) -> bool:
