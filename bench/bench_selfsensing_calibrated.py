@@ -92,10 +92,16 @@ def scores(path: Path, out: Path) -> dict:
 
 
 def open_loop_only(text: str, fit) -> str:
-    """The calibrated file with R0 and the TCR of the open-loop fit, R_lead, k_s and tcr2 as stated."""
-    keys = {"initial_resistance_ohm": "initial_resistance", "tcr_per_K": "tcr"}
+    """The calibrated file with R0, the TCR and rho of the open-loop fit (rho as stated: the
+    open-loop stage does not fit the mechanics), R_lead, k_s and tcr2 as stated."""
+    keys = {
+        "initial_resistance_ohm": "initial_resistance",
+        "tcr_per_K": "tcr",
+        "radial_cte_per_K": "radial_cte",
+    }
     for key, name in keys.items():
-        text = re.sub(rf"^{key} = .*$", f"{key} = {fit.open_loop[name]:.6g}", text, count=1, flags=re.M)
+        if name in fit.open_loop:  # the first match is [rig]'s or [sample]'s, before its uncertainty
+            text = re.sub(rf"^{key} = .*$", f"{key} = {fit.open_loop[name]:.6g}", text, count=1, flags=re.M)
     for key in ("lead_resistance_ohm", "stretch_factor", "tcr2_per_K2"):
         text = re.sub(rf"^{key} = .*\n", "", text, count=1, flags=re.M)
     return text

@@ -862,7 +862,10 @@ def design_experiment(
     folder.mkdir(parents=True, exist_ok=True)
     files = [atomic_write_text(json_path, dumps_json(result.to_dict()))]
     if result.best is not None:
-        header = f"{exp.name}: the next protocol ({result.message})\nmade by tcamlab design"
+        header = (
+            f"{exp.name}: the next protocol ({result.message})\nmade by tcamlab design; what each run "
+            "logs, row by row and in time, is in the docs: experiment design, What a run logs"
+        )
         atomic_write_text(protocol_path, protocol_toml(exp.raw, result.best.table, header))
         files.append(protocol_path)
     return DesignOutcome(result, exp, files)
