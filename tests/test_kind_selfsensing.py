@@ -192,19 +192,21 @@ def test_missing_spring_constant_is_one_line_input_error(setup, exact):
         KIND.run_options(sample, rig.replace(spring_constant=None), exact)
 
 
-def test_a_zero_load_is_refused_in_one_line_naming_file_and_key(tmp_path):
-    # the estimator's moving mass is the hanging load: 0 g divided by zero in the filter
+@pytest.mark.parametrize("grams", ["0", "1e-06"])
+def test_a_load_lighter_than_the_muscle_is_refused_in_one_line_naming_file_and_key(tmp_path, grams):
+    # the estimator's moving mass is the hanging load with the muscle's own neglected: 0 g
+    # divided by zero in the filter, and 1 ug (lighter than the fiber) sent it 14 mm off
     src = ROOT / "experiments" / "selfsensing.toml"
     text = src.read_text().replace("../raw/", str(ROOT / "raw") + "/")
-    exp = tmp_path / "zero.toml"
-    exp.write_text(text.replace("load_g = 50.0", "load_g = 0"))
-    assert "load_g = 0" in exp.read_text()
+    exp = tmp_path / "light.toml"
+    exp.write_text(text.replace("load_g = 50.0", f"load_g = {grams}"))
+    assert f"load_g = {grams}" in exp.read_text()
     for cmd in ("validate", "calibrate"):
         res = runner.invoke(app, [cmd, str(exp), "--out", str(tmp_path / cmd)])
         assert res.exit_code == 2, res.output
         line = res.output.strip().splitlines()[-1]
-        assert "zero.toml" in line and "load_g = 0 g" in line and "e.g. load_g = 50" in line
-        assert "Traceback" not in res.output
+        assert "light.toml" in line and f"load_g = {float(grams):g} g" in line and "e.g. load_g = 50" in line
+        assert "does not outweigh the muscle" in line and "Traceback" not in res.output
 
 
 def test_a_resistance_law_the_log_cannot_carry_names_its_rig_key(setup, exact):

@@ -676,6 +676,16 @@ def test_the_joint_table_follows_the_refit_where_it_moved_a_value(tmp_path):
     assert out["sd_below"] == pytest.approx([0.04, 0.005, 3e-6])
     assert out["correlation"] == [[1.0, 0.0, 0.0], [0.0, 1.0, -0.4], [0.0, -0.4, 1.0]]
     assert refit_joint(joint, SimpleNamespace(**{**vars(fit), "sd": {}})) is joint
+    # a singular refit (NaN sd and correlations) leaves the open-loop entries as they were
+    nan = float("nan")
+    singular = SimpleNamespace(
+        **{**vars(fit), "sd": {"initial_resistance": nan, "radial_cte": 3e-6},
+           "correlation": {"names": ["initial_resistance", "radial_cte"], "matrix": [[1.0, nan], [nan, 1.0]]}}
+    )  # fmt: skip
+    partial = refit_joint(joint, singular)
+    assert partial["parameters"] == ["rig.initial_resistance_ohm", "rig.thermal_mass_J_per_K", "sample.radial_cte_per_K"]
+    assert partial["sd"] == pytest.approx([0.001, 0.05, 3e-6])
+    assert np.isfinite(np.asarray(partial["correlation"], float)).all()
     doc = __import__("tomllib").loads((ROOT / "experiments" / "selfsensing.toml").read_text())
     doc["runs"] = [str(ROOT / "raw" / Path(r).name) for r in doc["runs"]]
     doc["rig"]["initial_resistance_ohm"], doc["sample"]["radial_cte_per_K"] = 24.0, 6e-5

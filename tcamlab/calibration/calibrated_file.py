@@ -156,7 +156,7 @@ def estimator_values(doc: dict, fit) -> list[str]:
             table[key] = _round(after)
             table.setdefault("uncertainty", {})
             # a moved tcr2 with the open-loop stage's sd would not cover its own value
-            if name in WRITTEN_SD and name in fit.sd:
+            if name in WRITTEN_SD and _finite(fit.sd.get(name)):
                 table["uncertainty"][key] = _round(fit.sd[name])
             lines.append(
                 f"{where}.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
@@ -174,8 +174,14 @@ def _refit_entries(fit) -> list[tuple[str, str]]:
     return [
         (n, ("sample." if n in SAMPLE_FIELDS else "rig.") + ESTIMATOR_KEYS[n])
         for n in ESTIMATOR_KEYS
-        if n in fit.fitted and n in WRITTEN_SD and n in fit.sd and n in fit.open_loop
+        if n in fit.fitted and n in WRITTEN_SD and _finite(fit.sd.get(n)) and n in fit.open_loop
     ]
+
+
+def _finite(x) -> bool:
+    """Whether a refit's sd or correlation is a number: a singular information matrix gives NaN,
+    which the loader refuses; such an entry is left as the open-loop stage wrote it."""
+    return x is not None and math.isfinite(float(x))
 
 
 def refit_joint(joint: dict | None, fit) -> dict | None:
@@ -224,7 +230,8 @@ def refit_joint(joint: dict | None, fit) -> dict | None:
         if a == b:
             return 1.0
         if a in refit_names and b in refit_names:
-            return float(refit_corr[refit_names.index(a)][refit_names.index(b)])
+            r = float(refit_corr[refit_names.index(a)][refit_names.index(b)])
+            return r if _finite(r) else 0.0  # singular data-only information: not estimated
         return 0.0
 
     n_keep, fields = len(keep), [n for n, _ in entries]

@@ -515,6 +515,30 @@ def run_scatter(experiment) -> dict[str, float]:
     return {k: float(v) for k, v in dict(scatter).items() if v > 0}
 
 
+def require_hanging_load(sample, rig, what: str, where: str = "") -> None:
+    """Refuse a hanging load that does not outweigh the muscle: the dynamic model (2.19) and the
+    self-sensing estimator take the load as the moving mass with the muscle's own neglected.
+
+    Raises
+    ------
+    InputError
+        ``rig.load`` [kg] not above the fiber's own mass (:func:`tcamlab.models.coil.fiber_mass`);
+        the message names ``where`` (the experiment file) and ``what`` (the run's kind).
+    """
+    from tcamlab.errors import InputError
+    from tcamlab.models.coil import fiber_mass
+
+    own = float(fiber_mass(sample.fiber_diameter, sample.fiber_length))
+    if rig.load > own:
+        return
+    raise InputError(
+        f"{where + ': ' if where else ''}{what} run: rig load_g = {rig.load * 1e3:g} g does not outweigh the "
+        f"muscle itself (about {own * 1e3:.2g} g of fiber); the moving mass is the hanging load with the "
+        "muscle's own mass neglected, so it must be heavier",
+        hint="set load_g in [rig] to the hanging load in grams, e.g. load_g = 50",
+    )
+
+
 def get_kind(name: str) -> Kind:
     """The registered :class:`Kind` called ``name``; the one place an unknown kind fails.
 

@@ -21,8 +21,8 @@ import pandas as pd
 
 from tcamlab import band, instruments
 from tcamlab.effects import NO_MODS, Mods
-from tcamlab.errors import ConfigError, InputError, ModelDomainError
-from tcamlab.kinds import CalibrationParam, Kind, RunOptions
+from tcamlab.errors import ConfigError, ModelDomainError
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, require_hanging_load
 from tcamlab.kinds import protocol_values as pv
 from tcamlab.kinds.static import RHO_ZERO_SD, SLOPE_ZERO_SD
 from tcamlab.models import dynamic as _dyn
@@ -125,12 +125,7 @@ def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, where="", **_) 
     """The dynamic model needs no per-run constant beyond the sample and the rig; its moving
     mass is the hanging load, so a load of 0 is refused naming the key (``where``, the
     experiment file, prefixes the error)."""
-    if not rig.load > 0:
-        raise InputError(
-            f"{where + ': ' if where else ''}dynamic run: rig load_g = {rig.load * 1e3:g} g; the voltage-step "
-            "model's moving mass is the hanging load (eq. 2.19), so it must be above 0",
-            hint="set load_g in [rig] to the hanging load, e.g. load_g = 50",
-        )
+    require_hanging_load(sample, rig, "dynamic", where)
     return RunOptions()
 
 

@@ -34,7 +34,7 @@ import pandas as pd
 from tcamlab import instruments
 from tcamlab.effects import NO_MODS, Mods
 from tcamlab.errors import ConvergenceError, InputError, ModelDomainError
-from tcamlab.kinds import CalibrationParam, Kind, RunOptions, rest_rows, stated_source
+from tcamlab.kinds import CalibrationParam, Kind, RunOptions, require_hanging_load, rest_rows, stated_source
 from tcamlab.kinds.selfsensing_protocol import (  # noqa: F401  (the program's names stay importable here)
     CHIRP_F0_HZ,
     CHIRP_F1_HZ,
@@ -343,13 +343,7 @@ def run_options(
         hanging load: the estimator's moving mass is the load (the muscle's own is neglected).
     """
     at = f"{where}: " if where else ""
-    if not rig.load > 0:
-        raise InputError(
-            f"{at}selfsensing run: rig load_g = {rig.load * 1e3:g} g; the estimator's moving mass is "
-            "the hanging load (the muscle's own mass is neglected), so it must be above 0",
-            hint="set load_g in [rig] to the hanging load, e.g. load_g = 50 (with load_N logged "
-            "it is only the prior of the first row)",
-        )
+    require_hanging_load(sample, rig, "selfsensing", where)
     _check_sampling(rig, data, at)
     if rig.spring_constant is None:
         raise InputError(

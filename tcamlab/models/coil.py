@@ -25,7 +25,26 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["compliance_coefficients", "compliance_terms", "restoring_force"]
+__all__ = ["compliance_coefficients", "compliance_terms", "fiber_mass", "restoring_force"]
+
+NYLON_DENSITY = 1140.0
+"""Density of nylon 6,6 [kg/m^3] (a handbook value; the thesis gives none). A silver coating
+makes a sewing thread somewhat heavier; this is used only for an order-of-magnitude check."""
+
+
+def fiber_mass(fiber_diameter, fiber_length, density=NYLON_DENSITY):
+    """Mass of the precursor fiber, a solid cylinder [kg].
+
+    Parameters
+    ----------
+    fiber_diameter : float or ndarray
+        d0 [m].
+    fiber_length : float or ndarray
+        l, the fiber's length before coiling [m].
+    density : float, optional
+        [kg/m^3], nylon's by default.
+    """
+    return density * math.pi / 4.0 * fiber_diameter**2 * fiber_length
 
 
 def compliance_coefficients(fiber_diameter, fiber_length, n_coils):
