@@ -242,6 +242,9 @@ _WORDS: dict[str, tuple[str, ...]] = {
         "contraction",
         "stroke",
         "strain",
+        "dehnung",
+        "standardweg",
+        "traversenweg",
         "position",
         "gap",
         "length",
@@ -251,7 +254,7 @@ _WORDS: dict[str, tuple[str, ...]] = {
         "dl",
         "x",
     ),
-    "force": ("force", "load", "tension", "kraft", "fz", "f"),
+    "force": ("force", "load", "tension", "kraft", "standardkraft", "fz", "f"),
     "resistance": ("resistance", "widerstand", "res", "r"),
     "voltage": ("voltage", "volt", "u", "v"),
     "current": ("current", "i"),
@@ -262,6 +265,10 @@ _WORDS: dict[str, tuple[str, ...]] = {
     "kappa1": ("kappa1", "curvature1", "curvature 1", "k1"),
     "kappa2": ("kappa2", "curvature2", "curvature 2", "k2"),
 }
+
+STRAIN_WORDS = ("strain", "dehnung")
+"""Words of a header naming a strain (English, German testing-machine exports): a column without a
+length unit is then a strain of the coil length."""
 
 _UNIT_IN_HEADER = re.compile(r"^(?P<name>.*?)\s*[\(\[\{](?P<unit>[^\)\]\}]*)[\)\]\}]\s*$")
 
@@ -344,7 +351,9 @@ def candidates(kind: str, header: str, unit_text: str | None, cells: list[str]) 
             scored.append((-score, canon.index(c), c))
     out = []
     for _, _, c in sorted(scored):
-        if c == "displacement_mm" and (unit_text == "%" or (dim is None and "strain" in header.lower())):
+        if c == "displacement_mm" and (
+            unit_text == "%" or (dim is None and any(w in header.lower() for w in STRAIN_WORDS))
+        ):
             # a strain: its scale to mm needs the coil length, which the log does not hold
             out.append(Recognised(c, "%" if unit_text == "%" else "strain", "a strain of the coil length"))
         elif unit_text is None or unit is not None:

@@ -683,7 +683,11 @@ def test_the_joint_table_follows_the_refit_where_it_moved_a_value(tmp_path):
            "correlation": {"names": ["initial_resistance", "radial_cte"], "matrix": [[1.0, nan], [nan, 1.0]]}}
     )  # fmt: skip
     partial = refit_joint(joint, singular)
-    assert partial["parameters"] == ["rig.initial_resistance_ohm", "rig.thermal_mass_J_per_K", "sample.radial_cte_per_K"]
+    assert partial["parameters"] == [
+        "rig.initial_resistance_ohm",
+        "rig.thermal_mass_J_per_K",
+        "sample.radial_cte_per_K",
+    ]
     assert partial["sd"] == pytest.approx([0.001, 0.05, 3e-6])
     assert np.isfinite(np.asarray(partial["correlation"], float)).all()
     doc = __import__("tomllib").loads((ROOT / "experiments" / "selfsensing.toml").read_text())

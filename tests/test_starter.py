@@ -488,3 +488,17 @@ def test_check_warns_when_an_oven_log_starts_far_below_the_stated_ambient(tmp_pa
         hits = [w for w in check_experiment(exp).warnings if "below the stated ambient_C" in w]
         assert bool(hits) is warned, (ambient, hits)
         assert not hits or "falls to 25 degC, 75 K below" in hits[0]
+
+
+def test_a_german_testing_machine_export_maps_strain_and_force(tmp_path):
+    # semicolons, decimal commas, German headers: "Dehnung [%]" is a strain of the coil length
+    rows = ["Zeit [s];Standardkraft [N];Dehnung [%];Widerstand [Ohm]"]
+    rows += [
+        f"{i * 0.1:.1f};{0.01 * i:.3f};{0.5 * i:.2f};{30 + 0.01 * i:.3f}".replace(".", ",") for i in range(15)
+    ]
+    csv = write(tmp_path / "zug.csv", "\n".join(rows) + "\n")
+    res = write_starter("sensing", csv, tmp_path / "e" / "zug.toml")
+    cols = tomllib.loads(res.path.read_text(encoding="utf-8"))["columns"]
+    assert cols["force_N"]["from"] == "Standardkraft [N]"
+    assert cols["displacement_mm"]["from"] == "Dehnung [%]"
+    assert "columns.displacement_mm.scale" in res.placeholders
