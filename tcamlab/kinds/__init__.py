@@ -515,21 +515,23 @@ def run_scatter(experiment) -> dict[str, float]:
     return {k: float(v) for k, v in dict(scatter).items() if v > 0}
 
 
-def require_hanging_load(sample, rig, what: str, where: str = "") -> None:
+def require_hanging_load(sample, rig, what: str, where: str = "", logged: bool = False) -> None:
     """Refuse a hanging load that does not outweigh the muscle: the dynamic model (2.19) and the
     self-sensing estimator take the load as the moving mass with the muscle's own neglected.
 
     Raises
     ------
     InputError
-        ``rig.load`` [kg] not above the fiber's own mass (:func:`tcamlab.models.coil.fiber_mass`);
-        the message names ``where`` (the experiment file) and ``what`` (the run's kind).
+        ``rig.load`` [kg] not above 0, or, where the run does not log the load (``logged``
+        False: the stated load is then the model's), not above the fiber's own mass
+        (:func:`tcamlab.models.coil.fiber_mass`); the message names ``where`` (the experiment
+        file) and ``what`` (the run's kind).
     """
     from tcamlab.errors import InputError
     from tcamlab.models.coil import fiber_mass
 
     own = float(fiber_mass(sample.fiber_diameter, sample.fiber_length))
-    if rig.load > own:
+    if rig.load > (0.0 if logged else own):
         return
     raise InputError(
         f"{where + ': ' if where else ''}{what} run: rig load_g = {rig.load * 1e3:g} g does not outweigh the "

@@ -125,7 +125,7 @@ def run_options(sample: Sample, rig: Rig, data: pd.DataFrame, *, where="", **_) 
     """The dynamic model needs no per-run constant beyond the sample and the rig; its moving
     mass is the hanging load, so a load of 0 is refused naming the key (``where``, the
     experiment file, prefixes the error)."""
-    require_hanging_load(sample, rig, "dynamic", where)
+    require_hanging_load(sample, rig, "dynamic", where, logged="load" in data.columns)
     return RunOptions()
 
 

@@ -343,7 +343,7 @@ def run_options(
         hanging load: the estimator's moving mass is the load (the muscle's own is neglected).
     """
     at = f"{where}: " if where else ""
-    require_hanging_load(sample, rig, "selfsensing", where)
+    require_hanging_load(sample, rig, "selfsensing", where, logged="load" in data.columns)
     _check_sampling(rig, data, at)
     if rig.spring_constant is None:
         raise InputError(
