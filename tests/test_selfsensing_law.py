@@ -375,8 +375,9 @@ def test_a_nuisance_the_runs_cannot_tell_from_r0_is_held_with_the_reason(tmp_pat
     fit = refit_for_estimator(exp, rig, [m])
     assert fit.fitted[:2] == ("initial_resistance", "tcr")
     # at a held probe T stays put too: the quadratic TCR is not seen either
-    # nor is the mechanics' stroke per kelvin (rho)
-    assert set(fit.held) == {"lead_resistance", "stretch_factor", "tcr2", "radial_cte"}
+    # nor is the mechanics' stroke per kelvin (rho), nor, with no load change, its compliance (E)
+    assert set(fit.held) == {"lead_resistance", "stretch_factor", "tcr2", "radial_cte", "youngs_modulus"}
+    assert fit.values["youngs_modulus"] == exp.sample.youngs_modulus
     assert all(why.startswith("held at its stated value") for why in fit.held.values())
     assert fit.values["lead_resistance"] == rig.lead_resistance
     assert fit.values["stretch_factor"] == rig.stretch_factor

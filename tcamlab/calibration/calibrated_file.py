@@ -109,12 +109,22 @@ ESTIMATOR_KEYS = {
     "stretch_factor": "stretch_factor",
     "tcr2": "tcr2_per_K2",
     "radial_cte": "radial_cte_per_K",
+    "youngs_modulus": "youngs_modulus_GPa",
 }
-"""Key of each field the EKF refit writes (all in SI = lab units): in [sample] for the fields of
-:data:`tcamlab.calibration.estimator.SAMPLE_FIELDS`, else in [rig]."""
+"""Key of each field the EKF refit writes: in [sample] for the fields of
+:data:`tcamlab.calibration.estimator.SAMPLE_FIELDS`, else in [rig]; in the key's lab unit
+(:func:`lab_unit`)."""
 
 
-WRITTEN_SD = ("initial_resistance", "tcr", "tcr2", "radial_cte")
+def lab_unit(name: str) -> float:
+    """SI per lab unit of the key :data:`ESTIMATOR_KEYS` gives field ``name`` (1 but for E's GPa)."""
+    from tcamlab.calibration.estimator import SAMPLE_FIELDS
+    from tcamlab.params import RIG_KEYS, SAMPLE_KEYS
+
+    return (SAMPLE_KEYS if name in SAMPLE_FIELDS else RIG_KEYS)[ESTIMATOR_KEYS[name]][1]
+
+
+WRITTEN_SD = ("initial_resistance", "tcr", "tcr2", "radial_cte", "youngs_modulus")
 """Fields whose EKF-refit sd :func:`estimator_values` writes beside the refitted value."""
 
 
@@ -152,17 +162,20 @@ def estimator_values(doc: dict, fit) -> list[str]:
         before, after = fit.open_loop[name], fit.values[name]
         where = "sample" if name in SAMPLE_FIELDS else "rig"
         table = doc.setdefault(where, {})
+        lab = lab_unit(name)
         if name in fit.fitted:
-            table[key] = _round(after)
+            table[key] = _round(after / lab)
             table.setdefault("uncertainty", {})
             # a moved tcr2 with the open-loop stage's sd would not cover its own value
             if name in WRITTEN_SD and _finite(fit.sd.get(name)):
-                table["uncertainty"][key] = _round(fit.sd[name])
+                table["uncertainty"][key] = _round(fit.sd[name] / lab)
             lines.append(
-                f"{where}.{key}: open-loop fit {before:.6g}, EKF refit {after:.6g} (written){(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
+                f"{where}.{key}: open-loop fit {before / lab:.6g}, EKF refit {after / lab:.6g} (written){(getattr(fit, 'disagreements', None) or {}).get(name, '')}"
             )
         else:
-            lines.append(f"{where}.{key}: {before:.6g}, {fit.held.get(name, 'held at its stated value')}")
+            lines.append(
+                f"{where}.{key}: {before / lab:.6g}, {fit.held.get(name, 'held at its stated value')}"
+            )
     lines += [f"{k}: used by {v}." for k, v in fit.used_by.items()]
     return lines
 
@@ -222,7 +235,10 @@ def refit_joint(joint: dict | None, fit) -> dict | None:
         else "linear"
         for n, key in entries
     ]  # fmt: skip
-    sds = [fit.sd[n] / abs(fit.values[n]) if c == "log" else fit.sd[n] for (n, _), c in zip(entries, coords)]
+    sds = [
+        fit.sd[n] / abs(fit.values[n]) if c == "log" else fit.sd[n] / lab_unit(n)
+        for (n, _), c in zip(entries, coords)
+    ]
     refit_names = list(fit.correlation.get("names", []))
     refit_corr = fit.correlation.get("matrix", [])
 

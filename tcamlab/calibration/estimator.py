@@ -46,10 +46,18 @@ __all__ = [
     "disagreement",
 ]
 
-PARAMETERS = ("initial_resistance", "tcr", "lead_resistance", "stretch_factor", "tcr2", "radial_cte")
+PARAMETERS = (
+    "initial_resistance",
+    "tcr",
+    "lead_resistance",
+    "stretch_factor",
+    "tcr2",
+    "radial_cte",
+    "youngs_modulus",
+)
 """Fields the stage refits, in order: R0 [ohm], TCR [1/K], R_lead [ohm], k_s [-], tcr2 [1/K^2],
 rho [1/K] (a field of the sample; the rest are the rig's)."""
-SAMPLE_FIELDS = ("radial_cte",)
+SAMPLE_FIELDS = ("radial_cte", "youngs_modulus")
 """Fields of :class:`tcamlab.params.Sample` among :data:`PARAMETERS`: the mechanics' thermal
 stroke. The open-loop inversion does not use the mechanics, so the first stage cannot fit it;
 the EKF's displacement during heating is mostly the mechanics' equilibrium at the filter's
@@ -65,6 +73,7 @@ SYMBOLS = {
     "stretch_factor": "k_s",
     "tcr2": "tcr2",
     "radial_cte": "rho",
+    "youngs_modulus": "E",
 }
 """Thesis symbols, for the report."""
 MAX_CORRELATION = 0.99
@@ -72,7 +81,13 @@ MAX_CORRELATION = 0.99
 MAX_SD_RATIO = 0.5
 """A nuisance whose posterior sd is more than this fraction of its prior sd rests on its prior
 and is held (the calibration's tier "prior": the logs do not halve the prior sd) [-]."""
-PRIOR_SD_REL = {"initial_resistance": 0.1, "tcr": 0.2, "stretch_factor": 0.2, "radial_cte": 0.3}
+PRIOR_SD_REL = {
+    "initial_resistance": 0.1,
+    "tcr": 0.2,
+    "stretch_factor": 0.2,
+    "radial_cte": 0.3,
+    "youngs_modulus": 0.2,
+}
 """Prior sds relative to the centre [-]: wide, since the open-loop fit's R0 and TCR may be
 several % off together (the reason for this stage); k_s within 20 % of chapter 3's; rho as the
 static kind's calibration states it where the file gives no sd (30 %)."""
