@@ -110,6 +110,7 @@ ESTIMATOR_KEYS = {
     "tcr2": "tcr2_per_K2",
     "radial_cte": "radial_cte_per_K",
     "youngs_modulus": "youngs_modulus_GPa",
+    "damping": "damping_N_s_per_m",
 }
 """Key of each field the EKF refit writes: in [sample] for the fields of
 :data:`tcamlab.calibration.estimator.SAMPLE_FIELDS`, else in [rig]; in the key's lab unit
@@ -124,13 +125,13 @@ def lab_unit(name: str) -> float:
     return (SAMPLE_KEYS if name in SAMPLE_FIELDS else RIG_KEYS)[ESTIMATOR_KEYS[name]][1]
 
 
-WRITTEN_SD = ("initial_resistance", "tcr", "tcr2", "radial_cte", "youngs_modulus")
+WRITTEN_SD = ("initial_resistance", "tcr", "tcr2", "radial_cte", "youngs_modulus", "damping")
 """Fields whose EKF-refit sd :func:`estimator_values` writes beside the refitted value."""
 
 
 def estimator_values(doc: dict, fit) -> list[str]:
-    """Write the EKF refit's R0, TCR (and R_lead, k_s, tcr2 where fitted) into ``doc``'s [rig] and
-    its rho (where fitted) into [sample]; the header lines that give both fits and which figure
+    """Write the EKF refit's R0, TCR (and R_lead, k_s, tcr2, b where fitted) into ``doc``'s [rig] and
+    its rho and E (where fitted) into [sample]; the header lines that give both fits and which figure
     uses which.
 
     Raises
@@ -152,7 +153,7 @@ def estimator_values(doc: dict, fit) -> list[str]:
         return ["Second stage (the estimator's own fit): " + next(iter(fit.held.values()), "not run") + "."]
     lines = [
         "Second stage (the estimator's own fit): R0 and the TCR, with R_lead, k_s, tcr2 and the",
-        "mechanics' rho where the runs identify them, refitted through the causal EKF against the laser ("
+        "mechanics' rho, E and b where the runs identify them, refitted through the causal EKF against the laser ("
         + ", ".join(fit.cases)
         + f"); EKF error rms (rows weighted by the filter's certainty) {fit.rms_before_um:.1f} um -> {fit.rms_after_um:.1f} um.",
     ]

@@ -4,11 +4,12 @@
 (:func:`tcamlab.kinds.selfsensing.predict_displacement`). Their errors move together
 (the inversion cannot tell a hotter muscle from a higher R0 and TCR), and the causal EKF
 with the load unknown reads that common error as a load drift during heating. This stage
-holds the thermal constants and the damping at the open-loop fit and refits what the EKF is
-sensitive to, R0 and the TCR, with the resistance law's nuisances R_lead (lead and contacts,
-bounded at 0 ohm), k_s (stretch sensitivity) and tcr2 (the coating's quadratic TCR, about 0
-when the file states none), and the sample's rho (the mechanics' thermal stroke, which the
-open-loop inversion does not use) where the runs identify them, through the
+holds the thermal constants at the open-loop fit and refits what the EKF is sensitive to, R0
+and the TCR, with the resistance law's nuisances R_lead (lead and contacts, bounded at 0 ohm),
+k_s (stretch sensitivity) and tcr2 (the coating's quadratic TCR, about 0 when the file states
+none), and the mechanics the open-loop inversion does not use: the sample's rho (thermal
+stroke) and E (compliance under a load change), and the damping b (how fast the muscle
+follows one), where the runs identify them, through the
 estimator ``validate`` scores: the EKF (load logged where the runs log it, and withheld),
 against the laser of the training runs, each run after its rest-row zero, each row weighted
 down where the filter's own displacement variance grows (an unlogged load change).
@@ -54,12 +55,16 @@ PARAMETERS = (
     "tcr2",
     "radial_cte",
     "youngs_modulus",
+    "damping",
 )
 """Fields the stage refits, in order: R0 [ohm], TCR [1/K], R_lead [ohm], k_s [-], tcr2 [1/K^2],
-rho [1/K] (a field of the sample; the rest are the rig's)."""
+rho [1/K], E [Pa] (rho and E fields of the sample; the rest the rig's), b [N s/m]."""
 SAMPLE_FIELDS = ("radial_cte", "youngs_modulus")
 """Fields of :class:`tcamlab.params.Sample` among :data:`PARAMETERS`: the mechanics' thermal
-stroke. The open-loop inversion does not use the mechanics, so the first stage cannot fit it;
+stroke (rho) and compliance (E). The open-loop inversion does not use the mechanics, so the
+first stage cannot fit them. E sets the stroke of a load change (a rider, a logged load step):
+on logs whose muscle follows a load as a power law rather than chapter 2's coil, the refit
+with E put a withheld run's mean from -19 % to -4 % of its stroke (measured, docs). For rho:
 the EKF's displacement during heating is mostly the mechanics' equilibrium at the filter's
 temperature, and a stroke per kelvin off by 40 % (an independent generator's sample against
 the thesis's rho) put the EKF 31 % of the stroke off on a run heated under a constant load,
@@ -74,6 +79,7 @@ SYMBOLS = {
     "tcr2": "tcr2",
     "radial_cte": "rho",
     "youngs_modulus": "E",
+    "damping": "b",
 }
 """Thesis symbols, for the report."""
 MAX_CORRELATION = 0.99
@@ -87,10 +93,14 @@ PRIOR_SD_REL = {
     "stretch_factor": 0.2,
     "radial_cte": 0.3,
     "youngs_modulus": 0.2,
+    "damping": 1.0,
 }
 """Prior sds relative to the centre [-]: wide, since the open-loop fit's R0 and TCR may be
 several % off together (the reason for this stage); k_s within 20 % of chapter 3's; rho as the
-static kind's calibration states it where the file gives no sd (30 %)."""
+static kind's calibration states it where the file gives no sd (30 %); E 20 % (a nylon's
+modulus varies that much with drawing and moisture); b 100 %: the thesis's b (sec. 2.5.2) is
+another muscle's, the open-loop stage leaves it at its prior, and a muscle that lags a load
+step by 0.25 s needs about ten times it (measured)."""
 LEAD_PRIOR_SD = 0.3
 """Prior sd of R_lead [ohm] about the stated value (a bench rig's leads: 0.2-0.5 ohm)."""
 TCR2_PRIOR_SD = TCR2_ZERO_SD
@@ -242,7 +252,7 @@ def _correlation(jac: np.ndarray, n_prior: int) -> np.ndarray:
 
 
 def held_nuisances(jac: np.ndarray, names) -> dict:
-    """The nuisances (R_lead, k_s, tcr2, rho) the runs cannot tell from another fitted field, with the reason.
+    """The nuisances (R_lead, k_s, tcr2, rho, E, b) the runs cannot tell from another fitted field, with the reason.
 
     Parameters
     ----------
@@ -295,6 +305,7 @@ def _least_squares(sample, rig, frames, names, cases, sample_sd=None):
     mu, sd = (np.array(x) for x in zip(*priors))
     lo = np.array([(-mu[k] / sd[k] if n == "lead_resistance" else -np.inf) for k, n in enumerate(names)])
     lo = np.where(np.array(names) == "stretch_factor", (0.05 - mu) / sd, lo)  # k_s > 0
+    lo = np.where(np.array(names) == "damping", (0.05 * mu - mu) / sd, lo)  # b > 0
     fn = _residual_fn(sample, rig, frames, names, mu, sd, cases)
     before = fn(np.zeros(len(names)))[len(names) :]
     # start off the bound: the finite differences of a start on R_lead = 0 are one-sided and
@@ -329,7 +340,8 @@ def refit_for_estimator(experiment, rig, frames, *, sample=None, sample_sd=None)
 
 
 def fit_for_estimator(experiment, rig, frames, *, sample=None, sample_sd=None) -> EstimatorFit:
-    """Refit R0, TCR and, where identified, R_lead, k_s, tcr2 and rho through the EKF (module docstring).
+    """Refit R0, TCR and, where identified, R_lead, k_s, tcr2, rho, E and b through the EKF (module
+    docstring).
 
     Each row's error is weighted down where the filter's own displacement variance grows past its
     rest level (:func:`tcamlab.estimation.observer.law_fit_weights`): after a load change nobody
@@ -409,9 +421,10 @@ def fit_for_estimator(experiment, rig, frames, *, sample=None, sample_sd=None) -
 USED_BY = {
     "open-loop fit": "the calibration report's parameter table, fit quality, overlays, residuals, "
     "profiles and correlation (the open-loop inversion against the laser), and, through the "
-    "calibrated file's C_th, lambda and b, every variant validate scores on that file",
+    "calibrated file's C_th and lambda, every variant validate scores on that file",
     "EKF refit": "every variant validate scores on the calibrated file (EKF (causal), EKF (load "
-    "withheld) and the open-loop inversion), through the file's R0, TCR, R_lead, k_s, tcr2 and rho",
+    "withheld) and the open-loop inversion), through the file's R0, TCR, R_lead, k_s, tcr2, rho, "
+    "E and b",
 }
 """Which figure uses which fit (written to the calibrated file and the report)."""
 

@@ -405,7 +405,7 @@ def estimator_section(result) -> Section | None:
     return Section(
         "Fit for the estimator",
         paragraphs=paragraphs,
-        tables=[Table(head, rows, caption="R0, TCR, R_lead, k_s, tcr2 and rho after each stage (SI)")],
+        tables=[Table(head, rows, caption="R0, TCR, R_lead, k_s, tcr2, rho, E and b after each stage (SI)")],
     )
 
 
