@@ -376,8 +376,11 @@ def test_a_nuisance_the_runs_cannot_tell_from_r0_is_held_with_the_reason(tmp_pat
     assert fit.fitted[:2] == ("initial_resistance", "tcr")
     # at a held probe T stays put too: the quadratic TCR is not seen either
     # nor is the mechanics' stroke per kelvin (rho), nor, with no load change, its compliance (E)
-    assert set(fit.held) == {"lead_resistance", "stretch_factor", "tcr2", "radial_cte", "youngs_modulus"}
+    # or its damping (b)
+    held = {"lead_resistance", "stretch_factor", "tcr2", "radial_cte", "youngs_modulus", "damping"}
+    assert set(fit.held) == held
     assert fit.values["youngs_modulus"] == exp.sample.youngs_modulus
+    assert fit.values["damping"] == rig.damping
     assert all(why.startswith("held at its stated value") for why in fit.held.values())
     assert fit.values["lead_resistance"] == rig.lead_resistance
     assert fit.values["stretch_factor"] == rig.stretch_factor
@@ -491,28 +494,28 @@ def test_a_stated_quadratic_tcr_removes_the_ekfs_drift_with_the_load_unknown(set
 
     sample, rig = setup
 
-    def mean_errors(seed):
-        # SYNTHETIC (the kind's virtual rig, protocol and noise seed 7-9): the truth's coating has
-        # a quadratic TCR of 2e-6 /K^2, everything else is the filter's
+    def mean_error(seed, true_tcr2, filter_tcr2):
+        # SYNTHETIC (the kind's virtual rig, protocol and noise seed 7-9)
         rng = np.random.default_rng(seed)
         proto = ss.protocol(rig, rng)
-        m = ss.measure(ss.exact_inputs(sample, rig, proto, law=ResistanceLaw(tcr2_per_K2=2e-6)), {}, rng, 1.0)
+        law = ResistanceLaw(tcr2_per_K2=true_tcr2)
+        m = ss.measure(ss.exact_inputs(sample, rig, proto, law=law), {}, rng, 1.0)
         meas = m["displacement"].to_numpy()
-        out = []
-        for tcr2 in (0.0, 2e-6):
-            p = ss.predict(sample, rig.replace(tcr2=tcr2), m, initial_resistance=rig.initial_resistance,
-                           estimator="ekf", use_load=False)  # fmt: skip
-            e = p["displacement"] - meas
-            out.append(float(np.mean(e - e[:150].mean()) / np.ptp(meas)))
-        return out
+        p = ss.predict(sample, rig.replace(tcr2=filter_tcr2), m, initial_resistance=rig.initial_resistance,
+                       estimator="ekf", use_load=False)  # fmt: skip
+        e = p["displacement"] - meas
+        return float(np.mean(e - e[:150].mean()) / np.ptp(meas))
 
-    # measured, % of the stroke, law linear / tcr2 stated: seed 7 +2.0 / -0.96, seed 8 +3.0 /
-    # -0.38, seed 9 +1.9 / -0.49; what is left is mostly the rider's step (law exact, filter
-    # exact: -0.77, -0.39, -0.47)
+    # the truth's coating has a quadratic TCR of 2e-6 /K^2; each figure is taken against the
+    # same run with the law exact (both 0), which leaves the rider's step (-0.96, -0.41, -0.49 %
+    # of the stroke). Measured, law linear / tcr2 stated, beyond that: seed 7 +1.82 / -0.14,
+    # seed 8 +2.73 / -0.01, seed 9 +1.07 / -0.02 points
     for seed in (7, 8, 9):
-        linear, stated = mean_errors(seed)
-        assert linear > 0.015
-        assert abs(stated) < 0.012 and abs(stated) < 0.5 * linear
+        exact = mean_error(seed, 0.0, 0.0)
+        linear = mean_error(seed, 2e-6, 0.0) - exact
+        stated = mean_error(seed, 2e-6, 2e-6) - exact
+        assert linear > 0.008
+        assert abs(stated) < 0.3 * linear
 
 
 def test_the_quadratic_tcrs_prior_in_the_estimators_refit(setup):
