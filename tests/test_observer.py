@@ -359,15 +359,16 @@ def test_the_law_fit_finds_a_bent_coatings_quadratic_tcr(bent_law_run):
 @pytest.mark.slow
 def test_fitting_tcr2_cuts_the_unknown_load_error_of_a_bent_coating(bent_law_run):
     """Against the same fit with tcr2 held at 0 (a stated sd of 1e-12 /K^2), the EKF's RMS
-    error over the training run falls by more than a third (measured 4.3 um against 9.7 um,
-    of a 474 um stroke): R0, the TCR and the lead stand in for the bend only in part."""
+    error over the training run falls by more than a fifth (measured 4.5 um against 6.6 um,
+    of a 474 um stroke; 4.3 against 9.7 um before the load was held between steps, which
+    lets less of the bend into x): R0, the TCR and the lead stand in for the bend only in part."""
     exp, logged, truth = bent_law_run
     priors = {"lead_resistance": (0.0, 0.3)}
     held_rig = exp.rig.replace(uncertainty={**exp.rig.uncertainty, "tcr2": 1e-12})
     fit = so.calibrate_resistance_law(exp.sample, exp.rig, [logged], use_load=False, priors=priors)
     held = so.calibrate_resistance_law(exp.sample, held_rig, [logged], use_load=False, priors=priors)
     assert held["tcr2"] == pytest.approx(0.0, abs=1e-9)
-    assert _law_rms(exp, logged, truth, fit) < 0.65 * _law_rms(exp, logged, truth, held)
+    assert _law_rms(exp, logged, truth, fit) < 0.8 * _law_rms(exp, logged, truth, held)
 
 
 def test_the_law_fit_keeps_the_lower_of_two_basins():
