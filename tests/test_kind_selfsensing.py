@@ -213,6 +213,20 @@ def test_a_load_lighter_than_the_muscle_is_refused_in_one_line_naming_file_and_k
         assert "does not outweigh the muscle" in line and "Traceback" not in res.output
 
 
+def test_a_zero_load_with_the_load_logged_is_refused_as_not_above_zero(tmp_path):
+    # with load_N logged, load_g is only the filter's first-row prior: a light one is kept,
+    # but 0 g (a blank template value) is refused, and the words say so, not "outweigh"
+    src = ROOT / "experiments" / "selfsensing.toml"
+    exp = tmp_path / "zero.toml"
+    text = src.read_text().replace("../raw/", str(ROOT / "raw") + "/").replace("load_g = 50.0", "load_g = 0")
+    exp.write_text(text)
+    res = runner.invoke(app, ["validate", str(exp), "--out", str(tmp_path / "v")])
+    assert res.exit_code == 2, res.output
+    line = res.output.strip().splitlines()[-1]
+    assert "zero.toml" in line and "load_g = 0 g must be above 0" in line and "e.g. load_g = 50" in line
+    assert "outweigh" not in line and "Traceback" not in res.output
+
+
 def test_a_resistance_law_the_log_cannot_carry_names_its_rig_key(setup, exact):
     from tcamlab.errors import ConvergenceError, ModelDomainError
 

@@ -644,6 +644,32 @@ def test_a_refit_far_from_the_open_loop_fit_is_said_to_disagree():
     assert any(line.startswith("rig.tcr2_per_K2:") and "sds apart" in line for line in lines)
 
 
+def test_a_refit_that_moved_r0_along_its_ridge_with_k_s_says_so_not_another_law():
+    """The bundled runs' refit: R0 24.0 -> 27.2 ohm (open-loop sd 0.015) with k_s 1 -> 0.74 at
+    r = -0.977. The words name the ridge and k_s, not a resistance law that is not tcamlab's;
+    at r = -0.9 they keep the plain disagreement."""
+    from dataclasses import replace
+
+    from tcamlab.calibration.estimator import PARAMETERS, EstimatorFit, disagreement, ridge_partner
+
+    before = dict.fromkeys(PARAMETERS, 0.0) | {"initial_resistance": 23.986, "tcr": 3.8e-3, "stretch_factor": 1.0}
+    after = before | {"initial_resistance": 27.233, "stretch_factor": 0.7377}
+    corr = {"names": ["initial_resistance", "tcr", "stretch_factor"],
+            "matrix": [[1.0, 0.151, -0.977], [0.151, 1.0, -0.354], [-0.977, -0.354, 1.0]]}  # fmt: skip
+    fit = EstimatorFit(
+        "ss", before, after, ("initial_resistance", "tcr", "stretch_factor"), {},
+        {"initial_resistance": 0.16, "tcr": 4e-5, "stretch_factor": 0.03}, corr, ("load logged",),
+        29.9, 28.4, open_loop_sd={"initial_resistance": 0.0152},
+    )  # fmt: skip
+    assert ridge_partner(fit, "initial_resistance") == ("stretch_factor", -0.977)
+    words = disagreement(fit, "initial_resistance")
+    assert "214 open-loop sds apart, moved with k_s (0.7377; r = -0.977)" in words
+    assert "not tcamlab's" not in words
+    loose = replace(fit, correlation=corr | {"matrix": [[1.0, 0.1, -0.9], [0.1, 1.0, 0.0], [-0.9, 0.0, 1.0]]})
+    assert ridge_partner(loose, "initial_resistance") is None
+    assert "the two fits disagree" in disagreement(loose, "initial_resistance")
+
+
 def test_the_joint_table_follows_the_refit_where_it_moved_a_value(tmp_path):
     """The open-loop stage's [calibration] table holds R0 (log) and C_th; the EKF refit moves R0
     and fits rho: R0's entry takes the refit's relative sd and drops its open-loop correlation

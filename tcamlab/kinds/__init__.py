@@ -533,6 +533,12 @@ def require_hanging_load(sample, rig, what: str, where: str = "", logged: bool =
     own = float(fiber_mass(sample.fiber_diameter, sample.fiber_length))
     if rig.load > (0.0 if logged else own):
         return
+    if logged:  # the logged load is the model's; load_g is only the first row's prior
+        raise InputError(
+            f"{where + ': ' if where else ''}{what} run: rig load_g = {rig.load * 1e3:g} g must be above 0 "
+            "(with load_N logged it is the estimator's prior at the first row)",
+            hint="set load_g in [rig] to the hanging load in grams, e.g. load_g = 50",
+        )
     raise InputError(
         f"{where + ': ' if where else ''}{what} run: rig load_g = {rig.load * 1e3:g} g does not outweigh the "
         f"muscle itself (about {own * 1e3:.2g} g of fiber); the moving mass is the hanging load with the "
