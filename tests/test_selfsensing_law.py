@@ -652,7 +652,11 @@ def test_a_refit_that_moved_r0_along_its_ridge_with_k_s_says_so_not_another_law(
 
     from tcamlab.calibration.estimator import PARAMETERS, EstimatorFit, disagreement, ridge_partner
 
-    before = dict.fromkeys(PARAMETERS, 0.0) | {"initial_resistance": 23.986, "tcr": 3.8e-3, "stretch_factor": 1.0}
+    before = dict.fromkeys(PARAMETERS, 0.0) | {
+        "initial_resistance": 23.986,
+        "tcr": 3.8e-3,
+        "stretch_factor": 1.0,
+    }
     after = before | {"initial_resistance": 27.233, "stretch_factor": 0.7377}
     corr = {"names": ["initial_resistance", "tcr", "stretch_factor"],
             "matrix": [[1.0, 0.151, -0.977], [0.151, 1.0, -0.354], [-0.977, -0.354, 1.0]]}  # fmt: skip
