@@ -668,10 +668,17 @@ def test_a_refit_that_moved_r0_along_its_ridge_with_k_s_says_so_not_another_law(
     assert ridge_partner(fit, "initial_resistance") == ("stretch_factor", -0.977)
     words = disagreement(fit, "initial_resistance")
     assert "214 open-loop sds apart, moved with k_s (0.7377; r = -0.977)" in words
+    assert "stating stretch_factor with its sd in [rig.uncertainty]" in words
     assert "not tcamlab's" not in words
     loose = replace(fit, correlation=corr | {"matrix": [[1.0, 0.1, -0.9], [0.1, 1.0, 0.0], [-0.9, 0.0, 1.0]]})
     assert ridge_partner(loose, "initial_resistance") is None
     assert "the two fits disagree" in disagreement(loose, "initial_resistance")
+    # tied to the TCR, which the file cannot state for the refit: no hint to state it
+    to_tcr = replace(
+        fit, correlation=corr | {"matrix": [[1.0, 0.98, 0.1], [0.98, 1.0, 0.0], [0.1, 0.0, 1.0]]}
+    )
+    words = disagreement(to_tcr, "initial_resistance")
+    assert "moved with TCR" in words and "stating" not in words
 
 
 def test_the_joint_table_follows_the_refit_where_it_moved_a_value(tmp_path):

@@ -103,6 +103,10 @@ static kind's calibration states it where the file gives no sd (30 %); E 20 % (a
 modulus varies that much with drawing and moisture); b 100 %: the thesis's b (sec. 2.5.2) is
 another muscle's, the open-loop stage leaves it at its prior, and a muscle that lags a load
 step by 0.25 s needs about ten times it (measured)."""
+STATED_PRIOR = ("lead_resistance", "stretch_factor", "tcr2", *SAMPLE_FIELDS)
+"""Refitted fields whose prior sd the experiment file can state (:func:`refit_prior`)."""
+
+
 LEAD_PRIOR_SD = 0.3
 """Prior sd of R_lead [ohm] about the stated value (a bench rig's leads: 0.2-0.5 ohm)."""
 TCR2_PRIOR_SD = TCR2_ZERO_SD
@@ -189,7 +193,7 @@ def refit_prior(rig, name: str, sample=None, sample_sd=None) -> tuple[float, flo
         return mu, (PRIOR_SD_REL[name] * abs(mu) if mu else RHO_ZERO_SD)
     mu = float(getattr(rig, name))
     stated = (getattr(rig, "uncertainty", None) or {}).get(name)
-    if name in ("lead_resistance", "stretch_factor", "tcr2") and stated:
+    if name in STATED_PRIOR and stated:
         return mu, float(stated)  # a four-wire reading, a pull test or an oven test stated it
     if name == "lead_resistance":
         return mu, LEAD_PRIOR_SD
@@ -454,6 +458,18 @@ def ridge_partner(fit, name: str) -> tuple[str, float] | None:
     return (names[j], float(row[j])) if abs(row[j]) > RIDGE_R else None
 
 
+def _pinned_by(name: str) -> str:
+    """`` (stating ... pins it)`` where the file can state ``name``'s sd, else ``""``."""
+    if name not in STATED_PRIOR:
+        return ""
+    from tcamlab.calibration.calibrated_file import ESTIMATOR_KEYS
+
+    where = "sample" if name in SAMPLE_FIELDS else "rig"
+    return (
+        f" (stating {ESTIMATOR_KEYS[name]} with its sd in [{where}.uncertainty], from another test, pins it)"
+    )
+
+
 def disagreement(fit, name: str) -> str:
     """``"; N open-loop sds apart: ..."`` where the refit moved ``name`` beyond :data:`APART_SDS`
     of the open-loop stage's sd (a "pinned" tcr2 moved 26 sds without a word), else ``""``. Where
@@ -471,8 +487,7 @@ def disagreement(fit, name: str) -> str:
         return (
             f"; {shift:.3g} open-loop sds apart, moved with {SYMBOLS[other]} "
             f"({fit.values[other]:.4g}; r = {r:+.3f}) along a ridge the runs barely separate: the pair "
-            "serves the estimator, neither value alone is the muscle's (k_s from a pull test, with "
-            "its sd in [rig.uncertainty], pins it)"
+            f"serves the estimator, neither value alone is the muscle's{_pinned_by(other)}"
         )
     return (
         f"; {shift:.3g} open-loop sds apart: the two fits disagree, as where the muscle's resistance "
