@@ -25,7 +25,8 @@ Figures: the EKF's mean error and 95 % interval as % of the stroke, whole run an
 only (rows before the first load change, validate's rule), pooled over runs 4-5; the open-loop
 inversion's whole run beside it; and the heating-only part against its own stroke (the
 thermal stroke before the rider), judged on its own, with the laser's own 95 % interval at rest
-as % of that stroke beside it (no estimator's interval against the laser can be narrower). Targets: load withheld / not logged |mean| <= 3 %, interval
+as % of that stroke beside it (no estimator's interval against the laser can be narrower) and
+the interval net of it, sqrt(I^2 - I_laser^2) (the estimator's own; the report's beyond_laser). Targets: load withheld / not logged |mean| <= 3 %, interval
 <= 15 %; load logged <= 2 % / 10 %, whole run and heating only. Nothing asserts.
 
 ``--off-form`` draws the law as ``bench_observer.py --off-form`` does: a cubic stretch term
@@ -224,7 +225,10 @@ def main(argv=None) -> int:
             for calib, label, whole, heat, own, floor in rows(seed, res, load_logged):
                 v = verdict(label, (whole, heat)) if "EKF" in label else ""
                 v_own = verdict(label, (own,)) if "EKF" in label else ""
-                alone = f"  (the laser alone at rest: {floor:.2%})" if floor is not None else ""
+                alone = f"  (the laser alone at rest: {floor:.2%}" if floor is not None else ""
+                if floor is not None and own is not None:  # as the report's beyond_laser row
+                    alone += f"; net of it {max(own[1] ** 2 - floor**2, 0.0) ** 0.5:.2%}"
+                alone += ")" if alone else ""
                 print(
                     f"  {calib:9s} {label:22s} whole {pct(whole)}  heating {pct(heat)}  {v:4s}"
                     f"  heating, own stroke {pct(own)}  {v_own}{alone}"
