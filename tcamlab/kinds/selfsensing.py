@@ -582,9 +582,9 @@ def beyond_laser(pooled: dict, floor: dict) -> dict:
 
     Why: the error is self-sensed minus laser, so its interval holds the laser's noise, and on a
     small stroke that noise is most of it (an independent generator's heating-only run: 11.2 %
-    against a laser alone at 10.8 % of its 0.18 mm stroke). Where the estimator's error and the
+    against a laser alone at 10.7 % of its 0.18 mm stroke). Where the estimator's error and the
     laser's noise are independent and near normal, widths add in quadrature; the net width is then
-    the estimator's own (that run: 3.0 %, against 2.8 % measured on the generator's noise-free
+    the estimator's own (that run: 3.3 %, against 2.8 % measured on the generator's noise-free
     truth). An interval narrower than the floor (a correlated or non-normal noise) nets to 0.
     """
     out = {}
@@ -805,14 +805,8 @@ def _pair(cell: dict | None) -> str:
 
 
 def _floor_cell(case: dict | None, part: str) -> str:
-    """``"– / 1.10 %"``: the laser's own 95 % interval at rest as % of the part's pooled stroke."""
-    if not case or case.get(part) is None:
-        return "–"
-    return f"– / {case[part]:.2%}".replace("%", "\u00a0%")
-
-
-def _net_cell(case: dict | None, part: str) -> str:
-    """``"– / 3.02 %"``: a pooled interval net of the laser's own (:func:`beyond_laser`)."""
+    """``"– / 1.10 %"``: a width as % of the part's pooled stroke, with no mean (the laser's own
+    95 % interval at rest, or a pooled interval net of it: :func:`beyond_laser`)."""
     if not case or case.get(part) is None:
         return "–"
     return f"– / {case[part]:.2%}".replace("%", "\u00a0%")
@@ -856,8 +850,8 @@ def without_help_table(info: dict) -> Table:
         rows.append(
             [
                 "pooled, beyond the laser's noise",
-                *(_net_cell(net.get("load_logged"), p) for p in PARTS),
-                *(_net_cell(net.get("load_withheld"), p) for p in PARTS),
+                *(_floor_cell(net.get("load_logged"), p) for p in PARTS),
+                *(_floor_cell(net.get("load_withheld"), p) for p in PARTS),
                 "sqrt(interval^2 - laser's^2)",
             ]
         )
@@ -887,7 +881,7 @@ WITHOUT_HELP_TEXT = (
     "load_N (a change of more than 2 % of the load at rest, at least 1 mN); without a logged load, "
     "the rest and the first heating pulse (to the first row back at the probe), on which the load is "
     "assumed not to change. A run that does not log load_N (or with --ignore load_N) has no load-"
-    "logged case. The last row is the laser alone: its 95 % interval over the runs' rest rows, where "
+    "logged case. The row of the laser alone is its 95 % interval over the runs' rest rows, where "
     "the muscle is still, as % of each column's pooled stroke. No estimator's interval against this "
     "laser can be narrower; where a cell is close to it, the laser's noise, not the estimator, sets "
     "that cell. The row under it takes the laser's noise out of the pooled interval, "
