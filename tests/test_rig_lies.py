@@ -275,3 +275,17 @@ def test_benchmark_runs_a_lying_null_case():
     assert set(out["parameter_offsets_sd"]) == {"radial_cte", "youngs_modulus"}
     assert len(out["zero_errors"]) == 3 and all("displacement" in z for z in out["zero_errors"])
     assert out["verdict"] in ("none", "attributed", "aliased", "unexplained", "miscalibrated")
+
+
+def test_a_drawn_muscle_the_model_cannot_run_names_the_draw_and_writes_nothing(tmp_path):
+    # seed 1 draws a dynamic muscle that heats past G_t' = 0 at twice the stated sds; the
+    # model's own hint (a log's units, the file's keys) would be about a file the rig wrote
+    from tcamlab.errors import ModelDomainError
+
+    with pytest.raises(ModelDomainError) as info:
+        rig.simulate("dynamic", template("dynamic"), seed=1, out_dir=tmp_path, parameter_error=2.0)
+    assert "--parameter-error 2" in info.value.message and "G_t'" in info.value.message
+    assert info.value.hint.startswith("another --seed")
+    assert not [p for p in tmp_path.rglob("*") if p.is_file()]
+    # the same draw under the stated parameters runs
+    rig.simulate("dynamic", template("dynamic"), seed=1, out_dir=tmp_path)

@@ -657,10 +657,20 @@ def _write_runs(plan: _Plan, runs: list[_Run], mods: Mods, forms=()) -> tuple[li
 @contextlib.contextmanager
 def _designed_range(plan: _Plan):
     """A model error under a designed protocol names the file's ``[protocol]`` table: the
-    program, not the rig keys the model's own hint names, asked for it."""
+    program, not the rig keys the model's own hint names, asked for it. One under drawn
+    true parameters names the draw: the model's hint (a log's units, the file's keys) is
+    about a file this command wrote itself."""
     try:
         yield
     except ModelDomainError as exc:
+        error = plan.lies["parameter_error"]
+        if not plan.designed and (error or plan.lies["parameter_offsets"]):
+            drawn = f"--parameter-error {error:g}" if error else "the parameter offsets"
+            raise ModelDomainError(
+                f"the true parameters drawn off the stated ones ({drawn}) make a muscle the model "
+                f"cannot run on this protocol: {exc.message}",
+                "another --seed draws other true parameters, or a smaller --parameter-error",
+            ) from None
         if not plan.designed:
             raise
         raise ModelDomainError(

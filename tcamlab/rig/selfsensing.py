@@ -146,7 +146,11 @@ def internal_force(x, dT, sample: Sample, gt: float, n: float):
     l, d0 = sample.fiber_length, sample.fiber_diameter
     g_tau = static.softened_modulus(dT, gt, sample.shear_modulus_slope)
     if g_tau <= 0:
-        raise ModelDomainError("self-sensing rig: the temperature passed the G_t' = 0 limit of (2.13)")
+        limit = gt / sample.shear_modulus_slope  # a non-positive G_t' needs a positive slope
+        raise ModelDomainError(
+            f"self-sensing rig: the temperature rise {float(dT):.1f} K passed the G_t' = 0 limit "
+            f"of (2.13) at {limit:.1f} K above ambient"
+        )
     r = sample.radial_cte * dT
     tau = static.torque_from_strain(g_tau, 2.0 * np.pi * sample.twists, d0, l, r)
     a, b, c = compliance_coefficients(d0 * (1.0 + r), l, n)
