@@ -81,6 +81,17 @@ def strengths(results: list[dict]) -> list[float]:
     )
 
 
+def _rescored(settings: dict) -> list[str]:
+    """The table row of a run scored again with later rules (``bench/rescore_stored.py``)."""
+    again = settings.get("rescored")
+    if not again:
+        return []
+    return [
+        f"| scored again | {again['date']}, rules at `{again['commit']}` (the cases and their "
+        "verdicts are the run's) |"
+    ]
+
+
 def page(path: Path, meta: dict[str, str]) -> str:
     """The markdown page of one stored run."""
     with gzip.open(path, "rt", encoding="utf-8") as f:
@@ -105,6 +116,7 @@ def page(path: Path, meta: dict[str, str]) -> str:
         + ", ".join(f"{s:g}x" for s in strengths(d["results"]) or settings.get("strengths", []))
         + ") |",
         f"| raw results | `bench/reference/{path.name}` |",
+        *_rescored(settings),
         "",
         "Repeat the run with:",
         "",

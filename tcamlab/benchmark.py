@@ -677,6 +677,20 @@ def separable(r: dict) -> bool:
     return (1.0 - recal) / (1.0 - t) >= SEPARABLE_RATIO
 
 
+def points_to_truth(r: dict) -> bool:
+    """Whether the withheld runs themselves point to the true effect: it beats recalibration
+    (:func:`separable`) and no other candidate fits them better (held-out RMSE, each fitted
+    with the recalibrated parameters). An out-of-library form's data can lie nearer another
+    library effect than its own: a tilted curvature sensor (d1 error a on the tip, a / 3 on the
+    base) is fitted by axial compression to 100 % of its gap and by the sensor-offset error to
+    93 %, and no rule scored on those runs can name the offset."""
+    sh = r.get("shrinkage") or {}
+    t = sh.get(true_effect(r))
+    if not separable(r):
+        return False
+    return all(not (np.isfinite(v) and v > t) for k, v in sh.items() if k != true_effect(r))
+
+
 def _acc(rows: list[dict]) -> dict:
     """Top-1 / top-3 accuracy of single-effect cases (an error counts as wrong), the share
     named or honestly aliased (:func:`named_or_aliased`), and top-1 on the cases where the true
@@ -685,6 +699,7 @@ def _acc(rows: list[dict]) -> dict:
     if not n:
         return {"n": 0, "top1": None, "top3": None, "named_or_aliased": None}
     sep = [r for r in rows if separable(r)]
+    best = [r for r in rows if points_to_truth(r)]
     top1 = top3 = 0
     for r in rows:
         truth = true_effect(r)
@@ -703,6 +718,8 @@ def _acc(rows: list[dict]) -> dict:
         "named_or_aliased": honest / n,
         "separable_n": len(sep),
         "separable_top1": sum(right(r) for r in sep) / len(sep) if sep else None,
+        "points_n": len(best),
+        "points_right": sum(right(r) for r in best),
     }
 
 
@@ -1426,6 +1443,18 @@ def _accuracy_rows(fam: str, st: str, a: dict) -> list[list[str]]:
                 separable,
             ]
         )
+    if fam == "off-library" and a.get("points_n"):
+        k, n = a["points_right"], a["points_n"]
+        rows.append(
+            [
+                fam,
+                f"top-1 at {st}x where the withheld runs point to the nearest effect (it beats "
+                "recalibration and no candidate fits them better)",
+                str(n),
+                f"{_fmt(k / n)} ({k} of {n})",
+                "(proposed) >= 0.8",
+            ]
+        )
     return rows
 
 
@@ -1473,6 +1502,8 @@ LOOP_TARGETS = {
 
 
 def _loop_target(fam: str, figure: str) -> str:
+    if "point to the nearest" in figure:
+        return "(proposed) >= 0.8"
     if figure.startswith("top-1 at") and "where" not in figure:
         return ">= 0.8" if fam == "off-library" else LOOP_TARGETS["top-1"]
     return LOOP_TARGETS.get(figure, "-")

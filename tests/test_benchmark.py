@@ -542,3 +542,39 @@ def test_the_benchmark_report_names_the_template_in_its_summary():
     summary = report_document(res).sections[0].paragraphs
     assert any(p.startswith("Sample and rig of the dynamic cases: another_tca_dynamic.toml") for p in summary)
     assert any(p.startswith("Design: two conditions.") for p in summary)
+
+
+def test_off_library_top1_where_the_withheld_runs_point_to_the_nearest_effect():
+    from tcamlab.benchmark import _acc, _family_rows, points_to_truth
+
+    def case(verdict, effect, shrinkage):
+        return {
+            "case": "off-library",
+            "kind": "curvature",
+            "effects": {},
+            "offlibrary": {"tilted-sensor": 3.0},
+            "nearest": "sensor-offset-error",
+            "ranking": [],
+            "verdict": verdict,
+            "effect": effect,
+            "aliased_with": [],
+            "shrinkage": shrinkage,
+        }
+
+    # the nearest effect beats recalibration but axial compression fits the withheld runs better:
+    # the runs point elsewhere, whatever the verdict
+    elsewhere = case(
+        "attributed",
+        "axial-compression",
+        {"recalibration": 0.30, "sensor-offset-error": 0.45, "axial-compression": 0.50},
+    )
+    named = case("attributed", "sensor-offset-error", {"recalibration": 0.30, "sensor-offset-error": 0.50})
+    missed = case("miscalibrated", None, {"recalibration": 0.30, "sensor-offset-error": 0.50, "x": 0.50})
+    tied = case("miscalibrated", None, {"recalibration": 0.50, "sensor-offset-error": 0.50})
+    assert [points_to_truth(r) for r in (elsewhere, named, missed, tied)] == [False, True, True, False]
+    acc = _acc([elsewhere, named, missed, tied])
+    assert (acc["points_n"], acc["points_right"]) == (2, 1)
+    rows = _family_rows({"off-library": {"3.0": acc}, "effect-only": {"3.0": acc}})
+    points = [r for r in rows if "point to the nearest" in r[1]]
+    assert len(points) == 1 and points[0][0] == "off-library"
+    assert points[0][2:] == ["2", "0.5 (1 of 2)", "(proposed) >= 0.8"]
