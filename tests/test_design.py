@@ -282,6 +282,21 @@ def test_clear_diagnosis_needs_no_separating_experiment():
     assert res.status == "unexplained" and res.best is None and "outside the library" in res.message
 
 
+def test_no_gap_says_how_small_a_gap_the_runs_could_show_and_what_a_repeat_would():
+    from scipy.stats import f
+
+    exp = load_experiment(TEMPLATES / "static.toml", require_runs=False)
+    gap = {"rmse_over_noise": 1.2, "limit": 1.5, "n_points": 26, "noise_dof": 12.0, "level": 0.99}
+    res = design(exp, {**ALIASED, "verdict": "none", "aliased_with": [], "gap": gap})
+    assert res.status == "none" and res.best is None
+    # twice the points and twice the noise's degrees of freedom, by the F quantile
+    after = 1.5 * np.sqrt(f.ppf(0.99, 52, 24.0) / f.ppf(0.99, 26, 12.0))
+    assert "under the no-gap limit 1.50 of these 26 points" in res.message
+    assert f"lower the limit to about {after:.2f}" in res.message and 1.2 < after < 1.5
+    res = design(exp, {**ALIASED, "verdict": "none", "aliased_with": [], "gap": {}})
+    assert res.message.endswith("there are no hypotheses to separate")
+
+
 def _partly_explained(fraction: float) -> dict:
     """The aliased static fixture recast as an ``unexplained`` verdict where E(T) alone closes
     ``fraction`` of the gap and leaves 1.3 x the noise (no-gap limit 1.05)."""

@@ -52,6 +52,7 @@ from tcamlab.design.result import CandidateProtocol, DesignResult
 from tcamlab.design.score import information_gain, pair_separation, refit_separation, wald_after
 from tcamlab.design.survived import no_harsher, runs_made
 from tcamlab.design.toml import protocol_toml
+from tcamlab.diagnosis.noise import GAP_LEVEL, gap_limit
 from tcamlab.diagnosis.problem import MODEL_ERRORS
 from tcamlab.kinds import get_kind
 from tcamlab.text import clipped
@@ -399,7 +400,7 @@ def _inputs(kind, sample, rig, frames, h):
 
 def _clear_message(diagnosis: dict, st: str) -> str:
     if st == "none":
-        return "the thesis model fits within the noise: no further experiment is needed"
+        return _none_message(diagnosis.get("gap") or {})
     if st == "unexplained":
         return "no candidate explains the gap, so there are no hypotheses to separate: an effect outside the library is needed, not another protocol"
     left = _gap_left(diagnosis)
@@ -411,6 +412,25 @@ def _clear_message(diagnosis: dict, st: str) -> str:
             "an effect outside the library may act"
         )
     return f"the diagnosis is clear ({diagnosis.get('verdict')}: {_explanation(diagnosis)}); no further experiment is needed to tell hypotheses apart"
+
+
+def _none_message(gap: dict) -> str:
+    """No gap: nothing to separate, and how small a gap these runs could have shown. One run
+    of the static oven (26 points, a noise estimate of 12 degrees of freedom) passes a laser
+    drift of 3x the noise at 1.92 x the floor under a limit of 1.92: "fits within the noise"
+    alone would read as a pass the data cannot give."""
+    words = "the thesis model fits within the noise: there are no hypotheses to separate"
+    keys = ("rmse_over_noise", "limit", "n_points", "noise_dof")
+    if not all(isinstance(gap.get(k), (int, float)) and np.isfinite(gap[k]) for k in keys):
+        return words
+    n, nu, level = int(gap["n_points"]), float(gap["noise_dof"]), float(gap.get("level", GAP_LEVEL))
+    # the stored limit pools quantities; the one-quantity ratio scales it to twice the runs
+    after = gap["limit"] * gap_limit(2 * n, 2 * nu, level) / gap_limit(n, nu, level)
+    return (
+        f"{words} (baseline {gap['rmse_over_noise']:.2f} x the noise floor, under the no-gap limit "
+        f"{gap['limit']:.2f} of these {n} points: a smaller gap would not show; as many runs again "
+        f"of the same protocol would lower the limit to about {after:.2f})"
+    )
 
 
 def _gap_left(diagnosis: dict) -> tuple[float, float] | None:
