@@ -193,7 +193,8 @@ def verdict(
             None,
             [],
             f"the baseline RMSE is {base_rms:.2f} x the noise floor, within the "
-            f"no-gap limit {limit:.2f}: the thesis model explains the data to within noise",
+            f"no-gap limit {limit:.2f} (a smaller gap would not show on these runs): the thesis "
+            "model explains the data to within noise",
         )
     recal = next((c for c in ranking if c.effect == RECALIBRATION), None)
     effects = [c for c in ranking if c.effect != RECALIBRATION]
