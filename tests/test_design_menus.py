@@ -543,3 +543,27 @@ def test_the_design_weighs_what_a_miscalibrated_verdict_leaves_beside_the_shift(
     d["recalibration"]["beside"] = {"axial-compression": 1.7}
     assert status(d) == "ambiguous"
     assert [h.name for h in hypotheses(d, "curvature")] == ["recalibration", "axial-compression"]
+
+
+def test_readme_lists_every_protocol_key_of_every_kind():
+    # a rig that is not tcamlab's runs a NAME.next.toml from the README's key table alone
+    import re
+    from pathlib import Path
+
+    from tcamlab.kinds import curvature, dynamic, selfsensing_protocol, sensing, static
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    table = text[text.index("| kind | keys [unit] |") :].split("\n\n")[0]
+    rows = {m.group(1): m.group(2) for m in re.finditer(r"^\| ([a-z ]+) \| (.+) \|$", table, re.M)}
+    shared = {k for k in ("kind", "runs", "channels") if f"`{k}`" in rows["every kind"]}
+    assert shared == {"kind", "runs", "channels"}
+    modules = {
+        "static": static,
+        "dynamic": dynamic,
+        "sensing": sensing,
+        "curvature": curvature,
+        "selfsensing": selfsensing_protocol,
+    }
+    for kind, mod in modules.items():
+        listed = set(re.findall(r"`([a-zA-Z_]+)`", rows[kind])) | shared
+        assert set(mod.PROTOCOL_KEYS) <= listed, (kind, set(mod.PROTOCOL_KEYS) - listed)
