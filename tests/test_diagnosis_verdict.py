@@ -187,3 +187,22 @@ def test_an_explanation_that_leaves_a_gap_says_so():
     assert "but it leaves 2.13 x the noise floor" in _clear_message(doc, "clear")
     doc["ranking"][0]["heldout_rmse_after_noise"] = 1.1
     assert "the diagnosis is clear (miscalibrated: radial_cte moved)" in _clear_message(doc, "clear")
+
+
+def test_an_effect_that_beats_recalibration_but_closes_too_little_is_said_not_passed_over():
+    """Held-out 2.08 against recalibration's 2.27 x the noise (SYNTHETIC: a sigmoid E(T) step at
+    a second load, fitted with the linear E(T)): better in every fold, yet 20 % of what
+    recalibration leaves above the floor, under the half an effect must close to be named."""
+    from tcamlab.diagnosis.verdict import _unbeaten_words, closes_the_rest, rest_closed
+
+    recal = _cand("recalibration", 0.89, 0.1, after=2.27)
+    eff = _cand("youngs-modulus-temperature", 0.91, 0.1, after=2.08)
+    share = (2.27**2 - 2.08**2) / (2.27**2 - 1.0)
+    assert rest_closed(eff, recal) == pytest.approx(share) and not closes_the_rest(eff, recal)
+    folds, idx, bn = _boot({"recalibration": 227.0, "youngs-modulus-temperature": 208.0})
+    words = _unbeaten_words(recal, [eff], folds, idx, bn, 1.0)
+    assert words.startswith(f"youngs-modulus-temperature ({share:.0%}) fits the withheld runs better")
+    assert f"less than {MIN_FRACTION_CLOSED:.0%} of what it leaves" in words
+    # one that does not beat recalibration in the folds leaves the old words
+    folds, idx, bn = _boot({"recalibration": 227.0, "youngs-modulus-temperature": 227.0})
+    assert _unbeaten_words(recal, [eff], folds, idx, bn, 1.0) == "no effect fitted with recalibration beats it"
