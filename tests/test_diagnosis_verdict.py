@@ -205,4 +205,6 @@ def test_an_effect_that_beats_recalibration_but_closes_too_little_is_said_not_pa
     assert f"less than {MIN_FRACTION_CLOSED:.0%} of what it leaves" in words
     # one that does not beat recalibration in the folds leaves the old words
     folds, idx, bn = _boot({"recalibration": 227.0, "youngs-modulus-temperature": 227.0})
-    assert _unbeaten_words(recal, [eff], folds, idx, bn, 1.0) == "no effect fitted with recalibration beats it"
+    assert (
+        _unbeaten_words(recal, [eff], folds, idx, bn, 1.0) == "no effect fitted with recalibration beats it"
+    )
