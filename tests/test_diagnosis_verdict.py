@@ -203,6 +203,9 @@ def test_an_effect_that_beats_recalibration_but_closes_too_little_is_said_not_pa
     words = _unbeaten_words(recal, [eff], folds, idx, bn, 1.0)
     assert words.startswith(f"youngs-modulus-temperature ({share:.0%}) fits the withheld runs better")
     assert f"less than {MIN_FRACTION_CLOSED:.0%} of what it leaves" in words
+    # a stand-in the reason already names is not listed again
+    listed = _unbeaten_words(recal, [eff], folds, idx, bn, 1.0, ["youngs-modulus-temperature"])
+    assert listed == "no effect fitted with recalibration beats it"
     # one that does not beat recalibration in the folds leaves the old words
     folds, idx, bn = _boot({"recalibration": 227.0, "youngs-modulus-temperature": 227.0})
     assert (
